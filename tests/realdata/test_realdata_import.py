@@ -1,0 +1,132 @@
+"""Real robot runs (shared/realdata) convert to the project CSV and import through dynid.csv_io."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dynid.config import RobotConfig, load_config
+from dynid.csv_io import read_csv
+
+from . import convert
+
+HERE = Path(__file__).resolve().parent
+REALDATA = convert.REALDATA
+needs_data = pytest.mark.skipif(
+    not REALDATA.is_dir(), reason=f"real robot data not found at {REALDATA} (clone shared/ beside the repository)"
+)
+
+
+def urdf_limits(config: RobotConfig) -> dict[str, tuple[float, float]]:
+    """Joint limits straight from the URDF (top-level <joint> elements only: <transmission> reuses the tag)."""
+    root = ET.parse(config.urdf).getroot()
+    limits = {}
+    for joint in root.findall("joint"):
+        limit = joint.find("limit")
+        if joint.get("name") in config.joints and limit is not None:
+            limits[joint.get("name")] = (float(limit.get("lower")), float(limit.get("upper")))
+    return limits
+
+
+def check_chain(config: RobotConfig) -> None:
+    """The configured joints, base link and F/T joints exist in the URDF, with the base above every joint."""
+    root = ET.parse(config.urdf).getroot()
+    joints = {j.get("name"): j for j in root.findall("joint")}
+    parent_of = {j.find("child").get("link"): j for j in joints.values()}
+    for name in config.joints:
+        assert joints[name].get("type") in ("revolute", "continuous", "prismatic"), name
+        link, chain = joints[name].find("parent").get("link"), []
+        while link != config.base_link:
+            assert link in parent_of, f"{config.base_link} is not above {name}"
+            chain.append(parent_of[link].get("name"))
+            link = parent_of[link].find("parent").get("link")
+        assert not set(chain) - set(config.joints) - {j for j, e in joints.items() if e.get("type") == "fixed"}
+    for sensor in config.ft_sensors:
+        assert joints[sensor.joint].get("type") == "fixed"
+
+
+@needs_data
+def test_configs_load_and_match_their_urdf() -> None:
+    panda = load_config(HERE / "panda.yaml")
+    assert panda.joints == convert.PANDA_JOINTS and panda.base_link == "panda_link0" and not panda.ft_sensors
+    assert [(g.input, g.joints) for g in panda.actuation] == [("torque", convert.PANDA_JOINTS)]
+    tiago = load_config(HERE / "tiago_wrist_ft.yaml")
+    assert tiago.joints == convert.TIAGO_JOINTS and not tiago.actuation
+    assert [(s.name, s.joint, s.force_noise, s.torque_noise) for s in tiago.ft_sensors] == [
+        ("wrist_ft", "wrist_ft_joint", 0.1, 0.01)
+    ]
+    assert tiago.urdf.resolve() == (REALDATA / "tiago_wrist_ft" / "urdf" / "tiago_48_hey5.urdf").resolve()
+    for config in (panda, tiago):
+        check_chain(config)
+
+
+@needs_data
+def test_panda_run_imports(tmp_path: Path) -> None:
+    conversion = convert.convert_panda()
+    # The Panda stamps are jittered (steps 0.70..8.81 ms, 4 gaps of ~8.5 ms) but strictly increasing: nothing
+    # is dropped, so all 20544 samples of the log arrive.
+    assert conversion.rows_read == 20544 and conversion.dropped.size == 0
+    assert "nothing dropped" in conversion.notes[0]
+    path = tmp_path / "panda.csv"
+    conversion.write(path)
+    config = load_config(HERE / "panda.yaml")
+    ds = read_csv(path, config, joint_limits=urdf_limits(config))
+    assert ds.n_samples == 20544 and ds.joints == convert.PANDA_JOINTS
+    assert np.all(np.diff(ds.t) > 0) and ds.t[0] == 0.0 and ds.t[-1] == pytest.approx(20.9991)
+    assert ds.dq is not None and ds.ddq is None and list(ds.tau) == list(convert.PANDA_JOINTS)
+    assert not ds.pwm and not ds.ft and not ds.extra and ds.contact is None
+    assert ds.q[0, 0] == -0.9584 and ds.tau["panda_joint1"][0] == -0.518286  # the logged text, exactly
+    assert np.abs(ds.tau["panda_joint2"]).max() == pytest.approx(38.33, abs=0.01)  # Nm, gravity on the shoulder
+
+
+@needs_data
+def test_tiago_run_imports(tmp_path: Path) -> None:
+    conversion = convert.convert_tiago()
+    assert conversion.rows_read == 8022 and conversion.dropped.size == 0  # 8022 stamps, strictly increasing
+    path = tmp_path / "tiago.csv"
+    conversion.write(path)
+    config = load_config(HERE / "tiago_wrist_ft.yaml")
+    ds = read_csv(path, config, joint_limits=urdf_limits(config))
+    assert ds.n_samples == 8022 and ds.joints == convert.TIAGO_JOINTS
+    assert np.all(np.diff(ds.t) > 0) and ds.t[-1] == pytest.approx(80.211, abs=1e-3)
+    assert ds.dq is None and ds.ddq is None and not ds.tau and not ds.pwm  # PAL's lagging velocity is not dq
+    assert list(ds.ft) == ["wrist_ft"] and ds.ft["wrist_ft"].shape == (8022, 6)
+    assert list(ds.extra) == [f"velocity_filtered.{j}" for j in convert.TIAGO_JOINTS] + [
+        f"effort.{j}" for j in convert.TIAGO_JOINTS  # raw units, not tau
+    ]
+    fz = ds.ft["wrist_ft"][:, 2]
+    assert fz.min() == pytest.approx(-75.5) and fz.max() == pytest.approx(-60.4)  # the README's ranges: not tared
+    assert ds.ft["wrist_ft"][0].tolist() == pytest.approx([3.8, -2.6, -69.0, 0.73, 0.0, 0.64])
+
+
+def test_non_increasing_stamps_are_dropped_and_reported(tmp_path: Path) -> None:
+    t = np.array([0.0, 0.001, 0.001, 0.002, 0.0015, 0.003])
+    log = tmp_path / "rbt_log"
+    log.mkdir()
+    np.savetxt(log / "exciting_traj_time.txt", t)
+    for name in ("positions", "velocity", "torques"):
+        np.savetxt(log / f"exciting_traj_{name}.txt", np.arange(7.0 * t.size))
+    conversion = convert.convert_panda(tmp_path)
+    assert conversion.dropped.tolist() == [2, 4]
+    assert conversion.dataset.t.tolist() == [0.0, 0.001, 0.002, 0.003]
+    assert conversion.dataset.q[:, 0].tolist() == [0.0, 7.0, 21.0, 35.0]  # rows stay aligned with their stamps
+    assert (
+        conversion.notes[0].startswith("dropped 2 samples")
+        and "raw samples (0-based) 2 (t=0.001), 4 (t=0.0015)" in conversion.notes[0]
+    )
+
+
+@needs_data
+@pytest.mark.parametrize("robot", ["panda", "tiago"])
+def test_command_line(tmp_path: Path, robot: str) -> None:
+    out = tmp_path / f"{robot}.csv"
+    run = subprocess.run(
+        [sys.executable, str(HERE / "convert.py"), robot, str(out)], capture_output=True, text=True, check=False
+    )
+    assert run.returncode == 0, run.stderr
+    assert "0 dropped" in run.stdout and "nothing dropped" in run.stdout and out.is_file()

@@ -1,0 +1,219 @@
+"""The stacked linear system A Φ = b of DESIGN.md §3, for every sample of a dataset.
+
+Per sample the rows are, in this order:
+
+- for each F/T sensor, six rows  ``Y_FT φ + w_O = w_s``                      (b = measured wrench)
+- for each joint of an actuation group, one row of its motor equation:
+  - input ``pwm`` or ``current``: ``Y_τ φ + Y_F φ_F + Tᵀ Y_Fm φ_Fm − Tᵀ diag(u) φ_m = 0``; a motor whose gain is
+    known moves its term to b;
+  - input ``torque`` (joint torque sensors): ``Y_τ φ + Y_F φ_F = τ``.
+
+Rows carry different units (N, Nm, and equations whose noise comes from the input), so each row channel has a
+noise standard deviation σ from the configuration; estimators weight rows by 1/σ.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import DataError
+from ..model import RobotModel
+from ..parameters import WRENCH_FIELDS
+from ..progress import track
+from .friction import friction_regressor
+from .rigid_body import iter_joint_torque_regressors
+
+DEFAULT_CHUNK = 4096  # samples per chunk: bounds the transient memory of the per-sample regressors
+
+
+@dataclass(frozen=True)
+class RowChannel:
+    """One row of the per-sample block."""
+
+    name: str  # "ft.<sensor>.<fx..tz>" or "joint.<joint>"
+    sigma: float  # noise std in the row's units (N, Nm)
+
+
+def row_channels(model: RobotModel) -> tuple[RowChannel, ...]:
+    cfg = model.config
+    rows: list[RowChannel] = []
+    for s in cfg.ft_sensors:
+        for k, c in enumerate(WRENCH_FIELDS):
+            rows.append(RowChannel(f"ft.{s.name}.{c}", s.force_noise if k < 3 else s.torque_noise))
+    for g in cfg.actuation:
+        Tt = g.coupling.T
+        for li, j in enumerate(g.joints):
+            if g.input == "torque":
+                sigma = cfg.noise.torque
+            else:
+                # An input error δu on motor m is a torque error Tᵀ[j, m]·gain_m·δu on this row.
+                gains = np.array([cfg.motor(m).known_gain or cfg.motor(m).nominal_gain for m in g.motors])
+                noise = cfg.noise.pwm if g.input == "pwm" else cfg.noise.current
+                sigma = float(noise * np.linalg.norm(Tt[li] * gains))
+            rows.append(RowChannel(f"joint.{j}", sigma))
+    return tuple(rows)
+
+
+@dataclass
+class StackedSystem:
+    """A Φ = b over N samples; rows are sample-major (sample k owns rows k·r … k·r + r − 1)."""
+
+    A: np.ndarray  # (N·r, p)
+    b: np.ndarray  # (N·r,)
+    channels: tuple[RowChannel, ...]  # the r rows of one sample
+    parameter_names: tuple[str, ...]
+
+    @property
+    def rows_per_sample(self) -> int:
+        return len(self.channels)
+
+    @property
+    def n_samples(self) -> int:
+        return self.A.shape[0] // self.rows_per_sample
+
+    @property
+    def row_sigma(self) -> np.ndarray:
+        return np.tile([c.sigma for c in self.channels], self.n_samples)
+
+    def weighted(self) -> tuple[np.ndarray, np.ndarray]:
+        """(W A, W b) with W = diag(1/σ): every row in units of its own noise."""
+        w = 1.0 / self.row_sigma
+        return self.A * w[:, None], self.b * w
+
+
+@dataclass(frozen=True)
+class Signals:
+    """What the stacked rows need, by name; shapes (N, …). Missing channels raise a DataError when needed."""
+
+    q: np.ndarray
+    dq: np.ndarray
+    ddq: np.ndarray
+    inputs: Mapping[str, np.ndarray]  # motor -> PWM duty or current (whichever its group's input is)
+    tau: Mapping[str, np.ndarray]  # joint -> measured torque
+    ft: Mapping[str, np.ndarray]  # sensor -> (N, 6) measured wrench
+
+    def slice(self, s: slice) -> Signals:
+        return Signals(
+            self.q[s], self.dq[s], self.ddq[s],
+            {k: v[s] for k, v in self.inputs.items()},
+            {k: v[s] for k, v in self.tau.items()},
+            {k: v[s] for k, v in self.ft.items()},
+        )
+
+
+def signals_from_dataset(model: RobotModel, dataset) -> Signals:  # dataset: dynid.dataset.Dataset
+    """Pick the channels the configuration's sensor set-up needs; estimate q̇, q̈ when the data lack them."""
+    cfg = model.config
+    if tuple(dataset.joints) != cfg.joints:
+        raise DataError(f"the dataset's joints {list(dataset.joints)} differ from the configuration's {list(cfg.joints)}")
+    if dataset.dq is None or dataset.ddq is None:
+        options = dict(cfg.derivatives)
+        try:
+            dataset = dataset.with_derivatives(options.pop("method", None), **options)
+        except ValueError as e:  # the estimator's own one-line diagnosis (window too short for the rate, ...)
+            raise DataError(f"cannot estimate q̇, q̈ from q: {e}") from None
+    inputs: dict[str, np.ndarray] = {}
+    tau: dict[str, np.ndarray] = {}
+    for g in cfg.actuation:
+        if g.input == "torque":
+            for j in g.joints:
+                if j not in dataset.tau:
+                    raise DataError(f"the data have no tau.{j}, which actuation group '{g.name}' needs (input: torque)")
+                tau[j] = dataset.tau[j]
+            continue
+        source = dataset.pwm if g.input == "pwm" else dataset.current
+        for m in g.motors:
+            if m not in source:
+                raise DataError(f"the data have no {g.input}.{m}, which actuation group '{g.name}' needs")
+            inputs[m] = source[m]
+    for s in cfg.ft_sensors:
+        if s.name not in dataset.ft:
+            raise DataError(f"the data have no ft.{s.name}.* columns, which the configuration's F/T sensor needs")
+    ft = {s.name: dataset.ft[s.name] for s in cfg.ft_sensors}
+    return Signals(dataset.q, dataset.dq, dataset.ddq, inputs, tau, ft)
+
+
+def fill_rows(model: RobotModel, sig: Signals, A: np.ndarray, b: np.ndarray) -> None:
+    """Write the rows of `sig`'s samples into A (N, r, p) and b (N, r), which the caller zeroed."""
+    cfg, layout = model.config, model.layout
+    inertial = layout.span("inertial")
+    n_sensors = len(cfg.ft_sensors)
+    joint_row = {}
+    r = 6 * n_sensors
+    for g in cfg.actuation:
+        for j in g.joints:
+            joint_row[j] = r
+            r += 1
+    joint_col = {j: i for i, j in enumerate(cfg.joints)}
+    eq_joints = np.array([joint_col[j] for j in joint_row], dtype=int)
+    eq_rows = np.array(list(joint_row.values()), dtype=int)
+
+    # Rigid body: the only per-sample loop, one Pinocchio call and one copy per sample; the rows are
+    # scattered into A afterwards, vectorised over the chunk.
+    n = sig.q.shape[0]
+    Y = np.empty((n, model.pin_model.nv, inertial.stop - inertial.start))
+    for k, Yk in enumerate(iter_joint_torque_regressors(model, sig.q, sig.dq, sig.ddq)):
+        Y[k] = Yk
+    for i, s in enumerate(cfg.ft_sensors):
+        v0 = model.sensor_v_index[s.name]
+        A[:, 6 * i : 6 * i + 6, inertial] = -Y[:, v0 : v0 + 6]
+    A[:, eq_rows, inertial] = Y[:, model.v_index[eq_joints]]
+
+    for i, s in enumerate(cfg.ft_sensors):
+        rows = slice(6 * i, 6 * i + 6)
+        off = layout.block("ft_offset", s.name).slice
+        A[:, rows, off] = np.eye(6)
+        b[:, rows] = sig.ft[s.name]
+
+    for g in cfg.actuation:
+        gj = [joint_col[j] for j in g.joints]
+        Tt = g.coupling.T  # joint torques = Tᵀ · motor torques
+        for j, c in zip(g.joints, gj):
+            A[:, joint_row[j], layout.block("joint_friction", j).slice] = friction_regressor(sig.dq[:, c])
+        if g.input == "torque":
+            for j in g.joints:
+                b[:, joint_row[j]] = sig.tau[j]
+            continue
+        if g.coupled:
+            motor_velocity = sig.dq[:, gj] @ g.coupling.T  # q̇_m = T q̇_I
+            Fm = friction_regressor(motor_velocity)  # (N, n_motors, 4)
+        for mi, mname in enumerate(g.motors):
+            u = sig.inputs[mname]
+            known = cfg.motor(mname).known_gain
+            for li, j in enumerate(g.joints):
+                t = Tt[li, mi]
+                if t == 0.0:
+                    continue
+                if g.coupled:
+                    A[:, joint_row[j], layout.block("motor_friction", mname).slice] = t * Fm[:, mi]
+                if known is None:
+                    A[:, joint_row[j], layout.block("motor_gain", mname).start] = -t * u
+                else:
+                    b[:, joint_row[j]] += t * known * u
+
+
+def iter_stacked(model: RobotModel, sig: Signals, chunk: int = DEFAULT_CHUNK) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """Yield (A, b) a chunk of samples at a time, for estimators that accumulate instead of stacking."""
+    r, p = len(row_channels(model)), len(model.layout)
+    n = sig.q.shape[0]
+    for start in range(0, n, chunk):
+        part = sig.slice(slice(start, min(start + chunk, n)))
+        m = part.q.shape[0]
+        A, b = np.zeros((m, r, p)), np.zeros((m, r))
+        fill_rows(model, part, A, b)
+        yield A.reshape(m * r, p), b.reshape(m * r)
+
+
+def build_stacked(model: RobotModel, sig: Signals, chunk: int = DEFAULT_CHUNK) -> StackedSystem:
+    """The complete A Φ = b for all samples, filled in place chunk by chunk (no concatenation copies)."""
+    channels = row_channels(model)
+    r, p, n = len(channels), len(model.layout), sig.q.shape[0]
+    A, b = np.zeros((n, r, p)), np.zeros((n, r))
+    starts = range(0, n, chunk)
+    for start in track(starts, len(starts), "building regressors"):
+        s = slice(start, min(start + chunk, n))
+        fill_rows(model, sig.slice(s), A[s], b[s])
+    return StackedSystem(A.reshape(n * r, p), b.reshape(n * r), channels, model.layout.names)

@@ -1,0 +1,137 @@
+"""The `dynid` command line as users and outside tests drive it: real processes, exit codes, one-line errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dynid.config import load_config
+from dynid.model import RobotModel
+
+ICUB = load_config("icub_right_arm")
+LIMITS = RobotModel(ICUB).joint_limits
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True, timeout=120)
+
+
+def icub_columns(n: int = 400, seed: int = 0) -> dict[str, np.ndarray]:
+    """A short, smooth, exciting motion of the iCub arm with plausible PWMs and wrenches."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 1e-3
+    cols: dict[str, np.ndarray] = {"t": t}
+    for i, j in enumerate(ICUB.joints):
+        lo, hi = LIMITS[j]
+        cols[f"q.{j}"] = (lo + hi) / 2 + 0.3 * (hi - lo) * np.sin(2 * np.pi * (0.5 + 0.2 * i) * t + i)
+    for m in ICUB.motor_names:
+        cols[f"pwm.{m}"] = rng.uniform(-0.2, 0.2, n)
+    for c in ("fx", "fy", "fz", "tx", "ty", "tz"):
+        cols[f"ft.r_arm_ft.{c}"] = rng.normal(0, 1, n)
+    return cols
+
+
+def write_csv(path: Path, cols: dict[str, np.ndarray]) -> Path:
+    names = list(cols)
+    data = np.column_stack([cols[k] for k in names])
+    np.savetxt(path, data, delimiter=",", header=",".join(names), comments="", fmt="%.17g")
+    return path
+
+
+def assert_one_line_error(p: subprocess.CompletedProcess, *words: str) -> None:
+    assert p.returncode == 2, p.stderr
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1, p.stderr
+    assert "Traceback" not in p.stderr
+    for w in words:
+        assert w in lines[0], lines[0]
+
+
+def test_help_means_something() -> None:
+    p = run("--help")
+    assert p.returncode == 0
+    for command in ("import", "structure"):
+        assert command in p.stdout
+    p = run("import", "--help")
+    assert "--robot" in p.stdout and "--data" in p.stdout and "--out" in p.stdout
+
+
+def test_import_then_structure(tmp_path: Path) -> None:
+    csv = write_csv(tmp_path / "run.csv", icub_columns())
+    out = tmp_path / "run.npz"
+    p = run("import", "--data", str(csv), "--out", str(out), "--json", str(tmp_path / "import.json"))
+    assert p.returncode == 0, p.stderr
+    assert "imported 400 samples" in p.stdout and out.is_file()
+    result = json.loads((tmp_path / "import.json").read_text())
+    assert result["samples"] == 400 and result["robot"] == "icub_right_arm"
+    p = run("structure", "--data", str(out), "--json", "-")
+    assert p.returncode == 0, p.stderr
+    result = json.loads(p.stdout[p.stdout.index("{"):])
+    assert len(result["parameters"]) == 118 and 0 < result["rank"] <= 87
+
+
+def test_structure_reports_the_rank() -> None:
+    p = run("structure", "--combinations")
+    assert p.returncode == 0, p.stderr
+    assert "numerical rank 87 of 118" in p.stdout
+    assert "m0.phi_m" in p.stdout
+
+
+def _drop(col):
+    return lambda c: c.pop(col)
+
+
+def _rename(old, new):
+    return lambda c: c.__setitem__(new, c.pop(old))
+
+
+def _set_row(col, row, value):
+    def edit(c):
+        c[col] = c[col].copy()
+        c[col][row] = value
+    return edit
+
+
+BAD_CSV = [
+    ("missing column", _drop("q.r_elbow"), ["q.r_elbow"]),
+    ("missing pwm", _drop("pwm.m2"), ["pwm.m2"]),
+    ("unknown joint", _rename("q.r_elbow", "q.r_elbw"), ["r_elbw"]),
+    ("non-increasing time", _set_row("t", 200, 0.1), ["not strictly increasing"]),
+    ("NaN", _set_row("ft.r_arm_ft.fz", 17, np.nan), ["ft.r_arm_ft.fz"]),
+    ("PWM in board counts", _set_row("pwm.m0", 5, 1333.0), ["pwm.m0", "1333"]),
+    ("degrees for radians", lambda c: c.__setitem__("q.r_elbow", np.degrees(c["q.r_elbow"]) + 90), ["q.r_elbow"]),
+]
+
+
+@pytest.mark.parametrize("label,edit,words", BAD_CSV, ids=[b[0] for b in BAD_CSV])
+def test_import_refuses_bad_csv(tmp_path: Path, label, edit, words) -> None:
+    cols = icub_columns()
+    edit(cols)
+    csv = write_csv(tmp_path / "bad.csv", cols)
+    out = tmp_path / "out.npz"
+    p = run("import", "--data", str(csv), "--out", str(out))
+    assert_one_line_error(p, *words)
+    assert not out.exists()  # nothing half-written
+
+
+def test_import_missing_file(tmp_path: Path) -> None:
+    assert_one_line_error(run("import", "--data", str(tmp_path / "nope.csv"), "--out", str(tmp_path / "o.npz")), "nope.csv")
+
+
+def test_import_unknown_robot(tmp_path: Path) -> None:
+    assert_one_line_error(run("import", "--robot", "icub_left_leg", "--data", "x.csv", "--out", "o.npz"), "icub_left_leg")
+
+
+def test_bad_flag() -> None:
+    assert_one_line_error(run("import", "--data", "x.csv", "--out", "o.npz", "--bogus"), "--bogus")
+
+
+def test_corrupt_dataset_file(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"PK\x03\x04 not really a zip")
+    assert_one_line_error(run("structure", "--data", str(bad)), "bad.npz")
