@@ -8,10 +8,10 @@ for machines ('-' for stdout); its fields are documented in tools/README.md.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
-import os
 import sys
-import tempfile
+import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -19,6 +19,7 @@ import numpy as np
 
 from . import __version__
 from .config import DEFAULT_ROBOT, bundled_configs, load_config
+from .dataset import atomic_write
 from .errors import EXIT_BAD_INPUT, InputError
 
 
@@ -31,20 +32,24 @@ class _Parser(argparse.ArgumentParser):
 
 
 def write_json(result: dict[str, Any], target: str | None) -> None:
+    """Write the result atomically (a reader sees the old file or the new one), or to stdout for '-'."""
     if not target:
         return
     text = json.dumps(result, indent=2, default=_json_default) + "\n"
     if target == "-":
         sys.stdout.write(text)
         return
-    path = Path(target)
+    atomic_write(Path(target), lambda f: f.write(text.encode()))
+
+
+def positive_int(text: str) -> int:
     try:
-        fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.", suffix=".tmp")
-    except OSError as e:
-        raise InputError(f"cannot write {path}: {e.strerror}") from None
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)  # atomic: a reader sees the old file or the new one, never half of one
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not an integer") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {value}")
+    return value
 
 
 def _json_default(obj: Any) -> Any:
@@ -175,7 +180,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "exciting states (the structural rank) or on a recorded experiment (--data).")
     robot_arg(sp)
     sp.add_argument("--data", metavar="DATA", help="measure the rank on this experiment instead of random states")
-    sp.add_argument("--samples", type=int, default=2000, help="random states for the structural rank (default 2000)")
+    sp.add_argument("--samples", type=positive_int, default=2000, help="random states for the structural rank (default 2000)")
     sp.add_argument("--seed", type=int, default=0, help="seed of the random states (default 0)")
     sp.add_argument("--combinations", action="store_true", help="print every base-parameter combination")
     json_arg(sp)
@@ -186,12 +191,21 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    json_target = getattr(args, "json", None)
+    # With --json -, stdout carries the JSON alone: the human report goes to stderr.
+    human = contextlib.redirect_stdout(sys.stderr) if json_target == "-" else contextlib.nullcontext()
     try:
-        result = args.func(args)
-        write_json(result, getattr(args, "json", None))
+        with human:
+            result = args.func(args)
+        write_json(result, json_target)
     except InputError as e:
         sys.stderr.write(f"dynid {args.command}: error: {e}\n")
         return e.exit_code
+    except (OSError, ET.ParseError) as e:
+        # A file the readers did not anticipate (unreadable, not XML, a device): still one line, exit 2.
+        where = f"{e.filename}: " if getattr(e, "filename", None) else ""
+        sys.stderr.write(f"dynid {args.command}: error: {where}{getattr(e, 'strerror', None) or e}\n")
+        return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         sys.stderr.write(f"dynid {args.command}: interrupted\n")
         return 130

@@ -7,6 +7,7 @@ with a `ConfigError` whose message names the field, e.g. ``icub_right_arm: actua
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import importlib.metadata
 import math
@@ -124,6 +125,15 @@ class _Fields:
     def fail(self, key: str, problem: str) -> ConfigError:
         return ConfigError(f"{self.robot}: field '{self._where(key)}' {problem}")
 
+    def only(self, *allowed: str) -> _Fields:
+        """Refuse keys this mapping does not define: a typo must not silently drop a setting."""
+        for key in self.data:
+            if key not in allowed:
+                near = difflib.get_close_matches(str(key), allowed, n=1)
+                hint = f" (did you mean '{near[0]}'?)" if near else f" (known: {', '.join(allowed)})"
+                raise self.fail(str(key), f"is not a known setting{hint}")
+        return self
+
     def has(self, key: str) -> bool:
         return key in self.data
 
@@ -197,7 +207,7 @@ def bundled_configs() -> list[str]:
 
 
 def _resolve_urdf(f: _Fields, config_dir: Path) -> Path:
-    spec = f.sub("urdf")
+    spec = f.sub("urdf").only("path", "icub_models", "package", "file")
     if spec.has("path"):
         path = Path(spec.string("path"))
         path = path if path.is_absolute() else config_dir / path
@@ -231,7 +241,7 @@ def _resolve_urdf(f: _Fields, config_dir: Path) -> Path:
 
 
 def _noise(f: _Fields) -> NoiseConfig:
-    n = f.sub("noise", {})
+    n = f.sub("noise", {}).only("pwm", "current", "torque", "encoder_step")
     return NoiseConfig(
         pwm=n.number("pwm", 0.002, positive=True),
         current=n.number("current", 0.01, positive=True),
@@ -252,7 +262,10 @@ def load_config(robot: str | Path = DEFAULT_ROBOT) -> RobotConfig:
         raise ConfigError(f"{path}: not valid YAML{where}") from None
     root = _Fields(path.stem, "", data)
     name = root.string("name")
-    f = _Fields(name, "", data)
+    f = _Fields(name, "", data).only(
+        "name", "urdf", "base_link", "gravity", "joints", "ft_sensors", "motors", "actuation", "noise", "can",
+        "derivatives",
+    )
 
     joints = f.strings("joints")
     if not joints:
@@ -260,7 +273,8 @@ def load_config(robot: str | Path = DEFAULT_ROBOT) -> RobotConfig:
 
     sensors = []
     for s in f.items("ft_sensors", []):
-        noise = s.sub("noise", {})
+        s.only("name", "joint", "noise")
+        noise = s.sub("noise", {}).only("force", "torque")
         sensors.append(
             FTSensorConfig(
                 name=s.string("name"),
@@ -275,12 +289,13 @@ def load_config(robot: str | Path = DEFAULT_ROBOT) -> RobotConfig:
     motors = []
     motor_fields = f.sub("motors", {})
     for mname, _ in motor_fields.data.items():
-        m = motor_fields.sub(str(mname))
+        m = motor_fields.sub(str(mname)).only("nominal_gain", "known_gain")
+        known = m.number("known_gain", positive=True) if m.has("known_gain") else None
         motors.append(
             MotorConfig(
                 name=str(mname),
                 nominal_gain=m.number("nominal_gain", positive=True),
-                known_gain=m.number("known_gain", None) if m.has("known_gain") else None,
+                known_gain=known,
             )
         )
     motor_names = [m.name for m in motors]
@@ -289,6 +304,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT) -> RobotConfig:
     seen_joints: set[str] = set()
     seen_motors: set[str] = set()
     for g in f.items("actuation", []):
+        g.only("name", "input", "joints", "motors", "coupling")
         kind = g.string("input")
         if kind not in INPUT_KINDS:
             raise g.fail("input", f"must be one of {', '.join(INPUT_KINDS)}, got '{kind}'")
@@ -354,14 +370,25 @@ def load_config(robot: str | Path = DEFAULT_ROBOT) -> RobotConfig:
     )
 
 
+_DERIVATIVE_OPTIONS: dict[str, type] = {
+    "method": str, "window_s": float, "polyorder": int, "d": float, "max_window": int, "causal": bool,
+}
+
+
 def _derivatives(f: _Fields) -> dict[str, Any]:
-    d = f.sub("derivatives", {})
+    """Options of dynid.derivatives.estimate_derivatives, each checked for its type."""
+    d = f.sub("derivatives", {}).only(*_DERIVATIVE_OPTIONS)
     out: dict[str, Any] = {}
     for key, value in d.data.items():
-        if key == "method":
-            out[key] = d.string("method")
+        kind = _DERIVATIVE_OPTIONS[key]
+        if kind is float:
+            out[key] = d.number(key, positive=True)
+        elif kind is int and not (isinstance(value, int) and not isinstance(value, bool) and value > 0):
+            raise d.fail(key, f"must be a positive integer, got {value!r}")
+        elif kind is not float and not isinstance(value, kind):
+            raise d.fail(key, f"must be a {kind.__name__}, got {value!r}")
         else:
-            out[key] = d.number(str(key))
+            out.setdefault(key, value)
     return out
 
 
@@ -369,7 +396,7 @@ def _validate_can(f: _Fields, joints: tuple[str, ...], motors: tuple[str, ...], 
     """The CAN mapping: buses, and which board (bus, address) carries which joint, motor or sensor."""
     if not f.has("can"):
         return {}
-    can = f.sub("can")
+    can = f.sub("can").only("buses", "strain", "motor_control", "skin")
     buses = can.strings("buses")
     used_addresses: set[tuple[str, int, int]] = set()
 
@@ -387,6 +414,7 @@ def _validate_can(f: _Fields, joints: tuple[str, ...], motors: tuple[str, ...], 
 
     strain = []
     for b in can.items("strain", []):
+        b.only("sensor", "bus", "address", "full_scale")
         address(b, 3)
         sensor = b.string("sensor")
         if sensor not in sensors:
@@ -397,11 +425,13 @@ def _validate_can(f: _Fields, joints: tuple[str, ...], motors: tuple[str, ...], 
         strain.append(b.data)
     mc = []
     for b in can.items("motor_control", []):
+        b.only("bus", "address", "pwm_full_scale", "axes")
         address(b, 1)
         axes = b.items("axes")
         if not 1 <= len(axes) <= 2:
             raise b.fail("axes", f"must list 1 or 2 axes (a board serves two), got {len(axes)}")
         for ax in axes:
+            ax.only("joint", "motor", "ticks_per_degree", "zero_deg")
             j = ax.string("joint")
             if j not in joints:
                 raise ax.fail("joint", f"names '{j}', which is not in 'joints'")
@@ -414,6 +444,7 @@ def _validate_can(f: _Fields, joints: tuple[str, ...], motors: tuple[str, ...], 
         mc.append(b.data)
     skin = []
     for b in can.items("skin", []):
+        b.only("bus", "address", "patch", "side")
         address(b, 4)
         side = b.string("side")
         if side not in ("distal", "proximal"):

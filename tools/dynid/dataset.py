@@ -304,7 +304,9 @@ class Dataset:
             if key not in m:
                 raise DataError(f"member '{key}' is missing")
         for key, value in m.items():
-            if key not in ("format", "meta", "joints") and not np.issubdtype(value.dtype, np.number):
+            if not isinstance(value, np.ndarray):
+                raise DataError(f"member '{key}' is not an array")
+            if key not in ("format", "meta", "joints") and value.dtype.kind not in "fiub":
                 raise DataError(f"member '{key}' is not numeric ({value.dtype})")
         try:
             meta = json.loads(str(m["meta"]))
@@ -344,9 +346,14 @@ def atomic_write(path: str | Path, write: Callable[[BinaryIO], None]) -> None:
     is flushed to disk, then replaces `path`. On any failure the temporary file is removed.
     """
     path = Path(path)
-    if not path.parent.is_dir():
-        raise DataError(f"cannot write {path}: the directory {path.parent} does not exist")
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    if not path.name or not path.parent.is_dir():
+        raise DataError(f"cannot write '{path}': the directory {path.parent} does not exist")
+    if path.exists() and not path.is_file():  # never replace a directory, a device or a pipe
+        raise DataError(f"cannot write '{path}': it exists and is not a regular file")
+    try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    except OSError as e:
+        raise DataError(f"cannot write '{path}': {e.strerror}") from None
     try:
         with os.fdopen(fd, "wb") as f:
             write(f)
@@ -356,9 +363,11 @@ def atomic_write(path: str | Path, write: Callable[[BinaryIO], None]) -> None:
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file the usual permissions
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as e:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
+        if isinstance(e, OSError):
+            raise DataError(f"cannot write '{path}': {e.strerror or e}") from None
         raise
 
 
@@ -445,8 +454,11 @@ def load_data(
         raise DataError(f"data file not found: {path}")
     if not path.is_file():
         raise DataError(f"data path is not a file: {path}")
-    with open(path, "rb") as f:
-        head = f.read(4096)
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4096)
+    except OSError as e:
+        raise DataError(f"cannot read {path}: {e.strerror or e}") from None
     first_line = head.split(b"\n", 1)[0]
     suffix = path.suffix.lower()
     if head.startswith(_ZIP_MAGIC) or suffix == ".npz":

@@ -59,6 +59,7 @@ class RobotModel:
                     f"{config.name}: field 'ft_sensors' puts '{s.name}' at '{s.joint}', which is not a fixed joint "
                     f"of {config.urdf.name}"
                 )
+            self._check_sensor_tag(tree, config, s.name, s.joint)
             joint.set("type", "floating")  # the split described in the module docstring
         self._check_base_link(tree, config)
 
@@ -95,6 +96,24 @@ class RobotModel:
                 mo for g in groups if g.input != "torque" for mo in g.motors if config.motor(mo).known_gain is None
             ),
         )
+
+    @staticmethod
+    def _check_sensor_tag(tree: ET.ElementTree, config: RobotConfig, name: str, joint: str) -> None:
+        """A URDF <sensor> at the joint must use the convention the regressor implements (or be absent)."""
+        for tag in tree.getroot().findall("sensor"):
+            parent = tag.find("parent")
+            if tag.get("type") != "force_torque" or parent is None or parent.get("joint") != joint:
+                continue
+            where = f"{config.name}: field 'ft_sensors' ({name} at {joint})"
+            if tag.get("name") != name:
+                raise ConfigError(f"{where}: the URDF names this sensor '{tag.get('name')}'")
+            frame = tag.findtext("force_torque/frame", "child").strip()
+            direction = tag.findtext("force_torque/measure_direction", "child_to_parent").strip()
+            if frame != "child" or direction != "child_to_parent":
+                raise ConfigError(
+                    f"{where}: the URDF declares frame '{frame}' and measure_direction '{direction}'; dynid "
+                    "implements frame 'child' with 'child_to_parent' (DESIGN.md §3)"
+                )
 
     @staticmethod
     def _check_base_link(tree: ET.ElementTree, config: RobotConfig) -> None:

@@ -48,6 +48,8 @@ def test_pendulum_with_pwm_only_loses_the_scale(tmp_path) -> None:
     model = pendulum(tmp_path, "motors: {m: {nominal_gain: 5.0}}\nactuation: [{name: j, input: pwm, joints: [hinge], motors: [m]}]")
     bp = structural_base_parameters(model)
     assert bp.rank == 3 + 4 + 1
+    system = build_stacked(model, exciting_signals(model, 200))
+    assert not system.b.any()  # homogeneous: least squares would return Φ = 0, the scale is not observable
 
 
 def test_icub_structure(tmp_path) -> None:

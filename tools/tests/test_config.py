@@ -77,6 +77,13 @@ BAD = [
     ("can address", _set(["can", "motor_control", 0, "address"], 16), "can.motor_control[0].address"),
     ("can full scale", _set(["can", "strain", 0, "full_scale"], [1, 2, 3]), "can.strain[0].full_scale"),
     ("skin side", _set(["can", "skin", 0, "side"], "left"), "can.skin[0].side"),
+    ("misspelt coupling", lambda d: d["actuation"][0].__setitem__("couplng", d["actuation"][0].pop("coupling")),
+     "'actuation[0].couplng' is not a known setting (did you mean 'coupling'?)"),
+    ("misspelt top-level key", lambda d: d.__setitem__("nosie", d.pop("noise")), "did you mean 'noise'"),
+    ("misspelt known gain", _set(["motors", "m3", "known_gian"], 3.0), "motors.m3.known_gian"),
+    ("zero known gain", _set(["motors", "m3", "known_gain"], 0.0), "motors.m3.known_gain"),
+    ("derivative polyorder", _set(["derivatives"], {"polyorder": 2.5}), "derivatives.polyorder"),
+    ("derivative option", _set(["derivatives"], {"window": 0.1}), "derivatives.window"),
 ]
 
 
@@ -95,7 +102,19 @@ MODEL_BAD = [
     ("sensor joint not fixed", _set(["ft_sensors", 0, "joint"], "r_elbow"), "not a fixed joint"),
     ("base link not ancestor", _set(["base_link"], "r_hand"), "base_link"),
     ("base link unknown", _set(["base_link"], "torso_99"), "'torso_99', not a link"),
+    ("sensor named unlike the URDF", lambda d: (d.pop("can"), d["ft_sensors"][0].__setitem__("name", "r_arm_ftt")),
+     "the URDF names this sensor 'r_arm_ft'"),
 ]
+
+
+def test_urdf_sensor_convention_is_checked(tmp_path: Path) -> None:
+    urdf = ICUB.urdf.read_text().replace(
+        "<measure_direction>child_to_parent</measure_direction>", "<measure_direction>parent_to_child</measure_direction>"
+    )
+    (tmp_path / "model.urdf").write_text(urdf)
+    path = write_variant(tmp_path, _set(["urdf"], {"path": "model.urdf"}))
+    with pytest.raises(ConfigError, match="measure_direction 'parent_to_child'"):
+        RobotModel(load_config(path))
 
 
 @pytest.mark.parametrize("label,edit,words", MODEL_BAD, ids=[b[0] for b in MODEL_BAD])
@@ -115,3 +134,8 @@ def test_not_yaml(tmp_path: Path) -> None:
 def test_unknown_bundled_name() -> None:
     with pytest.raises(ConfigError, match="unknown robot configuration 'icub_left_leg'"):
         load_config("icub_left_leg")
+
+
+def test_derivative_options_keep_their_types(tmp_path: Path) -> None:
+    options = {"method": "adaptive", "d": 1e-4, "max_window": 20, "causal": False}
+    assert load_config(write_variant(tmp_path, _set(["derivatives"], options))).derivatives == options

@@ -62,7 +62,8 @@ def test_split_preserves_the_merged_body(icub: RobotModel) -> None:
 
 
 def test_stacked_torque_rows_equal_rnea(icub: RobotModel) -> None:
-    """A·Φ on the motor-equation rows, with friction and gains zero, is rnea's torque of those joints."""
+    """A·Φ on the motor-equation rows, with friction and gains zero, is rnea's torque: the elbow's directly,
+    the shoulder's as motor torques T⁻ᵀ τ (the coupled group is written per motor)."""
     q, dq, ddq = random_states(icub, N_STATES, seed=2)
     zeros = np.zeros(N_STATES)
     sig = Signals(q, dq, ddq, {m: zeros for m in icub.config.motor_names}, {}, {"r_arm_ft": np.zeros((N_STATES, 6))})
@@ -74,8 +75,33 @@ def test_stacked_torque_rows_equal_rnea(icub: RobotModel) -> None:
     data = ref.createData()
     tau_ref = np.array([pin.rnea(ref, data, q[k], dq[k], ddq[k]) for k in range(N_STATES)])
     names = [c.name for c in system.channels]
-    for j_index, joint in enumerate(icub.config.joints[:4]):
-        assert np.abs(rows[:, names.index(f"joint.{joint}")] - tau_ref[:, j_index]).max() <= 1e-9
+    r = 65 / 40
+    T = np.array([[1, 0, 0], [-r, r, 0], [-r, r, r]])
+    motor_torque = np.linalg.solve(T.T, tau_ref[:, :3].T).T
+    for i, m in enumerate(("m0", "m1", "m2")):
+        assert np.abs(rows[:, names.index(f"motor.{m}")] - motor_torque[:, i]).max() <= 1e-9
+    assert np.abs(rows[:, names.index("joint.r_elbow")] - tau_ref[:, 3]).max() <= 1e-9
+
+
+def test_torque_sensor_rows_equal_rnea_plus_friction(tmp_path) -> None:
+    """Table I, joint torque sensors: A·Φ = b with b the rnea torque plus friction, on every joint."""
+    text = open(load_config().source).read().split("\nft_sensors:")[0]  # keep name, urdf, base, gravity, joints
+    joints = load_config().joints
+    text += f"\nactuation:\n  - {{name: arm, input: torque, joints: [{', '.join(joints)}]}}\n"
+    path = tmp_path / "icub_torque.yaml"
+    path.write_text(text)
+    model = RobotModel(load_config(path))
+    q, dq, ddq = random_states(model, N_STATES, seed=6)
+    ref = unsplit_reference(model)
+    data = ref.createData()
+    coeff = np.random.default_rng(6).uniform(0.01, 0.3, (7, 4))
+    tau = np.array([pin.rnea(ref, data, q[k], dq[k], ddq[k]) for k in range(N_STATES)]) + friction_torque(dq, coeff)
+    system = build_stacked(model, Signals(q, dq, ddq, {}, {j: tau[:, i] for i, j in enumerate(joints)}, {}))
+    phi = np.zeros(len(model.layout))
+    phi[model.layout.span("inertial")] = model.cad_inertial_parameters
+    phi[model.layout.span("joint_friction")] = coeff.ravel()
+    assert system.A.shape[1] == 7 * 10 + 7 * 4  # no sensor split, no offsets, no motors
+    assert np.abs(system.A @ phi - system.b).max() <= 1e-9
 
 
 def test_friction_regressor_convention() -> None:
@@ -159,5 +185,26 @@ def test_rows_have_channel_noise(icub: RobotModel) -> None:
     sigma = {c.name: c.sigma for c in channels}
     assert sigma["ft.r_arm_ft.fx"] == 0.15 and sigma["ft.r_arm_ft.tz"] == 0.008
     # Elbow: σ_pwm · gain; shoulder yaw: σ_pwm · |Tᵀ row| · gains.
+    # Elbow: σ_pwm · gain. The coupled shoulder is written per motor, so its rows' errors are independent.
     assert sigma["joint.r_elbow"] == pytest.approx(0.002 * 15.0)
-    assert sigma["joint.r_shoulder_yaw"] == pytest.approx(0.002 * 20.0 * 1.625)
+    assert [c.name for c in channels][6:9] == ["motor.m0", "motor.m1", "motor.m2"]
+    assert sigma["motor.m2"] == pytest.approx(0.002 * 20.0)
+
+
+def test_shoulder_rows_are_motor_torque_equations(icub: RobotModel) -> None:
+    """In motor space, a motor row's gain column is −u of that motor alone, and its friction that motor's alone."""
+    q, dq, ddq = random_states(icub, 50, seed=5)
+    u = {m: np.random.default_rng(i).uniform(-0.5, 0.5, 50) for i, m in enumerate(icub.config.motor_names)}
+    system = build_stacked(icub, Signals(q, dq, ddq, u, {}, {"r_arm_ft": np.zeros((50, 6))}))
+    A = system.A.reshape(50, len(system.channels), -1)
+    names = [c.name for c in system.channels]
+    layout = icub.layout
+    for m in ("m0", "m1", "m2"):
+        row = A[:, names.index(f"motor.{m}")]
+        for other in ("m0", "m1", "m2"):
+            gain = row[:, layout.index(f"{other}.phi_m")]
+            fric = row[:, layout.block("motor_friction", other).slice]
+            if other == m:
+                assert np.allclose(gain, -u[m], atol=1e-12)
+            else:
+                assert np.abs(gain).max() < 1e-12 and np.abs(fric).max() < 1e-12

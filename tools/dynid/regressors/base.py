@@ -76,7 +76,7 @@ def base_parameters_from_factor(R: np.ndarray, names: tuple[str, ...], rtol: flo
     independent, dependent = np.sort(piv[:rank]), np.sort(piv[rank:])
     Ks = np.linalg.lstsq(Rn[:, independent], Rn[:, dependent], rcond=None)[0] if dependent.size else np.zeros((rank, 0))
     K = Ks * scale[dependent][None, :] / scale[independent][:, None]
-    K[np.abs(K) < 1e-9 * max(1.0, float(np.abs(K).max(initial=0.0)))] = 0.0
+    K[np.abs(K) < 1e-12 * max(1.0, float(np.abs(K).max(initial=0.0)))] = 0.0  # round-off, not structure
     return BaseParameters(
         names=tuple(names),
         rank=rank,

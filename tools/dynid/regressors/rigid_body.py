@@ -38,12 +38,9 @@ def iter_joint_torque_regressors(
 def rigid_body_regressors(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> RigidBodyRegressors:
     """Y_τ and Y_FT for a batch of states (N, n_joints) each."""
     q, dq, ddq = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, dq, ddq))
-    n = q.shape[0]
-    n_cols = 10 * len(model.bodies)
-    tau = np.empty((n, model.n_joints, n_cols))
-    ft = {s: np.empty((n, 6, n_cols)) for s in model.sensor_v_index}
-    for k, Y in enumerate(iter_joint_torque_regressors(model, q, dq, ddq)):
-        tau[k] = Y[model.v_index]
-        for s, v0 in model.sensor_v_index.items():
-            ft[s][k] = -Y[v0 : v0 + 6]
-    return RigidBodyRegressors(tau, ft)
+    # One Pinocchio call and one copy per sample; the rows are picked afterwards, vectorised over the batch.
+    Y = np.empty((q.shape[0], model.pin_model.nv, 10 * len(model.bodies)))
+    for k, Yk in enumerate(iter_joint_torque_regressors(model, q, dq, ddq)):
+        Y[k] = Yk
+    ft = {s: -Y[:, v0 : v0 + 6] for s, v0 in model.sensor_v_index.items()}
+    return RigidBodyRegressors(Y[:, model.v_index], ft)

@@ -9,7 +9,11 @@ Per sample the rows are, in this order:
   - input ``torque`` (joint torque sensors): ``Y_τ φ + Y_F φ_F = τ``.
 
 Rows carry different units (N, Nm, and equations whose noise comes from the input), so each row channel has a
-noise standard deviation σ from the configuration; estimators weight rows by 1/σ.
+noise standard deviation σ from the configuration; estimators weight rows by 1/σ. That weighting assumes
+independent rows, which the joint rows of a coupled group are not: Tᵀ spreads each motor's input error over
+several joints. A coupled group with a square T is therefore written in motor space, T⁻ᵀ times its joint
+rows, one row per motor: ``T⁻ᵀ(Y_τ φ + Y_F φ_F) + Y_Fm φ_Fm − diag(u) φ_m = 0``, whose errors are independent,
+σ = σ_input · gain. The solution set is the same; only the weighting changes.
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ from ..model import RobotModel
 from ..parameters import WRENCH_FIELDS
 from ..progress import track
 from .friction import friction_regressor
-from .rigid_body import iter_joint_torque_regressors
+from .rigid_body import rigid_body_regressors
 
 DEFAULT_CHUNK = 4096  # samples per chunk: bounds the transient memory of the per-sample regressors
 
@@ -37,6 +41,11 @@ class RowChannel:
     sigma: float  # noise std in the row's units (N, Nm)
 
 
+def motor_space(group) -> bool:
+    """A coupled group with as many motors as joints is written one row per motor (see the module docstring)."""
+    return group.input != "torque" and group.coupled and group.coupling.shape[0] == group.coupling.shape[1]
+
+
 def row_channels(model: RobotModel) -> tuple[RowChannel, ...]:
     cfg = model.config
     rows: list[RowChannel] = []
@@ -44,16 +53,18 @@ def row_channels(model: RobotModel) -> tuple[RowChannel, ...]:
         for k, c in enumerate(WRENCH_FIELDS):
             rows.append(RowChannel(f"ft.{s.name}.{c}", s.force_noise if k < 3 else s.torque_noise))
     for g in cfg.actuation:
+        if g.input == "torque":
+            rows.extend(RowChannel(f"joint.{j}", cfg.noise.torque) for j in g.joints)
+            continue
+        noise = cfg.noise.pwm if g.input == "pwm" else cfg.noise.current
+        gains = np.array([cfg.motor(m).known_gain or cfg.motor(m).nominal_gain for m in g.motors])
+        if motor_space(g):
+            rows.extend(RowChannel(f"motor.{m}", float(noise * k)) for m, k in zip(g.motors, gains))
+            continue
         Tt = g.coupling.T
         for li, j in enumerate(g.joints):
-            if g.input == "torque":
-                sigma = cfg.noise.torque
-            else:
-                # An input error δu on motor m is a torque error Tᵀ[j, m]·gain_m·δu on this row.
-                gains = np.array([cfg.motor(m).known_gain or cfg.motor(m).nominal_gain for m in g.motors])
-                noise = cfg.noise.pwm if g.input == "pwm" else cfg.noise.current
-                sigma = float(noise * np.linalg.norm(Tt[li] * gains))
-            rows.append(RowChannel(f"joint.{j}", sigma))
+            # An input error δu on motor m is a torque error Tᵀ[j, m]·gain_m·δu on this row.
+            rows.append(RowChannel(f"joint.{j}", float(noise * np.linalg.norm(Tt[li] * gains))))
     return tuple(rows)
 
 
@@ -151,16 +162,10 @@ def fill_rows(model: RobotModel, sig: Signals, A: np.ndarray, b: np.ndarray) -> 
     eq_joints = np.array([joint_col[j] for j in joint_row], dtype=int)
     eq_rows = np.array(list(joint_row.values()), dtype=int)
 
-    # Rigid body: the only per-sample loop, one Pinocchio call and one copy per sample; the rows are
-    # scattered into A afterwards, vectorised over the chunk.
-    n = sig.q.shape[0]
-    Y = np.empty((n, model.pin_model.nv, inertial.stop - inertial.start))
-    for k, Yk in enumerate(iter_joint_torque_regressors(model, sig.q, sig.dq, sig.ddq)):
-        Y[k] = Yk
+    rb = rigid_body_regressors(model, sig.q, sig.dq, sig.ddq)
     for i, s in enumerate(cfg.ft_sensors):
-        v0 = model.sensor_v_index[s.name]
-        A[:, 6 * i : 6 * i + 6, inertial] = -Y[:, v0 : v0 + 6]
-    A[:, eq_rows, inertial] = Y[:, model.v_index[eq_joints]]
+        A[:, 6 * i : 6 * i + 6, inertial] = rb.ft[s.name]
+    A[:, eq_rows, inertial] = rb.tau[:, eq_joints]
 
     for i, s in enumerate(cfg.ft_sensors):
         rows = slice(6 * i, 6 * i + 6)
@@ -193,6 +198,11 @@ def fill_rows(model: RobotModel, sig: Signals, A: np.ndarray, b: np.ndarray) -> 
                     A[:, joint_row[j], layout.block("motor_gain", mname).start] = -t * u
                 else:
                     b[:, joint_row[j]] += t * known * u
+        if motor_space(g):
+            rows = [joint_row[j] for j in g.joints]
+            to_motor = np.linalg.inv(Tt)  # T⁻ᵀ
+            A[:, rows] = np.einsum("mj,njp->nmp", to_motor, A[:, rows])
+            b[:, rows] = b[:, rows] @ to_motor.T
 
 
 def iter_stacked(model: RobotModel, sig: Signals, chunk: int = DEFAULT_CHUNK) -> Iterator[tuple[np.ndarray, np.ndarray]]:
