@@ -34,7 +34,7 @@ class BaseParameters:
     @property
     def condition_number(self) -> float:
         s = self.singular_values[: self.rank]
-        return float(s[0] / s[-1])
+        return float(s[0] / s[-1]) if self.rank else float("inf")  # nothing excited at all
 
     def base(self, phi: np.ndarray) -> np.ndarray:
         """β = Φ_b + K Φ_d."""
