@@ -383,12 +383,12 @@ def _derivatives(f: _Fields) -> dict[str, Any]:
         kind = _DERIVATIVE_OPTIONS[key]
         if kind is float:
             out[key] = d.number(key, positive=True)
-        elif kind is int and not (isinstance(value, int) and not isinstance(value, bool) and value > 0):
+            continue
+        if kind is int and (isinstance(value, bool) or not isinstance(value, int) or value <= 0):
             raise d.fail(key, f"must be a positive integer, got {value!r}")
-        elif kind is not float and not isinstance(value, kind):
+        if not isinstance(value, kind):
             raise d.fail(key, f"must be a {kind.__name__}, got {value!r}")
-        else:
-            out.setdefault(key, value)
+        out[key] = value
     return out
 
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config import ActuationGroup
 from ..errors import DataError
 from ..model import RobotModel
 from ..parameters import WRENCH_FIELDS
@@ -41,7 +42,7 @@ class RowChannel:
     sigma: float  # noise std in the row's units (N, Nm)
 
 
-def motor_space(group) -> bool:
+def motor_space(group: ActuationGroup) -> bool:
     """A coupled group with as many motors as joints is written one row per motor (see the module docstring)."""
     return group.input != "torque" and group.coupled and group.coupling.shape[0] == group.coupling.shape[1]
 
@@ -151,58 +152,44 @@ def fill_rows(model: RobotModel, sig: Signals, A: np.ndarray, b: np.ndarray) -> 
     """Write the rows of `sig`'s samples into A (N, r, p) and b (N, r), which the caller zeroed."""
     cfg, layout = model.config, model.layout
     inertial = layout.span("inertial")
-    n_sensors = len(cfg.ft_sensors)
-    joint_row = {}
-    r = 6 * n_sensors
-    for g in cfg.actuation:
-        for j in g.joints:
-            joint_row[j] = r
-            r += 1
     joint_col = {j: i for i, j in enumerate(cfg.joints)}
-    eq_joints = np.array([joint_col[j] for j in joint_row], dtype=int)
-    eq_rows = np.array(list(joint_row.values()), dtype=int)
-
     rb = rigid_body_regressors(model, sig.q, sig.dq, sig.ddq)
-    for i, s in enumerate(cfg.ft_sensors):
-        A[:, 6 * i : 6 * i + 6, inertial] = rb.ft[s.name]
-    A[:, eq_rows, inertial] = rb.tau[:, eq_joints]
 
     for i, s in enumerate(cfg.ft_sensors):
         rows = slice(6 * i, 6 * i + 6)
-        off = layout.block("ft_offset", s.name).slice
-        A[:, rows, off] = np.eye(6)
+        A[:, rows, inertial] = rb.ft[s.name]
+        A[:, rows, layout.block("ft_offset", s.name).slice] = np.eye(6)
         b[:, rows] = sig.ft[s.name]
 
+    start = 6 * len(cfg.ft_sensors)
     for g in cfg.actuation:
         gj = [joint_col[j] for j in g.joints]
-        Tt = g.coupling.T  # joint torques = Tᵀ · motor torques
-        for j, c in zip(g.joints, gj):
-            A[:, joint_row[j], layout.block("joint_friction", j).slice] = friction_regressor(sig.dq[:, c])
+        rows = slice(start, start + len(gj))
+        start = rows.stop
+        # The group's rows are L times its joint equations (L = T⁻ᵀ in motor space, else I). Motor terms enter
+        # the joint equations through Tᵀ, hence the rows through C = L Tᵀ: exactly I in motor space.
+        if motor_space(g):
+            L, C = np.linalg.inv(g.coupling.T), np.eye(len(g.motors))
+        else:
+            L, C = np.eye(len(gj)), g.coupling.T
+        A[:, rows, inertial] = np.einsum("rj,njp->nrp", L, rb.tau[:, gj])
+        for li, (j, c) in enumerate(zip(g.joints, gj)):
+            A[:, rows, layout.block("joint_friction", j).slice] = L[:, li, None] * friction_regressor(sig.dq[:, c])[:, None]
         if g.input == "torque":
-            for j in g.joints:
-                b[:, joint_row[j]] = sig.tau[j]
+            b[:, rows] = np.column_stack([sig.tau[j] for j in g.joints]) @ L.T
             continue
         if g.coupled:
-            motor_velocity = sig.dq[:, gj] @ g.coupling.T  # q̇_m = T q̇_I
-            Fm = friction_regressor(motor_velocity)  # (N, n_motors, 4)
-        for mi, mname in enumerate(g.motors):
-            u = sig.inputs[mname]
-            known = cfg.motor(mname).known_gain
-            for li, j in enumerate(g.joints):
-                t = Tt[li, mi]
-                if t == 0.0:
-                    continue
-                if g.coupled:
-                    A[:, joint_row[j], layout.block("motor_friction", mname).slice] = t * Fm[:, mi]
-                if known is None:
-                    A[:, joint_row[j], layout.block("motor_gain", mname).start] = -t * u
-                else:
-                    b[:, joint_row[j]] += t * known * u
-        if motor_space(g):
-            rows = [joint_row[j] for j in g.joints]
-            to_motor = np.linalg.inv(Tt)  # T⁻ᵀ
-            A[:, rows] = np.einsum("mj,njp->nmp", to_motor, A[:, rows])
-            b[:, rows] = b[:, rows] @ to_motor.T
+            motor_friction = friction_regressor(sig.dq[:, gj] @ g.coupling.T)  # at q̇_m = T q̇_I: (N, n_motors, 4)
+        for mi, m in enumerate(g.motors):
+            weight = C[:, mi]  # this motor's share of each row
+            u = sig.inputs[m][:, None]
+            if g.coupled:
+                A[:, rows, layout.block("motor_friction", m).slice] = weight[:, None] * motor_friction[:, None, mi]
+            known = cfg.motor(m).known_gain
+            if known is None:
+                A[:, rows, layout.block("motor_gain", m).start] = -weight * u
+            else:
+                b[:, rows] += weight * known * u
 
 
 def iter_stacked(model: RobotModel, sig: Signals, chunk: int = DEFAULT_CHUNK) -> Iterator[tuple[np.ndarray, np.ndarray]]:
