@@ -21,6 +21,7 @@ from . import __version__
 from .config import DEFAULT_ROBOT, bundled_configs, load_config
 from .dataset import atomic_write
 from .errors import EXIT_BAD_INPUT, InputError
+from .regressors.stack import DEFAULT_MIN_SPEED
 
 
 class _Parser(argparse.ArgumentParser):
@@ -49,6 +50,36 @@ def positive_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"'{text}' is not an integer") from None
     if value <= 0:
         raise argparse.ArgumentTypeError(f"must be positive, got {value}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+    if not np.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text}")
+    return value
+
+
+def non_negative_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+    if not np.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"must be a number of 0 or more, got {text}")
+    return value
+
+
+def seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not an integer") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, got {value}")
     return value
 
 
@@ -102,7 +133,7 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
 def cmd_structure(args: argparse.Namespace) -> dict[str, Any]:
     from .model import RobotModel
     from .regressors.base import data_base_parameters, exciting_signals
-    from .regressors.stack import row_channels, signals_from_dataset
+    from .regressors.stack import row_channels, rows_at_rest, signals_from_dataset
 
     config = load_config(args.robot)
     model = RobotModel(config)
@@ -114,7 +145,7 @@ def cmd_structure(args: argparse.Namespace) -> dict[str, Any]:
     else:
         sig = exciting_signals(model, args.samples, args.seed)
         source = f"{args.samples} random states within the joint limits (seed {args.seed})"
-    bp = data_base_parameters(model, sig)
+    bp = data_base_parameters(model, sig, min_speed=args.min_speed)
     layout = model.layout
     print(f"robot {config.name}: {model.n_joints} joints, {len(model.bodies)} bodies, {len(layout)} parameters")
     print(f"  bodies: {', '.join(b.name for b in model.bodies)}")
@@ -124,6 +155,10 @@ def cmd_structure(args: argparse.Namespace) -> dict[str, Any]:
             print(f"  {kind.replace('_', ' ')}: {', '.join(owners)}")
     print(f"  rows per sample: {', '.join(c.name for c in row_channels(model))}")
     print(f"excitation: {source}")
+    rest = rows_at_rest(model, sig.dq, args.min_speed)
+    if rest.any():
+        print(f"  rows left out where a friction coordinate is slower than {args.min_speed:g} rad/s (static friction): "
+              f"{100 * rest.mean():.1f} % of all rows")
     print(f"numerical rank {bp.rank} of {len(layout)}; condition number of the normalised base regressor {bp.condition_number:.4g}")
     if bp.unidentifiable:
         print(f"  act on no row (unidentifiable): {', '.join(bp.unidentifiable)}")
@@ -145,6 +180,58 @@ def cmd_structure(args: argparse.Namespace) -> dict[str, Any]:
     }
 
 
+def cmd_simulate(args: argparse.Namespace) -> dict[str, Any]:
+    import time
+
+    from .model import RobotModel
+    from .simulation import KINDS, SimulationSettings, parse_effect, simulate
+    from .simulation.effects import catalog_text
+    from .simulation.output import write_simulation
+
+    if args.list_effects:
+        print(catalog_text())
+        from .simulation.effects import CATALOG
+
+        return {"effects": {k: {"target": e.target, "stage": e.stage, "summary": e.summary, "defaults": e.defaults,
+                                "units": e.units} for k, e in CATALOG.items()}}
+    if not args.out:
+        raise InputError("--out DIR is required (the directory to write the experiment to)")
+    config = load_config(args.robot)
+    bodies = tuple(b.name for b in RobotModel(config).bodies)
+    effects = tuple(parse_effect(text, config, bodies) for text in args.effect)
+    settings = SimulationSettings(
+        kind=args.kind, duration=args.duration, seed=args.seed, robot_seed=args.robot_seed,
+        noise=args.noise == "realistic", disturbance=args.disturbance == "realistic", effects=effects,
+        rate_hz=args.rate,
+    )
+    started = time.perf_counter()
+    sim = simulate(config, settings)
+    elapsed = time.perf_counter() - started
+    files = write_simulation(sim, args.out)
+    truth, realism = sim.truth, sim.truth["realism"]
+    print(
+        f"simulated {args.kind} of {config.name}: {settings.seconds:g} s at {args.rate:g} Hz "
+        f"({truth['samples']} samples) in {elapsed:.1f} s -> {args.out}"
+    )
+    print(f"  true robot: seed {args.robot_seed}; experiment seed {args.seed}; noise {args.noise}; "
+          f"motor disturbance {'on' if truth['disturbance'] else 'off'}")
+    if effects:
+        print(f"  hidden effects: {', '.join(e.kind + (f' on {e.target}' if e.target else '') for e in effects)}")
+    if truth["contacts"]:
+        sides = [c["side"] for c in truth["contacts"]]
+        print(f"  contacts: {len(sides)} ({sides.count('distal')} distal, {sides.count('proximal')} proximal of the F/T sensor)")
+    print(
+        f"  PWM within ±1: {100 * realism['pwm_within_limits']:.3f} % of samples; joint limits respected: "
+        f"{100 * realism['joint_limits_respected']:.2f} %; {realism['reaching_targets']} reaching targets"
+    )
+    return {
+        "robot": config.name, "kind": args.kind, "duration_s": settings.seconds, "rate_hz": args.rate,
+        "samples": truth["samples"], "seed": args.seed, "robot_seed": args.robot_seed, "noise": args.noise,
+        "disturbance": truth["disturbance"], "effects": truth["effects"], "contacts": len(truth["contacts"]),
+        "realism": realism, "wall_time_s": elapsed, "files": files,
+    }
+
+
 # ------------------------------------------------------------------------------------------------------------
 
 
@@ -161,6 +248,11 @@ def build_parser() -> argparse.ArgumentParser:
     def robot_arg(sp: argparse.ArgumentParser) -> None:
         sp.add_argument("--robot", default=DEFAULT_ROBOT, metavar="CFG",
                         help=f"robot configuration: a YAML file or a bundled name (default {DEFAULT_ROBOT})")
+
+    def min_speed_arg(sp: argparse.ArgumentParser) -> None:
+        sp.add_argument("--min-speed", type=non_negative_float, default=DEFAULT_MIN_SPEED, metavar="RAD_S",
+                        help="leave out motor rows whose joint or motor is slower than this: static friction, "
+                        f"which the model lacks, holds them (default {DEFAULT_MIN_SPEED:g}; 0 keeps every row)")
 
     def json_arg(sp: argparse.ArgumentParser) -> None:
         sp.add_argument("--json", metavar="FILE", help="also write the result as JSON ('-' for stdout)")
@@ -183,8 +275,33 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--samples", type=positive_int, default=2000, help="random states for the structural rank (default 2000)")
     sp.add_argument("--seed", type=int, default=0, help="seed of the random states (default 0)")
     sp.add_argument("--combinations", action="store_true", help="print every base-parameter combination")
+    min_speed_arg(sp)
     json_arg(sp)
     sp.set_defaults(func=cmd_structure)
+
+    sp = sub.add_parser("simulate", help="simulate an experiment of the arm, with known truth",
+                        description="Run the simulated plant: a true robot that is not the CAD model (perturbed "
+                        "inertia, cables, friction, gains, F/T offsets) reaching random points under joint impedance, "
+                        "PWM through the motor model and the coupling, with the boards' sensors. Writes dataset.npz, "
+                        "data.csv, truth.json and truth.npz to DIR (tools/dynid/simulation/output.py). The same "
+                        "--robot-seed is the same arm in every kind.")
+    robot_arg(sp)
+    sp.add_argument("--kind", default="identification", choices=["identification", "validation", "contact"],
+                    help="identification (default 300 s), validation (120 s) or contact (120 s, with skin ground truth)")
+    sp.add_argument("--duration", type=positive_float, metavar="S", help="seconds to simulate (default: per kind)")
+    sp.add_argument("--seed", type=seed, default=0, metavar="N", help="experiment seed: reference, contacts, noise (default 0)")
+    sp.add_argument("--robot-seed", type=seed, default=0, metavar="N", help="which true arm (default 0)")
+    sp.add_argument("--noise", choices=["realistic", "none"], default="realistic",
+                    help="'none' turns off sensor noise, quantisation and the motor disturbance")
+    sp.add_argument("--disturbance", choices=["realistic", "none"], default="realistic",
+                    help="supply-voltage variation and torque ripple of the motors (default realistic)")
+    sp.add_argument("--effect", action="append", default=[], metavar="NAME[:k=v,...]",
+                    help="switch on a hidden effect (repeatable); --list-effects shows them")
+    sp.add_argument("--list-effects", action="store_true", help="list the hidden effects and their parameters")
+    sp.add_argument("--rate", type=positive_float, default=1000.0, metavar="HZ", help="sample rate (default 1000)")
+    sp.add_argument("--out", metavar="DIR", help="the directory to write")
+    json_arg(sp)
+    sp.set_defaults(func=cmd_simulate)
     return p
 
 

@@ -444,11 +444,13 @@ def _validate_can(f: _Fields, joints: tuple[str, ...], motors: tuple[str, ...], 
         mc.append(b.data)
     skin = []
     for b in can.items("skin", []):
-        b.only("bus", "address", "patch", "side")
+        b.only("bus", "address", "patch", "links", "side")
         address(b, 4)
         side = b.string("side")
         if side not in ("distal", "proximal"):
             raise b.fail("side", f"must be 'distal' or 'proximal' of the F/T sensor, got '{side}'")
         b.string("patch")
+        if b.has("links") and not b.strings("links"):
+            raise b.fail("links", "must list at least one link the patch covers")
         skin.append(b.data)
     return {"buses": list(buses), "strain": strain, "motor_control": mc, "skin": skin}

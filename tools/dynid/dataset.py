@@ -58,6 +58,7 @@ CHANNEL_FAMILIES: tuple[str, ...] = ("pwm", "current", "tau", "ft", "extra")
 # `(1700000000.000000) can0 123#DEADBEEF` : the `candump -L` line format.
 _CANDUMP_LINE = re.compile(rb"^\s*\(\d+(\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]+#")
 _ZIP_MAGIC = b"PK\x03\x04"
+SIMULATION_DATASET = "dataset.npz"  # what a `dynid simulate` output directory holds for DATA
 
 
 def _row(i: int) -> str:
@@ -445,13 +446,15 @@ def load_data(
 ) -> Dataset:
     """Load experiment data in any supported form, checked against the robot configuration.
 
-    The form is told by content first, then by extension: a zip archive (or ``.npz``) is a dataset file, a
+    A directory written by `dynid simulate` stands for its dataset file. The form is told by content first, then by extension: a zip archive (or ``.npz``) is a dataset file, a
     ``.log`` or a file whose first line is a ``candump -L`` frame is a CAN log, a ``.csv`` is a CSV
     (`dynid.csv_io.read_csv`). Anything else raises `DataError`.
     """
     path = Path(path)
     if not path.exists():
         raise DataError(f"data file not found: {path}")
+    if path.is_dir() and (path / SIMULATION_DATASET).is_file():  # the output directory of `dynid simulate`
+        path = path / SIMULATION_DATASET
     if not path.is_file():
         raise DataError(f"data path is not a file: {path}")
     try:

@@ -208,3 +208,22 @@ def test_shoulder_rows_are_motor_torque_equations(icub: RobotModel) -> None:
                 assert np.allclose(gain, -u[m], atol=1e-12)
             else:
                 assert np.abs(gain).max() < 1e-12 and np.abs(fric).max() < 1e-12
+
+
+def test_rows_at_rest_follow_the_coupling() -> None:
+    """A motor-space row holds the joint frictions its T⁻ᵀ row touches and its own motor's friction."""
+    from dynid.regressors.stack import row_channels, rows_at_rest
+
+    model = RobotModel(load_config("icub_right_arm"))
+    names = [c.name for c in row_channels(model)]
+    # T⁻ᵀ = [[1, 1, 0], [0, 1/r, -1/r], [0, 0, 1/r]]: m0 holds pitch and roll, m1 roll and yaw, m2 yaw.
+    moving = np.array([0.3, 0.7, 0.5, 0.4, 0.2, 0.2, 0.2])  # every joint and motor well above 0.01 rad/s
+    dq = np.tile(moving, (4, 1))
+    dq[0, :2] = [0.0, 0.4]  # pitch rests (so does m0 = pitch): m0's row
+    dq[1, 2] = 0.005  # yaw slower than the default 0.01 rad/s: m1 and m2
+    dq[2, :3] = [0.5, 0.5, 1.0]  # m1 = r (roll - pitch) = 0: m1 alone
+    dq[3, 3] = -0.001  # the elbow: its own row
+    rest = rows_at_rest(model, dq)
+    at_rest = [[n for n, r in zip(names, row) if r] for row in rest]
+    assert at_rest == [["motor.m0"], ["motor.m1", "motor.m2"], ["motor.m1"], ["joint.r_elbow"]]
+    assert not rows_at_rest(model, moving[None]).any()

@@ -16,7 +16,7 @@ import numpy as np
 import scipy.linalg
 
 from ..model import RobotModel
-from .stack import Signals, StackedSystem, build_stacked, iter_stacked, row_channels
+from .stack import DEFAULT_MIN_SPEED, DEFAULT_CHUNK, Signals, StackedSystem, build_stacked, iter_stacked, row_weights
 
 DEFAULT_RTOL = 1e-8
 
@@ -94,13 +94,21 @@ def base_parameters(system: StackedSystem, rtol: float = DEFAULT_RTOL) -> BasePa
     return base_parameters_from_factor(triangular_factor([(Aw, bw)], Aw.shape[1]), system.parameter_names, rtol)
 
 
-def data_base_parameters(model: RobotModel, sig: Signals, rtol: float = DEFAULT_RTOL) -> BaseParameters:
-    """The structure that a recorded experiment actually excites, with bounded memory."""
-    w = 1.0 / np.array([c.sigma for c in row_channels(model)])
+def data_base_parameters(
+    model: RobotModel, sig: Signals, rtol: float = DEFAULT_RTOL, min_speed: float | None = DEFAULT_MIN_SPEED
+) -> BaseParameters:
+    """The structure that a recorded experiment actually excites, with bounded memory.
+
+    Rows at rest (`dynid.regressors.stack.rows_at_rest`) are left out, as the fit leaves them out: samples where
+    a joint stands still would otherwise seem to separate Coulomb levels that only static friction sets.
+    """
+    weights = row_weights(model, sig, min_speed).ravel()
 
     def weighted_chunks() -> Iterator[tuple[np.ndarray, np.ndarray]]:
-        for A, b in iter_stacked(model, sig):
-            ww = np.tile(w, A.shape[0] // w.size)
+        start = 0
+        for A, b in iter_stacked(model, sig, DEFAULT_CHUNK):
+            ww = weights[start : start + A.shape[0]]
+            start += A.shape[0]
             yield A * ww[:, None], b * ww
 
     R = triangular_factor(weighted_chunks(), len(model.layout))

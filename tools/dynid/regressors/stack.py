@@ -32,6 +32,10 @@ from .friction import friction_regressor
 from .rigid_body import rigid_body_regressors
 
 DEFAULT_CHUNK = 4096  # samples per chunk: bounds the transient memory of the per-sample regressors
+# rad/s (m/s): below this speed a friction coordinate counts as at rest. The model's friction has no static
+# part, and near zero the sign of an estimated velocity is noise (1.4e-3 rad/s RMS for 16-bit encoders at
+# 1 kHz, dynid.derivatives), so a row whose friction coordinates rest says nothing the model can explain.
+DEFAULT_MIN_SPEED = 0.01
 
 
 @dataclass(frozen=True)
@@ -148,6 +152,45 @@ def signals_from_dataset(model: RobotModel, dataset) -> Signals:  # dataset: dyn
     return Signals(dataset.q, dataset.dq, dataset.ddq, inputs, tau, ft)
 
 
+def group_row_maps(group: ActuationGroup) -> tuple[np.ndarray, np.ndarray]:
+    """(L, C) of a group: its rows are L times its joint equations, and motor terms enter them through C."""
+    if motor_space(group):
+        return np.linalg.inv(group.coupling.T), np.eye(len(group.motors))
+    return np.eye(len(group.joints)), group.coupling.T
+
+
+def rows_at_rest(model: RobotModel, dq: np.ndarray, min_speed: float = DEFAULT_MIN_SPEED) -> np.ndarray:
+    """(N, r) bool: rows whose equation holds a friction coordinate (a joint, or a coupled motor at q̇_m = T q̇)
+    slower than `min_speed`; static friction, which the model lacks, may hold any torque there.
+
+    F/T rows hold no friction and are never at rest.
+    """
+    cfg = model.config
+    joint_col = {j: i for i, j in enumerate(cfg.joints)}
+    n = dq.shape[0]
+    out = np.zeros((n, len(row_channels(model))), dtype=bool)
+    start = 6 * len(cfg.ft_sensors)
+    for g in cfg.actuation:
+        gj = [joint_col[j] for j in g.joints]
+        L, C = group_row_maps(g)
+        slow = np.abs(dq[:, gj]) < min_speed
+        rest = slow.astype(float) @ (L != 0).T.astype(float) > 0
+        if g.input != "torque" and g.coupled:
+            slow_motor = np.abs(dq[:, gj] @ g.coupling.T) < min_speed
+            rest |= slow_motor.astype(float) @ (C != 0).T.astype(float) > 0
+        out[:, start : start + len(gj)] = rest
+        start += len(gj)
+    return out
+
+
+def row_weights(model: RobotModel, sig: Signals, min_speed: float | None = DEFAULT_MIN_SPEED) -> np.ndarray:
+    """(N, r) weights 1/σ of every row, 0 for rows at rest (see `rows_at_rest`; None keeps every row)."""
+    w = np.tile(1.0 / np.array([c.sigma for c in row_channels(model)]), (sig.q.shape[0], 1))
+    if min_speed is not None and min_speed > 0:
+        w[rows_at_rest(model, sig.dq, min_speed)] = 0.0
+    return w
+
+
 def fill_rows(model: RobotModel, sig: Signals, A: np.ndarray, b: np.ndarray) -> None:
     """Write the rows of `sig`'s samples into A (N, r, p) and b (N, r), which the caller zeroed."""
     cfg, layout = model.config, model.layout
@@ -168,10 +211,7 @@ def fill_rows(model: RobotModel, sig: Signals, A: np.ndarray, b: np.ndarray) -> 
         start = rows.stop
         # The group's rows are L times its joint equations (L = T⁻ᵀ in motor space, else I). Motor terms enter
         # the joint equations through Tᵀ, hence the rows through C = L Tᵀ: exactly I in motor space.
-        if motor_space(g):
-            L, C = np.linalg.inv(g.coupling.T), np.eye(len(g.motors))
-        else:
-            L, C = np.eye(len(gj)), g.coupling.T
+        L, C = group_row_maps(g)
         A[:, rows, inertial] = np.einsum("rj,njp->nrp", L, rb.tau[:, gj])
         for li, (j, c) in enumerate(zip(g.joints, gj)):
             A[:, rows, layout.block("joint_friction", j).slice] = L[:, li, None] * friction_regressor(sig.dq[:, c])[:, None]

@@ -1,0 +1,283 @@
+"""One simulated experiment: the closed loop of boards, motors and rigid bodies, and what the boards record.
+
+The loop runs at the configured sample rate (1 kHz). Each sample the boards read the encoders, the impedance
+controller computes the joint torques, and the motor boards turn them into PWMs (saturated at ±1, quantised to
+their steps); the plant then takes a step with the PWM held (semi-implicit Euler, friction implicit; plant.py).
+A sample records q before the step, q̇ after it and q̈ = Δq̇/h: the triple the step's dynamics satisfies, up to
+the Coriolis torque being evaluated one step earlier. The recorded signals therefore meet the model's equations
+to integration accuracy (consistency.py); only the measurement chain (sensors.py), static friction while a
+joint sticks, contacts and the hidden effects make them disagree.
+
+Randomness comes from independent streams: the true robot from `robot_seed` (the same arm for every kind), the
+experiment (reference, contacts, noise, disturbance) from (`seed`, kind).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from ..config import RobotConfig
+from ..dataset import Dataset
+from ..errors import InputError
+from ..model import RobotModel
+from ..parameters import WRENCH_FIELDS
+from ..progress import track
+from . import contacts as contact_model
+from . import sensors
+from .actuation import Actuators
+from .controller import BANDWIDTH_HZ, ImpedanceController, reaching_reference
+from .effects import Effect
+from .plant import RigidBodyPlant
+from .true_robot import draw_true_robot
+
+KINDS: dict[str, float] = {"identification": 300.0, "validation": 120.0, "contact": 120.0}  # default durations, s
+_KIND_STREAM = {"identification": 1, "validation": 2, "contact": 3}
+
+MIN_RATE_HZ, MAX_RATE_HZ = 250.0, 10_000.0
+MAX_SAMPLES = 3_600_000  # about 1 kB per sample across the recorded and true signals
+
+SUPPLY_STD = 0.03  # relative supply-voltage variation (std), the motor gains vary with it
+SUPPLY_TIME_CONSTANT_S = 20.0
+TORQUE_RIPPLE = 0.03  # relative amplitude of the commutation ripple
+
+
+@dataclass(frozen=True)
+class SimulationSettings:
+    kind: str = "identification"
+    duration: float | None = None  # s; None: the kind's default
+    seed: int = 0
+    robot_seed: int = 0
+    noise: bool = True  # sensor noise and quantisation
+    disturbance: bool = True  # supply variation and torque ripple (off with noise)
+    effects: tuple[Effect, ...] = ()
+    rate_hz: float = 1000.0
+    substeps: int = 1
+
+    @property
+    def seconds(self) -> float:
+        return KINDS[self.kind] if self.duration is None else float(self.duration)
+
+
+@dataclass
+class Simulation:
+    dataset: Dataset  # what the boards recorded
+    truth_signals: Dataset  # the true state, inputs and wrenches, sample by sample
+    truth: dict = field(default_factory=dict)  # parameters, effects, contacts, realism counters (JSON-able)
+
+
+def _supply(n: int, n_motors: int, dt: float, rng: np.random.Generator) -> np.ndarray:
+    """Relative supply voltage per motor: 1 + an Ornstein–Uhlenbeck variation (a shared bus, per-board drops)."""
+    a = np.exp(-dt / SUPPLY_TIME_CONSTANT_S)
+    shocks = rng.normal(0.0, SUPPLY_STD * np.sqrt(1 - a * a), (n, 1 + n_motors))
+    x = np.empty_like(shocks)
+    x[0] = rng.normal(0.0, SUPPLY_STD, 1 + n_motors)
+    for k in range(1, n):  # a first-order recursion; lfilter would do it too, this keeps numpy only
+        x[k] = a * x[k - 1] + shocks[k]
+    return 1.0 + 0.8 * x[:, :1] + 0.6 * x[:, 1:]
+
+
+def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
+    if settings.kind not in KINDS:
+        raise InputError(f"unknown experiment kind '{settings.kind}' (known: {', '.join(KINDS)})")
+    if not MIN_RATE_HZ <= settings.rate_hz <= MAX_RATE_HZ:
+        raise InputError(
+            f"sample rate {settings.rate_hz:g} Hz is outside {MIN_RATE_HZ:g}..{MAX_RATE_HZ:g} Hz: the boards' "
+            "controller runs at the sample rate"
+        )
+    dt = 1.0 / settings.rate_hz
+    n = int(round(settings.seconds * settings.rate_hz))
+    if n < 2:
+        raise InputError(f"duration {settings.seconds:g} s is shorter than two samples")
+    if n > MAX_SAMPLES:
+        raise InputError(
+            f"duration {settings.seconds:g} s at {settings.rate_hz:g} Hz is {n} samples; at most {MAX_SAMPLES} "
+            "(an hour at 1 kHz) fit in memory: simulate several experiments instead"
+        )
+    model = RobotModel(config)
+    streams = np.random.SeedSequence([settings.seed, _KIND_STREAM[settings.kind], settings.robot_seed]).spawn(5)
+    rng_ref, rng_contact, rng_noise, rng_disturbance, rng_effects = (np.random.default_rng(s) for s in streams)
+    effects = list(settings.effects)
+    truth = draw_true_robot(model, settings.robot_seed)
+    joints, motors = config.joints, config.motor_names
+    nj, nm = len(joints), len(motors)
+
+    # The true bodies and gravity, with the hidden body effects.
+    inertias = [i.copy() for i in truth.inertias]
+    bodies = [b.name for b in model.bodies]
+    effect_truth: list[dict] = []
+    for e in effects:
+        entry = e.as_dict()
+        if e.kind == "payload":
+            k = bodies.index(e.target)
+            inertias[k] = inertias[k] + pin.Inertia(e.params["mass"], np.array([e.params[c] for c in "xyz"]), np.zeros((3, 3)))
+            entry["equivalent_parameters"] = dict(
+                zip(model.layout.block("inertial", e.target).names, inertias[k].toDynamicParameters().tolist())
+            )
+        effect_truth.append(entry)
+    gravity = np.asarray(config.gravity, float)
+    for e in effects:
+        if e.kind == "base_tilt":
+            axis = np.eye(3)["xyz".index(str(e.params["axis"]))]
+            gravity = pin.exp3(axis * np.deg2rad(float(e.params["degrees"]))) @ gravity
+    plant = RigidBodyPlant(model, inertias, gravity)
+    cad_plant = RigidBodyPlant(model, truth.cad_inertias)
+
+    limits = np.array([model.joint_limits[j] for j in joints])
+    q_rest = limits.mean(axis=1)
+    ref = reaching_reference(cad_plant, bodies[-1], limits, q_rest, n, dt, rng_ref)
+    controller = ImpedanceController(config, cad_plant, limits, dt, rng_ref, bodies[-1], contact_model.FORCE_RANGE_N[1])
+    disturbed = settings.disturbance and settings.noise
+    # Phases of ripple and cogging belong to the motors: drawn from the robot seed, like the arm itself.
+    motor_phases = np.random.default_rng([settings.robot_seed, 0xC0])
+    actuators = Actuators(config, truth, effects, limits, TORQUE_RIPPLE if disturbed else 0.0, motor_phases)
+    supply = _supply(n, nm, dt, rng_disturbance) if disturbed else np.ones((n, nm))
+    t = np.arange(n) * dt
+
+    sites = list(plant.sites.values())
+    episodes: list[contact_model.Episode] = []
+    patches = contact_model.skin_patches(config, plant)
+    if settings.kind == "contact":
+        coms = {b: inertias[k].lever for k, b in enumerate(bodies)}
+        episodes = contact_model.draw_episodes(settings.seconds, patches, plant, coms, rng_contact)
+    site_index, contact_wrench, episode_index = contact_model.timeline(episodes, t, sites)
+
+    encoder = sensors.encoder_steps(config)
+    pwm_counts = sensors.pwm_full_scale(config) if settings.noise else np.zeros(nm)
+    pwm_motors = np.array([m in config.motors_with_input("pwm") for m in motors], dtype=bool)
+    board_inputs = sensors.InputQuantiser(pwm_motors, pwm_counts)
+    torque_joints = config.joints_with_input("torque")
+
+    Q, V, A = np.empty((n, nj)), np.empty((n, nj)), np.empty((n, nj))
+    U, TAU_DIRECT = np.empty((n, nm)), np.empty((n, nj))
+    unsaturated = np.empty((n, nm))
+    STUCK = np.empty((n, len(actuators.coordinates)), dtype=bool)
+    mode = np.zeros(len(actuators.coordinates), dtype=np.int8)
+    fext = pin.StdVec_Force()
+    for _ in range(plant.model.njoints):
+        fext.append(pin.Force.Zero())
+    q, v = q_rest.copy(), np.zeros(nj)
+    controller.reset(q)
+    h = dt / settings.substeps
+    for k in track(range(n), n, f"simulating {settings.kind}"):
+        q_measured = sensors.quantise(q, encoder) if settings.noise else q
+        tau_cmd = controller.torque(q_measured, ref.q[k], ref.dq[k])
+        u = controller.motor_inputs(tau_cmd)
+        unsaturated[k] = u
+        u = board_inputs(u)
+        c = site_index[k]
+        forces = None
+        if c >= 0:
+            fext[sites[c].joint_id] = contact_model.contact_force(sites[c], contact_wrench[k])
+            forces = fext
+        for s in range(settings.substeps):
+            tau0, law = actuators.drive(q, v, u, supply[k], tau_cmd)
+            v_next, a = plant.step(q, v, tau0, law, h, forces, actuators.armature, mode)
+            if s == 0:
+                Q[k], V[k], A[k], STUCK[k] = q, v_next, a, mode == 0
+            v = v_next
+            q = q + h * v
+        U[k], TAU_DIRECT[k] = u, tau_cmd
+        if c >= 0:
+            fext[sites[c].joint_id] = pin.Force.Zero()
+        if not np.all(np.isfinite(q)):
+            raise RuntimeError(f"the plant diverged at t = {t[k]:.3f} s")
+
+    # The sensors, from the true trajectory.
+    wrenches, at_sensor, tau_contact = plant.sensor_wrenches(Q, V, A, site_index, contact_wrench, sites)
+    ft_measured, ft_offsets, ft_saturated = {}, {}, {}
+    for s in config.ft_sensors:
+        offset = sensors.ft_offset_track(effects, s.name, t, truth.ft_offsets[s.name], rng_effects)
+        gain = sensors.ft_gain_matrix(effects, s.name, np.random.default_rng([settings.robot_seed, 0xF7]))
+        std = np.array([s.force_noise] * 3 + [s.torque_noise] * 3)
+        ft_measured[s.name], ft_saturated[s.name] = sensors.measure_ft(
+            wrenches[s.name], offset, gain, std, sensors.ft_full_scale(config, s.name), settings.noise, rng_noise
+        )
+        ft_offsets[s.name] = offset
+    recorded_u = U.copy()
+    delay = sum(int(round(float(e.params["ms"]) * 1e-3 * settings.rate_hz)) for e in effects if e.kind == "pwm_delay")
+    if delay:
+        recorded_u[delay:], recorded_u[:delay] = U[:-delay], U[0]
+    q_recorded = sensors.quantise(Q, encoder) if settings.noise else Q.copy()
+    inputs = {m: recorded_u[:, i] for i, m in enumerate(motors)}
+    tau_measured = {}
+    for j in torque_joints:
+        i = joints.index(j)
+        tau_measured[j] = TAU_DIRECT[:, i] + (rng_noise.normal(0, config.noise.torque, n) if settings.noise else 0.0)
+    current = {m: inputs[m] for m in config.motors_with_input("current")}
+    if settings.noise:
+        current = {m: c + rng_noise.normal(0, config.noise.current, n) for m, c in current.items()}
+
+    contact = side = patch = None
+    if settings.kind == "contact":
+        contact = (episode_index >= 0).astype(np.uint8)
+        side_code = {"distal": 1.0, "proximal": -1.0}
+        side = np.array([side_code[episodes[i].side] if i >= 0 else 0.0 for i in episode_index])
+        patch = np.array([episodes[i].patch + 1.0 if i >= 0 else 0.0 for i in episode_index])
+    meta = {
+        "robot": config.name, "config_digest": config.digest, "source": f"dynid simulate --kind {settings.kind}",
+        "seed": settings.seed, "robot_seed": settings.robot_seed, "noise": settings.noise,
+    }  # never the hidden effects: finding them is the gap workflow's job
+    extra: dict[str, np.ndarray] = {}
+    if contact is not None:
+        extra = {"skin.side": side, "skin.patch": patch}
+    dataset = Dataset(
+        t=t, joints=joints, q=q_recorded,
+        pwm={m: inputs[m] for m in config.motors_with_input("pwm")}, current=current, tau=tau_measured,
+        ft=ft_measured, contact=contact, extra=extra, meta=meta,
+    ).validate()
+
+    truth_extra: dict[str, np.ndarray] = {}
+    for s in config.ft_sensors:
+        for kf, f in enumerate(WRENCH_FIELDS):
+            truth_extra[f"ft.{s.name}.offset.{f}"] = ft_offsets[s.name][:, kf]
+            truth_extra[f"contact.{s.name}.{f}"] = at_sensor[s.name][:, kf]
+    for i, j in enumerate(joints):
+        truth_extra[f"contact.tau.{j}"] = tau_contact[:, i]
+        truth_extra[f"reference.q.{j}"] = ref.q[:, i]
+    for i, name in enumerate(actuators.coordinates):
+        truth_extra[f"stuck.{name}"] = STUCK[:, i].astype(float)
+    for i, m in enumerate(motors):
+        truth_extra[f"supply.{m}"] = supply[:, i]
+        truth_extra[f"command.{m}"] = unsaturated[:, i]
+    truth_signals = Dataset(
+        t=t, joints=joints, q=Q, dq=V, ddq=A, pwm={m: U[:, i] for i, m in enumerate(motors)},
+        ft=wrenches, contact=contact, extra=truth_extra, meta={**meta, "truth": True},
+    )
+
+    drive_u = U[:, pwm_motors]
+    in_limits = np.all((Q >= limits[:, 0]) & (Q <= limits[:, 1]), axis=1)
+    record = {
+        "format": "dynid-truth", "format_version": 1,
+        "robot": config.name, "config_digest": config.digest, "kind": settings.kind,
+        "duration_s": settings.seconds, "rate_hz": settings.rate_hz, "samples": n,
+        "seed": settings.seed, "robot_seed": settings.robot_seed, "noise": settings.noise,
+        "disturbance": disturbed,
+        "parameters": truth.parameters(model),
+        "cad_parameters": {n: (None if np.isnan(x) else x) for n, x in zip(model.layout.names, model.cad_parameters().tolist())},
+        "plant": {
+            **truth.describe(model),
+            "gravity": gravity.tolist(),
+            "integrator": f"semi-implicit Euler with implicit friction, {settings.substeps} step(s) per sample",
+            "unconverged_friction_steps": plant.unconverged_steps,
+            "torque_ripple": TORQUE_RIPPLE if disturbed else 0.0,
+            "supply_std": SUPPLY_STD if disturbed else 0.0,
+            "controller": {"bandwidth_hz": BANDWIDTH_HZ, "stiffness": controller.K.tolist(), "damping": controller.D.tolist()},
+            "pwm_delay_samples": delay,
+        },
+        "effects": effect_truth,
+        "patches": [{"name": p.name, "links": list(p.links), "side": p.side} for p in patches],
+        "contacts": [e.as_dict(patches) for e in episodes],
+        "realism": {
+            "pwm_within_limits": float(np.mean(np.all(np.abs(drive_u) < 1.0, axis=1))) if drive_u.size else 1.0,
+            "command_saturated": float(np.mean(np.abs(unsaturated[:, pwm_motors]) > 1.0)) if drive_u.size else 0.0,
+            "joint_limits_respected": float(np.mean(in_limits)),
+            "stuck_fraction": dict(zip(actuators.coordinates, STUCK.mean(axis=0).tolist())),
+            "ft_saturated_samples": {s: int(np.any(v, axis=1).sum()) for s, v in ft_saturated.items()},
+            "peak_velocity": dict(zip(joints, np.max(np.abs(V), axis=0).tolist())),
+            "reaching_targets": len(ref.targets),
+        },
+    }
+    return Simulation(dataset, truth_signals, record)

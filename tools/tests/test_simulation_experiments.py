@@ -1,0 +1,160 @@
+"""`dynid simulate` as users run it: the default experiments' realism, the files, and every bad input."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dynid.config import load_config
+from dynid.csv_io import read_csv
+from dynid.dataset import Dataset, load_data
+from dynid.model import RobotModel
+from dynid.regressors.base import data_base_parameters, structural_base_parameters
+from dynid.regressors.stack import Signals, signals_from_dataset
+from dynid.simulation import KINDS, SimulationSettings, simulate
+
+ICUB = load_config("icub_right_arm")
+MODEL = RobotModel(ICUB)
+
+
+def dynid(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True, timeout=600)
+
+
+@pytest.fixture(scope="module")
+def default_experiments(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The three default experiments, through the command line, as scripts/main runs them."""
+    root = tmp_path_factory.mktemp("sim")
+    out = {}
+    for kind in KINDS:
+        out[kind] = root / kind
+        done = dynid("simulate", "--kind", kind, "--out", str(out[kind]), "--json", str(root / f"{kind}.json"))
+        assert done.returncode == 0, done.stderr
+    return out
+
+
+@pytest.mark.parametrize("kind", list(KINDS))
+def test_default_experiments_are_realistic(default_experiments: dict[str, Path], kind: str) -> None:
+    truth = json.loads((default_experiments[kind] / "truth.json").read_text())
+    assert truth["duration_s"] == KINDS[kind] and truth["samples"] == int(KINDS[kind] * 1000)
+    dataset = Dataset.load(default_experiments[kind] / "dataset.npz")
+    pwm = np.column_stack(list(dataset.pwm.values()))
+    assert np.mean(np.all(np.abs(pwm) < 1.0, axis=1)) >= 0.999  # the board's limit, as on the real arm
+    assert np.abs(pwm).max() <= 1.0
+    true_q = Dataset.load(default_experiments[kind] / "truth.npz").q
+    for i, j in enumerate(ICUB.joints):
+        lo, hi = MODEL.joint_limits[j]
+        assert lo <= true_q[:, i].min() and true_q[:, i].max() <= hi, j
+    assert truth["realism"]["joint_limits_respected"] == 1.0
+    assert truth["plant"]["unconverged_friction_steps"] == 0
+    assert truth["disturbance"] is True  # closed-loop identification is hard by default
+    supply = Dataset.load(default_experiments[kind] / "truth.npz").extra["supply.m0"]
+    assert 0.005 < np.std(supply) < 0.1 and abs(np.mean(supply) - 1) < 0.1  # the gains wander with the supply
+
+
+def test_identification_excites_the_full_base_rank(default_experiments: dict[str, Path]) -> None:
+    dataset = load_data(default_experiments["identification"], ICUB, MODEL.joint_limits)
+    full = signals_from_dataset(MODEL, dataset)  # derivatives estimated at the full rate, as fit will
+    every = slice(None, None, 10)  # every tenth sample of the whole experiment: the same excitation, less work
+    sig = Signals(full.q[every], full.dq[every], full.ddq[every], {k: v[every] for k, v in full.inputs.items()}, {},
+                  {k: v[every] for k, v in full.ft.items()})
+    assert data_base_parameters(MODEL, sig).rank == structural_base_parameters(MODEL).rank == 87
+    # Kept at rest, the rows of still joints (estimated q̇ exactly 0, Coulomb terms 0) seem to separate two more
+    # Coulomb combinations of the shoulder: that is static friction, which the model lacks, not excitation.
+    assert data_base_parameters(MODEL, sig, min_speed=None).rank == 89
+
+
+def test_contact_experiment_has_skin_ground_truth_on_both_sides(default_experiments: dict[str, Path]) -> None:
+    truth = json.loads((default_experiments["contact"] / "truth.json").read_text())
+    dataset = load_data(default_experiments["contact"], ICUB, MODEL.joint_limits)
+    episodes = truth["contacts"]
+    assert len(episodes) >= 15 and {e["side"] for e in episodes} == {"distal", "proximal"}
+    for e in episodes:
+        assert 0.3 <= e["end_s"] - e["onset_s"] <= 3.0 and 2.0 <= e["magnitude_n"] <= 15.0
+        inside = (dataset.t > e["onset_s"]) & (dataset.t < e["end_s"])
+        assert dataset.contact[inside].all()
+        assert np.all(dataset.extra["skin.side"][inside] == (1.0 if e["side"] == "distal" else -1.0))
+    assert 0.1 < dataset.contact.mean() < 0.6
+    # The skin's side is physics: a distal push shows in the F/T sensor, a proximal one does not.
+    signals = Dataset.load(default_experiments["contact"] / "truth.npz").extra
+    share = np.abs(signals["contact.r_arm_ft.fx"]) + np.abs(signals["contact.r_arm_ft.fy"]) + np.abs(signals["contact.r_arm_ft.fz"])
+    side = dataset.extra["skin.side"]
+    assert share[side < 0].max() == 0.0 and np.median(share[side > 0]) > 1.0
+
+
+def test_the_csv_is_the_dataset_and_every_command_reads_the_directory(default_experiments: dict[str, Path]) -> None:
+    directory = default_experiments["validation"]
+    dataset = load_data(directory, ICUB, MODEL.joint_limits)
+    from_csv = read_csv(directory / "data.csv", ICUB, joint_limits=MODEL.joint_limits)
+    assert np.array_equal(from_csv.q, dataset.q) and np.array_equal(from_csv.t, dataset.t)
+    assert all(np.array_equal(from_csv.pwm[m], dataset.pwm[m]) for m in ICUB.motor_names)
+    assert np.array_equal(from_csv.ft["r_arm_ft"], dataset.ft["r_arm_ft"])
+    imported = dynid("import", "--data", str(directory / "data.csv"), "--out", str(directory / "imported.npz"))
+    assert imported.returncode == 0, imported.stderr
+    structure = dynid("structure", "--data", str(directory), "--json", "-")
+    assert structure.returncode == 0, structure.stderr
+    assert json.loads(structure.stdout)["rank"] == 87
+
+
+def test_json_result_and_human_report(tmp_path: Path) -> None:
+    done = dynid("simulate", "--kind", "contact", "--duration", "6", "--seed", "2", "--effect", "cogging",
+                 "--effect", "ft_drift:force=1", "--out", str(tmp_path / "c"), "--json", "-")
+    assert done.returncode == 0, done.stderr
+    result = json.loads(done.stdout)
+    assert result["samples"] == 6000 and result["kind"] == "contact" and result["seed"] == 2
+    assert [e["name"] for e in result["effects"]] == ["cogging", "ft_drift"]
+    assert result["effects"][0]["target"] == "m3" and result["effects"][1]["force"] == 1.0
+    assert set(result["files"]) == {"dataset", "csv", "truth", "truth_signals"}
+    assert "simulated contact" in done.stderr and "hidden effects: cogging on m3" in done.stderr
+    truth = json.loads((tmp_path / "c" / "truth.json").read_text())
+    assert truth["effects"] == result["effects"]
+    listing = dynid("simulate", "--list-effects")
+    assert listing.returncode == 0 and "stribeck" in listing.stdout and "ft_gain" in listing.stdout
+
+
+def test_noise_none_is_deterministic_physics(tmp_path: Path) -> None:
+    a = simulate(ICUB, SimulationSettings(duration=0.5, noise=False, seed=1))
+    b = simulate(ICUB, SimulationSettings(duration=0.5, noise=False, seed=1, disturbance=True))
+    assert not a.truth["disturbance"] and not b.truth["disturbance"]  # noise none turns the disturbance off too
+    assert np.array_equal(a.dataset.q, b.dataset.q)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--effect", "bogus"], "unknown hidden effect 'bogus'"),
+        (["--effect", "cogging:motor=m9"], "targets 'm9', which is not a motor"),
+        (["--effect", "cogging:amplitude=strong"], "amplitude must be a number"),
+        (["--effect", "cogging:speed=1"], "has no parameter 'speed'"),
+        (["--effect", "cogging:amplitude"], "expected key=value"),
+        (["--effect", "ft_drift:shape=square"], "shape must be one of thermal, linear"),
+        (["--effect", "spring:joint=r_wrist_yaw"], "not a joint it can act on"),
+        (["--duration", "-1"], "must be a positive number"),
+        (["--duration", "nan"], "must be a positive number"),
+        (["--seed", "-3"], "must be 0 or more"),
+        (["--duration", "7200"], "fit in memory"),
+        (["--rate", "50"], "outside 250..10000 Hz"),
+        (["--kind", "dance"], "invalid choice"),
+        (["--robot", "no_such_robot"], "unknown robot configuration"),
+        ([], "--out DIR is required"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_code_2(tmp_path: Path, args: list[str], message: str) -> None:
+    out = [] if args == [] else ["--out", str(tmp_path / "x")]
+    done = dynid("simulate", "--duration", "0.1", *args, *out) if "--duration" not in args else dynid("simulate", *args, *out)
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and message in done.stderr, done.stderr
+    assert not (tmp_path / "x").exists()
+
+
+def test_output_path_that_is_a_file_is_refused(tmp_path: Path) -> None:
+    target = tmp_path / "taken"
+    target.write_text("keep me")
+    done = dynid("simulate", "--duration", "0.1", "--out", str(target))
+    assert done.returncode == 2 and "not a directory" in done.stderr
+    assert target.read_text() == "keep me"
