@@ -302,6 +302,10 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--out", metavar="DIR", help="the directory to write")
     json_arg(sp)
     sp.set_defaults(func=cmd_simulate)
+
+    from .cli_identify import add_commands as identification_commands
+
+    identification_commands(sub, robot_arg, json_arg, min_speed_arg, positive_int)
     return p
 
 

@@ -120,11 +120,25 @@ class Signals:
         )
 
 
-def signals_from_dataset(model: RobotModel, dataset) -> Signals:  # dataset: dynid.dataset.Dataset
-    """Pick the channels the configuration's sensor set-up needs; estimate q̇, q̈ when the data lack them."""
+def signals_from_dataset(model: RobotModel, dataset, filter_outputs: bool = False) -> Signals:  # dataset: Dataset
+    """Pick the channels the configuration's sensor set-up needs; estimate q̇, q̈ when the data lack them.
+
+    `filter_outputs`: when q̇, q̈ are estimated by a smoothing filter (Savitzky-Golay), pass q and every
+    measured channel (F/T, inputs, torques) through the same filter, so both sides of each row see the same
+    band: a real arm (and the simulated one) vibrates above the filter's band (encoder-quantised impedance
+    control, torque ripple), and an unfiltered F/T or PWM would carry forces whose accelerations the
+    filtered q̈ no longer holds (Gautier's parallel filtering of regressor and measurement).
+    """
     cfg = model.config
     if tuple(dataset.joints) != cfg.joints:
         raise DataError(f"the dataset's joints {list(dataset.joints)} differ from the configuration's {list(cfg.joints)}")
+    smoother = None
+    if filter_outputs and (dataset.dq is None or dataset.ddq is None):
+        options = dict(cfg.derivatives)
+        if options.pop("method", "savgol") == "savgol":
+            from ..derivatives import SavitzkyGolay
+
+            smoother = SavitzkyGolay(**options)
     if dataset.dq is None or dataset.ddq is None:
         options = dict(cfg.derivatives)
         try:
@@ -149,7 +163,17 @@ def signals_from_dataset(model: RobotModel, dataset) -> Signals:  # dataset: dyn
         if s.name not in dataset.ft:
             raise DataError(f"the data have no ft.{s.name}.* columns, which the configuration's F/T sensor needs")
     ft = {s.name: dataset.ft[s.name] for s in cfg.ft_sensors}
-    return Signals(dataset.q, dataset.dq, dataset.ddq, inputs, tau, ft)
+    if smoother is None:
+        return Signals(dataset.q, dataset.dq, dataset.ddq, inputs, tau, ft)
+    columns = [dataset.q] + [v[:, None] for v in inputs.values()] + [v[:, None] for v in tau.values()] + list(ft.values())
+    smooth = smoother(dataset.t, np.hstack(columns)).q
+    cut = np.cumsum([c.shape[1] for c in columns])[:-1]
+    parts = iter(np.split(smooth, cut, axis=1))
+    q = next(parts)
+    inputs = {k: next(parts)[:, 0] for k in inputs}
+    tau = {k: next(parts)[:, 0] for k in tau}
+    ft = {k: next(parts) for k in ft}
+    return Signals(q, dataset.dq, dataset.ddq, inputs, tau, ft)
 
 
 def group_row_maps(group: ActuationGroup) -> tuple[np.ndarray, np.ndarray]:
@@ -174,10 +198,12 @@ def rows_at_rest(model: RobotModel, dq: np.ndarray, min_speed: float = DEFAULT_M
         gj = [joint_col[j] for j in g.joints]
         L, C = group_row_maps(g)
         slow = np.abs(dq[:, gj]) < min_speed
-        rest = slow.astype(float) @ (L != 0).T.astype(float) > 0
+        # L comes from inverting the coupling: its structural zeros may be rounding residue (1e-17)
+        touches, touches_motor = np.abs(L) > 1e-9 * np.abs(L).max(), np.abs(C) > 1e-9 * np.abs(C).max()
+        rest = slow.astype(float) @ touches.T.astype(float) > 0
         if g.input != "torque" and g.coupled:
             slow_motor = np.abs(dq[:, gj] @ g.coupling.T) < min_speed
-            rest |= slow_motor.astype(float) @ (C != 0).T.astype(float) > 0
+            rest |= slow_motor.astype(float) @ touches_motor.T.astype(float) > 0
         out[:, start : start + len(gj)] = rest
         start += len(gj)
     return out

@@ -1,0 +1,295 @@
+"""`dynid fit`, `dynid validate`, `dynid detect`: identification, Table II, T² contact detection."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .config import load_config
+from .dataset import Dataset, load_data
+from .errors import DataError, InputError
+from .model import RobotModel
+
+PAPER = {"tpr": 0.67, "fpr": 0.06, "force_error": (1.33, 0.64), "force_error_cad": (1.86, 0.59),
+         "torque_error": (0.15, 0.13), "torque_error_cad": (0.15, 0.07)}
+CALIBRATION_STRIDE = 2  # every other sample of the identification run calibrates T² (quantiles need no more)
+QUANTILE_LEVELS = 1.0 - np.logspace(-4, np.log10(0.5), 240)  # α from 0.5 to 0.9999 for --alpha at detect time
+
+
+def _load(path: str, model: RobotModel) -> Dataset:
+    ds = load_data(Path(path), model.config, joint_limits=model.joint_limits)
+    robot = ds.meta.get("robot")
+    if robot is not None and robot != model.config.name:
+        raise DataError(f"{path} was recorded on '{robot}', not on '{model.config.name}'")
+    return ds
+
+
+def _cad_offsets(model: RobotModel, stats) -> np.ndarray:  # stats: dynid.statistics.Statistics
+    """F/T offsets that fit the CAD inertia best on the identification data (the CAD model has none)."""
+    layout, p = model.layout, stats.p
+    phi = np.nan_to_num(model.cad_parameters(), nan=0.0)
+    G = stats.gram.sum(axis=0)
+    out = np.zeros(len(layout))
+    for i, s in enumerate(model.config.ft_sensors):
+        for k in range(6):
+            o = layout.block("ft_offset", s.name).start + k
+            g = G[6 * i + k]
+            out[o] = (g[o, p] - g[o, :p] @ phi) / g[o, o] if g[o, o] > 0 else 0.0
+    return out
+
+
+def cad_phi(model: RobotModel, record: dict) -> np.ndarray:
+    phi = np.nan_to_num(model.cad_parameters(), nan=0.0)
+    offsets = np.asarray(record.get("cad_ft_offsets", np.zeros(len(phi))), float)
+    span = model.layout.span("ft_offset")
+    phi[span] = offsets[span]
+    return phi
+
+
+def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
+    from .detection import calibrate
+    from .identification import FitSettings, fit
+    from .identified import IdentifiedModel, file_digest, robot_record
+    from .outputs import output_channels, residuals
+    from .regressors.stack import signals_from_dataset
+
+    config = load_config(args.robot)
+    model = RobotModel(config)
+    datasets = [_load(p, model) for p in args.data]
+    settings = FitSettings(estimator=args.estimator, n_components=args.n_components, min_speed=args.min_speed,
+                           blocks=args.blocks)
+    started = time.perf_counter()
+    result = fit(model, datasets, settings)
+    elapsed_fit = time.perf_counter() - started
+    phi = result.phi
+
+    # T² calibration on the identification data (contact-free), offline derivatives.
+    es, dqs = [], []
+    for ds in datasets:
+        sig = signals_from_dataset(model, ds, filter_outputs=True)
+        sig = sig.slice(slice(None, None, CALIBRATION_STRIDE))
+        es.append(residuals(model, phi, sig))
+        dqs.append(sig.dq)
+    e, dq = np.vstack(es), np.vstack(dqs)
+    detectors = calibrate(model, e, dq, args.alpha, args.min_speed, args.n_mode, result.cv["n_components"])
+    t2_cal = detectors["calibrated"].t2(model, e, dq)
+    elapsed = time.perf_counter() - started
+
+    outs = output_channels(model)
+    base = result.base
+    names = list(base.combinations())
+    record = {
+        "estimator": result.chosen,
+        "settings": {"estimator": result.chosen, "n_components": args.n_components, "min_speed": args.min_speed,
+                     "blocks": result.statistics.n_blocks, "instrument_window_s": settings.instrument_window_s,
+                     "alpha": args.alpha, "n_mode": args.n_mode},
+        "n_components": result.cv["n_components"],
+        "cv": result.cv,
+        "base": {"rank": base.rank, "combinations": names,
+                 "independent": [model.layout.names[i] for i in base.independent],
+                 "values": result.estimates[result.chosen].beta.tolist(),
+                 "standard_errors": result.estimates[result.chosen].se.tolist(),
+                 "identified": result.identified.tolist()},
+        "estimators": {k: {"values": v.beta.tolist(), "standard_errors": v.se.tolist(), "detail": v.detail,
+                           "parameters": dict(zip(model.layout.names, v.phi.tolist()))}
+                       for k, v in result.estimates.items()},
+        "outputs": {"channels": [o.name for o in outs], "units": [o.unit for o in outs],
+                    "noise_std": [o.sigma for o in outs],
+                    "residual_variance": result.residual_variance[result.chosen].tolist()},
+        "derivatives": {"method": "savgol", **config.derivatives} if config.derivatives else {"method": "savgol"},
+        "detector": {**{k: d.as_dict() for k, d in detectors.items()},
+                     "calibration_samples": int(e.shape[0]),
+                     "calibrated_t2_quantiles": {"levels": QUANTILE_LEVELS.tolist(),
+                                                 "values": np.quantile(t2_cal, QUANTILE_LEVELS).tolist()}},
+        "cad_ft_offsets": _cad_offsets(model, result.statistics).tolist(),
+        "data": [{"path": str(Path(p).resolve()), "sha256": file_digest(ds_path(p)), "samples": ds.n_samples,
+                  "duration_s": ds.duration} for p, ds in zip(args.data, datasets)],
+        "fit_time_s": elapsed,
+    }
+    identified = IdentifiedModel(robot_record(config), dict(zip(model.layout.names, phi.tolist())), record)
+    identified.save(args.out)
+
+    print(f"fitted {config.name} on {result.samples} samples in {elapsed:.1f} s ({elapsed_fit:.1f} s the regression) "
+          f"-> {args.out}")
+    print(f"  base parameters: rank {base.rank} of {len(model.layout)}; {int(result.identified.sum())} determined to "
+          f"10 % or better; PLS ν = {result.cv['n_components']} (cross-validated on {result.statistics.n_blocks} time "
+          "blocks)")
+    gains = [i for i, n in enumerate(record["base"]["independent"]) if n.endswith(".phi_m")]
+    print("  motor gains (Nm per unit input) by estimator:")
+    for name, est in result.estimates.items():
+        mark = "*" if name == result.chosen else " "
+        values = ", ".join(f"{record['base']['independent'][i].split('.')[0]} {est.beta[i]:.3f}±{est.se[i]:.3f}"
+                           for i in gains)
+        print(f"   {mark}{name:4s} {values}")
+    rms = np.sqrt(result.residual_variance[result.chosen])
+    print("  residual RMS on the identification data (rows at rest left out) / channel noise:")
+    print("   " + ", ".join(f"{o.name} {r:.3g} ({r / o.sigma:.2f}×)" for o, r in zip(outs, rms)))
+    return {"robot": config.name, "out": args.out, "samples": result.samples, "rank": base.rank,
+            "n_components": result.cv["n_components"], "estimator": result.chosen,
+            "identified": int(result.identified.sum()), "estimators": record["estimators"],
+            "base": record["base"], "residual_rms": dict(zip(record["outputs"]["channels"], rms.tolist())),
+            "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed}
+
+
+def ds_path(p: str) -> Path:
+    from .dataset import SIMULATION_DATASET
+
+    path = Path(p)
+    return path / SIMULATION_DATASET if path.is_dir() else path
+
+
+def _model_and_data(args: argparse.Namespace):
+    from .identified import load_model
+
+    identified = load_model(args.model)
+    model = identified.robot_model
+    return identified, model, _load(args.data, model)
+
+
+def _norm_stats(x: np.ndarray) -> dict[str, float]:
+    n = np.linalg.norm(x, axis=1)
+    return {"mean": float(n.mean()), "std": float(n.std())}
+
+
+def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
+    from .outputs import output_channels, residuals
+    from .regressors.stack import signals_from_dataset
+
+    identified, model, ds = _model_and_data(args)
+    sig = signals_from_dataset(model, ds, filter_outputs=True)
+    e = residuals(model, identified.phi, sig)
+    outs = output_channels(model)
+    ft = [o.row for o in outs if o.kind == "ft"]
+    cad = cad_phi(model, identified.record)
+    cad_e = None
+    if ft:
+        gains = [o.gain_index for o in outs if o.gain_index is not None]
+        cad[gains] = 1.0  # the CAD model has no gains: its input predictions are undefined, not used
+        cad_e = residuals(model, cad, sig)[:, ft]
+    result: dict[str, Any] = {"model": args.model, "data": args.data, "samples": ds.n_samples, "channels": {}}
+    print(f"validation of {args.model} on {args.data} ({ds.n_samples} samples)")
+    if ft:
+        table = {"identified": {"force": _norm_stats(e[:, ft[:3]]), "torque": _norm_stats(e[:, ft[3:6]])},
+                 "cad": {"force": _norm_stats(cad_e[:, :3]), "torque": _norm_stats(cad_e[:, 3:6])}}
+        result["table_ii"] = table
+        print("  F/T prediction error (norm), mean ± std:    identified            CAD (offsets fitted)      paper (id / CAD)")
+        for what, unit, key in (("force", "N", "force_error"), ("torque", "Nm", "torque_error")):
+            i, c = table["identified"][what], table["cad"][what]
+            print(f"    {what:6s} {i['mean']:8.3f} ± {i['std']:.3f} {unit:2s}   {c['mean']:8.3f} ± {c['std']:.3f} {unit:2s}"
+                  f"        {PAPER[key][0]} ± {PAPER[key][1]} / {PAPER[key + '_cad'][0]} ± {PAPER[key + '_cad'][1]}")
+    print("  per channel: RMS of e = y − ŷ, and against the channel's noise std")
+    for o in outs:
+        rms = float(np.sqrt(np.mean(e[:, o.row] ** 2)))
+        entry = {"rms": rms, "mean": float(e[:, o.row].mean()), "std": float(e[:, o.row].std()),
+                 "noise_std": o.sigma, "ratio_to_noise": rms / o.sigma}
+        if o.kind == "input":
+            entry["cad"] = None  # no friction and no gains in a CAD model: undefined (the paper says so too)
+        result["channels"][o.name] = entry
+        print(f"    {o.name:18s} {rms:10.4g} {o.unit:4s} {rms / o.sigma:6.2f}× noise")
+    if any(o.kind == "input" for o in outs):
+        print("  CAD input (PWM) prediction: undefined; a CAD model has no friction and no motor gains")
+    return result
+
+
+def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
+    from .detection import Detector, f_threshold, score
+    from .outputs import residuals
+    from .regressors.stack import signals_from_dataset
+
+    identified, model, ds = _model_and_data(args)
+    det = identified.record.get("detector")
+    if not det:
+        raise DataError(f"{args.model} has no T² calibration (refit it with this dynid)")
+    sig = signals_from_dataset(model, ds, filter_outputs=True)
+    e = residuals(model, identified.phi, sig)
+    side = ds.extra.get("skin.side")
+    result: dict[str, Any] = {"model": args.model, "data": args.data, "alpha": args.alpha, "variants": {}}
+    print(f"T² contact detection with {args.model} on {args.data} ({ds.n_samples} samples), α = {args.alpha}")
+    if ds.contact is None:
+        print("  no contact ground truth in the data: FPR assumes the run is contact-free")
+    for variant in ("calibrated", "paper"):
+        d = Detector.from_dict(det[variant])
+        if variant == "paper":
+            n = d.n if args.n_mode == "dim" else int(identified.record.get("n_components", d.n))
+            d = Detector("paper", d.variance, f_threshold(n, det["calibration_samples"], args.alpha), args.alpha,
+                         d.min_speed, n)
+        elif args.alpha != d.alpha:
+            q = det["calibrated_t2_quantiles"]
+            if not q["levels"][0] <= args.alpha <= q["levels"][-1]:
+                raise InputError(f"--alpha {args.alpha} is outside the calibrated range "
+                                 f"{q['levels'][0]:.4g}..{q['levels'][-1]:.4g}")
+            d = Detector("calibrated", d.variance, float(np.interp(args.alpha, q["levels"], q["values"])), args.alpha,
+                         d.min_speed, d.n)
+        t2 = d.t2(model, e, sig.dq)
+        s = score(ds.t, t2, d.threshold, ds.contact, side)
+        result["variants"][variant] = s
+        tpr = "n/a" if s.get("tpr") is None else f"{100 * s['tpr']:.1f} %"
+        line = f"  {variant:10s} threshold {d.threshold:9.3g}: TPR {tpr}, FPR {100 * s['fpr']:.2f} %"
+        if "auc" in s:
+            line += f", AUC {s['auc']:.3f}"
+        if s.get("episodes"):
+            delay = s["delay_s"]
+            line += (f", episodes {s['episodes_detected']}/{s['episodes']}, delay median "
+                     f"{1e3 * delay['median']:.0f} ms p90 {1e3 * delay['p90']:.0f} ms") if delay["median"] is not None else ""
+        print(line)
+        if s.get("tpr_by_side"):
+            print("             TPR by side of the F/T sensor: " + ", ".join(
+                f"{k} {100 * v:.1f} %" for k, v in s["tpr_by_side"].items() if v is not None))
+    print(f"  paper (real iCub arm, α = 0.99): TPR {100 * PAPER['tpr']:.0f} %, FPR {100 * PAPER['fpr']:.0f} %")
+    return result
+
+
+def add_commands(sub: argparse._SubParsersAction, robot_arg, json_arg, min_speed_arg, positive_int) -> None:
+    from .detection import ALPHA
+    from .identification import DEFAULT_ESTIMATOR, ESTIMATORS
+
+    def alpha(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+        if not 0.5 <= value < 1.0:
+            raise argparse.ArgumentTypeError(f"must be in [0.5, 1), got {text}")
+        return value
+
+    sp = sub.add_parser("fit", help="identify inertia, F/T offsets, friction and motor gains in one regression",
+                        description="Fit the model of DESIGN.md §3 to one or more experiments (stacked): OLS on the "
+                        "base parameters, PLS by NIPALS (ν cross-validated on time blocks) and instrumental variables "
+                        "(IDIM-IV, the default: closed-loop data bias OLS and PLS), with jackknife standard errors; "
+                        "then calibrate the T² contact detector on the same data. Writes MODEL (JSON).")
+    robot_arg(sp)
+    sp.add_argument("--data", action="append", required=True, metavar="DATA",
+                    help="an experiment (dataset, CSV, candump log or a `dynid simulate` directory); repeatable")
+    sp.add_argument("--out", required=True, metavar="MODEL", help="the model file to write")
+    sp.add_argument("--estimator", choices=ESTIMATORS, default=DEFAULT_ESTIMATOR,
+                    help=f"whose parameters the model keeps (default {DEFAULT_ESTIMATOR}); all three are reported")
+    sp.add_argument("--n-components", type=positive_int, metavar="NU", help="PLS latent variables (default: by CV)")
+    sp.add_argument("--blocks", type=positive_int, default=10, help="time blocks for CV and jackknife (default 10)")
+    sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"T² confidence level (default {ALPHA})")
+    sp.add_argument("--n-mode", choices=["dim", "nu"], default="dim",
+                    help="n of the paper's F threshold: dim(e) (default) or ν as the paper writes")
+    min_speed_arg(sp)
+    json_arg(sp)
+    sp.set_defaults(func=cmd_fit)
+
+    sp = sub.add_parser("validate", help="the paper's Table II on a validation experiment",
+                        description="F/T prediction error (force and torque norms, mean ± std) of the identified and "
+                        "the CAD parameters, and per-channel residual RMS against the noise.")
+    sp.add_argument("--model", required=True, metavar="MODEL")
+    sp.add_argument("--data", required=True, metavar="DATA")
+    json_arg(sp)
+    sp.set_defaults(func=cmd_validate)
+
+    sp = sub.add_parser("detect", help="offline T² contact detection against the skin's ground truth",
+                        description="T² per sample, both variants (calibrated: dynid's default; paper: diagonal Λ and "
+                        "the F threshold); TPR, FPR, ROC/AUC, detection delay, TPR per side of the F/T sensor.")
+    sp.add_argument("--model", required=True, metavar="MODEL")
+    sp.add_argument("--data", required=True, metavar="DATA")
+    sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"confidence level (default {ALPHA})")
+    sp.add_argument("--n-mode", choices=["dim", "nu"], default="dim", help="n of the paper's F threshold")
+    json_arg(sp)
+    sp.set_defaults(func=cmd_detect)

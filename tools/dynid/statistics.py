@@ -1,0 +1,156 @@
+"""Sufficient statistics of the weighted stacked system, accumulated a chunk at a time, per time block.
+
+Every estimator of `dynid.estimators` works from these, so memory is bounded by p² per block whatever the
+length of the experiment (an hour at 1 kHz is 36 million rows of A; it is never stacked):
+
+- ``gram[k, c]`` = [A b]ᵀ W² [A b] over the rows of channel c in time block k, (p+1, p+1): summed over
+  channels it is the whole system's; per channel it gives each output's residual variance for any Φ;
+- ``cross[k, c]`` = Zᵀ W² A and ``cross_b[k, c]`` = Zᵀ W² b over the rows of channel c in block k, where Z is the
+  regressor along an instrument trajectory (the IV estimator's raw instruments);
+- ``rows[k, c]``: how many rows of channel c block k kept (rows at rest have weight 0 and count for nothing).
+
+Blocks are contiguous stretches of time: cross-validation holds one out, the jackknife drops one at a time.
+The work is spread over processes (fork) a block range each; the statistics add up exactly.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+from .model import RobotModel
+from .progress import track
+from .regressors.stack import DEFAULT_CHUNK, RowChannel, Signals, iter_stacked, row_channels
+
+MIN_BLOCK_SAMPLES = 200
+
+
+@dataclass
+class Statistics:
+    parameter_names: tuple[str, ...]
+    channels: tuple[RowChannel, ...]
+    block_samples: np.ndarray  # (B + 1,) sample index where each block starts, then the end
+    gram: np.ndarray  # (B, r, p+1, p+1)
+    rows: np.ndarray  # (B, r)
+    cross: np.ndarray | None = None  # (B, r, p, p)
+    cross_b: np.ndarray | None = None  # (B, r, p)
+
+    @property
+    def n_blocks(self) -> int:
+        return self.gram.shape[0]
+
+    @property
+    def p(self) -> int:
+        return self.gram.shape[-1] - 1
+
+    def system(self, keep: np.ndarray | slice | None = None) -> np.ndarray:
+        """[A b]ᵀW²[A b] of the whole system over the blocks `keep` (all by default)."""
+        return self.gram[slice(None) if keep is None else keep].sum(axis=(0, 1))
+
+    def total(self, keep: np.ndarray | None = None) -> Statistics:
+        """The statistics summed over the blocks `keep` (bool or indices; all by default), as one block."""
+        k = slice(None) if keep is None else keep
+        return Statistics(
+            self.parameter_names, self.channels, self.block_samples[[0, -1]],
+            self.gram[k].sum(axis=0)[None], self.rows[k].sum(axis=0)[None],
+            None if self.cross is None else self.cross[k].sum(axis=0)[None],
+            None if self.cross_b is None else self.cross_b[k].sum(axis=0)[None],
+        )
+
+    def __add__(self, other: Statistics) -> Statistics:
+        """Statistics of two experiments, stacked (their blocks side by side)."""
+        if other.parameter_names != self.parameter_names:
+            raise ValueError("statistics of different parameter layouts")
+        cat = lambda a, b: None if a is None or b is None else np.concatenate([a, b])  # noqa: E731
+        end = self.block_samples[-1]
+        return Statistics(
+            self.parameter_names, self.channels, np.concatenate([self.block_samples, other.block_samples[1:] + end]),
+            np.concatenate([self.gram, other.gram]), np.concatenate([self.rows, other.rows]),
+            cat(self.cross, other.cross), cat(self.cross_b, other.cross_b),
+        )
+
+
+def block_edges(n_samples: int, n_blocks: int) -> np.ndarray:
+    n_blocks = max(1, min(n_blocks, n_samples // MIN_BLOCK_SAMPLES))
+    return np.linspace(0, n_samples, n_blocks + 1).round().astype(int)
+
+
+# The job a forked worker reads (fork shares it without pickling the Pinocchio model).
+_JOB: dict = {}
+
+
+def _accumulate_blocks(first: int, last: int) -> tuple[np.ndarray, ...]:
+    model: RobotModel = _JOB["model"]
+    sig: Signals = _JOB["sig"]
+    inst: Signals | None = _JOB["instruments"]
+    weights: np.ndarray = _JOB["weights"]
+    edges: np.ndarray = _JOB["edges"]
+    r, p = weights.shape[1], len(model.layout)
+    nb = last - first
+    gram, rows = np.zeros((nb, r, p + 1, p + 1)), np.zeros((nb, r))
+    cross = np.zeros((nb, r, p, p)) if inst is not None else None
+    cross_b = np.zeros((nb, r, p)) if inst is not None else None
+    blocks = range(first, last)
+    for k in track(blocks, nb, "building regressors") if _JOB["progress"] else blocks:
+        lo, hi = edges[k], edges[k + 1]
+        part = sig.slice(slice(lo, hi))
+        parts = iter_stacked(model, part, _JOB["chunk"])
+        inst_parts = iter_stacked(model, inst.slice(slice(lo, hi)), _JOB["chunk"]) if inst is not None else None
+        start = lo
+        for A, b in parts:
+            n = A.shape[0] // r
+            w = weights[start : start + n]
+            start += n
+            X = np.empty((n * r, p + 1))
+            X[:, :p] = A * w.reshape(-1, 1)
+            X[:, p] = b * w.ravel()
+            rows[k - first] += (w > 0).sum(axis=0)
+            Xr = X.reshape(n, r, p + 1)
+            for c in range(r):
+                gram[k - first, c] += Xr[:, c].T @ Xr[:, c]
+            if inst_parts is not None:
+                Z, _ = next(inst_parts)
+                Zw = (Z * w.reshape(-1, 1)).reshape(n, r, p)
+                for c in range(r):
+                    cross[k - first, c] += Zw[:, c].T @ Xr[:, c, :p]
+                    cross_b[k - first, c] += Zw[:, c].T @ Xr[:, c, p]
+    return gram, rows, cross, cross_b
+
+
+def accumulate(
+    model: RobotModel,
+    sig: Signals,
+    weights: np.ndarray,
+    instruments: Signals | None = None,
+    n_blocks: int = 10,
+    workers: int | None = None,
+    chunk: int = DEFAULT_CHUNK,
+) -> Statistics:
+    """Statistics of `sig` with row weights `weights` (N, r); `instruments` adds the IV cross products."""
+    n = sig.q.shape[0]
+    edges = block_edges(n, n_blocks)
+    nb = len(edges) - 1
+    workers = max(1, min(workers or os.cpu_count() or 1, nb))
+    _JOB.update(model=model, sig=sig, instruments=instruments, weights=weights, edges=edges, chunk=chunk)
+    split = np.linspace(0, nb, workers + 1).round().astype(int)
+    try:
+        if workers == 1:
+            _JOB["progress"] = True
+            parts = [_accumulate_blocks(0, nb)]
+        else:
+            _JOB["progress"] = False  # one line of progress would interleave; the fork workers stay quiet
+            ctx = multiprocessing.get_context("fork")
+            with ProcessPoolExecutor(workers, mp_context=ctx) as pool:
+                futures = [pool.submit(_accumulate_blocks, int(a), int(b)) for a, b in zip(split[:-1], split[1:])]
+                parts = [f.result() for f in futures]
+    finally:
+        _JOB.clear()
+    gram = np.concatenate([x[0] for x in parts])
+    rows = np.concatenate([x[1] for x in parts])
+    cross = np.concatenate([x[2] for x in parts]) if instruments is not None else None
+    cross_b = np.concatenate([x[3] for x in parts]) if instruments is not None else None
+    return Statistics(model.layout.names, row_channels(model), edges, gram, rows, cross, cross_b)

@@ -1,0 +1,37 @@
+"""Fixtures shared by the test modules: the default simulated experiments, made once per session."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+KINDS = ("identification", "validation", "contact")
+
+
+def dynid(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True, timeout=900)
+
+
+@pytest.fixture(scope="session")
+def default_experiments(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The three default experiments, through the command line, as scripts/main runs them."""
+    root = tmp_path_factory.mktemp("sim")
+    out = {}
+    for kind in KINDS:
+        out[kind] = root / kind
+        done = dynid("simulate", "--kind", kind, "--out", str(out[kind]), "--json", str(root / f"{kind}.json"))
+        assert done.returncode == 0, done.stderr
+    return out
+
+
+@pytest.fixture(scope="session")
+def default_model(default_experiments: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """`dynid fit` on the default identification experiment, as scripts/main runs it."""
+    out = tmp_path_factory.mktemp("fit") / "model.json"
+    done = dynid("fit", "--data", str(default_experiments["identification"]), "--out", str(out),
+                 "--json", str(out.with_suffix(".fit.json")))
+    assert done.returncode == 0, done.stderr
+    return out
