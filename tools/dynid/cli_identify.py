@@ -17,7 +17,7 @@ from .model import RobotModel
 PAPER = {"tpr": 0.67, "fpr": 0.06, "force_error": (1.33, 0.64), "force_error_cad": (1.86, 0.59),
          "torque_error": (0.15, 0.13), "torque_error_cad": (0.15, 0.07)}
 CALIBRATION_STRIDE = 2  # every other sample of the identification run calibrates T² (quantiles need no more)
-QUANTILE_LEVELS = 1.0 - np.logspace(-4, np.log10(0.5), 240)  # α from 0.5 to 0.9999 for --alpha at detect time
+QUANTILE_LEVELS = np.sort(1.0 - np.logspace(-4, np.log10(0.5), 240))  # α in 0.5 … 0.9999, ascending
 
 
 def _load(path: str, model: RobotModel) -> Dataset:
@@ -91,6 +91,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         "cv": result.cv,
         "base": {"rank": base.rank, "combinations": names,
                  "independent": [model.layout.names[i] for i in base.independent],
+                 "dependent": [model.layout.names[i] for i in base.dependent], "K": base.K.tolist(),
                  "values": result.estimates[result.chosen].beta.tolist(),
                  "standard_errors": result.estimates[result.chosen].se.tolist(),
                  "identified": result.identified.tolist()},

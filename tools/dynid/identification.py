@@ -142,15 +142,17 @@ def cross_validate_nu(stats: Statistics, max_components: int) -> dict:
     p, B = stats.p, stats.n_blocks
     total = stats.system()
     press = np.zeros(max_components)
+    available = max_components  # NIPALS stops early once Xᵀy is exhausted on some training set
     for k in range(B):
         held = stats.gram[k].sum(axis=0)
         train = total - held
         path = pls_path(train[:p, :p], train[:p, p], max_components)
-        for i, coef in enumerate(path):
+        available = min(available, len(path))
+        for i, coef in enumerate(path[:available]):
             press[i] += held[p, p] - 2 * coef @ held[:p, p] + coef @ held[:p, :p] @ coef
-        press[len(path):] = np.inf if len(path) < max_components else press[len(path):]
+    press = press[:available]
     best = int(np.argmin(press)) + 1
-    return {"n_components": best, "candidates": list(range(1, max_components + 1)), "press": press.tolist()}
+    return {"n_components": best, "candidates": list(range(1, available + 1)), "press": press.tolist()}
 
 
 def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, samples: int) -> FitResult:

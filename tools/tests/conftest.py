@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -17,7 +18,13 @@ def dynid(*args: str) -> subprocess.CompletedProcess:
 
 @pytest.fixture(scope="session")
 def default_experiments(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """The three default experiments, through the command line, as scripts/main runs them."""
+    """The three default experiments, through the command line, as scripts/main runs them.
+
+    DYNID_TEST_EXPERIMENTS=DIR reuses DIR/<kind> from an earlier `dynid simulate` with the defaults (development
+    only: it saves three minutes a run; CI always simulates)."""
+    reuse = os.environ.get("DYNID_TEST_EXPERIMENTS")
+    if reuse:
+        return {kind: Path(reuse) / kind for kind in KINDS}
     root = tmp_path_factory.mktemp("sim")
     out = {}
     for kind in KINDS:

@@ -1,0 +1,162 @@
+"""`dynid fit`, `validate` and `detect` on the plant's default experiments, against the plant's truth.
+
+The fit runs once per session (the `default_model` fixture, through the command line as scripts/main runs it);
+every figure asserted here is printed by the commands and listed in the README.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import dynid
+from dynid.identified import load_model
+
+
+def truth_of(run: Path) -> dict:
+    return json.loads((run / "truth.json").read_text())
+
+
+def run_json(tmp_path: Path, *args: str) -> dict:
+    out = tmp_path / "result.json"
+    done = dynid(*args, "--json", str(out))
+    assert done.returncode == 0, done.stderr
+    return json.loads(out.read_text())
+
+
+def test_model_file_holds_what_the_monitor_and_the_user_need(default_model: Path, default_experiments) -> None:
+    model = load_model(default_model)
+    rec = model.record
+    assert set(rec["estimators"]) == {"iv", "pls", "ols"} and rec["estimator"] == "iv"
+    assert rec["base"]["rank"] == 87 and 1 <= rec["n_components"] <= 87
+    assert len(rec["cv"]["press"]) == len(rec["cv"]["candidates"])
+    assert np.argmin(rec["cv"]["press"]) + 1 == rec["n_components"]
+    assert rec["outputs"]["channels"][:6] == [f"ft.r_arm_ft.{c}" for c in ("fx", "fy", "fz", "tx", "ty", "tz")]
+    assert all(v > 0 for v in rec["outputs"]["residual_variance"])
+    data = rec["data"][0]
+    assert data["samples"] == 300_000 and len(data["sha256"]) == 64
+    # Parameters by name reproduce the stored base values through the stored combinations.
+    assert np.allclose(model.base_values(model.parameters), rec["base"]["values"], rtol=1e-9, atol=1e-12)
+
+
+def test_iv_recovers_the_motor_gains_in_closed_loop_and_ols_does_not(default_model: Path, default_experiments) -> None:
+    truth = truth_of(default_experiments["identification"])["parameters"]
+    rec = load_model(default_model).record
+    names = rec["base"]["independent"]
+    for est, bound in (("iv", 0.03), ("ols", None)):
+        values = dict(zip(names, rec["estimators"][est]["values"]))
+        for motor in ("m0", "m1", "m2", "m3"):
+            rel = values[f"{motor}.phi_m"] / truth[f"{motor}.phi_m"] - 1
+            if bound is not None:
+                assert abs(rel) <= bound, (est, motor, rel)
+            elif motor != "m3":  # the shoulder: the closed-loop bias the issue describes (measured −9…−11 %)
+                assert rel < -0.05, (est, motor, rel)
+
+
+def test_friction_where_identified_is_within_ten_percent(default_model: Path, default_experiments) -> None:
+    """Every friction combination the run determines (standard error ≤ 10 %) is within 10 % of the truth; the
+    ones it flags as undetermined are the ones that are off (the flag is honest)."""
+    truth = truth_of(default_experiments["identification"])["parameters"]
+    model = load_model(default_model)
+    base = model.record["base"]
+    true_beta = model.base_values(truth)
+    friction = [i for i, n in enumerate(base["independent"]) if ".fc_" in n or ".fv_" in n]
+    identified = [i for i in friction if base["identified"][i]]
+    assert len(identified) >= 12
+    rel = np.abs(np.asarray(base["values"]) / true_beta - 1)
+    assert rel[identified].max() <= 0.10
+    errors = np.abs(np.asarray(base["values"]) - true_beta)
+    se = np.asarray(base["standard_errors"])
+    assert np.mean(errors[friction] <= 3 * se[friction]) >= 0.9  # the standard errors are honest too
+
+
+def test_table_ii_identified_beats_cad(default_model: Path, default_experiments, tmp_path: Path) -> None:
+    result = run_json(tmp_path, "validate", "--model", str(default_model), "--data", str(default_experiments["validation"]))
+    table = result["table_ii"]
+    assert table["identified"]["force"]["mean"] <= 0.7 * table["cad"]["force"]["mean"]  # measured 0.21×
+    assert table["identified"]["torque"]["mean"] <= 0.7 * table["cad"]["torque"]["mean"]
+    for name, ch in result["channels"].items():
+        if name.startswith("ft."):
+            assert ch["ratio_to_noise"] <= 1.2, name  # measured 0.32…1.11×
+        else:
+            assert ch["cad"] is None  # a CAD model has no gains: its PWM prediction is undefined
+
+
+def test_calibrated_threshold_keeps_its_promise(default_model: Path, default_experiments, tmp_path: Path) -> None:
+    free = run_json(tmp_path, "detect", "--model", str(default_model), "--data", str(default_experiments["validation"]))
+    calibrated, paper = free["variants"]["calibrated"], free["variants"]["paper"]
+    assert calibrated["fpr"] <= 0.02  # measured 1.4 % at α = 0.99
+    # The paper's variant (diagonal Λ, F threshold) does not: heavy-tailed, autocorrelated PWM residuals.
+    assert paper["fpr"] > 2 * (1 - 0.99)
+
+    contact = run_json(tmp_path, "detect", "--model", str(default_model), "--data", str(default_experiments["contact"]))
+    cal = contact["variants"]["calibrated"]
+    assert cal["tpr_by_side"]["distal"] >= 0.99
+    assert cal["fpr"] <= 0.02 and cal["auc"] > 0.85
+    assert cal["delay_s"]["median"] is not None and cal["delay_s"]["median"] < 0.1
+
+
+def test_alpha_moves_the_calibrated_threshold(default_model: Path, default_experiments, tmp_path: Path) -> None:
+    data = str(default_experiments["validation"])
+    loose = run_json(tmp_path, "detect", "--model", str(default_model), "--data", data, "--alpha", "0.95")
+    strict = run_json(tmp_path, "detect", "--model", str(default_model), "--data", data, "--alpha", "0.999")
+    assert loose["variants"]["calibrated"]["fpr"] > strict["variants"]["calibrated"]["fpr"]
+    assert loose["variants"]["calibrated"]["fpr"] <= 0.1 and strict["variants"]["calibrated"]["fpr"] <= 0.005
+
+
+# ------------------------------------------------------------------------------------------------------------
+# Bad input: exit 2 and one line
+
+
+def csv_variant(src: Path, dst: Path, rows: int, drop: str | None = None) -> Path:
+    with open(src, newline="") as f, open(dst, "w", newline="") as g:
+        reader, writer = csv.reader(f), csv.writer(g)
+        header = next(reader)
+        keep = [i for i, h in enumerate(header) if drop is None or not h.startswith(drop)]
+        writer.writerow([header[i] for i in keep])
+        for k, row in enumerate(reader):
+            if k >= rows:
+                break
+            writer.writerow([row[i] for i in keep])
+    return dst
+
+
+def refused(done, *words: str) -> None:
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
+    assert all(w in lines[0] for w in words), lines[0]
+
+
+@pytest.mark.parametrize(("drop", "rows", "words"), [
+    ("pwm.", 5000, ("pwm",)),
+    ("ft.", 5000, ("ft",)),
+    (None, 300, ("too few samples",)),
+])
+def test_fit_refuses_data_it_cannot_fit(default_experiments, tmp_path: Path, drop, rows, words) -> None:
+    data = csv_variant(default_experiments["validation"] / "data.csv", tmp_path / "data.csv", rows, drop)
+    refused(dynid("fit", "--data", str(data), "--out", str(tmp_path / "m.json")), *words)
+    assert not (tmp_path / "m.json").exists()
+
+
+def test_a_model_of_another_robot_is_refused(default_model: Path, default_experiments, tmp_path: Path) -> None:
+    other = json.loads(default_model.read_text())
+    panda = Path(__file__).resolve().parents[2] / "tests" / "realdata" / "panda.yaml"
+    other["robot"] = {"name": "panda", "config_digest": "0" * 64, "config_source": str(panda),
+                      "config_text": panda.read_text()}
+    path = tmp_path / "panda_model.json"
+    path.write_text(json.dumps(other))
+    for cmd in ("validate", "detect"):
+        refused(dynid(cmd, "--model", str(path), "--data", str(default_experiments["validation"])), "panda")
+
+
+@pytest.mark.parametrize("content", ["", "{not json", '{"format": "something-else"}', '{"format": "dynid-model", '
+                                     '"format_version": 99}'])
+def test_a_corrupt_model_file_is_refused(default_experiments, tmp_path: Path, content: str) -> None:
+    path = tmp_path / "model.json"
+    path.write_text(content)
+    refused(dynid("validate", "--model", str(path), "--data", str(default_experiments["validation"])), "model")
