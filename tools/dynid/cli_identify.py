@@ -16,6 +16,7 @@ from .model import RobotModel
 
 PAPER = {"tpr": 0.67, "fpr": 0.06, "force_error": (1.33, 0.64), "force_error_cad": (1.86, 0.59),
          "torque_error": (0.15, 0.13), "torque_error_cad": (0.15, 0.07)}
+SHOW_COMBINATIONS = 30  # print every base combination when there are at most this many (else see --json)
 CALIBRATION_STRIDE = 2  # every other sample of the identification run calibrates T² (quantiles need no more)
 QUANTILE_LEVELS = np.sort(1.0 - np.logspace(-4, np.log10(0.5), 240))  # α in 0.5 … 0.9999, ascending
 
@@ -120,18 +121,29 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
           f"10 % or better; PLS ν = {result.cv['n_components']} (cross-validated on {result.statistics.n_blocks} time "
           "blocks)")
     gains = [i for i, n in enumerate(record["base"]["independent"]) if n.endswith(".phi_m")]
-    print("  motor gains (Nm per unit input) by estimator:")
-    for name, est in result.estimates.items():
+    print("  motor gains (Nm per unit input) by estimator:" if gains else "  no unknown motor gains in this set-up")
+    for name, est in result.estimates.items() if gains else ():
         mark = "*" if name == result.chosen else " "
         values = ", ".join(f"{record['base']['independent'][i].split('.')[0]} {est.beta[i]:.3f}±{est.se[i]:.3f}"
                            for i in gains)
         print(f"   {mark}{name:4s} {values}")
+    chosen = result.estimates[result.chosen]
+    determined = {c: (float(v), float(e)) for c, v, e, ok in zip(names, chosen.beta, chosen.se, result.identified) if ok}
+    undetermined = [c for c, ok in zip(names, result.identified) if not ok]
+    if base.rank <= SHOW_COMBINATIONS:
+        print("  determined by this run (value ± standard error):")
+        for c, (v, e) in determined.items():
+            print(f"    {c:60s} {v:12.5g} ± {e:.2g}")
+        if undetermined:
+            print("  not determined by this run (standard error above 10 %; no value given): " + ", ".join(undetermined))
     rms = np.sqrt(result.residual_variance[result.chosen])
     print("  residual RMS on the identification data (rows at rest left out) / channel noise:")
     print("   " + ", ".join(f"{o.name} {r:.3g} ({r / o.sigma:.2f}×)" for o, r in zip(outs, rms)))
     return {"robot": config.name, "out": args.out, "samples": result.samples, "rank": base.rank,
             "n_components": result.cv["n_components"], "estimator": result.chosen,
-            "identified": int(result.identified.sum()), "estimators": record["estimators"],
+            "identified": int(result.identified.sum()), "determined": {c: {"value": v, "standard_error": e}
+                                                                     for c, (v, e) in determined.items()},
+            "undetermined": undetermined, "estimators": record["estimators"],
             "base": record["base"], "residual_rms": dict(zip(record["outputs"]["channels"], rms.tolist())),
             "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed}
 
@@ -157,7 +169,7 @@ def _norm_stats(x: np.ndarray) -> dict[str, float]:
 
 
 def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
-    from .outputs import output_channels, residuals
+    from .outputs import measured_outputs, output_channels, residuals
     from .regressors.stack import signals_from_dataset
 
     identified, model, ds = _model_and_data(args)
@@ -191,6 +203,12 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
             entry["cad"] = None  # no friction and no gains in a CAD model: undefined (the paper says so too)
         result["channels"][o.name] = entry
         print(f"    {o.name:18s} {rms:10.4g} {o.unit:4s} {rms / o.sigma:6.2f}× noise")
+    torque = [o.row for o in outs if o.kind == "torque"]
+    if torque:  # joint torque sensors: the error the torque-identification literature reports
+        y = measured_outputs(model, sig)[:, torque]
+        rel = float(np.linalg.norm(e[:, torque]) / np.linalg.norm(y))
+        result["relative_torque_error"] = rel
+        print(f"  relative torque error ‖τ − τ̂‖ / ‖τ‖: {100 * rel:.2f} %")
     if any(o.kind == "input" for o in outs):
         print("  CAD input (PWM) prediction: undefined; a CAD model has no friction and no motor gains")
     return result

@@ -29,6 +29,7 @@ from .errors import DataError
 from .estimators import InputColumns, base_least_squares, instrumental_variables, pls_path
 from .model import RobotModel
 from .outputs import output_channels
+from .progress import track
 from .regressors.base import BaseParameters, base_parameters_from_factor
 from .regressors.stack import DEFAULT_MIN_SPEED, Signals, row_weights, signals_from_dataset
 from .statistics import Statistics, accumulate
@@ -143,7 +144,7 @@ def cross_validate_nu(stats: Statistics, max_components: int) -> dict:
     total = stats.system()
     press = np.zeros(max_components)
     available = max_components  # NIPALS stops early once Xᵀy is exhausted on some training set
-    for k in range(B):
+    for k in track(range(B), B, "cross-validating PLS"):
         held = stats.gram[k].sum(axis=0)
         train = total - held
         path = pls_path(train[:p, :p], train[:p, p], max_components)

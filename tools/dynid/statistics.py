@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 
 import numpy as np
@@ -143,16 +143,17 @@ def accumulate(
     nb = len(edges) - 1
     workers = max(1, min(workers or os.cpu_count() or 1, nb))
     _JOB.update(model=model, sig=sig, instruments=instruments, weights=weights, edges=edges, chunk=chunk)
-    split = np.linspace(0, nb, workers + 1).round().astype(int)
     try:
         if workers == 1:
             _JOB["progress"] = True
             parts = [_accumulate_blocks(0, nb)]
         else:
-            _JOB["progress"] = False  # one line of progress would interleave; the fork workers stay quiet
+            _JOB["progress"] = False  # the parent shows progress, a block at a time
             ctx = multiprocessing.get_context("fork")
             with ProcessPoolExecutor(workers, mp_context=ctx) as pool:
-                futures = [pool.submit(_accumulate_blocks, int(a), int(b)) for a, b in zip(split[:-1], split[1:])]
+                futures = [pool.submit(_accumulate_blocks, k, k + 1) for k in range(nb)]
+                for _ in track(as_completed(futures), nb, "building regressors"):
+                    pass
                 parts = [f.result() for f in futures]
     finally:
         _JOB.clear()
