@@ -17,6 +17,7 @@ from .model import RobotModel
 PAPER = {"tpr": 0.67, "fpr": 0.06, "force_error": (1.33, 0.64), "force_error_cad": (1.86, 0.59),
          "torque_error": (0.15, 0.13), "torque_error_cad": (0.15, 0.07)}
 SHOW_COMBINATIONS = 30  # print every base combination when there are at most this many (else see --json)
+CALIBRATION_CHUNK = 30_000  # samples (even, so the stride stays aligned across chunks)
 CALIBRATION_STRIDE = 2  # every other sample of the identification run calibrates T² (quantiles need no more)
 QUANTILE_LEVELS = np.sort(1.0 - np.logspace(-4, np.log10(0.5), 240))  # α in 0.5 … 0.9999, ascending
 
@@ -53,7 +54,7 @@ def cad_phi(model: RobotModel, record: dict) -> np.ndarray:
 
 def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     from .detection import calibrate
-    from .identification import FitSettings, fit
+    from .identification import FitSettings, SignalSource, fit
     from .identified import IdentifiedModel, file_digest, robot_record
     from .outputs import output_channels, residuals
     from .regressors.stack import signals_from_dataset
@@ -71,10 +72,12 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     # T² calibration on the identification data (contact-free), offline derivatives.
     es, dqs = [], []
     for ds in datasets:
-        sig = signals_from_dataset(model, ds, filter_outputs=True)
-        sig = sig.slice(slice(None, None, CALIBRATION_STRIDE))
-        es.append(residuals(model, phi, sig))
-        dqs.append(sig.dq)
+        source = SignalSource(model, ds, settings, instruments=False)
+        for lo in range(0, ds.n_samples, CALIBRATION_CHUNK):  # a chunk at a time: bounded memory
+            sig = source(lo, min(lo + CALIBRATION_CHUNK, ds.n_samples))[0]
+            sig = sig.slice(slice(None, None, CALIBRATION_STRIDE))
+            es.append(residuals(model, phi, sig))
+            dqs.append(sig.dq)
     e, dq = np.vstack(es), np.vstack(dqs)
     detectors = calibrate(model, e, dq, args.alpha, args.min_speed, args.n_mode, result.cv["n_components"])
     t2_cal = detectors["calibrated"].t2(model, e, dq)

@@ -171,7 +171,9 @@ class SavitzkyGolay:
 
     def window_samples(self, dt: float) -> int:
         """Number of samples (odd) in the window for a median step of `dt` seconds."""
-        x = self.window_s / dt
+        # Rounded first: a window of exactly 200 steps must not become 199 because one median step came out
+        # as 1.0000000000012 ms (consecutive chunks of one record would then filter differently).
+        x = round(self.window_s / dt, 6)
         return max(1, 2 * int(np.floor((x - 1.0) / 2.0 + 0.5)) + 1)
 
     def __call__(self, t: np.ndarray, q: np.ndarray) -> Derivatives:

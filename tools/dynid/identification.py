@@ -91,6 +91,47 @@ def instrument_signals(sig: Signals, t: np.ndarray, window_s: float) -> Signals:
     return Signals(smooth.q, smooth.dq, smooth.ddq, sig.inputs, sig.tau, sig.ft)
 
 
+@dataclass
+class SignalSource:
+    """The signals of rows [lo, hi) of a dataset, computed on demand from the raw data around them.
+
+    Every filter here (the derivative smoother, the instruments' smoother over it) is local, so a window
+    widened by `margin` samples on each side gives the same values as the whole record would: memory stays
+    proportional to the raw data, never to the derived signals of an hour-long log.
+    """
+
+    model: RobotModel
+    dataset: Dataset
+    settings: FitSettings
+    instruments: bool
+
+    def __post_init__(self) -> None:
+        t = self.dataset.t
+        dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+        window_s = float(self.model.config.derivatives.get("window_s", SavitzkyGolay.window_s))
+        if self.instruments:
+            window_s += self.settings.instrument_window_s
+        self.margin = int(np.ceil(window_s / dt)) + 8  # both half windows, twice over: jittered stamps
+
+    @property
+    def n_samples(self) -> int:
+        return self.dataset.n_samples
+
+    def __call__(self, lo: int, hi: int) -> tuple[Signals, Signals | None, np.ndarray]:
+        """(signals, instrument signals or None, row weights) of rows [lo, hi)."""
+        a, b = max(0, lo - self.margin), min(self.n_samples, hi + self.margin)
+        part = self.dataset.slice(a, b)
+        keep = slice(lo - a, hi - a)
+        sig = signals_from_dataset(self.model, part, filter_outputs=True)
+        weights = row_weights(self.model, sig, self.settings.min_speed)
+        inst = None
+        if self.instruments:
+            inst = instrument_signals(sig, part.t, self.settings.instrument_window_s)
+            weights *= row_weights(self.model, inst, self.settings.min_speed) > 0  # at rest on either trajectory
+            inst = inst.slice(keep)
+        return sig.slice(keep), inst, weights[keep]
+
+
 def _factor(gram: np.ndarray) -> np.ndarray:
     """F with FᵀF = G (symmetric square root, through the unit-diagonal scaling for accuracy)."""
     d = np.sqrt(np.clip(np.diag(gram), 0.0, None))
@@ -214,13 +255,9 @@ def fit(model: RobotModel, datasets: list[Dataset], settings: FitSettings = FitS
     total: Statistics | None = None
     samples = 0
     for ds in datasets:
-        sig = signals_from_dataset(model, ds, filter_outputs=True)
-        weights = row_weights(model, sig, settings.min_speed)
-        instruments = None
-        if settings.estimator == "iv" or settings.instrument_window_s > 0:
-            instruments = instrument_signals(sig, ds.t, settings.instrument_window_s)
-            weights *= row_weights(model, instruments, settings.min_speed) > 0  # at rest on either trajectory
-        stats = accumulate(model, sig, weights, instruments, settings.blocks, settings.workers)
+        source = SignalSource(model, ds, settings, instruments=True)
+        source(0, min(ds.n_samples, 2 * source.margin))  # bad data fail here, before any worker starts
+        stats = accumulate(model, source, settings.blocks, settings.workers)
         total = stats if total is None else total + stats
         samples += ds.n_samples
     assert total is not None
