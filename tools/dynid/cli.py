@@ -184,7 +184,7 @@ def cmd_simulate(args: argparse.Namespace) -> dict[str, Any]:
     import time
 
     from .model import RobotModel
-    from .simulation import KINDS, SimulationSettings, parse_effect, simulate
+    from .simulation import SimulationSettings, parse_effect, simulate
     from .simulation.effects import catalog_text
     from .simulation.output import write_simulation
 

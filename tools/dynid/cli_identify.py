@@ -57,7 +57,6 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     from .identification import FitSettings, SignalSource, fit
     from .identified import IdentifiedModel, file_digest, robot_record
     from .outputs import output_channels, residuals
-    from .regressors.stack import signals_from_dataset
 
     config = load_config(args.robot)
     model = RobotModel(config)
