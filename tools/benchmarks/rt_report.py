@@ -62,6 +62,17 @@ def main() -> None:
             side[c.lag :] = ds.extra["skin.side"][: -c.lag]
         line = f"  {kind}: FPR {100 * above[ready & ~truth].mean():.2f} %, {int(onsets.sum())} onset events"
         if truth.any():
+            from dynid.detection import episodes
+
+            delays, missed = [], 0
+            for a, b in episodes(truth.astype(int)):
+                k = np.flatnonzero(onsets[a:b])
+                if k.size:  # from the contact's first sample to the event, the filter's lag included
+                    delays.append((k[0] + c.lag) * c.sample_period)
+                else:
+                    missed += 1
+            line += (f", episodes with an onset {len(delays)}/{len(delays) + missed}, onset delay median "
+                     f"{1e3 * np.median(delays):.0f} ms")
             line += f", TPR {100 * above[ready & truth].mean():.1f} %"
             for code, name in ((1, "distal"), (-1, "proximal")):
                 sel = ready & truth & (side == code)

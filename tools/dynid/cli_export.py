@@ -110,6 +110,7 @@ def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def add_commands(sub: argparse._SubParsersAction, json_arg, positive_int) -> None:
+    from .export import DEFAULT_DEBOUNCE_OFF, DEFAULT_DEBOUNCE_ON, DEFAULT_HYSTERESIS
     def lag(text: str) -> int:
         try:
             value = int(text)
@@ -150,9 +151,11 @@ def add_commands(sub: argparse._SubParsersAction, json_arg, positive_int) -> Non
     sp.add_argument("--window", type=positive_int, metavar="N", help="filter window in samples (default: the "
                     "configuration's offline window)")
     sp.add_argument("--alpha", type=alpha, help="confidence level (default: the model's)")
-    sp.add_argument("--debounce-on", type=positive_int, default=5, metavar="N", help="samples above T²_α for an onset (default 5)")
-    sp.add_argument("--debounce-off", type=positive_int, default=50, metavar="N", help="samples below the hysteresis "
-                    "level for an end (default 50)")
-    sp.add_argument("--hysteresis", type=fraction, default=0.5, help="end level as a fraction of T²_α (default 0.5)")
+    sp.add_argument("--debounce-on", type=positive_int, default=DEFAULT_DEBOUNCE_ON, metavar="N",
+                    help=f"samples above T²_α for an onset (default {DEFAULT_DEBOUNCE_ON})")
+    sp.add_argument("--debounce-off", type=positive_int, default=DEFAULT_DEBOUNCE_OFF, metavar="N",
+                    help=f"samples below the hysteresis level for an end (default {DEFAULT_DEBOUNCE_OFF})")
+    sp.add_argument("--hysteresis", type=fraction, default=DEFAULT_HYSTERESIS,
+                    help=f"end level as a fraction of T²_α (default {DEFAULT_HYSTERESIS})")
     json_arg(sp)
     sp.set_defaults(func=cmd_export)
