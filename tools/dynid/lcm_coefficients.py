@@ -24,108 +24,105 @@ class coefficients_t(object):
         self.robot_name = ""
         """
         provenance
+        the configuration's name; the loader refuses another robot
         LCM Type: string
         """
 
         self.config_digest = ""
         """
-        the configuration's name; the loader refuses another robot
-        LCM Type: string
-        """
-
-        self.dynid_version = ""
-        """
         sha256 of the robot configuration text
         LCM Type: string
         """
 
-        self.model_sha256 = ""
+        self.dynid_version = ""
         """ LCM Type: string """
-        self.data_sha256 = ""
+        self.model_sha256 = ""
         """
         of the model file it was exported from ("" for a CAD export)
         LCM Type: string
         """
 
-        self.estimator = ""
+        self.data_sha256 = ""
         """
         of the data Λ and the thresholds were computed on
         LCM Type: string
         """
 
-        self.n_joints = 0
+        self.estimator = ""
         """
         "iv", "pls", "ols" or "cad"
+        LCM Type: string
+        """
+
+        self.n_joints = 0
+        """
         kinematic chain: a tree of bodies, parent before child; body i is moved by joint i
+        moving joints = entries of q
         LCM Type: int32_t
         """
 
         self.joint_names = []
-        """
-        moving joints = entries of q
-        LCM Type: string[n_joints]
-        """
-
+        """ LCM Type: string[n_joints] """
         self.n_bodies = 0
         """ LCM Type: int32_t """
         self.body_names = []
         """ LCM Type: string[n_bodies] """
         self.parent = []
-        """ LCM Type: int32_t[n_bodies] """
-        self.joint_type = []
         """
         -1: the base
+        LCM Type: int32_t[n_bodies]
+        """
+
+        self.joint_type = []
+        """
+        0 fixed (the F/T sensor split), 1 revolute, 2 prismatic
         LCM Type: int8_t[n_bodies]
         """
 
         self.joint_index = []
         """
-        0 fixed (the F/T sensor split), 1 revolute, 2 prismatic
+        entry of q that moves it, -1 for fixed
         LCM Type: int32_t[n_bodies]
         """
 
         self.axis = []
         """
-        entry of q that moves it, -1 for fixed
+        joint axis in the joint frame (unit)
         LCM Type: double[n_bodies][3]
         """
 
         self.rotation = []
         """
-        joint axis in the joint frame (unit)
+        placement of the joint frame in the parent body frame: R (row-major)
         LCM Type: double[n_bodies][9]
         """
 
         self.translation = []
         """
-        placement of the joint frame in the parent body frame: R (row-major)
+        ... and its translation p (m)
         LCM Type: double[n_bodies][3]
         """
 
         self.inertial = []
         """
-        and p
+        identified φ: m, m·c (3), I about the frame origin (xx xy yy xz yz zz)
         LCM Type: double[n_bodies][10]
         """
 
         self.gravity = [ 0.0 for dim0 in range(3) ]
         """
-        identified φ: m, m·c (3), I about the frame origin (xx xy yy xz yz zz)
+        m/s², in the base frame
         LCM Type: double[3]
         """
 
         self.sensor_body = 0
         """
-        m/s², in the base frame
+        the distal sub-body of the F/T sensor (its frame is the sensor frame)
         LCM Type: int32_t
         """
 
         self.sensor_name = ""
-        """
-        the distal sub-body of the F/T sensor (its frame is the sensor frame)
-        LCM Type: string
-        """
-
+        """ LCM Type: string """
         self.n_motors = 0
         """
         actuation: motors, coupling, friction, gains
@@ -135,28 +132,31 @@ class coefficients_t(object):
         self.motor_names = []
         """ LCM Type: string[n_motors] """
         self.motor_velocity = []
-        """ LCM Type: double[n_motors][n_joints] """
-        self.motor_friction_on = []
         """
         q̇_m = motor_velocity · q̇ (the coupling T)
+        LCM Type: double[n_motors][n_joints]
+        """
+
+        self.motor_friction_on = []
+        """
+        coupled motors carry their own friction
         LCM Type: int8_t[n_motors]
         """
 
         self.motor_friction = []
         """
-        coupled motors carry their own friction
+        fc_pos fc_neg fv_pos fv_neg
         LCM Type: double[n_motors][4]
         """
 
         self.joint_friction = []
         """
-        fc_pos fc_neg fv_pos fv_neg
+        zeros for joints without friction parameters
         LCM Type: double[n_joints][4]
         """
 
         self.n_outputs = 0
         """
-        zeros for joints without friction parameters
         outputs y = [w_s (6); inputs], residuals e = y - ŷ
         LCM Type: int32_t
         """
@@ -164,110 +164,114 @@ class coefficients_t(object):
         self.channel_names = []
         """ LCM Type: string[n_outputs] """
         self.channel_kind = []
-        """ LCM Type: int8_t[n_outputs] """
-        self.ft_offset = [ 0.0 for dim0 in range(6) ]
         """
         0 F/T, 1 motor input (PWM or current), 2 joint torque
-        LCM Type: double[6]
+        LCM Type: int8_t[n_outputs]
         """
 
+        self.ft_offset = [ 0.0 for dim0 in range(6) ]
+        """ LCM Type: double[6] """
         self.row_map = []
-        """ LCM Type: double[n_outputs][n_joints] """
-        self.channel_motor = []
         """
         non-F/T rows: ŷ_i = (row_map_i·(τ + τ_f) + f_m(q̇_m))/divisor_i
+        LCM Type: double[n_outputs][n_joints]
+        """
+
+        self.channel_motor = []
+        """
+        its motor (adds motor friction), -1 for none
         LCM Type: int32_t[n_outputs]
         """
 
         self.divisor = []
         """
-        its motor (adds motor friction), -1 for none
+        identified motor gain φ_m, a known gain, or 1
         LCM Type: double[n_outputs]
         """
 
         self.residual_variance = []
         """
-        identified motor gain φ_m, a known gain, or 1
         T² detector (Λ and thresholds computed through this file's derivative estimator)
+        Λ
         LCM Type: double[n_outputs]
         """
 
         self.gate_joints = []
         """
-        Λ
+        bit j: channel left out of T² while |q̇_j| < min_speed
         LCM Type: int64_t[n_outputs]
         """
 
         self.gate_motors = []
         """
-        bit j: channel left out of T² while |q̇_j| < min_speed
+        bit m: ... while |q̇_m| < min_speed
         LCM Type: int64_t[n_outputs]
         """
 
         self.min_speed = 0.0
-        """
-        bit m: ... while |q̇_m| < min_speed
-        LCM Type: double
-        """
-
+        """ LCM Type: double """
         self.alpha = 0.0
         """ LCM Type: double """
         self.threshold = 0.0
-        """ LCM Type: double """
-        self.ft_threshold = 0.0
         """
         T²_α
         LCM Type: double
         """
 
-        self.calibration_samples = 0
+        self.ft_threshold = 0.0
         """
         α-quantile of the F/T channels' share of T²: the contact side
-        LCM Type: int32_t
+        LCM Type: double
         """
 
-        self.debounce_on = 0
+        self.calibration_samples = 0
         """ LCM Type: int32_t """
-        self.debounce_off = 0
+        self.debounce_on = 0
         """
         samples above T²_α before an onset
         LCM Type: int32_t
         """
 
-        self.hysteresis = 0.0
+        self.debounce_off = 0
         """
         samples below hysteresis·T²_α before an end
+        LCM Type: int32_t
+        """
+
+        self.hysteresis = 0.0
+        """
+        in (0, 1]
         LCM Type: double
         """
 
         self.sample_period = 0.0
         """
-        in (0, 1]
         derivative estimator: fixed-lag Savitzky-Golay on uniform samples
+        s
         LCM Type: double
         """
 
         self.window = 0
         """
-        s
+        samples
         LCM Type: int32_t
         """
 
         self.order = 0
         """
-        samples
+        polynomial degree
         LCM Type: int32_t
         """
 
         self.lag = 0
         """
-        polynomial degree
+        samples behind the newest (0 = causal)
         LCM Type: int32_t
         """
 
         self.filter = [ [] for dim0 in range(3) ]
         """
-        samples behind the newest (0 = causal)
+        weights, oldest sample first: value, first, second derivative
         LCM Type: double[3][window]
         """
 

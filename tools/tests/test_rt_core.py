@@ -272,6 +272,23 @@ def test_python_reader_refuses_what_the_loader_refuses(tmp_path: Path) -> None:
     assert zlib.crc32(b"123456789") == 0xCBF43926  # the CRC both sides use (CRC-32/ISO-HDLC)
 
 
+def test_export_refuses_when_the_calibration_data_are_gone(default_model: Path, tmp_path: Path) -> None:
+    import json
+
+    record = json.loads(default_model.read_text())
+    record["data"] = [{**record["data"][0], "path": str(tmp_path / "moved")}]
+    model = tmp_path / "model.json"
+    model.write_text(json.dumps(record))
+    done = dynid("export", "--model", str(model), "--out", str(tmp_path / "x.dcoef"))
+    assert done.returncode == 2 and "are gone; pass the contact-free data with --data" in done.stderr, done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1 and not (tmp_path / "x.dcoef").exists()
+    record["data"] = [{**record["data"][0], "path": json.loads(default_model.read_text())["data"][0]["path"],
+                       "sha256": "0" * 64}]
+    model.write_text(json.dumps(record))
+    done = dynid("export", "--model", str(model), "--out", str(tmp_path / "x.dcoef"))
+    assert done.returncode == 2 and "changed since the fit (sha256)" in done.stderr, done.stderr
+
+
 def test_export_print_and_errors(exported: Path, tmp_path: Path) -> None:
     done = dynid("export", "--print", str(exported))
     assert done.returncode == 0, done.stderr
