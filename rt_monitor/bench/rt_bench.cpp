@@ -1,0 +1,145 @@
+// rt_bench: time per sample of the full real-time core (filter, RNEA prediction, residuals, T², detector), and
+// in the same run Pinocchio's rnea on the same 7-joint chain (built from the same coefficient file).
+//   rt_bench [COEF_FILE] [--samples N]
+// Each call is timed alone (steady_clock; its own overhead is reported and not subtracted).
+#include "rt_monitor/core.hpp"
+
+#include <pinocchio/algorithm/rnea.hpp>
+#include <pinocchio/multibody/data.hpp>
+#include <pinocchio/multibody/model.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+using namespace dynid::rt;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+pinocchio::Model pinocchio_chain(const Coefficients& c) {
+    // Fixed (F/T split) bodies are appended to their parent's joint, so the chain keeps its n_joints joints.
+    pinocchio::Model m;
+    m.gravity.linear(c.gravity);
+    std::vector<pinocchio::JointIndex> joint_of(c.n_bodies);
+    std::vector<pinocchio::SE3> offset(c.n_bodies, pinocchio::SE3::Identity());  // body frame in its joint frame
+    for (int i = 0; i < c.n_bodies; ++i) {
+        const int p = c.parent[i];
+        const pinocchio::JointIndex pj = p < 0 ? 0 : joint_of[p];
+        const pinocchio::SE3 parent_offset = p < 0 ? pinocchio::SE3::Identity() : offset[p];
+        const pinocchio::SE3 placement = parent_offset * pinocchio::SE3(c.rotation[i], c.translation[i]);
+        Eigen::Matrix<double, 10, 1> phi;
+        phi << c.mass[i], c.first_moment[i], c.inertia[i](0, 0), c.inertia[i](0, 1), c.inertia[i](1, 1),
+            c.inertia[i](0, 2), c.inertia[i](1, 2), c.inertia[i](2, 2);
+        const auto inertia = pinocchio::Inertia::FromDynamicParameters(phi);
+        if (c.joint_type[i] == JointType::kFixed) {
+            joint_of[i] = pj;
+            offset[i] = placement;
+            m.appendBodyToJoint(pj, inertia, placement);
+        } else {
+            const std::string name = c.joint_names[c.joint_index[i]];
+            joint_of[i] = m.addJoint(pj, pinocchio::JointModelRevoluteUnaligned(c.axis[i]), placement, name);
+            m.appendBodyToJoint(joint_of[i], inertia, pinocchio::SE3::Identity());
+        }
+    }
+    return m;
+}
+
+struct Stats {
+    double median, p999, max, mean;
+};
+
+Stats stats(std::vector<double> ns) {
+    std::sort(ns.begin(), ns.end());
+    double sum = 0;
+    for (double x : ns) sum += x;
+    auto at = [&](double f) { return ns[std::min(ns.size() - 1, size_t(f * double(ns.size())))]; };
+    return {at(0.5), at(0.999), ns.back(), sum / double(ns.size())};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    std::string path = RT_BENCH_COEF;
+    long n = 200000;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        if (a == "--samples" && i + 1 < argc) n = std::stol(argv[++i]);
+        else path = a;
+    }
+    auto c = std::make_unique<Coefficients>();
+    const LoadResult r = load_coefficients(path, "", *c);
+    if (!r) {
+        std::fprintf(stderr, "rt_bench: refused: %s\n", r.message.c_str());
+        return kExitBase + int(r.error);
+    }
+    const int nj = c->n_joints, no = c->n_outputs;
+    // A smooth random motion and outputs near the model's, so every branch (both signs, gating) is taken.
+    std::mt19937_64 rng(1);
+    std::normal_distribution<double> g(0.0, 1.0);
+    std::vector<double> Q(size_t(n) * nj), Y(size_t(n) * no), V(size_t(n) * nj), A(size_t(n) * nj);
+    std::vector<double> freq(nj), phase(nj);
+    for (int j = 0; j < nj; ++j) freq[j] = 0.3 + 0.2 * j, phase[j] = g(rng);
+    for (long k = 0; k < n; ++k) {
+        const double t = 1e-3 * double(k);
+        for (int j = 0; j < nj; ++j) {
+            Q[k * nj + j] = 0.5 * std::sin(freq[j] * t + phase[j]) + 1e-4 * g(rng);
+            V[k * nj + j] = 0.5 * freq[j] * std::cos(freq[j] * t + phase[j]);
+            A[k * nj + j] = -0.5 * freq[j] * freq[j] * std::sin(freq[j] * t + phase[j]);
+        }
+        for (int i = 0; i < no; ++i) Y[k * no + i] = (i < 6 ? 1.0 : 0.05) * g(rng);
+    }
+
+    auto core = std::make_unique<Core>(*c);
+    pinocchio::Model pm = pinocchio_chain(*c);
+    pinocchio::Data pd(pm);
+    Eigen::VectorXd q(pm.nq), v(pm.nv), a(pm.nv);
+
+    std::vector<double> t_core(static_cast<size_t>(n)), t_rnea(static_cast<size_t>(n)), t_clock(static_cast<size_t>(n));
+    volatile double sink = 0;
+    for (long k = 0; k < n; ++k) {  // interleaved, so both see the same machine state
+        const auto t0 = Clock::now();
+        const Output& o = core->step(&Q[k * nj], &Y[k * no]);
+        const auto t1 = Clock::now();
+        sink = sink + o.p.t2;
+        for (int j = 0; j < nj; ++j) q[j] = Q[k * nj + j], v[j] = V[k * nj + j], a[j] = A[k * nj + j];
+        const auto t2 = Clock::now();
+        pinocchio::rnea(pm, pd, q, v, a);
+        const auto t3 = Clock::now();
+        sink = sink + pd.tau[0];
+        const auto t4 = Clock::now();
+        t_core[k] = std::chrono::duration<double, std::nano>(t1 - t0).count();
+        t_rnea[k] = std::chrono::duration<double, std::nano>(t3 - t2).count();
+        t_clock[k] = std::chrono::duration<double, std::nano>(t4 - t3).count();
+    }
+    // Same chain, same answer: the core's joint torques against Pinocchio's on every 1000th state.
+    double worst = 0;
+    for (long k = 0; k < n; k += 1000) {
+        VecJ qq = VecJ::Zero(), vv = VecJ::Zero(), aa = VecJ::Zero();
+        for (int j = 0; j < nj; ++j) qq[j] = q[j] = Q[k * nj + j], vv[j] = v[j] = V[k * nj + j], aa[j] = a[j] = A[k * nj + j];
+        Prediction p;
+        core->predict(qq, vv, aa, VecO::Zero(), p);
+        pinocchio::rnea(pm, pd, q, v, a);
+        for (int j = 0; j < nj; ++j) worst = std::max(worst, std::abs(p.tau[j] - pd.tau[j]) / (1e-12 + pd.tau.cwiseAbs().maxCoeff()));
+    }
+    const long warm = std::min<long>(n / 10, 1000);  // first calls: cold caches, filter warm-up
+    t_core.erase(t_core.begin(), t_core.begin() + warm);
+    t_rnea.erase(t_rnea.begin(), t_rnea.begin() + warm);
+    t_clock.erase(t_clock.begin(), t_clock.begin() + warm);
+    const Stats sc = stats(t_core), sr = stats(t_rnea), sk = stats(t_clock);
+    std::printf("rt_bench: %s, %d joints, %d outputs, filter window %d; %ld samples timed one by one\n",
+                c->robot_name.c_str(), nj, no, c->window, n - warm);
+    std::printf("  full core step       median %7.1f ns  p99.9 %7.1f ns  max %9.1f ns  mean %7.1f ns\n", sc.median,
+                sc.p999, sc.max, sc.mean);
+    std::printf("  pinocchio::rnea      median %7.1f ns  p99.9 %7.1f ns  max %9.1f ns  mean %7.1f ns\n", sr.median,
+                sr.p999, sr.max, sr.mean);
+    std::printf("  timer overhead       median %7.1f ns (included in both)\n", sk.median);
+    std::printf("  ratio core / rnea (medians): %.2f\n", sc.median / sr.median);
+    std::printf("  joint torques, core vs Pinocchio: max relative difference %.2e\n", worst);
+    return sink == 12345.678 ? 1 : 0;
+}

@@ -1,0 +1,97 @@
+// The coefficient file, loaded into fixed-capacity storage (rt_monitor/README.md, "The coefficient file").
+// Loading happens once, at start-up: it may allocate (file bytes, the LCM decode) and never throws out.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <array>
+#include <cstdint>
+#include <string>
+
+namespace dynid::rt {
+
+// Compile-time capacity: a file that needs more is refused, never truncated.
+constexpr int kMaxJoints = 8;
+constexpr int kMaxBodies = 12;
+constexpr int kMaxMotors = 8;
+constexpr int kMaxOutputs = 16;
+constexpr int kMaxWindow = 64;
+
+constexpr uint32_t kFileVersion = 1;
+constexpr char kMagic[8] = {'D', 'Y', 'N', 'I', 'D', 'C', 'O', 'F'};
+
+using Vec3 = Eigen::Vector3d;
+using Mat3 = Eigen::Matrix3d;
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+
+enum class JointType : int8_t { kFixed = 0, kRevolute = 1, kPrismatic = 2 };
+enum class ChannelKind : int8_t { kFt = 0, kInput = 1, kTorque = 2 };
+
+struct Coefficients {
+    std::string robot_name, config_digest, dynid_version, model_sha256, data_sha256, estimator;
+    int n_joints = 0, n_bodies = 0, n_motors = 0, n_outputs = 0;
+
+    std::array<int, kMaxBodies> parent{}, joint_index{};
+    std::array<JointType, kMaxBodies> joint_type{};
+    std::array<Vec3, kMaxBodies> axis{}, translation{};
+    std::array<Mat3, kMaxBodies> rotation{};
+    std::array<double, kMaxBodies> mass{};  // φ: m,
+    std::array<Vec3, kMaxBodies> first_moment{};  //    m·c,
+    std::array<Mat3, kMaxBodies> inertia{};       //    I about the body frame origin
+    Vec3 gravity = Vec3::Zero();
+    int sensor_body = -1;
+
+    Eigen::Matrix<double, kMaxMotors, kMaxJoints> motor_velocity = decltype(motor_velocity)::Zero();
+    std::array<bool, kMaxMotors> motor_friction_on{};
+    Eigen::Matrix<double, kMaxMotors, 4> motor_friction = decltype(motor_friction)::Zero();
+    Eigen::Matrix<double, kMaxJoints, 4> joint_friction = decltype(joint_friction)::Zero();
+
+    std::array<ChannelKind, kMaxOutputs> channel_kind{};
+    Vec6 ft_offset = Vec6::Zero();
+    Eigen::Matrix<double, kMaxOutputs, kMaxJoints> row_map = decltype(row_map)::Zero();
+    std::array<int, kMaxOutputs> channel_motor{};
+    std::array<double, kMaxOutputs> divisor{}, variance{};
+    std::array<uint64_t, kMaxOutputs> gate_joints{}, gate_motors{};
+    double min_speed = 0, alpha = 0, threshold = 0, ft_threshold = 0, hysteresis = 1;
+    int calibration_samples = 0, debounce_on = 1, debounce_off = 1;
+
+    double sample_period = 0;
+    int window = 0, order = 0, lag = 0;
+    Eigen::Matrix<double, 3, kMaxWindow> filter = decltype(filter)::Zero();
+
+    std::array<std::string, kMaxJoints> joint_names;
+    std::array<std::string, kMaxOutputs> channel_names;
+    std::string sensor_name;
+};
+
+// Why a file was refused; each has its own exit code (kExitBase + value) in the command-line tools.
+enum class LoadError : int {
+    kOk = 0,
+    kIo = 1,
+    kTruncated = 2,
+    kMagic = 3,
+    kVersion = 4,
+    kCrc = 5,
+    kDecode = 6,
+    kCapacity = 7,
+    kDimension = 8,
+    kNotFinite = 9,
+    kRobot = 10,
+};
+constexpr int kExitBase = 10;
+
+struct LoadResult {
+    LoadError error = LoadError::kOk;
+    std::string message;  // one line naming the problem
+    explicit operator bool() const { return error == LoadError::kOk; }
+};
+
+uint32_t crc32(const uint8_t* data, size_t size);
+
+// Check and load a coefficient file. `expected_robot` empty: any robot. On failure `out` is unspecified.
+LoadResult load_coefficients(const std::string& path, const std::string& expected_robot, Coefficients& out);
+LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const std::string& expected_robot,
+                                        Coefficients& out);
+
+}  // namespace dynid::rt

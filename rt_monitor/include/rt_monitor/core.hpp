@@ -1,0 +1,72 @@
+// The real-time evaluation core: per sample, the fixed-lag derivative filter, a fixed-size recursive
+// Newton-Euler prediction of the F/T wrench and the motor inputs, residuals, T², the debounced detector with
+// hysteresis, the contact side and the wrench estimate. After construction: no allocation, no locks, no
+// exceptions, no I/O (rt_monitor/README.md, "Real-time core").
+#pragma once
+
+#include "rt_monitor/coefficients.hpp"
+
+namespace dynid::rt {
+
+using VecJ = Eigen::Matrix<double, kMaxJoints, 1>;
+using VecO = Eigen::Matrix<double, kMaxOutputs, 1>;
+
+enum class Event : int8_t { kNone = 0, kOnset = 1, kEnd = 2 };
+enum class Side : int8_t { kNone = 0, kDistal = 1, kProximal = -1 };  // of the F/T sensor
+
+struct Prediction {
+    VecO y_hat = VecO::Zero();   // predicted outputs (F/T wrench in the sensor frame, then motor inputs)
+    VecO e = VecO::Zero();       // residuals y − ŷ
+    std::array<bool, kMaxOutputs> active{};  // channels in T² (motor channels at rest are left out)
+    double t2 = 0;               // eᵀ Λ⁻¹ e over the active channels
+    double t2_ft = 0;            // the F/T channels' share
+    VecJ tau = VecJ::Zero();     // rigid-body joint torques (diagnostics)
+};
+
+struct Output {
+    bool ready = false;          // the filter window is full; nothing below is valid before
+    VecJ q = VecJ::Zero(), dq = VecJ::Zero(), ddq = VecJ::Zero();  // filtered, at sample k − lag
+    VecO y = VecO::Zero();       // filtered measured outputs, at sample k − lag
+    Prediction p;
+    bool above = false;          // T² > T²_α at this sample
+    bool in_contact = false;     // the debounced detector's state
+    Event event = Event::kNone;
+    Side side = Side::kNone;     // while above: distal if the F/T channels fire, else proximal
+    Vec6 wrench = Vec6::Zero();  // estimated external wrench at the sensor (sensor frame): the F/T residual
+};
+
+struct DetectorSettings {
+    int debounce_on = 1, debounce_off = 1;  // consecutive samples to confirm an onset / an end
+    double hysteresis = 1.0;                // the end level, as a fraction of T²_α
+};
+
+class Core {
+public:
+    explicit Core(const Coefficients& c) noexcept;  // keeps a reference: `c` must outlive the core
+
+    // One raw sample: q (n_joints) and the measured outputs y (n_outputs, the file's channel order).
+    const Output& step(const double* q, const double* y) noexcept;
+    // The model alone, on given states and (filtered) outputs: what the cross-language vectors check.
+    void predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y, Prediction& out) const noexcept;
+
+    void reset() noexcept;
+    void set_detector(const DetectorSettings& s) noexcept { det_ = s; }
+    const DetectorSettings& detector() const noexcept { return det_; }
+    const Output& output() const noexcept { return out_; }
+
+private:
+    void rnea(const VecJ& q, const VecJ& dq, const VecJ& ddq, VecJ& tau, Vec6& sensor_force) const noexcept;
+    void detect() noexcept;
+
+    const Coefficients& c_;
+    DetectorSettings det_;
+    int width_ = 0;  // channels per raw sample: n_joints + n_outputs
+    // Each sample is stored twice, at slot and slot + window, so the window is always contiguous.
+    Eigen::Matrix<double, kMaxJoints + kMaxOutputs, 2 * kMaxWindow> ring_;
+    int slot_ = 0;
+    long count_ = 0;
+    int above_run_ = 0, below_run_ = 0;
+    Output out_;
+};
+
+}  // namespace dynid::rt

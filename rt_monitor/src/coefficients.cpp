@@ -1,0 +1,222 @@
+// Coefficient-file loader: magic, version, length, CRC-32, LCM decode, capacity, dimensions, finite values,
+// robot. Every check names what failed; nothing of a refused file is used.
+#include "rt_monitor/coefficients.hpp"
+
+#include "dynid/coefficients_t.hpp"
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <sstream>
+#include <vector>
+
+namespace dynid::rt {
+namespace {
+
+constexpr size_t kHeader = 16;  // magic (8) + version (4) + payload length (4)
+
+uint32_t read_le32(const uint8_t* p) {
+    return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24;
+}
+
+LoadResult fail(LoadError e, const std::string& msg) { return LoadResult{e, msg}; }
+
+template <class V>
+bool finite_all(const V& v) {
+    for (const auto& x : v)
+        if (!std::isfinite(double(x))) return false;
+    return true;
+}
+
+std::string str(int v) { return std::to_string(v); }
+
+}  // namespace
+
+uint32_t crc32(const uint8_t* data, size_t size) {
+    // CRC-32/IEEE 802.3 (zlib's), reflected, table-driven; the table is built once.
+    static const auto table = [] {
+        std::array<uint32_t, 256> t{};
+        for (uint32_t i = 0; i < 256; ++i) {
+            uint32_t c = i;
+            for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+            t[i] = c;
+        }
+        return t;
+    }();
+    uint32_t c = 0xFFFFFFFFu;
+    for (size_t i = 0; i < size; ++i) c = table[(c ^ data[i]) & 0xFF] ^ (c >> 8);
+    return c ^ 0xFFFFFFFFu;
+}
+
+LoadResult load_coefficients(const std::string& path, const std::string& expected_robot, Coefficients& out) {
+    std::ifstream f(path, std::ios::binary);
+    if (!f) return fail(LoadError::kIo, path + ": cannot open the coefficient file");
+    std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+    if (f.bad()) return fail(LoadError::kIo, path + ": read error");
+    LoadResult r = load_coefficients_from_bytes(bytes.data(), bytes.size(), expected_robot, out);
+    if (!r) r.message = path + ": " + r.message;
+    return r;
+}
+
+LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const std::string& expected_robot,
+                                        Coefficients& out) {
+    if (size < kHeader + 4)
+        return fail(LoadError::kTruncated, "truncated: " + std::to_string(size) + " bytes, shorter than the header");
+    if (std::memcmp(data, kMagic, sizeof kMagic) != 0)
+        return fail(LoadError::kMagic, "not a dynid coefficient file (bad magic)");
+    const uint32_t version = read_le32(data + 8);
+    if (version != kFileVersion)
+        return fail(LoadError::kVersion, "format version " + std::to_string(version) + ", this monitor reads " +
+                                             std::to_string(kFileVersion));
+    const uint64_t length = read_le32(data + 12);
+    if (size != kHeader + length + 4)
+        return fail(LoadError::kTruncated, "truncated or padded: " + std::to_string(size) + " bytes, the header says " +
+                                               std::to_string(kHeader + length + 4));
+    if (crc32(data, kHeader + length) != read_le32(data + kHeader + length))
+        return fail(LoadError::kCrc, "CRC mismatch (the file is corrupt)");
+
+    dynid::coefficients_t c;
+    int used = -1;
+    try {  // start-up only: the LCM decoder allocates, and may throw on absurd sizes
+        used = c.decode(data + kHeader, 0, int(length));
+    } catch (...) {
+        used = -1;
+    }
+    if (used != int(length)) return fail(LoadError::kDecode, "payload is not a dynid.coefficients_t (fingerprint or size)");
+
+    auto cap = [](const char* what, int n, int max) {
+        return fail(LoadError::kCapacity, std::string("too many ") + what + ": " + str(n) + " (this build's capacity is " +
+                                              str(max) + ")");
+    };
+    if (c.n_joints > kMaxJoints) return cap("joints", c.n_joints, kMaxJoints);
+    if (c.n_bodies > kMaxBodies) return cap("bodies", c.n_bodies, kMaxBodies);
+    if (c.n_motors > kMaxMotors) return cap("motors", c.n_motors, kMaxMotors);
+    if (c.n_outputs > kMaxOutputs) return cap("outputs", c.n_outputs, kMaxOutputs);
+    if (c.window > kMaxWindow) return cap("filter samples", c.window, kMaxWindow);
+    auto dim = [](const std::string& m) { return fail(LoadError::kDimension, m); };
+    if (c.n_joints < 1 || c.n_bodies < c.n_joints || c.n_outputs < 6 || c.n_motors < 0)
+        return dim("dimensions out of range (joints " + str(c.n_joints) + ", bodies " + str(c.n_bodies) + ", outputs " +
+                   str(c.n_outputs) + ")");
+    if (c.window < 3 || c.order < 2 || c.order >= c.window || c.lag < 0 || c.lag >= c.window)
+        return dim("derivative filter settings out of range (window " + str(c.window) + ", order " + str(c.order) +
+                   ", lag " + str(c.lag) + ")");
+    if (c.sensor_body < 0 || c.sensor_body >= c.n_bodies) return dim("F/T sensor body out of range");
+    if (c.debounce_on < 1 || c.debounce_off < 1) return dim("debounce counts must be at least 1");
+    std::array<bool, kMaxJoints> seen{};
+    for (int i = 0; i < c.n_bodies; ++i) {
+        if (c.parent[i] < -1 || c.parent[i] >= i) return dim("body " + str(i) + ": parent must come before it");
+        const int t = c.joint_type[i], j = c.joint_index[i];
+        if (t < 0 || t > 2) return dim("body " + str(i) + ": unknown joint type " + str(t));
+        if (t == 0 ? j != -1 : (j < 0 || j >= c.n_joints || seen[j]))
+            return dim("body " + str(i) + ": joint index " + str(j) + " does not fit its joint type");
+        if (t != 0) seen[j] = true;
+    }
+    for (int j = 0; j < c.n_joints; ++j)
+        if (!seen[j]) return dim("joint " + str(j) + " moves no body");
+    for (int i = 0; i < c.n_outputs; ++i) {
+        if (c.channel_kind[i] < 0 || c.channel_kind[i] > 2) return dim("channel " + str(i) + ": unknown kind");
+        if ((c.channel_kind[i] == 0) != (i < 6)) return dim("the six F/T channels must come first, and only they");
+        if (c.channel_motor[i] < -1 || c.channel_motor[i] >= c.n_motors) return dim("channel " + str(i) + ": motor out of range");
+        if ((c.gate_joints[i] >> c.n_joints) != 0 || (c.n_motors < 64 && (c.gate_motors[i] >> c.n_motors) != 0))
+            return dim("channel " + str(i) + ": gate names a joint or motor that does not exist");
+    }
+
+    // Finite, then physically usable.
+    auto nf = [](const char* what) {
+        return fail(LoadError::kNotFinite, std::string("non-finite value in ") + what);
+    };
+    for (int i = 0; i < c.n_bodies; ++i)
+        if (!finite_all(c.axis[i]) || !finite_all(c.rotation[i]) || !finite_all(c.translation[i])) return nf("the chain");
+    for (int i = 0; i < c.n_bodies; ++i)
+        if (!finite_all(c.inertial[i])) return nf("the inertial parameters");
+    if (!finite_all(c.gravity)) return nf("gravity");
+    for (int k = 0; k < c.n_motors; ++k)
+        if (!finite_all(c.motor_velocity[k]) || !finite_all(c.motor_friction[k])) return nf("the motors");
+    for (int j = 0; j < c.n_joints; ++j)
+        if (!finite_all(c.joint_friction[j])) return nf("the joint friction");
+    if (!finite_all(c.ft_offset)) return nf("the F/T offsets");
+    for (int i = 0; i < c.n_outputs; ++i)
+        if (!finite_all(c.row_map[i])) return nf("the output rows");
+    if (!finite_all(c.divisor) || !finite_all(c.residual_variance)) return nf("the divisors or Λ");
+    for (int i = 0; i < 3; ++i)
+        if (!finite_all(c.filter[i])) return nf("the derivative filter");
+    for (double v : {c.min_speed, c.alpha, c.threshold, c.ft_threshold, c.hysteresis, c.sample_period})
+        if (!std::isfinite(v)) return nf("the detector or filter settings");
+    for (int i = 0; i < c.n_outputs; ++i) {
+        if (c.residual_variance[i] <= 0) return dim("Λ of " + c.channel_names[i] + " is not positive");
+        if (c.divisor[i] == 0) return dim("the divisor (motor gain) of " + c.channel_names[i] + " is zero");
+    }
+    if (c.threshold <= 0 || c.ft_threshold <= 0 || c.hysteresis <= 0 || c.hysteresis > 1 || c.sample_period <= 0 ||
+        c.alpha <= 0 || c.alpha >= 1 || c.min_speed < 0)
+        return dim("detector settings out of range (threshold, hysteresis, α, period)");
+
+    if (!expected_robot.empty() && c.robot_name != expected_robot)
+        return fail(LoadError::kRobot, "exported for robot '" + c.robot_name + "', not for '" + expected_robot + "'");
+
+    // Accepted: copy into fixed storage.
+    out = Coefficients{};
+    out.robot_name = c.robot_name;
+    out.config_digest = c.config_digest;
+    out.dynid_version = c.dynid_version;
+    out.model_sha256 = c.model_sha256;
+    out.data_sha256 = c.data_sha256;
+    out.estimator = c.estimator;
+    out.n_joints = c.n_joints;
+    out.n_bodies = c.n_bodies;
+    out.n_motors = c.n_motors;
+    out.n_outputs = c.n_outputs;
+    for (int i = 0; i < c.n_bodies; ++i) {
+        out.parent[i] = c.parent[i];
+        out.joint_index[i] = c.joint_index[i];
+        out.joint_type[i] = JointType(c.joint_type[i]);
+        out.axis[i] = Vec3(c.axis[i][0], c.axis[i][1], c.axis[i][2]);
+        out.translation[i] = Vec3(c.translation[i][0], c.translation[i][1], c.translation[i][2]);
+        for (int r = 0; r < 3; ++r)
+            for (int k = 0; k < 3; ++k) out.rotation[i](r, k) = c.rotation[i][3 * r + k];
+        const auto& p = c.inertial[i];  // m, mcx, mcy, mcz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz
+        out.mass[i] = p[0];
+        out.first_moment[i] = Vec3(p[1], p[2], p[3]);
+        out.inertia[i] << p[4], p[5], p[7], p[5], p[6], p[8], p[7], p[8], p[9];
+    }
+    out.gravity = Vec3(c.gravity[0], c.gravity[1], c.gravity[2]);
+    out.sensor_body = c.sensor_body;
+    out.sensor_name = c.sensor_name;
+    for (int k = 0; k < c.n_motors; ++k) {
+        for (int j = 0; j < c.n_joints; ++j) out.motor_velocity(k, j) = c.motor_velocity[k][j];
+        out.motor_friction_on[k] = c.motor_friction_on[k] != 0;
+        for (int m = 0; m < 4; ++m) out.motor_friction(k, m) = c.motor_friction[k][m];
+    }
+    for (int j = 0; j < c.n_joints; ++j) {
+        out.joint_names[j] = c.joint_names[j];
+        for (int m = 0; m < 4; ++m) out.joint_friction(j, m) = c.joint_friction[j][m];
+    }
+    for (int k = 0; k < 6; ++k) out.ft_offset[k] = c.ft_offset[k];
+    for (int i = 0; i < c.n_outputs; ++i) {
+        out.channel_names[i] = c.channel_names[i];
+        out.channel_kind[i] = ChannelKind(c.channel_kind[i]);
+        for (int j = 0; j < c.n_joints; ++j) out.row_map(i, j) = c.row_map[i][j];
+        out.channel_motor[i] = c.channel_motor[i];
+        out.divisor[i] = c.divisor[i];
+        out.variance[i] = c.residual_variance[i];
+        out.gate_joints[i] = uint64_t(c.gate_joints[i]);
+        out.gate_motors[i] = uint64_t(c.gate_motors[i]);
+    }
+    out.min_speed = c.min_speed;
+    out.alpha = c.alpha;
+    out.threshold = c.threshold;
+    out.ft_threshold = c.ft_threshold;
+    out.hysteresis = c.hysteresis;
+    out.calibration_samples = c.calibration_samples;
+    out.debounce_on = c.debounce_on;
+    out.debounce_off = c.debounce_off;
+    out.sample_period = c.sample_period;
+    out.window = c.window;
+    out.order = c.order;
+    out.lag = c.lag;
+    for (int r = 0; r < 3; ++r)
+        for (int i = 0; i < c.window; ++i) out.filter(r, i) = c.filter[r][i];
+    return LoadResult{};
+}
+
+}  // namespace dynid::rt

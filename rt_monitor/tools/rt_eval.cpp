@@ -1,0 +1,123 @@
+// rt_eval: the core on files, for tests and offline replays (not the real-time loop).
+//   rt_eval --coef FILE [--robot NAME] --check
+//   rt_eval --coef FILE [--robot NAME] --predict IN OUT   IN rows: q, q̇, q̈, y   OUT: ŷ, e, active, T², T²_FT
+//   rt_eval --coef FILE [--robot NAME] --stream IN OUT    IN rows: raw q, y     OUT: ready, q, q̇, q̈, y, ŷ, e,
+//                                                          T², T²_FT, above, in_contact, event, side
+// Matrices: "DYMX", int64 rows, int64 cols, then float64 row-major (little-endian). Exit 2 on bad usage or
+// data, 10 + LoadError on a refused coefficient file.
+#include "rt_monitor/core.hpp"
+
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+using namespace dynid::rt;
+
+namespace {
+
+struct Matrix {
+    int64_t rows = 0, cols = 0;
+    std::vector<double> v;
+};
+
+bool read_matrix(const std::string& path, Matrix& m) {
+    std::ifstream f(path, std::ios::binary);
+    char magic[4];
+    if (!f.read(magic, 4) || std::memcmp(magic, "DYMX", 4) != 0) return false;
+    if (!f.read(reinterpret_cast<char*>(&m.rows), 8) || !f.read(reinterpret_cast<char*>(&m.cols), 8)) return false;
+    if (m.rows < 0 || m.cols < 0 || m.rows * m.cols > (int64_t(1) << 31)) return false;
+    m.v.resize(size_t(m.rows * m.cols));
+    return bool(f.read(reinterpret_cast<char*>(m.v.data()), std::streamsize(m.v.size() * 8)));
+}
+
+bool write_matrix(const std::string& path, const Matrix& m) {
+    const std::string tmp = path + ".tmp";
+    {
+        std::ofstream f(tmp, std::ios::binary);
+        f.write("DYMX", 4);
+        f.write(reinterpret_cast<const char*>(&m.rows), 8);
+        f.write(reinterpret_cast<const char*>(&m.cols), 8);
+        f.write(reinterpret_cast<const char*>(m.v.data()), std::streamsize(m.v.size() * 8));
+        if (!f) return false;
+    }
+    return std::rename(tmp.c_str(), path.c_str()) == 0;
+}
+
+int usage(const char* msg) {
+    std::fprintf(stderr, "rt_eval: error: %s\n", msg);
+    return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    std::string coef, robot, mode, in, out;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        if (a == "--coef" && i + 1 < argc) coef = argv[++i];
+        else if (a == "--robot" && i + 1 < argc) robot = argv[++i];
+        else if (a == "--check") mode = "check";
+        else if ((a == "--predict" || a == "--stream") && i + 2 < argc) {
+            mode = a.substr(2);
+            in = argv[++i];
+            out = argv[++i];
+        } else return usage(("unknown or incomplete argument '" + a + "'").c_str());
+    }
+    if (coef.empty() || mode.empty()) return usage("need --coef FILE and one of --check, --predict IN OUT, --stream IN OUT");
+    auto c = std::make_unique<Coefficients>();
+    const LoadResult r = load_coefficients(coef, robot, *c);
+    if (!r) {
+        std::fprintf(stderr, "rt_eval: refused: %s\n", r.message.c_str());
+        return kExitBase + int(r.error);
+    }
+    const int nj = c->n_joints, no = c->n_outputs;
+    if (mode == "check") {
+        std::printf("ok: %s, %d joints, %d bodies, %d outputs, window %d lag %d, T2_alpha %.6g\n", c->robot_name.c_str(),
+                    nj, c->n_bodies, no, c->window, c->lag, c->threshold);
+        return 0;
+    }
+    Matrix x;
+    if (!read_matrix(in, x)) return usage(("cannot read matrix " + in).c_str());
+    auto core = std::make_unique<Core>(*c);
+    Matrix y;
+    y.rows = x.rows;
+    if (mode == "predict") {
+        if (x.cols != 3 * nj + no) return usage("--predict input needs 3·n_joints + n_outputs columns");
+        y.cols = 3 * no + 2;
+        y.v.resize(size_t(y.rows * y.cols));
+        Prediction p;
+        for (int64_t k = 0; k < x.rows; ++k) {
+            const double* row = &x.v[size_t(k * x.cols)];
+            VecJ q = VecJ::Zero(), dq = VecJ::Zero(), ddq = VecJ::Zero();
+            VecO yy = VecO::Zero();
+            for (int j = 0; j < nj; ++j) q[j] = row[j], dq[j] = row[nj + j], ddq[j] = row[2 * nj + j];
+            for (int i = 0; i < no; ++i) yy[i] = row[3 * nj + i];
+            core->predict(q, dq, ddq, yy, p);
+            double* o = &y.v[size_t(k * y.cols)];
+            for (int i = 0; i < no; ++i) o[i] = p.y_hat[i], o[no + i] = p.e[i], o[2 * no + i] = p.active[i];
+            o[3 * no] = p.t2;
+            o[3 * no + 1] = p.t2_ft;
+        }
+    } else {
+        if (x.cols != nj + no) return usage("--stream input needs n_joints + n_outputs columns");
+        y.cols = 1 + 3 * nj + 3 * no + 6;
+        y.v.resize(size_t(y.rows * y.cols));
+        for (int64_t k = 0; k < x.rows; ++k) {
+            const double* row = &x.v[size_t(k * x.cols)];
+            const Output& s = core->step(row, row + nj);
+            double* o = &y.v[size_t(k * y.cols)];
+            o[0] = s.ready;
+            for (int j = 0; j < nj; ++j) o[1 + j] = s.q[j], o[1 + nj + j] = s.dq[j], o[1 + 2 * nj + j] = s.ddq[j];
+            double* oo = o + 1 + 3 * nj;
+            for (int i = 0; i < no; ++i) oo[i] = s.y[i], oo[no + i] = s.p.y_hat[i], oo[2 * no + i] = s.p.e[i];
+            oo += 3 * no;
+            oo[0] = s.p.t2, oo[1] = s.p.t2_ft, oo[2] = s.above, oo[3] = s.in_contact, oo[4] = int(s.event),
+            oo[5] = int(s.side);
+        }
+    }
+    if (!write_matrix(out, y)) return usage(("cannot write " + out).c_str());
+    return 0;
+}

@@ -1,0 +1,325 @@
+"""The real-time core (rt_monitor/) against dynid: cross-language vectors, the online filter, the coefficient
+file's checks, and the threshold's promise when the contact-free validation run is replayed through the core."""
+
+from __future__ import annotations
+
+import struct
+import subprocess
+import sys
+import zlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.signal import savgol_coeffs
+
+from dynid.config import load_config
+from dynid.dataset import load_data
+from dynid.detection import Detector
+from dynid.export import read_coefficients, unwrap, wrap
+from dynid.identified import load_model
+from dynid.lcm_coefficients import coefficients_t
+from dynid.online import FixedLagSavitzkyGolay, online_signals, raw_signals
+from dynid.outputs import residuals
+from dynid.regressors.stack import Signals
+
+
+ROOT = Path(__file__).resolve().parents[2]
+BUILDS = [b for b in (ROOT / "build", ROOT / "build-asan") if (b / "rt_monitor" / "rt_eval").is_file()]
+RT_EVAL = ROOT / "build" / "rt_monitor" / "rt_eval"
+FIXTURE = ROOT / "rt_monitor" / "tests" / "data" / "icub_cad.dcoef"
+EXIT_BASE = 10  # rt_monitor: kExitBase + LoadError
+
+
+def dynid(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True, timeout=900)
+
+
+def write_matrix(path: Path, x: np.ndarray) -> None:
+    x = np.ascontiguousarray(x, dtype="<f8")
+    path.write_bytes(b"DYMX" + struct.pack("<qq", *x.shape) + x.tobytes())
+
+
+def read_matrix(path: Path) -> np.ndarray:
+    data = path.read_bytes()
+    assert data[:4] == b"DYMX"
+    rows, cols = struct.unpack_from("<qq", data, 4)
+    return np.frombuffer(data, "<f8", offset=20).reshape(rows, cols)
+
+
+def rt_eval(*args: str, exe: Path = RT_EVAL) -> subprocess.CompletedProcess:
+    assert exe.is_file(), f"{exe} is not built (scripts/setup)"
+    return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=600)
+
+
+@pytest.fixture(scope="session")
+def exported(default_model: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("export") / "model.dcoef"
+    done = dynid("export", "--model", str(default_model), "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    return out
+
+
+def rel_err(a: np.ndarray, b: np.ndarray, scale: np.ndarray) -> float:
+    return float(np.max(np.abs(a - b) / scale))
+
+
+# ---- the online filter -------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("lag", [0, 7, 15])
+def test_fixed_lag_weights_are_scipys_savitzky_golay(lag: int) -> None:
+    est = FixedLagSavitzkyGolay(31, 3, lag, 1e-3)
+    w = est.weights()
+    for d in range(3):  # scipy's coefficients, evaluated at window position 30 − lag, as a dot product
+        ref = savgol_coeffs(31, 3, deriv=d, delta=1e-3, pos=30 - lag, use="dot")
+        assert np.allclose(w[d], ref, rtol=1e-9, atol=1e-9 * np.abs(ref).max())
+
+
+def test_fixed_lag_filter_is_exact_on_a_cubic() -> None:
+    t = np.arange(200) * 1e-3
+    q = 0.3 + 2 * t - 5 * t**2 + 7 * t**3
+    est = FixedLagSavitzkyGolay(31, 3, 5, 1e-3)
+    value, d1, d2 = est.apply(q[:, None])
+    at = t[30 - 5 : 200 - 5]
+    assert np.allclose(value[:, 0], 0.3 + 2 * at - 5 * at**2 + 7 * at**3, atol=1e-12)
+    assert np.allclose(d1[:, 0], 2 - 10 * at + 21 * at**2, atol=1e-8)
+    assert np.allclose(d2[:, 0], -10 + 42 * at, atol=1e-5)
+
+
+# ---- cross-language equality --------------------------------------------------------------------------------
+
+
+def vector_states(model, n: int = 600, seed: int = 3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """States that cover both signs of every joint velocity, zero velocity (joints, and the coupled shoulder's
+    motors), slow joints that gate motor channels, and the coupled shoulder in every sign combination."""
+    rng = np.random.default_rng(seed)
+    nj = model.n_joints
+    lo = np.array([model.joint_limits[j][0] for j in model.config.joints])
+    hi = np.array([model.joint_limits[j][1] for j in model.config.joints])
+    q = rng.uniform(lo, hi, (n, nj))
+    signs = rng.choice([-1.0, 0.0, 1.0], (n, nj))
+    signs[: 3**3, :3] = np.array(np.meshgrid(*[[-1.0, 0.0, 1.0]] * 3)).reshape(3, -1).T  # every shoulder combination
+    dq = signs * rng.uniform(0.02, 1.5, (n, nj))
+    # The coupled shoulder at rest (every motor velocity exactly 0) while the other joints move. (Not a motor
+    # at rest by cancellation, q̇_0 = q̇_1 ≠ 0: dynid's q̇ @ Tᵀ may round that to ±1e-17 and take a Coulomb sign.)
+    dq[n // 2 : n // 2 + 50, :3] = 0.0
+    dq[n // 2 + 50 : n // 2 + 100] *= 0.004  # below min_speed: motor channels gated
+    ddq = rng.normal(0, 3.0, (n, nj))
+    return q, dq, ddq
+
+
+def test_core_predicts_what_dynid_predicts(exported: Path, default_model: Path, tmp_path: Path) -> None:
+    identified = load_model(default_model)
+    model = identified.robot_model
+    c = read_coefficients(exported)
+    q, dq, ddq = vector_states(model)
+    n = q.shape[0]
+    rng = np.random.default_rng(4)
+    # Measured outputs: arbitrary, of the size real ones have (the residual formula does not care).
+    ft = rng.normal(0, 5.0, (n, 6))
+    pwm = {m: rng.uniform(-0.5, 0.5, n) for m in ("m0", "m1", "m2", "m3")}
+    sig = Signals(q, dq, ddq, pwm, {}, {"r_arm_ft": ft})
+    e = residuals(model, identified.phi, sig)
+    y = np.column_stack([ft] + [pwm[m] for m in c.motor_names])
+    y_hat = y - e
+    det = Detector("calibrated", np.asarray(c.residual_variance), c.threshold, c.alpha, c.min_speed, c.n_outputs)
+    active = det.active(model, dq)
+    t2 = det.t2(model, e, dq)
+    assert active.all(axis=1).any() and (~active).any(), "the vectors must exercise the gating both ways"
+    assert (np.abs(dq) == 0).any() and (dq > 0).any() and (dq < 0).any()
+
+    write_matrix(tmp_path / "in.mx", np.hstack([q, dq, ddq, y]))
+    done = rt_eval("--coef", str(exported), "--predict", str(tmp_path / "in.mx"), str(tmp_path / "out.mx"))
+    assert done.returncode == 0, done.stderr
+    out = read_matrix(tmp_path / "out.mx")
+    no = c.n_outputs
+    scale = np.maximum(np.abs(y_hat), np.abs(y)).max(axis=0)  # per channel: the size of what is compared
+    assert rel_err(out[:, :no], y_hat, scale) <= 1e-9
+    assert rel_err(out[:, no : 2 * no], e, scale) <= 1e-9
+    assert np.array_equal(out[:, 2 * no : 3 * no].astype(bool), active)
+    assert rel_err(out[:, 3 * no], t2, np.maximum(t2, 1e-12)) <= 1e-9
+
+
+def test_stream_matches_the_python_mirror(exported: Path, default_model: Path, default_experiments: dict,
+                                          tmp_path: Path) -> None:
+    identified = load_model(default_model)
+    model = identified.robot_model
+    c = read_coefficients(exported)
+    full = load_data(default_experiments["validation"], model.config)
+    t, q, inputs, tau, ft = raw_signals(model, full)
+    k = slice(0, 4000)
+    t, q, inputs, ft = t[k], q[k], {m: v[k] for m, v in inputs.items()}, {s: v[k] for s, v in ft.items()}
+    est = FixedLagSavitzkyGolay(c.window, c.order, c.lag, c.sample_period)
+    assert np.array_equal(est.weights(), np.asarray(c.filter))
+    sig = online_signals(model, est, t, q, inputs, {}, ft)
+    e = residuals(model, identified.phi, sig)
+    det = Detector("calibrated", np.asarray(c.residual_variance), c.threshold, c.alpha, c.min_speed, c.n_outputs)
+    t2 = det.t2(model, e, sig.dq)
+
+    raw = np.hstack([q, ft["r_arm_ft"]] + [inputs[m][:, None] for m in c.motor_names])
+    write_matrix(tmp_path / "in.mx", raw)
+    done = rt_eval("--coef", str(exported), "--stream", str(tmp_path / "in.mx"), str(tmp_path / "out.mx"))
+    assert done.returncode == 0, done.stderr
+    out = read_matrix(tmp_path / "out.mx")
+    nj, no = c.n_joints, c.n_outputs
+    ready = out[:, 0] == 1
+    assert not ready[: c.window - 1].any() and ready[c.window - 1 :].all()
+    out = out[ready]
+    for col, ref in ((1, sig.q), (1 + nj, sig.dq), (1 + 2 * nj, sig.ddq)):
+        assert rel_err(out[:, col : col + nj], ref, np.abs(ref).max(axis=0) + 1e-12) <= 1e-9
+    y = out[:, 1 + 3 * nj : 1 + 3 * nj + no]
+    y_ref = np.column_stack([sig.ft["r_arm_ft"]] + [sig.inputs[m] for m in c.motor_names])
+    scale = np.abs(y_ref).max(axis=0)
+    assert rel_err(y, y_ref, scale) <= 1e-9
+    assert rel_err(out[:, 1 + 3 * nj + 2 * no : 1 + 3 * nj + 3 * no], e, scale) <= 1e-9
+    assert rel_err(out[:, 1 + 3 * nj + 3 * no], t2, np.maximum(t2, 1e-12)) <= 1e-9
+
+
+def test_threshold_keeps_its_promise_online(exported: Path, default_experiments: dict, tmp_path: Path) -> None:
+    """Replaying the contact-free validation run through the core: FPR within [0.5, 2] × (1 − α)."""
+    c = read_coefficients(exported)
+    config = load_config("icub_right_arm")
+    ds = load_data(default_experiments["validation"], config)
+    assert ds.contact is None or not ds.contact.any(), "the validation run must be contact-free"
+    raw = np.hstack([ds.q, ds.ft["r_arm_ft"]] + [ds.pwm[m][:, None] for m in c.motor_names])
+    write_matrix(tmp_path / "in.mx", raw)
+    done = rt_eval("--coef", str(exported), "--stream", str(tmp_path / "in.mx"), str(tmp_path / "out.mx"))
+    assert done.returncode == 0, done.stderr
+    out = read_matrix(tmp_path / "out.mx")
+    out = out[out[:, 0] == 1]
+    above = out[:, -4]
+    fpr = float(above.mean())
+    print(f"online FPR on the contact-free validation run: {100 * fpr:.3f} % (1 − α = {100 * (1 - c.alpha):.2f} %)")
+    assert 0.5 * (1 - c.alpha) <= fpr <= 2 * (1 - c.alpha)
+
+
+# ---- the coefficient file -----------------------------------------------------------------------------------
+
+
+def test_cad_fixture_is_current(tmp_path: Path) -> None:
+    """rt_monitor's C++ tests load a committed CAD export; it must be what this dynid writes."""
+    out = tmp_path / "cad.dcoef"
+    done = dynid("export", "--cad", "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    assert out.read_bytes() == FIXTURE.read_bytes(), "regenerate: dynid export --cad --out " + str(FIXTURE)
+
+
+def test_python_codec_is_lcm_gens(tmp_path: Path) -> None:
+    done = subprocess.run([str(ROOT / ".venv" / "bin" / "lcm-gen"), "-p", "--ppath", str(tmp_path),
+                           str(ROOT / "rt_monitor" / "lcmtypes" / "coefficients_t.lcm")], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    generated = (tmp_path / "dynid" / "coefficients_t.py").read_text()
+    assert generated == (ROOT / "tools" / "dynid" / "lcm_coefficients.py").read_text()
+
+
+def _reencode(c: coefficients_t) -> bytes:
+    return wrap(c.encode())
+
+
+def _bad_files(good: bytes) -> dict[str, tuple[bytes, int, str]]:
+    """name -> (bytes, expected exit code, expected message fragment)."""
+    payload = unwrap(good)
+    bad: dict[str, tuple[bytes, int, str]] = {}
+    bad["truncated"] = (good[: len(good) // 2], EXIT_BASE + 2, "truncated")
+    flipped = bytearray(good)
+    flipped[len(good) // 2] ^= 0x01
+    bad["wrong CRC"] = (bytes(flipped), EXIT_BASE + 5, "CRC mismatch")
+    bad["wrong version"] = (wrap(payload, version=2), EXIT_BASE + 4, "format version 2")
+
+    c = coefficients_t.decode(payload)
+    nj = 9  # capacity is 8
+    c.n_joints = nj
+    c.joint_names = list(c.joint_names) + ["extra1", "extra2"]
+    c.joint_friction = list(c.joint_friction) + [[0.0] * 4] * 2
+    c.motor_velocity = [list(r) + [0.0, 0.0] for r in c.motor_velocity]
+    c.row_map = [list(r) + [0.0, 0.0] for r in c.row_map]
+    bad["too many joints"] = (_reencode(c), EXIT_BASE + 7, "too many joints: 9")
+
+    c = coefficients_t.decode(payload)
+    c.inertial = [list(r) for r in c.inertial]
+    c.inertial[4][0] = float("nan")
+    bad["NaN inside"] = (_reencode(c), EXIT_BASE + 9, "non-finite value in the inertial parameters")
+
+    c = coefficients_t.decode(payload)
+    c.robot_name = "panda_arm"
+    bad["another robot"] = (_reencode(c), EXIT_BASE + 10, "exported for robot 'panda_arm', not for 'icub_right_arm'")
+    return bad
+
+
+@pytest.mark.parametrize("exe", BUILDS, ids=[b.name for b in BUILDS])
+def test_loader_refuses_bad_files(exe: Path, tmp_path: Path) -> None:
+    good = FIXTURE.read_bytes()
+    assert rt_eval("--coef", str(FIXTURE), "--robot", "icub_right_arm", "--check",
+                   exe=exe / "rt_monitor" / "rt_eval").returncode == 0
+    for name, (data, code, message) in _bad_files(good).items():
+        path = tmp_path / "bad.dcoef"
+        path.write_bytes(data)
+        done = rt_eval("--coef", str(path), "--robot", "icub_right_arm", "--check", exe=exe / "rt_monitor" / "rt_eval")
+        assert done.returncode == code, f"{name}: exit {done.returncode}, {done.stderr}"
+        assert message in done.stderr, f"{name}: {done.stderr}"
+        assert len(done.stderr.strip().splitlines()) == 1, f"{name}: one line, got {done.stderr!r}"
+
+
+def test_python_reader_refuses_what_the_loader_refuses(tmp_path: Path) -> None:
+    for name, (data, _, _) in _bad_files(FIXTURE.read_bytes()).items():
+        if name in ("truncated", "wrong CRC", "wrong version"):
+            path = tmp_path / "bad.dcoef"
+            path.write_bytes(data)
+            done = dynid("export", "--print", str(path))
+            assert done.returncode == 2 and "Traceback" not in done.stderr, f"{name}: {done.stderr}"
+            assert len(done.stderr.strip().splitlines()) == 1
+    assert zlib.crc32(b"123456789") == 0xCBF43926  # the CRC both sides use (CRC-32/ISO-HDLC)
+
+
+def test_export_refuses_when_the_calibration_data_are_gone(default_model: Path, tmp_path: Path) -> None:
+    import json
+
+    record = json.loads(default_model.read_text())
+    record["data"] = [{**record["data"][0], "path": str(tmp_path / "moved")}]
+    model = tmp_path / "model.json"
+    model.write_text(json.dumps(record))
+    done = dynid("export", "--model", str(model), "--out", str(tmp_path / "x.dcoef"))
+    assert done.returncode == 2 and "are gone; pass the contact-free data with --data" in done.stderr, done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1 and not (tmp_path / "x.dcoef").exists()
+    record["data"] = [{**record["data"][0], "path": json.loads(default_model.read_text())["data"][0]["path"],
+                       "sha256": "0" * 64}]
+    model.write_text(json.dumps(record))
+    done = dynid("export", "--model", str(model), "--out", str(tmp_path / "x.dcoef"))
+    assert done.returncode == 2 and "changed since the fit (sha256)" in done.stderr, done.stderr
+
+
+def test_export_print_and_errors(exported: Path, tmp_path: Path) -> None:
+    done = dynid("export", "--print", str(exported))
+    assert done.returncode == 0, done.stderr
+    for needle in ("robot icub_right_arm", "r_upper_arm", "m1: q̇_m = [-1.625 1.625", "T²: α 0.99",
+                   "fixed-lag Savitzky-Golay, window 31"):
+        assert needle in done.stdout
+    done = dynid("export", "--model", str(tmp_path / "missing.json"), "--out", str(tmp_path / "x.dcoef"))
+    assert done.returncode == 2 and "model file not found" in done.stderr
+    done = dynid("export")
+    assert done.returncode == 2 and "--model MODEL and --out" in done.stderr
+    assert not (tmp_path / "x.dcoef").exists()
+
+
+def test_contact_run_side_and_detection(exported: Path, default_experiments: dict, tmp_path: Path) -> None:
+    """The contact run through the core: distal contacts are detected, and the side named is the skin's."""
+    c = read_coefficients(exported)
+    ds = load_data(default_experiments["contact"], load_config("icub_right_arm"))
+    raw = np.hstack([ds.q, ds.ft["r_arm_ft"]] + [ds.pwm[m][:, None] for m in c.motor_names])
+    write_matrix(tmp_path / "in.mx", raw)
+    done = rt_eval("--coef", str(exported), "--stream", str(tmp_path / "in.mx"), str(tmp_path / "out.mx"))
+    assert done.returncode == 0, done.stderr
+    out = read_matrix(tmp_path / "out.mx")
+    lag = c.lag  # output k is the estimate of sample k − lag
+    truth, side = np.zeros(len(out), bool), np.zeros(len(out))
+    truth[lag:], side[lag:] = ds.contact[:-lag] != 0, ds.extra["skin.side"][:-lag]
+    ready, above, named = out[:, 0] == 1, out[:, -4] == 1, out[:, -1]
+    for code, name in ((1, "distal"), (-1, "proximal")):
+        sel = ready & truth & (side == code) & above
+        assert sel.sum() > 100, f"too few detected {name} samples to judge the side"
+        print(f"{name}: TPR {100 * above[ready & truth & (side == code)].mean():.1f} %, "
+              f"side right on {100 * (named[sel] == code).mean():.1f} % of the alarmed samples")
+        assert (named[sel] == code).mean() >= 0.9
+    assert above[ready & truth & (side == 1)].mean() >= 0.9  # the F/T sensor sees every distal contact
+    assert above[ready & ~truth].mean() < 0.02
