@@ -12,6 +12,7 @@ import numpy as np
 from .config import load_config
 from .evaluation import load_run as _load
 from .model import RobotModel
+from .report import add_report_command
 
 PAPER = {"tpr": 0.67, "fpr": 0.06, "force_error": (1.33, 0.64), "force_error_cad": (1.86, 0.59),
          "torque_error": (0.15, 0.13), "torque_error_cad": (0.15, 0.07)}
@@ -222,3 +223,5 @@ def add_commands(sub: argparse._SubParsersAction, robot_arg, json_arg, min_speed
     sp.add_argument("--n-mode", choices=["dim", "nu"], default="dim", help="n of the paper's F threshold")
     json_arg(sp)
     sp.set_defaults(func=cmd_detect)
+
+    add_report_command(sub, json_arg)

@@ -62,10 +62,12 @@ class Evaluated:
         return output_channels(self.model)
 
 
-def evaluate(model_path: str, data_path: str, identified: IdentifiedModel | None = None) -> Evaluated:
+def evaluate(model_path: str, data_path: str, identified: IdentifiedModel | None = None,
+             dataset: Dataset | None = None) -> Evaluated:
+    """Residuals of the model on the run; `identified` and `dataset` when the caller has loaded them already."""
     identified = identified or load_model(model_path)
     model = identified.robot_model
-    ds = load_run(data_path, model)
+    ds = dataset if dataset is not None else load_run(data_path, model)
     sig = signals_from_dataset(model, ds, filter_outputs=True)
     return Evaluated(identified, model, ds, sig, residuals(model, identified.phi, sig))
 
