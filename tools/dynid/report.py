@@ -65,7 +65,7 @@ def cmd_report(args: argparse.Namespace) -> dict[str, Any]:
     from .evaluation import cad_ft_residuals, detection, evaluate, load_run, validation
     from .identified import load_model
     from .progress import track
-    from .report_params import find_truth, gains_by_estimator, parameter_table
+    from .report_params import find_truth, gains_by_estimator, parameter_table, truth_summary
 
     out = Path(args.out)
     if not out.parent.is_dir():  # before minutes of work, not after
@@ -108,7 +108,7 @@ def cmd_report(args: argparse.Namespace) -> dict[str, Any]:
         "out": str(out), "alpha": args.alpha, "n_mode": args.n_mode,
         "validation": v, "detection": {"validation": dv.result, "contact": dc.result},
         "paper": {k: list(x) if isinstance(x, tuple) else x for k, x in PAPER.items()},
-        "truth": truth.path if truth else None, "parameters": params,
+        "truth": truth.path if truth else None, "parameters": params, "truth_check": truth_summary(params),
         "motor_gains": gains_by_estimator(identified, truth), "window_s": state["window_s"],
         "figures": [f[0] for f in state["figures"]],
     }
@@ -204,9 +204,20 @@ def _page(H, r: dict[str, Any], identified, units: dict[str, str], figures) -> s
         "<p class=\"note\">Each base parameter is the combination shown (the data determine only those). ± se: "
         "jackknife standard error over time blocks; determined: the fit's flag (standard error small against the "
         "value). CAD is undefined (—) for combinations with friction, gains or no CAD value.</p>",
+        _truth_note(H, r["truth_check"]),
         H.parameters(r["parameters"], r["truth"] is not None),
     ]
     return H.page(f"dynid identification report: {r['robot']}", sections)
+
+
+def _truth_note(H, check: dict[str, Any] | None) -> str:
+    if not check:
+        return ""
+    return (f"<p>Against the truth, the {check['determined']} determined combinations are off by "
+            f"<span data-key=\"truth_check/rms_error_in_se\" data-value=\"{check['rms_error_in_se']!r}\">"
+            f"{check['rms_error_in_se']:.2f}</span> standard errors RMS; "
+            f"<span data-key=\"truth_check/within_2se\" data-value=\"{check['within_2se']!r}\" data-scale=\"100.0\">"
+            f"{100 * check['within_2se']:.0f}</span> % lie within 2 se (honest errors: about 1 and 95 %).</p>")
 
 
 def add_report_command(sub: argparse._SubParsersAction, json_arg) -> None:

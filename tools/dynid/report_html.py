@@ -1,8 +1,8 @@
 """The report page: one self-contained HTML file (inline CSS, figures as base64 PNG, no script, no link out).
 
-Every number a table shows carries its full-precision value and its place in the `dynid report --json`
-result (`data-key`, `data-value`), so a reader or a test can check the page against the JSON without parsing
-the rounded text.
+Every number a table shows carries its full-precision value (`data-value`), its place in the `dynid report
+--json` result (`data-key`: keys and list indices joined by '/') and the factor it is shown with (`data-scale`,
+e.g. 100 for a percentage), so a reader or a test can check the page against the JSON, not the rounded text.
 """
 
 from __future__ import annotations
@@ -30,10 +30,13 @@ def esc(x: Any) -> str:
 
 
 def num(value: float | None, fmt: str, key: str | None = None, scale: float = 1.0) -> str:
-    """A table cell with a number (shown as `fmt` of value·scale); '—' for None. `key` is its JSON path."""
+    """A table cell with a number (shown as `fmt` of value·scale, e.g. 100 for %); '—' for None. `key` is its
+    place in the JSON result."""
     attrs = f' data-key="{esc(key)}"' if key else ""
     if value is None:
         return f"<td{attrs}>—</td>"
+    if scale != 1.0:
+        attrs += f' data-scale="{scale!r}"'
     return f'<td{attrs} data-value="{value!r}">{format(value * scale, fmt)}</td>'
 
 
@@ -68,9 +71,8 @@ def table_ii(v: dict[str, Any], paper: dict[str, Any]) -> str:
         cells = [text(f"{what} error norm ({unit})")]
         for source in ("identified", "cad"):
             for stat in ("mean", "std"):
-                cells.append(num(v["table_ii"][source][what][stat], ".3f", f"validation.table_ii.{source}.{what}.{stat}"))
-        cells += [num(paper[key][0], ".2f"), num(paper[key][1], ".2f"),
-                  num(paper[key + "_cad"][0], ".2f"), num(paper[key + "_cad"][1], ".2f")]
+                cells.append(num(v["table_ii"][source][what][stat], ".3f", f"validation/table_ii/{source}/{what}/{stat}"))
+        cells += [num(paper[k][i], ".2f", f"paper/{k}/{i}") for k in (key, key + "_cad") for i in (0, 1)]
         ident, cad = v["table_ii"]["identified"][what]["mean"], v["table_ii"]["cad"][what]["mean"]
         cells += [num(ident / cad if cad else None, ".2f"), num(paper[key][0] / paper[key + "_cad"][0], ".2f")]
         rows.append("<tr>" + "".join(cells) + "</tr>")
@@ -81,29 +83,29 @@ def table_ii(v: dict[str, Any], paper: dict[str, Any]) -> str:
 def channels(v: dict[str, Any], units: dict[str, str]) -> str:
     rows = []
     for name, c in v["channels"].items():
-        k = f"validation.channels.{name}"
+        k = f"validation/channels/{name}"
         cad = text("undefined (no friction, no gains)", "l") if "cad" in c else text("", "l")
-        rows.append(f"<tr>{text(name)}{text(units[name])}{num(c['rms'], '.4g', k + '.rms')}"
-                    f"{num(c['noise_std'], '.4g', k + '.noise_std')}{num(c['ratio_to_noise'], '.2f', k + '.ratio_to_noise')}"
-                    f"{num(c['mean'], '.3g', k + '.mean')}{cad}</tr>")
+        rows.append(f"<tr>{text(name)}{text(units[name])}{num(c['rms'], '.4g', k + '/rms')}"
+                    f"{num(c['noise_std'], '.4g', k + '/noise_std')}{num(c['ratio_to_noise'], '.2f', k + '/ratio_to_noise')}"
+                    f"{num(c['mean'], '.3g', k + '/mean')}{cad}</tr>")
     return table(["channel", "unit", "RMS of e", "noise std", "RMS / noise", "mean of e", "CAD prediction"], rows, 2)
 
 
 def detection(det_val: dict[str, Any], det_con: dict[str, Any], paper: dict[str, Any], alpha: float) -> str:
     rows = []
     for variant, s in det_con["variants"].items():
-        v, k, kv = det_val["variants"][variant], f"detection.contact.variants.{variant}", f"detection.validation.variants.{variant}"
+        v, k, kv = det_val["variants"][variant], f"detection/contact/variants/{variant}", f"detection/validation/variants/{variant}"
         side = s.get("tpr_by_side") or {}
         delay = s.get("delay_s") or {}
         rows.append(
-            f"<tr>{text(variant)}{num(s['threshold'], '.4g', k + '.threshold')}{num(v['fpr'], '.2f', kv + '.fpr', 100)}"
-            f"{num(s.get('tpr'), '.1f', k + '.tpr', 100)}{num(s.get('fpr'), '.2f', k + '.fpr', 100)}"
-            f"{num(s.get('auc'), '.3f', k + '.auc')}{num(side.get('distal'), '.1f', k + '.tpr_by_side.distal', 100)}"
-            f"{num(side.get('proximal'), '.1f', k + '.tpr_by_side.proximal', 100)}"
+            f"<tr>{text(variant)}{num(s['threshold'], '.4g', k + '/threshold')}{num(v['fpr'], '.2f', kv + '/fpr', 100)}"
+            f"{num(s.get('tpr'), '.1f', k + '/tpr', 100)}{num(s.get('fpr'), '.2f', k + '/fpr', 100)}"
+            f"{num(s.get('auc'), '.3f', k + '/auc')}{num(side.get('distal'), '.1f', k + '/tpr_by_side/distal', 100)}"
+            f"{num(side.get('proximal'), '.1f', k + '/tpr_by_side/proximal', 100)}"
             f"<td>{s.get('episodes_detected', '—')}/{s.get('episodes', '—')}</td>"
-            f"{num(delay.get('median'), '.0f', k + '.delay_s.median', 1e3)}{num(delay.get('p90'), '.0f', k + '.delay_s.p90', 1e3)}</tr>")
-    rows.append(f"<tr>{text('paper (real iCub arm)')}<td>—</td><td>—</td>{num(paper['tpr'], '.0f', None, 100)}"
-                f"{num(paper['fpr'], '.0f', None, 100)}" + "<td>—</td>" * 6 + "</tr>")
+            f"{num(delay.get('median'), '.0f', k + '/delay_s/median', 1e3)}{num(delay.get('p90'), '.0f', k + '/delay_s/p90', 1e3)}</tr>")
+    rows.append(f"<tr>{text('paper (real iCub arm)')}<td>—</td><td>—</td>{num(paper['tpr'], '.0f', 'paper/tpr', 100)}"
+                f"{num(paper['fpr'], '.0f', 'paper/fpr', 100)}" + "<td>—</td>" * 6 + "</tr>")
     return table(["variant", "threshold", f"FPR % validation (promise {100 * (1 - alpha):.0f} %)", "TPR % contact run",
                   "FPR % contact run", "AUC", "TPR % distal", "TPR % proximal", "episodes detected",
                   "delay median (ms)", "delay p90 (ms)"], rows)
@@ -118,11 +120,11 @@ def gains(rows_in: list[dict[str, Any]], chosen: str) -> str:
         cells = [text(r["name"])]
         for est in estimators:
             e = r["estimators"][est]
-            cells += [num(e["value"], ".4g", f"motor_gains.{i}.estimators.{est}.value"),
-                      num(e["standard_error"], ".2g", f"motor_gains.{i}.estimators.{est}.standard_error")]
+            cells += [num(e["value"], ".4g", f"motor_gains/{i}/estimators/{est}/value"),
+                      num(e["standard_error"], ".2g", f"motor_gains/{i}/estimators/{est}/standard_error")]
             if r["true"] is not None:
                 cells.append(num((e["value"] - r["true"]) / r["true"], "+.1f", None, 100))
-        cells.append(num(r["true"], ".4g", f"motor_gains.{i}.true"))
+        cells.append(num(r["true"], ".4g", f"motor_gains/{i}/true"))
         rows.append("<tr>" + "".join(cells) + "</tr>")
     truth = rows_in[0]["true"] is not None
     header = ["gain"]
@@ -134,13 +136,13 @@ def gains(rows_in: list[dict[str, Any]], chosen: str) -> str:
 def parameters(rows_in: list[dict[str, Any]], has_truth: bool) -> str:
     rows = []
     for i, r in enumerate(rows_in):
-        k = f"parameters.{i}"
+        k = f"parameters/{i}"
         cls = "" if r["determined"] else ' class="undetermined"'
         cells = (f"{text(i + 1, 'l')}{text(r['name'])}<td class=\"combo\">{esc(r['combination'])}</td>"
-                 f"{num(r['identified'], '.5g', k + '.identified')}{num(r['standard_error'], '.2g', k + '.standard_error')}"
-                 f"{text('yes' if r['determined'] else 'no', 'l')}{num(r['cad'], '.5g', k + '.cad')}")
+                 f"{num(r['identified'], '.5g', k + '/identified')}{num(r['standard_error'], '.2g', k + '/standard_error')}"
+                 f"{text('yes' if r['determined'] else 'no', 'l')}{num(r['cad'], '.5g', k + '/cad')}")
         if has_truth:
-            cells += f"{num(r['true'], '.5g', k + '.true')}{num(r['error_in_se'], '+.1f', k + '.error_in_se')}"
+            cells += f"{num(r['true'], '.5g', k + '/true')}{num(r['error_in_se'], '+.1f', k + '/error_in_se')}"
         rows.append(f"<tr{cls}>{cells}</tr>")
     header = ["#", "base parameter", "combination", "identified", "± se", "determined", "CAD"]
     return table(header + (["true", "(identified − true) / se"] if has_truth else []), rows, 3)

@@ -139,3 +139,13 @@ def gains_by_estimator(identified: IdentifiedModel, truth: Truth | None) -> list
             row["estimators"][est] = {"value": float(rec["values"][i]), "standard_error": float(rec["standard_errors"][i])}
         rows.append(row)
     return rows
+
+
+def truth_summary(rows: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """How far the determined combinations are from the truth, in their own standard errors (honest errors give
+    an RMS near 1 and about 95 % within 2 se)."""
+    z = np.array([r["error_in_se"] for r in rows if r["determined"] and r["error_in_se"] is not None])
+    if z.size == 0:
+        return None
+    return {"determined": int(z.size), "rms_error_in_se": float(np.sqrt(np.mean(z**2))),
+            "within_2se": float(np.mean(np.abs(z) <= 2.0))}
