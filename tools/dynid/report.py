@@ -15,9 +15,15 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from . import report_html as H
+
+if TYPE_CHECKING:
+    from .evaluation import Evaluated
+    from .identified import IdentifiedModel
 
 DEFAULT_WINDOW_S = 6.0
 
@@ -34,7 +40,7 @@ def representative_window(t: np.ndarray, e: np.ndarray, sigma: np.ndarray, windo
     return slice(k * n, (k + 1) * n)
 
 
-def raw_outputs(ev, names: list[str]) -> np.ndarray:  # ev: dynid.evaluation.Evaluated
+def raw_outputs(ev: Evaluated, names: list[str]) -> np.ndarray:
     """The measured outputs as recorded (unfiltered), in output-channel order."""
     from .parameters import WRENCH_FIELDS
 
@@ -57,8 +63,6 @@ def _rates(s: dict[str, Any]) -> str:
 
 
 def cmd_report(args: argparse.Namespace) -> dict[str, Any]:
-    from . import report_figures as figs
-    from . import report_html as H
     from .cli_identify import PAPER
     from .dataset import atomic_write
     from .errors import DataError
@@ -94,7 +98,7 @@ def cmd_report(args: argparse.Namespace) -> dict[str, Any]:
         state["det_con"] = detection(ev, args.model, args.contact, args.alpha, args.n_mode)
 
     def draw() -> None:
-        state["figures"] = _figures(figs, state, args)
+        state["figures"], state["window_s"] = _figures(state, args)
 
     for step in track([evaluate_validation, evaluate_contact, draw], 3, "report"):
         step()
@@ -112,7 +116,7 @@ def cmd_report(args: argparse.Namespace) -> dict[str, Any]:
         "motor_gains": gains_by_estimator(identified, truth), "window_s": state["window_s"],
         "figures": [f[0] for f in state["figures"]],
     }
-    html_text = _page(H, result, identified, units, state["figures"])
+    html_text = _page(result, identified, units, state["figures"])
     atomic_write(out, lambda f: f.write(html_text.encode("utf-8")))
 
     print(f"report of {args.model} ({identified.config.name}) -> {out}")
@@ -128,8 +132,9 @@ def cmd_report(args: argparse.Namespace) -> dict[str, Any]:
     return result
 
 
-def _figures(figs, state: dict[str, Any], args: argparse.Namespace) -> list[tuple[str, str, bytes]]:
-    """(id, caption, PNG) of every figure."""
+def _figures(state: dict[str, Any], args: argparse.Namespace) -> tuple[list[tuple[str, str, bytes]], list[float]]:
+    """(id, caption, PNG) of every figure, and the time window of the traces."""
+    from . import report_figures as figs  # matplotlib: imported only when a report is drawn
     from .outputs import measured_outputs
 
     ev_val, ev_con, dv, dc = state["val"], state["con"], state["det_val"], state["det_con"]
@@ -160,20 +165,20 @@ def _figures(figs, state: dict[str, Any], args: argparse.Namespace) -> list[tupl
     ft_rows = [o.row for o in ev_val.outputs if o.kind == "ft"]
     cad = {} if state["cad_e"] is None else {r: y[:, r] - state["cad_e"][w][:, k] for k, r in enumerate(ft_rows)}
     tw = t[w] - t[0]
-    state["window_s"] = [float(tw[0]), float(tw[-1])]
     out.append(("fig-traces", f"Predicted against measured outputs on the validation run, {tw[0]:.1f}–{tw[-1]:.1f} s "
                 "(the window of median residual size); grey: as recorded; blue: the identified model; red dashed: "
                 "the CAD parameters (F/T only: a CAD model predicts no PWM)",
                 figs.traces(tw, names, [o.unit for o in ev_val.outputs], raw_outputs(ev_val, names)[w], predicted, cad)))
-    return out
+    return out, [float(tw[0]), float(tw[-1])]
 
 
-def _page(H, r: dict[str, Any], identified, units: dict[str, str], figures) -> str:
+def _page(r: dict[str, Any], identified: IdentifiedModel, units: dict[str, str],
+          figures: list[tuple[str, str, bytes]]) -> str:
     record = identified.record
     base = record.get("base", {})
     data = ", ".join(H.esc(d.get("path", "?")) for d in record.get("data", []))
     alpha = r["alpha"]
-    figs = {fid: H.figure(fid, png, caption) for fid, caption, png in figures}
+    shown = {fid: H.figure(fid, png, caption) for fid, caption, png in figures}
     v = r["validation"]
     sections = [
         f"<p>Model <code>{H.esc(r['model'])}</code> of <b>{H.esc(r['robot'])}</b>, estimator "
@@ -195,8 +200,8 @@ def _page(H, r: dict[str, Any], identified, units: dict[str, str], figures) -> s
         "threshold the α-quantile of T² on the contact-free identification data. <i>paper</i>: diagonal Λ and the F "
         f"threshold with n = {'dim(e)' if r['n_mode'] == 'dim' else 'ν'}. Distal contacts show in the F/T, proximal "
         "ones only in the PWMs.</p>",
-        figs["fig-t2-validation"], figs["fig-t2-contact"], figs.get("fig-roc", ""),
-        "<h2>Predicted against measured</h2>", figs["fig-traces"],
+        shown["fig-t2-validation"], shown["fig-t2-contact"], shown.get("fig-roc", ""),
+        "<h2>Predicted against measured</h2>", shown["fig-traces"],
         "<h2>Motor gains by estimator</h2>", H.gains(r["motor_gains"], r["estimator"]),
         "<p class=\"note\">Closed-loop data bias least squares and PLS towards small gains; instrumental variables "
         "(iv) remove that bias.</p>",
@@ -204,13 +209,13 @@ def _page(H, r: dict[str, Any], identified, units: dict[str, str], figures) -> s
         "<p class=\"note\">Each base parameter is the combination shown (the data determine only those). ± se: "
         "jackknife standard error over time blocks; determined: the fit's flag (standard error small against the "
         "value). CAD is undefined (—) for combinations with friction, gains or no CAD value.</p>",
-        _truth_note(H, r["truth_check"]),
+        _truth_note(r["truth_check"]),
         H.parameters(r["parameters"], r["truth"] is not None),
     ]
     return H.page(f"dynid identification report: {r['robot']}", sections)
 
 
-def _truth_note(H, check: dict[str, Any] | None) -> str:
+def _truth_note(check: dict[str, Any] | None) -> str:
     if not check:
         return ""
     return (f"<p>Against the truth, the {check['determined']} determined combinations are off by "
