@@ -115,6 +115,7 @@ def gains(rows_in: list[dict[str, Any]], chosen: str) -> str:
     if not rows_in:
         return "<p class=\"note\">No motor gains in this model.</p>"
     estimators = list(rows_in[0]["estimators"])
+    truth = any(r["true"] is not None for r in rows_in)
     rows = []
     for i, r in enumerate(rows_in):
         cells = [text(r["name"])]
@@ -122,15 +123,16 @@ def gains(rows_in: list[dict[str, Any]], chosen: str) -> str:
             e = r["estimators"][est]
             cells += [num(e["value"], ".4g", f"motor_gains/{i}/estimators/{est}/value"),
                       num(e["standard_error"], ".2g", f"motor_gains/{i}/estimators/{est}/standard_error")]
-            if r["true"] is not None:
-                cells.append(num((e["value"] - r["true"]) / r["true"], "+.1f", None, 100))
-        cells.append(num(r["true"], ".4g", f"motor_gains/{i}/true"))
+            if truth:
+                off = None if not r["true"] else (e["value"] - r["true"]) / r["true"]
+                cells.append(num(off, "+.1f", None, 100))
+        if truth:
+            cells.append(num(r["true"], ".4g", f"motor_gains/{i}/true"))
         rows.append("<tr>" + "".join(cells) + "</tr>")
-    truth = rows_in[0]["true"] is not None
     header = ["gain"]
     for est in estimators:
         header += [est + (" (model)" if est == chosen else ""), "± se"] + (["error %"] if truth else [])
-    return table(header + ["true"], rows)
+    return table(header + (["true"] if truth else []), rows)
 
 
 def parameters(rows_in: list[dict[str, Any]], has_truth: bool) -> str:

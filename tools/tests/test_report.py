@@ -228,6 +228,26 @@ def test_renders_in_headless_chromium(report, tmp_path: Path) -> None:
     assert pixels.std() > 20 and len(np.unique(pixels.reshape(-1, 3), axis=0)) > 200
 
 
+def test_without_truth(default_experiments, default_model, tmp_path: Path) -> None:
+    """Real data have no truth.json: the page leaves the true column out rather than inventing one."""
+    m = load(default_model)
+    for d in m["data"]:
+        d["path"] = str(tmp_path / "elsewhere")  # the identification run's directory (and its truth) is gone
+    (tmp_path / "model.json").write_text(json.dumps(m))
+    for kind in ("validation", "contact"):
+        shutil.copy(default_experiments[kind] / "dataset.npz", tmp_path / f"{kind}.npz")
+    done = dynid("report", "--model", str(tmp_path / "model.json"), "--validation", str(tmp_path / "validation.npz"),
+                 "--contact", str(tmp_path / "contact.npz"), "--out", str(tmp_path / "r.html"),
+                 "--json", str(tmp_path / "r.json"))
+    assert done.returncode == 0, done.stderr
+    r, page = load(tmp_path / "r.json"), parse(tmp_path / "r.html")
+    assert r["truth"] is None and r["truth_check"] is None
+    assert all(x["true"] is None and x["error_in_se"] is None for x in r["parameters"])
+    assert all(g["true"] is None for g in r["motor_gains"])
+    assert not any(c["data-key"].endswith("/true") for c in page.cells)
+    assert page.figures == list(FIGURES) and "No true parameters known" in (tmp_path / "r.html").read_text()
+
+
 # ------------------------------------------------------------------------------------------------------------
 # Bad input: exit 2 and one line
 
