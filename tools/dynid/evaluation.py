@@ -11,18 +11,20 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .config import RobotConfig
 from .dataset import Dataset, load_data
-from .detection import VARIANTS, Detector, f_threshold, score
 from .errors import DataError, InputError
 from .identified import IdentifiedModel, load_model
 from .model import RobotModel
 from .outputs import OutputChannel, output_channels, residuals
 from .regressors.stack import Signals, signals_from_dataset
+
+if TYPE_CHECKING:  # dynid.detection pulls in scipy.stats (0.6 s): imported where T² is computed, not by every command
+    from .detection import Detector
 
 
 def load_run(path: str, model: RobotModel) -> Dataset:
@@ -112,6 +114,8 @@ def validation(ev: Evaluated, model_label: str, data_label: str,
 
 def detectors(identified: IdentifiedModel, alpha: float, n_mode: str) -> dict[str, Detector]:
     """Both variants at confidence `alpha`, from the model file's calibration."""
+    from .detection import VARIANTS, Detector, f_threshold
+
     det = identified.record.get("detector")
     if not det:
         raise DataError(f"{identified.path} has no T² calibration (refit it with this dynid)")
@@ -142,6 +146,8 @@ class Detection:
 
 
 def detection(ev: Evaluated, model_label: str, data_label: str, alpha: float, n_mode: str) -> Detection:
+    from .detection import score
+
     dets = detectors(ev.identified, alpha, n_mode)
     side = ev.dataset.extra.get("skin.side")
     result: dict[str, Any] = {"model": model_label, "data": data_label, "alpha": alpha, "variants": {}}
