@@ -10,9 +10,9 @@ from typing import Any
 import numpy as np
 
 from .config import load_config
-from .dataset import Dataset, load_data
-from .errors import DataError, InputError
+from .evaluation import load_run as _load
 from .model import RobotModel
+from .report import add_report_command
 
 PAPER = {"tpr": 0.67, "fpr": 0.06, "force_error": (1.33, 0.64), "force_error_cad": (1.86, 0.59),
          "torque_error": (0.15, 0.13), "torque_error_cad": (0.15, 0.07)}
@@ -20,14 +20,6 @@ SHOW_COMBINATIONS = 30  # print every base combination when there are at most th
 CALIBRATION_CHUNK = 30_000  # samples (even, so the stride stays aligned across chunks)
 CALIBRATION_STRIDE = 2  # every other sample of the identification run calibrates T² (quantiles need no more)
 QUANTILE_LEVELS = np.sort(1.0 - np.logspace(-4, np.log10(0.5), 240))  # α in 0.5 … 0.9999, ascending
-
-
-def _load(path: str, model: RobotModel) -> Dataset:
-    ds = load_data(Path(path), model.config, joint_limits=model.joint_limits)
-    robot = ds.meta.get("robot")
-    if robot is not None and robot != model.config.name:
-        raise DataError(f"{path} was recorded on '{robot}', not on '{model.config.name}'")
-    return ds
 
 
 def _cad_offsets(model: RobotModel, stats) -> np.ndarray:  # stats: dynid.statistics.Statistics
@@ -42,14 +34,6 @@ def _cad_offsets(model: RobotModel, stats) -> np.ndarray:  # stats: dynid.statis
             g = G[6 * i + k]
             out[o] = (g[o, p] - g[o, :p] @ phi) / g[o, o] if g[o, o] > 0 else 0.0
     return out
-
-
-def cad_phi(model: RobotModel, record: dict) -> np.ndarray:
-    phi = np.nan_to_num(model.cad_parameters(), nan=0.0)
-    offsets = np.asarray(record.get("cad_ft_offsets", np.zeros(len(phi))), float)
-    span = model.layout.span("ft_offset")
-    phi[span] = offsets[span]
-    return phi
 
 
 def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
@@ -157,99 +141,41 @@ def ds_path(p: str) -> Path:
     return path / SIMULATION_DATASET if path.is_dir() else path
 
 
-def _model_and_data(args: argparse.Namespace):
-    from .identified import load_model
-
-    identified = load_model(args.model)
-    model = identified.robot_model
-    return identified, model, _load(args.data, model)
-
-
-def _norm_stats(x: np.ndarray) -> dict[str, float]:
-    n = np.linalg.norm(x, axis=1)
-    return {"mean": float(n.mean()), "std": float(n.std())}
-
-
 def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
-    from .outputs import measured_outputs, output_channels, residuals
-    from .regressors.stack import signals_from_dataset
+    from .evaluation import evaluate, validation
 
-    identified, model, ds = _model_and_data(args)
-    sig = signals_from_dataset(model, ds, filter_outputs=True)
-    e = residuals(model, identified.phi, sig)
-    outs = output_channels(model)
-    ft = [o.row for o in outs if o.kind == "ft"]
-    cad = cad_phi(model, identified.record)
-    cad_e = None
-    if ft:
-        gains = [o.gain_index for o in outs if o.gain_index is not None]
-        cad[gains] = 1.0  # the CAD model has no gains: its input predictions are undefined, not used
-        cad_e = residuals(model, cad, sig)[:, ft]
-    result: dict[str, Any] = {"model": args.model, "data": args.data, "samples": ds.n_samples, "channels": {}}
-    print(f"validation of {args.model} on {args.data} ({ds.n_samples} samples)")
-    if ft:
-        table = {"identified": {"force": _norm_stats(e[:, ft[:3]]), "torque": _norm_stats(e[:, ft[3:6]])},
-                 "cad": {"force": _norm_stats(cad_e[:, :3]), "torque": _norm_stats(cad_e[:, 3:6])}}
-        result["table_ii"] = table
+    ev = evaluate(args.model, args.data)
+    result = validation(ev, args.model, args.data)
+    print(f"validation of {args.model} on {args.data} ({result['samples']} samples)")
+    if "table_ii" in result:
+        table = result["table_ii"]
         print("  F/T prediction error (norm), mean ± std:    identified            CAD (offsets fitted)      paper (id / CAD)")
         for what, unit, key in (("force", "N", "force_error"), ("torque", "Nm", "torque_error")):
             i, c = table["identified"][what], table["cad"][what]
             print(f"    {what:6s} {i['mean']:8.3f} ± {i['std']:.3f} {unit:2s}   {c['mean']:8.3f} ± {c['std']:.3f} {unit:2s}"
                   f"        {PAPER[key][0]} ± {PAPER[key][1]} / {PAPER[key + '_cad'][0]} ± {PAPER[key + '_cad'][1]}")
     print("  per channel: RMS of e = y − ŷ, and against the channel's noise std")
-    for o in outs:
-        rms = float(np.sqrt(np.mean(e[:, o.row] ** 2)))
-        entry = {"rms": rms, "mean": float(e[:, o.row].mean()), "std": float(e[:, o.row].std()),
-                 "noise_std": o.sigma, "ratio_to_noise": rms / o.sigma}
-        if o.kind == "input":
-            entry["cad"] = None  # no friction and no gains in a CAD model: undefined (the paper says so too)
-        result["channels"][o.name] = entry
-        print(f"    {o.name:18s} {rms:10.4g} {o.unit:4s} {rms / o.sigma:6.2f}× noise")
-    torque = [o.row for o in outs if o.kind == "torque"]
-    if torque:  # joint torque sensors: the error the torque-identification literature reports
-        y = measured_outputs(model, sig)[:, torque]
-        rel = float(np.linalg.norm(e[:, torque]) / np.linalg.norm(y))
-        result["relative_torque_error"] = rel
-        print(f"  relative torque error ‖τ − τ̂‖ / ‖τ‖: {100 * rel:.2f} %")
-    if any(o.kind == "input" for o in outs):
+    for o in ev.outputs:
+        entry = result["channels"][o.name]
+        print(f"    {o.name:18s} {entry['rms']:10.4g} {o.unit:4s} {entry['ratio_to_noise']:6.2f}× noise")
+    if "relative_torque_error" in result:
+        print(f"  relative torque error ‖τ − τ̂‖ / ‖τ‖: {100 * result['relative_torque_error']:.2f} %")
+    if any(o.kind == "input" for o in ev.outputs):
         print("  CAD input (PWM) prediction: undefined; a CAD model has no friction and no motor gains")
     return result
 
 
 def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
-    from .detection import Detector, f_threshold, score
-    from .outputs import residuals
-    from .regressors.stack import signals_from_dataset
+    from .evaluation import detection, evaluate
 
-    identified, model, ds = _model_and_data(args)
-    det = identified.record.get("detector")
-    if not det:
-        raise DataError(f"{args.model} has no T² calibration (refit it with this dynid)")
-    sig = signals_from_dataset(model, ds, filter_outputs=True)
-    e = residuals(model, identified.phi, sig)
-    side = ds.extra.get("skin.side")
-    result: dict[str, Any] = {"model": args.model, "data": args.data, "alpha": args.alpha, "variants": {}}
-    print(f"T² contact detection with {args.model} on {args.data} ({ds.n_samples} samples), α = {args.alpha}")
-    if ds.contact is None:
+    ev = evaluate(args.model, args.data)
+    found = detection(ev, args.model, args.data, args.alpha, args.n_mode)
+    print(f"T² contact detection with {args.model} on {args.data} ({ev.dataset.n_samples} samples), α = {args.alpha}")
+    if ev.dataset.contact is None:
         print("  no contact ground truth in the data: FPR assumes the run is contact-free")
-    for variant in ("calibrated", "paper"):
-        d = Detector.from_dict(det[variant])
-        if variant == "paper":
-            n = d.n if args.n_mode == "dim" else int(identified.record.get("n_components", d.n))
-            d = Detector("paper", d.variance, f_threshold(n, det["calibration_samples"], args.alpha), args.alpha,
-                         d.min_speed, n)
-        elif args.alpha != d.alpha:
-            q = det["calibrated_t2_quantiles"]
-            if not q["levels"][0] <= args.alpha <= q["levels"][-1]:
-                raise InputError(f"--alpha {args.alpha} is outside the calibrated range "
-                                 f"{q['levels'][0]:.4g}..{q['levels'][-1]:.4g}")
-            d = Detector("calibrated", d.variance, float(np.interp(args.alpha, q["levels"], q["values"])), args.alpha,
-                         d.min_speed, d.n)
-        t2 = d.t2(model, e, sig.dq)
-        s = score(ds.t, t2, d.threshold, ds.contact, side)
-        result["variants"][variant] = s
+    for variant, s in found.result["variants"].items():
         tpr = "n/a" if s.get("tpr") is None else f"{100 * s['tpr']:.1f} %"
-        line = f"  {variant:10s} threshold {d.threshold:9.3g}: TPR {tpr}, FPR {100 * s['fpr']:.2f} %"
+        line = f"  {variant:10s} threshold {s['threshold']:9.3g}: TPR {tpr}, FPR {100 * s['fpr']:.2f} %"
         if "auc" in s:
             line += f", AUC {s['auc']:.3f}"
         if s.get("episodes"):
@@ -261,7 +187,7 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
             print("             TPR by side of the F/T sensor: " + ", ".join(
                 f"{k} {100 * v:.1f} %" for k, v in s["tpr_by_side"].items() if v is not None))
     print(f"  paper (real iCub arm, α = 0.99): TPR {100 * PAPER['tpr']:.0f} %, FPR {100 * PAPER['fpr']:.0f} %")
-    return result
+    return found.result
 
 
 def add_commands(sub: argparse._SubParsersAction, robot_arg, json_arg, min_speed_arg, positive_int) -> None:
@@ -314,3 +240,5 @@ def add_commands(sub: argparse._SubParsersAction, robot_arg, json_arg, min_speed
     sp.add_argument("--n-mode", choices=["dim", "nu"], default="dim", help="n of the paper's F threshold")
     json_arg(sp)
     sp.set_defaults(func=cmd_detect)
+
+    add_report_command(sub, json_arg)

@@ -1,0 +1,256 @@
+"""`dynid report`: the identification report of issue 4 as one self-contained HTML page.
+
+    dynid report --model MODEL --validation DATA --contact DATA --out REPORT.html
+                 [--truth TRUTH.json] [--alpha A] [--n-mode dim|nu] [--window S] [--json FILE]
+
+It holds the paper's Table II and the detection numbers beside the paper's, per-channel residuals against the
+noise, T² on the contact-free validation run (the paper's Fig. 3) and on the contact run with the skin's
+contacts shaded by side of the F/T sensor (Fig. 4), the ROC with the α point (Fig. 5), predicted against
+measured F/T and PWM in a representative window, the motor gains of every estimator, and every base parameter
+identified against CAD against true (the truth.json of a `dynid simulate` run, when there is one). Numbers
+come from the same functions as `dynid validate` and `dynid detect` (dynid.evaluation), so they agree.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from . import report_html as H
+
+if TYPE_CHECKING:
+    from .evaluation import Evaluated
+    from .identified import IdentifiedModel
+
+DEFAULT_WINDOW_S = 6.0
+
+
+def representative_window(t: np.ndarray, e: np.ndarray, sigma: np.ndarray, window_s: float) -> slice:
+    """The window whose residual size (mean of e²/σ² over channels) is the median of all windows: neither the
+    best nor the worst stretch of the run."""
+    n = int(np.searchsorted(t, t[0] + window_s))
+    if n <= 0 or n >= t.size:
+        return slice(0, t.size)
+    count = t.size // n
+    energy = np.mean((e[: count * n] / sigma) ** 2, axis=1).reshape(count, n).mean(axis=1)
+    k = int(np.argsort(energy)[(count - 1) // 2])
+    return slice(k * n, (k + 1) * n)
+
+
+def raw_outputs(ev: Evaluated, names: list[str]) -> np.ndarray:
+    """The measured outputs as recorded (unfiltered), in output-channel order."""
+    from .parameters import WRENCH_FIELDS
+
+    ds, cols = ev.dataset, []
+    for name in names:
+        family, _, rest = name.partition(".")
+        if family == "ft":
+            sensor, field = rest.rsplit(".", 1)
+            cols.append(ds.ft[sensor][:, WRENCH_FIELDS.index(field)])
+        else:
+            cols.append({"pwm": ds.pwm, "current": ds.current, "tau": ds.tau}[family][rest])
+    return np.column_stack(cols)
+
+
+def _rates(s: dict[str, Any]) -> str:
+    tpr = "n/a" if s.get("tpr") is None else f"{100 * s['tpr']:.1f} %"
+    line = f"TPR {tpr}, FPR {100 * s['fpr']:.2f} %"
+    side = {k: v for k, v in (s.get("tpr_by_side") or {}).items() if v is not None}
+    return line + ("".join(f", {k} {100 * v:.1f} %" for k, v in side.items()))
+
+
+def cmd_report(args: argparse.Namespace) -> dict[str, Any]:
+    from .cli_identify import PAPER
+    from .dataset import atomic_write
+    from .errors import DataError
+    from .evaluation import cad_ft_residuals, detection, evaluate, load_run, validation
+    from .identified import load_model
+    from .progress import track
+    from .report_params import find_truth, gains_by_estimator, parameter_table, truth_summary
+
+    out = Path(args.out)
+    if not out.parent.is_dir():  # before minutes of work, not after
+        raise DataError(f"cannot write '{out}': the directory {out.parent} does not exist")
+    if out.exists() and not out.is_file():
+        raise DataError(f"cannot write '{out}': it exists and is not a regular file")
+    identified = load_model(args.model)
+    model = identified.robot_model
+    ds_val = load_run(args.validation, model)
+    ds_con = load_run(args.contact, model)
+    if ds_con.contact is None:
+        raise DataError(f"{args.contact} has no 'contact' column: the contact figure and TPR need the skin's "
+                        "ground truth (a `dynid simulate --kind contact` run has one)")
+    truth = find_truth(identified, [args.validation, args.contact], args.truth)
+    params = parameter_table(identified, truth)
+    state: dict[str, Any] = {}
+
+    def evaluate_validation() -> None:
+        ev = state["val"] = evaluate(args.model, args.validation, identified, ds_val)
+        state["cad_e"] = cad_ft_residuals(ev)
+        state["validation"] = validation(ev, args.model, args.validation, state["cad_e"])
+        state["det_val"] = detection(ev, args.model, args.validation, args.alpha, args.n_mode)
+
+    def evaluate_contact() -> None:
+        ev = state["con"] = evaluate(args.model, args.contact, identified, ds_con)
+        state["det_con"] = detection(ev, args.model, args.contact, args.alpha, args.n_mode)
+
+    def draw() -> None:
+        state["figures"], state["window_s"] = _figures(state, args)
+
+    for step in track([evaluate_validation, evaluate_contact, draw], 3, "report"):
+        step()
+
+    v, dv, dc = state["validation"], state["det_val"], state["det_con"]
+    ev_val = state["val"]
+    units = {o.name: o.unit for o in ev_val.outputs}
+    record = identified.record
+    result: dict[str, Any] = {
+        "model": args.model, "robot": identified.config.name, "estimator": record.get("estimator"),
+        "out": str(out), "alpha": args.alpha, "n_mode": args.n_mode,
+        "validation": v, "detection": {"validation": dv.result, "contact": dc.result},
+        "paper": {k: list(x) if isinstance(x, tuple) else x for k, x in PAPER.items()},
+        "truth": truth.path if truth else None, "parameters": params, "truth_check": truth_summary(params),
+        "motor_gains": gains_by_estimator(identified, truth), "window_s": state["window_s"],
+        "figures": [f[0] for f in state["figures"]],
+    }
+    html_text = _page(result, identified, units, state["figures"])
+    atomic_write(out, lambda f: f.write(html_text.encode("utf-8")))
+
+    print(f"report of {args.model} ({identified.config.name}) -> {out}")
+    if "table_ii" in v:
+        t = v["table_ii"]
+        print(f"  force error {t['identified']['force']['mean']:.3f} N identified, {t['cad']['force']['mean']:.3f} N CAD "
+              f"(paper {PAPER['force_error'][0]} / {PAPER['force_error_cad'][0]} N)")
+    for variant, s in dc.result["variants"].items():
+        print(f"  {variant:10s} contact run: {_rates(s)}; validation FPR {100 * dv.result['variants'][variant]['fpr']:.2f} %")
+    determined = sum(r["determined"] for r in params)
+    print(f"  {len(state['figures'])} figures, {len(params)} base parameters ({determined} determined)"
+          + (f", truth from {truth.path}" if truth else ", no truth found"))
+    return result
+
+
+def _figures(state: dict[str, Any], args: argparse.Namespace) -> tuple[list[tuple[str, str, bytes]], list[float]]:
+    """(id, caption, PNG) of every figure, and the time window of the traces."""
+    from . import report_figures as figs  # matplotlib: imported only when a report is drawn
+    from .outputs import measured_outputs
+
+    ev_val, ev_con, dv, dc = state["val"], state["con"], state["det_val"], state["det_con"]
+    alpha = args.alpha
+    out = []
+    t = ev_val.dataset.t
+    fpr = {k: s["fpr"] for k, s in dv.result["variants"].items()}
+    thresholds = {k: d.threshold for k, d in dv.detectors.items()}
+    out.append(("fig-t2-validation", f"T² on the contact-free validation run ({args.validation}) with the threshold "
+                f"at α = {alpha:g}, both variants (the paper's Fig. 3)",
+                figs.t2_validation(t - t[0], dv.t2, thresholds, fpr, alpha)))
+    tc = ev_con.dataset.t
+    rates = {k: _rates(s) for k, s in dc.result["variants"].items()}
+    out.append(("fig-t2-contact", f"T² on the contact run ({args.contact}); the skin's contact periods shaded, distal "
+                "and proximal of the F/T sensor in two colours (the paper's Fig. 4)",
+                figs.t2_contact(tc - tc[0], dc.t2, thresholds, ev_con.dataset.contact, dc.side, rates)))
+    curves = {k: s["roc"] for k, s in dc.result["variants"].items() if "roc" in s}
+    if curves:
+        points = {k: (s["fpr"], s["tpr"]) for k, s in dc.result["variants"].items() if k in curves}
+        auc = {k: s["auc"] for k, s in dc.result["variants"].items() if k in curves}
+        out.append(("fig-roc", f"ROC on the contact run, the operating point at α = {alpha:g} marked "
+                    "(the paper's Fig. 5); right: the same on a logarithmic FPR axis", figs.roc(curves, points, auc, alpha)))
+    names = [o.name for o in ev_val.outputs]
+    sigma = np.array([o.sigma for o in ev_val.outputs])
+    w = representative_window(t, ev_val.e, sigma, args.window)
+    y = measured_outputs(ev_val.model, ev_val.signals)[w]
+    predicted = y - ev_val.e[w]
+    ft_rows = [o.row for o in ev_val.outputs if o.kind == "ft"]
+    cad = {} if state["cad_e"] is None else {r: y[:, r] - state["cad_e"][w][:, k] for k, r in enumerate(ft_rows)}
+    tw = t[w] - t[0]
+    out.append(("fig-traces", f"Predicted against measured outputs on the validation run, {tw[0]:.1f}–{tw[-1]:.1f} s "
+                "(the window of median residual size); grey: as recorded; blue: the identified model; red dashed: "
+                "the CAD parameters (F/T only: a CAD model predicts no PWM)",
+                figs.traces(tw, names, [o.unit for o in ev_val.outputs], raw_outputs(ev_val, names)[w], predicted, cad)))
+    return out, [float(tw[0]), float(tw[-1])]
+
+
+def _page(r: dict[str, Any], identified: IdentifiedModel, units: dict[str, str],
+          figures: list[tuple[str, str, bytes]]) -> str:
+    record = identified.record
+    base = record.get("base", {})
+    data = ", ".join(H.esc(d.get("path", "?")) for d in record.get("data", []))
+    alpha = r["alpha"]
+    shown = {fid: H.figure(fid, png, caption) for fid, caption, png in figures}
+    v = r["validation"]
+    sections = [
+        f"<p>Model <code>{H.esc(r['model'])}</code> of <b>{H.esc(r['robot'])}</b>, estimator "
+        f"<b>{H.esc(r['estimator'])}</b>, fitted on {data}: base-parameter rank {H.esc(base.get('rank'))}, "
+        f"{sum(base.get('identified', []))} combinations determined; PLS ν = {H.esc(record.get('n_components'))}. "
+        f"Validation run <code>{H.esc(v['data'])}</code> ({v['samples']} samples), contact run "
+        f"<code>{H.esc(r['detection']['contact']['data'])}</code>. "
+        + (f"True parameters from <code>{H.esc(r['truth'])}</code>." if r["truth"] else "No true parameters known.")
+        + "</p>",
+        "<h2>Prediction error (the paper's Table II)</h2>",
+        H.table_ii(v, r["paper"]) if "table_ii" in v else "<p class=\"note\">No F/T sensor: no Table II.</p>",
+        "<p class=\"note\">Norm of the F/T prediction error on the validation run. CAD: the URDF inertia with the F/T "
+        "offsets that fit it best on the identification data. Paper: the real iCub arm (Traversaro et al. 2013).</p>",
+        "<h3>Per channel</h3>", H.channels(v, units),
+        "<p class=\"note\">The CAD model has no friction and no motor gains: its PWM prediction is undefined.</p>",
+        "<h2>Contact detection</h2>",
+        H.detection(r["detection"]["validation"], r["detection"]["contact"], r["paper"], alpha),
+        f"<p class=\"note\">α = {alpha:g}. <i>calibrated</i> (dynid's default): motor channels at rest left out, "
+        "threshold the α-quantile of T² on the contact-free identification data. <i>paper</i>: diagonal Λ and the F "
+        f"threshold with n = {'dim(e)' if r['n_mode'] == 'dim' else 'ν'}. Distal contacts show in the F/T, proximal "
+        "ones only in the PWMs.</p>",
+        shown["fig-t2-validation"], shown["fig-t2-contact"], shown.get("fig-roc", ""),
+        "<h2>Predicted against measured</h2>", shown["fig-traces"],
+        "<h2>Motor gains by estimator</h2>", H.gains(r["motor_gains"], r["estimator"]),
+        "<p class=\"note\">Closed-loop data bias least squares and PLS towards small gains; instrumental variables "
+        "(iv) remove that bias.</p>",
+        "<h2>Base parameters: identified, CAD, true</h2>",
+        "<p class=\"note\">Each base parameter is the combination shown (the data determine only those). ± se: "
+        "jackknife standard error over time blocks; determined: the fit's flag (standard error small against the "
+        "value). CAD is undefined (—) for combinations with friction, gains or no CAD value.</p>",
+        _truth_note(r["truth_check"]),
+        H.parameters(r["parameters"], r["truth"] is not None),
+    ]
+    return H.page(f"dynid identification report: {r['robot']}", sections)
+
+
+def _truth_note(check: dict[str, Any] | None) -> str:
+    if not check:
+        return ""
+    return (f"<p>Against the truth, the {check['determined']} determined combinations are off by "
+            f"<span data-key=\"truth_check/rms_error_in_se\" data-value=\"{check['rms_error_in_se']!r}\">"
+            f"{check['rms_error_in_se']:.2f}</span> standard errors RMS; "
+            f"<span data-key=\"truth_check/within_2se\" data-value=\"{check['within_2se']!r}\" data-scale=\"100.0\">"
+            f"{100 * check['within_2se']:.0f}</span> % lie within 2 se (honest errors: about 1 and 95 %).</p>")
+
+
+def add_report_command(sub: argparse._SubParsersAction, json_arg) -> None:
+    from .cli import positive_float
+    from .detection import ALPHA
+
+    def alpha(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+        if not 0.5 <= value < 1.0:
+            raise argparse.ArgumentTypeError(f"must be in [0.5, 1), got {text}")
+        return value
+
+    sp = sub.add_parser("report", help="the identification report: one HTML page with figures and tables",
+                        description="Table II and the detection numbers beside the paper's, T² on the validation "
+                        "and the contact runs, the ROC, predicted against measured outputs, and every base parameter "
+                        "identified against CAD against true, as one self-contained HTML file.")
+    sp.add_argument("--model", required=True, metavar="MODEL", help="a model file of `dynid fit`")
+    sp.add_argument("--validation", required=True, metavar="DATA", help="a contact-free validation run")
+    sp.add_argument("--contact", required=True, metavar="DATA", help="a run with the skin's 'contact' ground truth")
+    sp.add_argument("--out", required=True, metavar="REPORT.html", help="the page to write (atomically)")
+    sp.add_argument("--truth", metavar="TRUTH.json", help="true parameters (default: the truth.json of `dynid "
+                    "simulate` beside the identification data, else beside --validation or --contact)")
+    sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"T² confidence level (default {ALPHA})")
+    sp.add_argument("--n-mode", choices=["dim", "nu"], default="dim", help="n of the paper's F threshold")
+    sp.add_argument("--window", type=positive_float, default=DEFAULT_WINDOW_S, metavar="S",
+                    help=f"length of the predicted-against-measured window (default {DEFAULT_WINDOW_S:g} s)")
+    json_arg(sp)
+    sp.set_defaults(func=cmd_report)
