@@ -176,6 +176,15 @@ def signals_from_dataset(model: RobotModel, dataset, filter_outputs: bool = Fals
     return Signals(q, dataset.dq, dataset.ddq, inputs, tau, ft)
 
 
+def motor_velocities(dq_joints: np.ndarray, coupling: np.ndarray) -> np.ndarray:
+    """q̇_m = T q̇ per sample (N, n_motors); a velocity that cancels exactly (q̇₀ = q̇₁ in a row [−r, r, 0]) is
+    exactly 0, as a product summed term by term gives it, not the ±1e-17 a fused multiply-add may leave (the
+    Coulomb sign of a motor at rest must not be a rounding accident)."""
+    v = dq_joints @ coupling.T
+    v[np.abs(v) <= 1e-12 * (np.abs(dq_joints) @ np.abs(coupling).T)] = 0.0
+    return v
+
+
 def group_row_maps(group: ActuationGroup) -> tuple[np.ndarray, np.ndarray]:
     """(L, C) of a group: its rows are L times its joint equations, and motor terms enter them through C."""
     if motor_space(group):
@@ -202,7 +211,7 @@ def rows_at_rest(model: RobotModel, dq: np.ndarray, min_speed: float = DEFAULT_M
         touches, touches_motor = np.abs(L) > 1e-9 * np.abs(L).max(), np.abs(C) > 1e-9 * np.abs(C).max()
         rest = slow.astype(float) @ touches.T.astype(float) > 0
         if g.input != "torque" and g.coupled:
-            slow_motor = np.abs(dq[:, gj] @ g.coupling.T) < min_speed
+            slow_motor = np.abs(motor_velocities(dq[:, gj], g.coupling)) < min_speed
             rest |= slow_motor.astype(float) @ touches_motor.T.astype(float) > 0
         out[:, start : start + len(gj)] = rest
         start += len(gj)
@@ -245,7 +254,7 @@ def fill_rows(model: RobotModel, sig: Signals, A: np.ndarray, b: np.ndarray) -> 
             b[:, rows] = np.column_stack([sig.tau[j] for j in g.joints]) @ L.T
             continue
         if g.coupled:
-            motor_friction = friction_regressor(sig.dq[:, gj] @ g.coupling.T)  # at q̇_m = T q̇_I: (N, n_motors, 4)
+            motor_friction = friction_regressor(motor_velocities(sig.dq[:, gj], g.coupling))  # at q̇_m = T q̇_I: (N, n_motors, 4)
         for mi, m in enumerate(g.motors):
             weight = C[:, mi]  # this motor's share of each row
             u = sig.inputs[m][:, None]
