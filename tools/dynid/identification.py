@@ -8,7 +8,7 @@ sufficient statistics per time block (`dynid.statistics`) → base parameters of
   cross-validation on held-out time blocks;
 - ``iv``: instrumental variables (IDIM-IV). In closed loop the measured PWM carries the disturbance the
   controller compensates, and the encoder-derived q̇, q̈ carry noise: both bias OLS and PLS, the motor gains
-  most (the default simulated arm: −20 % on the shoulder). The instruments are the regressor along a smoothed
+  most (the default simulated arm: −9…−11 % on the shoulder gains). The instruments are the regressor along a smoothed
   trajectory (a 0.2 s Savitzky-Golay fit: its noise is nearly independent of the fit's 31 ms derivatives),
   with each input column replaced by the model's own noise-free predicted input û(Φ̂), iterated to a fixed
   point. dynid does not know the robot's controller, so unlike DIDIM it does not simulate the closed loop.
@@ -35,7 +35,7 @@ from .regressors.stack import DEFAULT_MIN_SPEED, Signals, row_weights, signals_f
 from .statistics import Statistics, accumulate
 
 ESTIMATORS: tuple[str, ...] = ("iv", "pls", "ols")
-DEFAULT_ESTIMATOR = "iv"  # the best measured on the simulated arm (README: gains within 1 % against −20 %)
+DEFAULT_ESTIMATOR = "iv"  # the best measured on the simulated arm (README: gains within 1.2 %, against −9…−11 % for OLS and PLS)
 INSTRUMENT_WINDOW_S = 0.2
 # Rank threshold on singular values of the column-normalised system, from the Gram matrix: its rounding floor
 # sits near 1e-8 (the square root of machine precision), the iCub's last base direction near 1e-2.
