@@ -135,6 +135,7 @@ bool Assembler::init(const MonitorConfig& cfg, const Coefficients& coef, std::st
     }
     q_.assign(cfg.axes.size(), 0.0);
     t_q_.assign(cfg.axes.size(), -1);
+    period_us_ = std::llround(coef.sample_period * 1e6);
     pwm_.assign(cfg.pwms.size(), 0.0);
     t_pwm_.assign(cfg.pwms.size(), -1);
     status_seq_.assign(size_t(kMaxBus) * 16, -1);
@@ -186,10 +187,12 @@ bool Assembler::push(const RxFrame& f, Sample& out) noexcept {
         out.t_us = f.t_us;
         out.stale = force_saturated_ || flags != 0;
         t_force_ = -1;
+        out.held = false;
         for (int j = 0; j < n_joints_; ++j) {
             const int a = joint_axis_[size_t(j)];
             out.q[size_t(j)] = q_[size_t(a)];
             const int64_t t = t_q_[size_t(a)];
+            out.held = out.held || out.t_us - t > period_us_;
             if (t < 0 || out.t_us - t > cfg_->stale_us) out.stale = true;
         }
         for (int o = 0; o < n_outputs_; ++o) {

@@ -115,7 +115,9 @@ int main(int argc, char** argv) {
     double loop_sum = 0, loop_max = 0;
     int64_t loop_n = 0;
     bool was_stale = true;
-    Sample s;
+    int64_t interpolated = 0, restarts = 0;
+    constexpr int kMaxBridge = 3;  // missing samples bridged by interpolation; a longer gap restarts the filter
+    Sample s, prev, mid;
     RxFrame f;
     int rc = 0;
 
@@ -139,6 +141,8 @@ int main(int argc, char** argv) {
         st.board_faults = c.board_faults;
         st.board_restarts = c.board_restarts;
         st.source_bad = int64_t(sc.bad_lines + sc.unknown_bus + sc.bad_size);
+        st.interpolated = interpolated;
+        st.filter_restarts = restarts;
         st.in_contact = core->output().in_contact;
         st.stale = s.stale;
         st.loop_us_mean = loop_n ? loop_sum / double(loop_n) : 0.0;
@@ -147,6 +151,37 @@ int main(int argc, char** argv) {
         lcm.publish("DYNID_STATUS", &st);
         loop_sum = loop_max = 0;
         loop_n = 0;
+    };
+
+    auto step = [&](const Sample& x) {
+        const double t0 = mono_us();
+        const Output& o = core->step(x.q.data(), x.y.data());
+        const double dt = mono_us() - t0;
+        loop_sum += dt;
+        loop_max = dt > loop_max ? dt : loop_max;
+        ++loop_n;
+        if (dt > period_us) ++overruns;
+        ++evaluated;
+        if (o.event != Event::kNone) {
+            ++events;
+            if (o.event == Event::kOnset) onset_utime = x.t_us;
+            ev.utime = x.t_us;
+            ev.kind = int8_t(o.event);
+            ev.side = int8_t(o.side);
+            ev.onset_utime = onset_utime;
+            ev.sample = evaluated - 1;
+            ev.t2 = o.p.t2;
+            ev.threshold = coef->threshold;
+            fill_residual(ev.normalized_residual, o);
+            for (int k = 0; k < 6; ++k) ev.wrench[k] = o.wrench[k];
+            lcm.publish("DYNID_CONTACT", &ev);
+        }
+        if (o.ready && evaluated % cfg.residual_every == 0) {
+            res.utime = x.t_us;
+            res.t2 = o.p.t2;
+            fill_residual(res.normalized_residual, o);
+            lcm.publish("DYNID_RESIDUAL", &res);
+        }
     };
 
     while (!g_stop) {
@@ -163,37 +198,30 @@ int main(int argc, char** argv) {
             // No contact from stale data: the core is not stepped, and restarts its filter afterwards (its
             // window would otherwise span the gap).
             was_stale = true;
+        } else if (s.held) {
+            // Bridged by interpolation when the next complete sample comes (or a restart, if none does soon).
         } else {
-            if (was_stale) core->reset();
+            // The filter assumes uniform samples: bridge a short gap (lost strain halves) by interpolating
+            // linearly between the last good sample and this one, restart the filter after a longer one.
+            const long missing = was_stale ? 0 : std::lround(double(s.t_us - prev.t_us) / period_us) - 1;
+            if (was_stale || missing > kMaxBridge || missing < 0) {
+                core->reset();
+                ++restarts;
+            } else {
+                for (long m = 1; m <= missing; ++m) {
+                    const double w = double(m) / double(missing + 1);
+                    mid.t_us = prev.t_us + std::llround(w * double(s.t_us - prev.t_us));
+                    for (int j = 0; j < coef->n_joints; ++j)
+                        mid.q[size_t(j)] = prev.q[size_t(j)] + w * (s.q[size_t(j)] - prev.q[size_t(j)]);
+                    for (int i = 0; i < n_out; ++i)
+                        mid.y[size_t(i)] = prev.y[size_t(i)] + w * (s.y[size_t(i)] - prev.y[size_t(i)]);
+                    step(mid);
+                    ++interpolated;
+                }
+            }
             was_stale = false;
-            const double t0 = mono_us();
-            const Output& o = core->step(s.q.data(), s.y.data());
-            const double dt = mono_us() - t0;
-            loop_sum += dt;
-            loop_max = dt > loop_max ? dt : loop_max;
-            ++loop_n;
-            if (dt > period_us) ++overruns;
-            ++evaluated;
-            if (o.event != Event::kNone) {
-                ++events;
-                if (o.event == Event::kOnset) onset_utime = s.t_us;
-                ev.utime = s.t_us;
-                ev.kind = int8_t(o.event);
-                ev.side = int8_t(o.side);
-                ev.onset_utime = onset_utime;
-                ev.sample = evaluated - 1;
-                ev.t2 = o.p.t2;
-                ev.threshold = coef->threshold;
-                fill_residual(ev.normalized_residual, o);
-                for (int k = 0; k < 6; ++k) ev.wrench[k] = o.wrench[k];
-                lcm.publish("DYNID_CONTACT", &ev);
-            }
-            if (o.ready && evaluated % cfg.residual_every == 0) {
-                res.utime = s.t_us;
-                res.t2 = o.p.t2;
-                fill_residual(res.normalized_residual, o);
-                lcm.publish("DYNID_RESIDUAL", &res);
-            }
+            step(s);
+            prev = s;
         }
         if (next_status < 0) next_status = s.t_us;
         if (s.t_us >= next_status) {
@@ -207,12 +235,12 @@ int main(int argc, char** argv) {
     const SourceCounters& sc = src->counters();
     std::printf("rt_monitor: %s; frames %lld, samples %lld, evaluated %lld, stale %lld, events %lld, unknown id %lld, "
                 "bad length %lld, error frames %lld, unpaired strain %lld, saturated %lld, board faults %lld, "
-                "board restarts %lld, bad source input %llu, overruns %lld\n",
+                "board restarts %lld, bad source input %llu, interpolated %lld, filter restarts %lld, overruns %lld\n",
                 g_stop ? "stopped by signal" : (rc ? "failed" : "end of input"), (long long)c.frames,
                 (long long)c.samples, (long long)evaluated, (long long)c.stale_samples, (long long)events,
                 (long long)c.unknown_id, (long long)c.bad_length, (long long)c.error_frames,
                 (long long)c.unpaired_strain, (long long)c.saturated, (long long)c.board_faults,
                 (long long)c.board_restarts, (unsigned long long)(sc.bad_lines + sc.unknown_bus + sc.bad_size),
-                (long long)overruns);
+                (long long)interpolated, (long long)restarts, (long long)overruns);
     return rc;
 }

@@ -144,3 +144,148 @@ def test_replay_end_to_end(setup: dict) -> None:
     duration = (data.t[-1] - data.t[0])
     assert abs(len(msgs["DYNID_STATUS"]) - 10 * duration) <= 2  # 10 Hz of CAN time
     assert len(msgs["DYNID_RESIDUAL"]) >= data.n_samples // 10 - 40
+
+
+# ---- bad bus input: each kind has its counter, no contact comes from stale data, the process never crashes --
+
+START, STOP = 10000, 16000  # 6 s of the contact run around its first detected contact
+
+
+@pytest.fixture(scope="module")
+def clean(setup: dict) -> dict:
+    part = setup["data"].slice(START, STOP)
+    log = setup["root"] / "clean.log"
+    write_candump(part, setup["config"], log)
+    done, msgs = run_monitor(setup, log, "clean")
+    assert done.returncode == 0, done.stderr
+    assert msgs["DYNID_CONTACT"], "the slice must hold a detected contact for the bad-input tests to mean anything"
+    return {"lines": log.read_text().splitlines(), "part": part, "msgs": msgs}
+
+
+def _sample_of(line: str) -> int:
+    return round((int(line[1:line.index(")")].replace(".", "")) - T0_US) / 1000)  # frames of sample k: t_k − 300 µs … t_k
+
+
+def _bad_run(setup: dict, clean: dict, lines: list[str], name: str):
+    log = setup["root"] / f"{name}.log"
+    log.write_text("\n".join(lines) + "\n")
+    done, msgs = run_monitor(setup, log, name)
+    assert done.returncode == 0, done.stderr  # never a crash
+    assert done.stdout.startswith("rt_monitor: end of input;")
+    status = msgs["DYNID_STATUS"][-1]
+    eps = _episodes(clean["part"].contact)
+    c = read_coefficients(setup["coef"])
+    slack = c.lag + c.debounce_on + 5
+    for m in msgs["DYNID_CONTACT"]:
+        k = (m.utime - T0_US) // 1000
+        if m.kind == 1:
+            assert any(a <= k <= e + slack for a, e in eps), f"{name}: an onset at sample {k}, outside every contact"
+    return status, msgs
+
+
+def test_unknown_ids(setup: dict, clean: dict) -> None:
+    lines = []
+    for i, line in enumerate(clean["lines"]):
+        lines.append(line)
+        if i % 100 == 0:  # class 5, and a strain type the protocol does not define, and an unconfigured board
+            head = line[:line.index(")") + 1]
+            lines += [f"{head} can0 514#0102", f"{head} can0 3DC#008000800080", f"{head} can2 171#0000000000000000"]
+    status, msgs = _bad_run(setup, clean, lines, "unknown")
+    assert status.unknown_id == 3 * len(range(0, len(clean["lines"]), 100))
+    assert len(msgs["DYNID_CONTACT"]) == len(clean["msgs"]["DYNID_CONTACT"])
+
+
+def test_wrong_lengths(setup: dict, clean: dict) -> None:
+    lines, n = [], 0
+    for i, line in enumerate(clean["lines"]):
+        if i % 500 == 7:
+            payload = line[line.index("#") + 1:]
+            if len(payload) == 16:
+                line = line[:-2]  # POSITION with 7 bytes
+            else:  # one byte more; a 6-byte strain frame gets two (7 bytes is its saturation form)
+                line += "0000" if " 3DA#" in line or " 3DB#" in line else "00"
+            n += 1
+        lines.append(line)
+    status, _ = _bad_run(setup, clean, lines, "lengths")
+    assert status.bad_length == n
+
+
+def test_error_frames(setup: dict, clean: dict) -> None:
+    lines = []
+    for i, line in enumerate(clean["lines"]):
+        lines.append(line)
+        if i % 1000 == 0:
+            lines.append(line[:line.index(")") + 1] + " can1 20000004#0004000000000000")
+    status, msgs = _bad_run(setup, clean, lines, "errors")
+    assert status.error_frames == len(range(0, len(clean["lines"]), 1000))
+    assert len(msgs["DYNID_CONTACT"]) == len(clean["msgs"]["DYNID_CONTACT"])
+
+
+def test_one_percent_dropped(setup: dict, clean: dict) -> None:
+    rng = np.random.default_rng(1)
+    keep = rng.random(len(clean["lines"])) >= 0.01
+    lines = [l for l, k in zip(clean["lines"], keep) if k]
+    status, msgs = _bad_run(setup, clean, lines, "dropped")
+    halves: dict[int, int] = {}  # sample -> strain halves dropped
+    held = set()  # samples with a POSITION frame dropped
+    for line, k in zip(clean["lines"], keep):
+        if not k and (" 3DA#" in line or " 3DB#" in line):
+            halves[_sample_of(line)] = halves.get(_sample_of(line), 0) + 1
+        if not k and line[line.index("#") - 1] == "1" and line[line.index("#") - 3] == "1":  # ID 1x1: POSITION
+            held.add(_sample_of(line))
+    assert status.samples == len(clean["part"].t) - len(halves)
+    assert status.unpaired_strain == sum(1 for v in halves.values() if v == 1)
+    # Lost samples, and those with a held encoder value, are bridged by interpolation: the filter never restarts.
+    assert status.interpolated == len(set(halves) | held) and status.filter_restarts == 1
+    assert msgs["DYNID_CONTACT"], "a 1 % loss must not hide the contact"
+
+
+def test_duplicated_and_reordered(setup: dict, clean: dict) -> None:
+    rng = np.random.default_rng(2)
+    lines = list(clean["lines"])
+    for i in sorted(rng.choice(len(lines) - 1, 60, replace=False)):
+        lines[i], lines[i + 1] = lines[i + 1], lines[i]
+    out = []
+    for i, line in enumerate(lines):
+        out.append(line)
+        if rng.random() < 0.01:
+            out.append(line)
+    status, _ = _bad_run(setup, clean, out, "dupes")
+    assert status.unpaired_strain > 0
+    assert status.samples <= len(clean["part"].t)  # a duplicated half never makes a second sample
+
+
+def test_stalled_board(setup: dict, clean: dict) -> None:
+    # Motor board 2 (can1, address 2) goes silent for 500 samples in the middle of the first contact.
+    eps = _episodes(clean["part"].contact)
+    a = eps[0][0] + 100
+    lines = [l for l in clean["lines"] if not (" can1 12" in l and a <= _sample_of(l) < a + 500)]
+    status, msgs = _bad_run(setup, clean, lines, "stalled")
+    assert 490 <= status.stale_samples <= 500  # stale once its last values are older than 5 ms
+    for m in msgs["DYNID_CONTACT"]:
+        k = (m.utime - T0_US) // 1000
+        assert not a <= k < a + 500 + 5, "an event from stale data"
+
+
+def test_saturation_flags(setup: dict, clean: dict) -> None:
+    lines, n = [], 0
+    for i, line in enumerate(clean["lines"]):
+        if " 3DA#" in line and i % 200 < 20:
+            line, n = line + "01", n + 1
+        lines.append(line)
+    status, _ = _bad_run(setup, clean, lines, "saturated")
+    assert status.saturated == n
+    assert status.stale_samples == n  # a saturated sample is never evaluated
+
+
+def test_board_restart(setup: dict, clean: dict) -> None:
+    # Board 1 restarts at sample 3000: a STATUS with the restarted flag and the counter from 0 again.
+    lines, seq = [], -1
+    for line in clean["lines"]:
+        if " can0 113#" in line and _sample_of(line) >= 3000:
+            seq += 1  # wraps 255 -> 0 on its own later: not a restart
+            line = line[:line.index("#") + 1] + ("000001" if seq == 0 else "000000") + f"{seq % 256:02X}"
+        lines.append(line)
+    status, _ = _bad_run(setup, clean, lines, "restart")
+    assert status.board_restarts == 1
+    assert status.stale_samples <= 1

@@ -4,7 +4,9 @@
 //   follows the force half within `pair_us` with no other strain frame between: a half is never paired with
 //   a half of another sample (DESIGN.md §5). The pair's time is the sample's time.
 // - Encoder positions and PWMs are held at their latest values; a sample with any of them older than
-//   `stale_us` (or never received) is stale, and so is one with a saturated strain channel.
+//   `stale_us` (or never received) is stale, and so is one with a saturated strain channel. A sample with an
+//   encoder value older than one sample period is `held`: the monitor bridges it like a lost sample (a held
+//   position is a kink the derivative filter would read as an acceleration spike).
 // - Every bad frame has a counter (MonitorCounters); nothing throws, nothing allocates after set-up.
 #pragma once
 
@@ -60,6 +62,7 @@ struct Sample {
     std::array<double, kMaxJoints> q{};
     std::array<double, kMaxOutputs> y{};
     bool stale = false;      // an input too old or missing, or a saturated strain channel
+    bool held = false;       // an encoder value is older than one sample period: it is held, not new
     uint16_t skin_mask = 0;  // patches in contact (bit = index in the configuration's skin list)
 };
 
@@ -85,6 +88,7 @@ private:
     std::array<int, kMaxOutputs> out_src_{};    // channel -> 0..5 F/T component, or 6 + index in cfg.pwms
     std::vector<double> q_, pwm_;               // latest values, by cfg index
     std::vector<int64_t> t_q_, t_pwm_;          // their times (-1: never)
+    int64_t period_us_ = 1000;
     std::vector<int> status_seq_;               // last STATUS sequence per motor board address (-1: none)
     std::array<double, 3> force_{};
     int64_t t_force_ = -1;
