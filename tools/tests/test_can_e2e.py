@@ -289,3 +289,35 @@ def test_board_restart(setup: dict, clean: dict) -> None:
     status, _ = _bad_run(setup, clean, lines, "restart")
     assert status.board_restarts == 1
     assert status.stale_samples <= 1
+
+
+# ---- dynid import of candump logs -----------------------------------------------------------------------
+
+
+def test_import_candump_round_trip(setup: dict, clean: dict, tmp_path: Path) -> None:
+    """The writer's log imports back to the data (the simulation is quantised as the boards are: exact)."""
+    from dynid.dataset import Dataset
+
+    log = setup["root"] / "clean.log"
+    done = subprocess.run([sys.executable, "-m", "dynid.cli", "import", "--data", str(log), "--out", str(tmp_path / "d.npz")],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    got, want = Dataset.load(tmp_path / "d.npz"), clean["part"]
+    assert got.n_samples == want.n_samples
+    assert np.allclose(got.t, want.t - want.t[0], atol=1e-9)
+    fs = np.array(setup["config"].can["strain"][0]["full_scale"])
+    assert (np.abs(got.ft["r_arm_ft"] - want.ft["r_arm_ft"]).max(axis=0) <= fs / 65536 * 1.0001).all()
+    step = np.radians(1 / 182.04444444444445)
+    assert np.abs(got.q - want.q).max() <= step / 2 * 1.0001
+    assert all(np.abs(got.pwm[m] - want.pwm[m]).max() <= 0.5 / 1333 + 1e-12 for m in want.pwm)
+    assert (got.contact == want.contact).all()
+
+
+def test_import_refuses_a_bad_log_with_one_line(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.log"
+    bad.write_text("(1.000000) can0 514#00\n(1.001000) can0 515#00\n")
+    done = subprocess.run([sys.executable, "-m", "dynid.cli", "import", "--data", str(bad), "--out", str(tmp_path / "d.npz")],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2
+    assert done.stderr.strip().count("\n") == 0 and "no strain frames" in done.stderr, done.stderr
+    assert not (tmp_path / "d.npz").exists()
