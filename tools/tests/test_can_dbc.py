@@ -157,3 +157,12 @@ def test_a_foreign_dbc_is_refused(tmp_path: Path) -> None:
     (tmp_path / "y.dbc").write_text("not a dbc")
     with pytest.raises(DataError, match="y.dbc"):
         Protocol(tmp_path / "y.dbc")
+
+
+def test_example_monitor_config_is_current() -> None:
+    """rt_monitor/config/icub_right_arm.conf is what dynid writes for the bundled arm (regenerate it if not)."""
+    from dynid.can_log import monitor_config_text
+    from dynid.config import load_config
+
+    text = (ROOT / "rt_monitor" / "config" / "icub_right_arm.conf").read_text()
+    assert text == monitor_config_text(load_config("icub_right_arm"))
