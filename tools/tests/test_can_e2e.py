@@ -321,3 +321,42 @@ def test_import_refuses_a_bad_log_with_one_line(tmp_path: Path) -> None:
     assert done.returncode == 2
     assert done.stderr.strip().count("\n") == 0 and "no strain frames" in done.stderr, done.stderr
     assert not (tmp_path / "d.npz").exists()
+
+
+def test_loopback_live_and_clean_shutdown(setup: dict, clean: dict, tmp_path: Path) -> None:
+    """Frames over the loopback transport (struct can_frame datagrams), then SIGTERM: exit 0, final counters."""
+    import signal
+    import socket
+    import time
+
+    conf = tmp_path / "live.conf"
+    conf.write_text(monitor_config_text(setup["config"], f"file://{tmp_path / 'live.lcmlog'}?mode=w"))
+    proc = subprocess.Popen([str(RT_MONITOR), "--model", str(setup["coef"]), "--config", str(conf), "--loopback",
+                             str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        buses = setup["config"].can["buses"]
+        for _ in range(100):  # the monitor binds its sockets at start-up
+            if all((tmp_path / f"{b}.can").exists() for b in buses):
+                break
+            time.sleep(0.05)
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+        n = 0
+        for line in clean["lines"][:14 * 200]:  # 200 samples
+            _, bus, frame = line.split()
+            can_id, payload = frame.split("#")
+            data = bytes.fromhex(payload)
+            sock.sendto(struct.pack("<IB3x8s", int(can_id, 16), len(data), data), str(tmp_path / f"{bus}.can"))
+            n += 1
+            if n % 500 == 0:
+                time.sleep(0.01)  # let the monitor drain its queue
+        time.sleep(0.3)
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert out.startswith("rt_monitor: stopped by signal; frames ")
+    frames = int(out.split("frames ")[1].split(",")[0])
+    assert frames == n
+    assert not any((tmp_path / f"{b}.can").exists() for b in buses)  # sockets removed on exit
