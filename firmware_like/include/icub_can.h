@@ -43,9 +43,26 @@ extern "C" {
 /* Motor-control types. Each board address serves 2 axes. */
 #define ICUB_CAN_MC_POSITION   1u /* 8 bytes: int32 LE axis 0, int32 LE axis 1 (encoder ticks) */
 #define ICUB_CAN_MC_PID_VAL    2u /* 4 bytes: int16 LE axis 0, int16 LE axis 1 (PWM counts) */
-#define ICUB_CAN_MC_STATUS     3u /* fault bits; layout arrives with the board emulator */
+#define ICUB_CAN_MC_STATUS     3u /* 4 bytes: faults axis 0, faults axis 1, board flags, sequence */
 #define ICUB_CAN_MC_POSITION_DLC 8u
 #define ICUB_CAN_MC_PID_VAL_DLC  4u
+#define ICUB_CAN_MC_STATUS_DLC   4u
+/* STATUS bytes 0 and 1: per-axis fault bits (bits 5..7 reserved, zero). */
+#define ICUB_CAN_MC_FAULT_OVERCURRENT 0x01u
+#define ICUB_CAN_MC_FAULT_OVERTEMP    0x02u
+#define ICUB_CAN_MC_FAULT_ENCODER     0x04u /* encoder/hall reading invalid: POSITION not to be trusted */
+#define ICUB_CAN_MC_FAULT_EXTERNAL    0x08u /* external fault (e-stop) asserted */
+#define ICUB_CAN_MC_FAULT_PWM_LIMIT   0x10u /* PWM clamped at the configured limit */
+#define ICUB_CAN_MC_FAULT_MASK        0x1Fu
+/* STATUS byte 2: board flags (bits 2..7 reserved, zero). */
+#define ICUB_CAN_MC_BOARD_RESTARTED   0x01u /* set until the first STATUS after boot has been sent */
+#define ICUB_CAN_MC_BOARD_TX_OVERRUN  0x02u /* the board dropped periodic frames (TX queue full) */
+#define ICUB_CAN_MC_BOARD_MASK        0x03u
+/* STATUS byte 3: sequence counter, +1 per STATUS frame, wraps 255 -> 0, 0 after a restart. */
+
+/* Skin (class 4), simplified layout: one board per patch. */
+#define ICUB_CAN_SKIN_TAXELS   0x0u /* 2 bytes: uint16 LE bitmask, bit i = taxel group i in contact */
+#define ICUB_CAN_SKIN_TAXELS_DLC 2u
 
 /* Strain types: three channels each, offset binary (raw = s + 0x8000). */
 #define ICUB_CAN_STRAIN_FORCE  0xAu /* channels 0-2: Fx Fy Fz */
@@ -81,6 +98,15 @@ int icub_can_mc_position_pack(uint8_t payload[8], int32_t axis0, int32_t axis1);
 int icub_can_mc_position_unpack(const uint8_t payload[8], uint8_t dlc, int32_t *axis0, int32_t *axis1);
 int icub_can_mc_pid_val_pack(uint8_t payload[8], int16_t axis0, int16_t axis1);  /* returns 4 */
 int icub_can_mc_pid_val_unpack(const uint8_t payload[8], uint8_t dlc, int16_t *axis0, int16_t *axis1);
+
+/* STATUS: ERANGE if reserved bits are set (packing or unpacking). */
+int icub_can_mc_status_pack(uint8_t payload[8], uint8_t faults0, uint8_t faults1, uint8_t board, uint8_t seq);
+int icub_can_mc_status_unpack(const uint8_t payload[8], uint8_t dlc, uint8_t *faults0, uint8_t *faults1,
+                              uint8_t *board, uint8_t *seq); /* any output pointer may be NULL */
+
+/* ---- skin payload --------------------------------------------------------- */
+int icub_can_skin_pack(uint8_t payload[8], uint16_t taxels); /* returns 2 */
+int icub_can_skin_unpack(const uint8_t payload[8], uint8_t dlc, uint16_t *taxels);
 
 /* ---- strain conversions: s = round(value * 32768 / FS), clamped to int16 ----
  * Rounding is half away from zero. *saturated is set to 1 iff the result was

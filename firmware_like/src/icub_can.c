@@ -197,6 +197,60 @@ int icub_can_mc_pid_val_unpack(const uint8_t payload[8], uint8_t dlc, int16_t *a
     return ICUB_CAN_OK;
 }
 
+int icub_can_mc_status_pack(uint8_t payload[8], uint8_t faults0, uint8_t faults1, uint8_t board, uint8_t seq)
+{
+    if (!payload)
+        return ICUB_CAN_EINVAL;
+    if ((faults0 | faults1) & (uint8_t)~ICUB_CAN_MC_FAULT_MASK || board & (uint8_t)~ICUB_CAN_MC_BOARD_MASK)
+        return ICUB_CAN_ERANGE;
+    payload[0] = faults0;
+    payload[1] = faults1;
+    payload[2] = board;
+    payload[3] = seq;
+    return (int)ICUB_CAN_MC_STATUS_DLC;
+}
+
+int icub_can_mc_status_unpack(const uint8_t payload[8], uint8_t dlc, uint8_t *faults0, uint8_t *faults1,
+                              uint8_t *board, uint8_t *seq)
+{
+    if (!payload)
+        return ICUB_CAN_EINVAL;
+    if (dlc != ICUB_CAN_MC_STATUS_DLC)
+        return ICUB_CAN_EBADLEN;
+    if ((payload[0] | payload[1]) & (uint8_t)~ICUB_CAN_MC_FAULT_MASK ||
+        payload[2] & (uint8_t)~ICUB_CAN_MC_BOARD_MASK)
+        return ICUB_CAN_ERANGE;
+    if (faults0)
+        *faults0 = payload[0];
+    if (faults1)
+        *faults1 = payload[1];
+    if (board)
+        *board = payload[2];
+    if (seq)
+        *seq = payload[3];
+    return ICUB_CAN_OK;
+}
+
+/* ---- skin payload ------------------------------------------------------- */
+
+int icub_can_skin_pack(uint8_t payload[8], uint16_t taxels)
+{
+    if (!payload)
+        return ICUB_CAN_EINVAL;
+    put_u16(&payload[0], taxels);
+    return (int)ICUB_CAN_SKIN_TAXELS_DLC;
+}
+
+int icub_can_skin_unpack(const uint8_t payload[8], uint8_t dlc, uint16_t *taxels)
+{
+    if (!payload || !taxels)
+        return ICUB_CAN_EINVAL;
+    if (dlc != ICUB_CAN_SKIN_TAXELS_DLC)
+        return ICUB_CAN_EBADLEN;
+    *taxels = get_u16(&payload[0]);
+    return ICUB_CAN_OK;
+}
+
 /* ---- strain conversions ------------------------------------------------- */
 
 int icub_can_strain_count_fx(int32_t value, int32_t fs, int16_t *s, uint8_t *saturated)

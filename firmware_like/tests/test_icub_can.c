@@ -393,6 +393,29 @@ static void test_saturation_frame(void)
     CHECK(out[0] == INT16_MAX && out[1] == -6554 && out[2] == INT16_MIN);
 }
 
+static void test_mc_status_and_skin(void)
+{
+    uint8_t p[8] = {0}, f0 = 0, f1 = 0, b = 0, seq = 0;
+    uint16_t tx = 0;
+    CHECK_EQ(icub_can_mc_status_pack(p, ICUB_CAN_MC_FAULT_OVERCURRENT, ICUB_CAN_MC_FAULT_PWM_LIMIT,
+                                     ICUB_CAN_MC_BOARD_RESTARTED, 255), 4);
+    CHECK(p[0] == 0x01 && p[1] == 0x10 && p[2] == 0x01 && p[3] == 0xFF);
+    CHECK_EQ(icub_can_mc_status_unpack(p, 4, &f0, &f1, &b, &seq), ICUB_CAN_OK);
+    CHECK(f0 == 0x01 && f1 == 0x10 && b == 0x01 && seq == 255);
+    CHECK_EQ(icub_can_mc_status_unpack(p, 3, &f0, NULL, NULL, NULL), ICUB_CAN_EBADLEN);
+    CHECK_EQ(icub_can_mc_status_pack(p, 0x20, 0, 0, 0), ICUB_CAN_ERANGE);
+    CHECK_EQ(icub_can_mc_status_pack(p, 0, 0, 0x04, 0), ICUB_CAN_ERANGE);
+    CHECK(p[0] == 0x01); /* nothing written on error */
+    p[2] = 0x80;
+    CHECK_EQ(icub_can_mc_status_unpack(p, 4, NULL, NULL, NULL, NULL), ICUB_CAN_ERANGE);
+
+    CHECK_EQ(icub_can_skin_pack(p, 0xA001), 2);
+    CHECK(p[0] == 0x01 && p[1] == 0xA0);
+    CHECK_EQ(icub_can_skin_unpack(p, 2, &tx), ICUB_CAN_OK);
+    CHECK_EQ(tx, 0xA001);
+    CHECK_EQ(icub_can_skin_unpack(p, 8, &tx), ICUB_CAN_EBADLEN);
+}
+
 int main(int argc, char **argv)
 {
     if (argc > 1 && strcmp(argv[1], "--must-fail") == 0) {
@@ -408,6 +431,7 @@ int main(int argc, char **argv)
         test_count_double();
 #endif
         test_saturation_frame();
+        test_mc_status_and_skin();
     }
     printf("icub_can: %u checks, %u failed\n", g_checks, g_failed);
     return g_failed ? 1 : 0;

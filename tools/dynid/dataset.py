@@ -473,7 +473,11 @@ def load_data(
             raise DataError(f"{path}: {e}") from None
         return dataset
     if suffix == ".log" or _CANDUMP_LINE.match(first_line):
-        raise DataError(f"{path}: candump import is not available yet: convert it to CSV (DESIGN.md section 4)")
+        from .can_import import read_candump
+
+        dataset = read_candump(path, config)
+        check_matches_config(dataset, config, require_all=require_all, source=str(path))
+        return dataset
     if suffix == ".csv":
         from .csv_io import read_csv
 

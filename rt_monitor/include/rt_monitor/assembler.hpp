@@ -1,0 +1,100 @@
+// The monitor's configuration file and sample assembly: CAN frames in, one (q, y) sample per strain pair out.
+//
+// - The strain board's force half (type 0xA) and torque half (0xB) are paired only when the torque half
+//   follows the force half within `pair_us` with no other strain frame between: a half is never paired with
+//   a half of another sample (DESIGN.md §5). The pair's time is the sample's time.
+// - Encoder positions and PWMs are held at their latest values; a sample with any of them older than
+//   `stale_us` (or never received) is stale, and so is one with a saturated strain channel. A sample with an
+//   encoder value older than one sample period is `held`: the monitor bridges it like a lost sample (a held
+//   position is a kink the derivative filter would read as an acceleration spike).
+// - Every bad frame has a counter (MonitorCounters); nothing throws, nothing allocates after set-up.
+#pragma once
+
+#include <linux/can.h>
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "rt_monitor/coefficients.hpp"
+#include "rt_monitor/frame_source.hpp"
+
+namespace dynid::rt {
+
+struct AxisMap {
+    int bus = 0, address = 0, slot = 0;
+    std::string joint;
+    double ticks_per_degree = 1, zero_deg = 0;
+};
+struct PwmMap {
+    int bus = 0, address = 0, slot = 0;
+    std::string motor;
+    double full_scale = 1;
+};
+
+struct MonitorConfig {
+    std::string robot;
+    std::vector<std::string> buses;
+    std::string lcm_url;                 // empty: LCM's default (UDP multicast, ttl=0)
+    int64_t stale_us = 5000, pair_us = 500;
+    double status_hz = 10;
+    int residual_every = 10;             // publish one residual message every N evaluated samples
+    int strain_bus = 0, strain_address = 0;
+    std::array<double, 6> full_scale{};  // N, N, N, Nm, Nm, Nm
+    std::vector<AxisMap> axes;
+    std::vector<PwmMap> pwms;
+    struct Skin { int bus = 0, address = 0; std::string patch, side; };
+    std::vector<Skin> skins;
+};
+
+// Parses the configuration (rt_monitor/README.md, "Configuration"); false and one line naming the file, the
+// line and the problem on error.
+bool load_monitor_config(const std::string& path, MonitorConfig& out, std::string& error);
+
+struct MonitorCounters {
+    int64_t frames = 0, samples = 0, stale_samples = 0, unknown_id = 0, bad_length = 0, error_frames = 0,
+            unpaired_strain = 0, saturated = 0, board_faults = 0, board_restarts = 0, skin_frames = 0;
+};
+
+struct Sample {
+    int64_t t_us = 0;
+    std::array<double, kMaxJoints> q{};
+    std::array<double, kMaxOutputs> y{};
+    bool stale = false;      // an input too old or missing, or a saturated strain channel
+    bool held = false;       // an encoder value is older than one sample period: it is held, not new
+    uint16_t skin_mask = 0;  // patches in contact (bit = index in the configuration's skin list)
+};
+
+class Assembler {
+public:
+    // Maps the coefficient file's joints and channels onto the configuration; false and one line if one is
+    // not served by any board.
+    bool init(const MonitorConfig& cfg, const Coefficients& coef, std::string& error);
+    // One frame in; true when it completed a sample (then `out` holds it).
+    bool push(const RxFrame& f, Sample& out) noexcept;
+    const MonitorCounters& counters() const noexcept { return n_; }
+
+private:
+    static constexpr int kMaxBus = 8;
+    enum : int8_t { kNone = 0, kStrain = 1, kMc = 2, kSkin = 3 };
+    int board(int bus, unsigned cls, unsigned address) const noexcept;
+
+    const MonitorConfig* cfg_ = nullptr;
+    int n_joints_ = 0, n_outputs_ = 0;
+    // (bus, class, address) -> index of the board in its list, +1; 0: not configured.
+    std::array<int16_t, kMaxBus * 8 * 16> boards_{};
+    std::array<int, kMaxJoints> joint_axis_{};  // coefficient joint -> index in cfg.axes
+    std::array<int, kMaxOutputs> out_src_{};    // channel -> 0..5 F/T component, or 6 + index in cfg.pwms
+    std::vector<double> q_, pwm_;               // latest values, by cfg index
+    std::vector<int64_t> t_q_, t_pwm_;          // their times (-1: never)
+    int64_t period_us_ = 1000;
+    std::vector<int> status_seq_;               // last STATUS sequence per motor board address (-1: none)
+    std::array<double, 3> force_{};
+    int64_t t_force_ = -1;
+    bool force_saturated_ = false;
+    uint16_t skin_mask_ = 0;
+    MonitorCounters n_;
+};
+
+}  // namespace dynid::rt

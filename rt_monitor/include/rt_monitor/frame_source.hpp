@@ -1,0 +1,134 @@
+// Frame sources: where the monitor's CAN frames come from (DESIGN.md §5). One interface, three transports:
+// - SocketCAN raw sockets on one or more interfaces, with kernel filters and kernel timestamps (production);
+// - candump -L log replay, as fast as possible or paced in real time (offline);
+// - a loopback transport carrying the same `struct can_frame` bytes between processes as AF_UNIX datagrams,
+//   one socket per bus (live tests on machines without AF_CAN).
+// Every frame carries its bus index (the position of its interface in the configured bus list) and a
+// timestamp in µs. Frames the source cannot parse are counted, never returned.
+#pragma once
+
+#include <linux/can.h>
+
+#include <cstdint>
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace dynid::rt {
+
+struct RxFrame {
+    can_frame frame{};  // the kernel's layout: can_id with CAN_EFF/RTR/ERR flags, len, data
+    int64_t t_us = 0;   // µs: the log's timestamp, the kernel's, or the receive time (CLOCK_REALTIME)
+    int bus = 0;        // index into the configured bus names
+};
+
+enum class ReadStatus { kFrame, kTimeout, kEnd, kError };
+
+struct SourceCounters {
+    uint64_t frames = 0;       // returned to the caller
+    uint64_t bad_lines = 0;    // replay: lines that are not a classic-CAN candump -L frame
+    uint64_t unknown_bus = 0;  // replay: frames of an interface not in the bus list (skipped)
+    uint64_t bad_size = 0;     // loopback: datagrams that are not one struct can_frame
+};
+
+class FrameSource {
+public:
+    virtual ~FrameSource() = default;
+    // Waits up to timeout_ms (-1: forever) for one frame. kEnd: a replay is over. kError: see error().
+    virtual ReadStatus read(RxFrame& out, int timeout_ms) noexcept = 0;
+    const SourceCounters& counters() const noexcept { return counters_; }
+    const std::string& error() const noexcept { return error_; }
+
+protected:
+    SourceCounters counters_;
+    std::string error_;
+};
+
+// ---- candump -L ---------------------------------------------------------------------------------------
+enum class LineKind { kFrame, kBlank, kBad, kUnknownBus };
+// One line `(SECONDS.FRACTION) IFACE ID#DATA` (ID: 3 hex digits standard, 8 extended or an error frame with
+// CAN_ERR_FLAG; `ID#R[len]` remote). CAN FD (`##`) is not classic CAN: kBad. Blank lines and `#` comments: kBlank.
+LineKind parse_candump_line(const char* line, const std::vector<std::string>& buses, RxFrame& out) noexcept;
+// The same frame as a candump -L line (no newline), as can-utils prints it.
+std::string format_candump_line(const RxFrame& f, const std::vector<std::string>& buses);
+
+class CandumpReplay final : public FrameSource {
+public:
+    // realtime: frames are released at their log time relative to the first one; else as fast as possible.
+    static std::unique_ptr<CandumpReplay> open(const std::string& path, std::vector<std::string> buses,
+                                               bool realtime, std::string& error);
+    ~CandumpReplay() override;
+    ReadStatus read(RxFrame& out, int timeout_ms) noexcept override;
+    uint64_t line_number() const noexcept { return line_; }
+
+private:
+    CandumpReplay() = default;
+    std::FILE* f_ = nullptr;
+    std::vector<std::string> buses_;
+    bool realtime_ = false;
+    int64_t t0_log_ = -1, t0_wall_ = 0;
+    uint64_t line_ = 0;
+};
+
+// ---- loopback (AF_UNIX datagrams of struct can_frame) -------------------------------------------------
+// The socket of bus `name` is `<dir>/<name>.can`.
+std::string loopback_path(const std::string& dir, const std::string& bus);
+
+class LoopbackSource final : public FrameSource {
+public:
+    static std::unique_ptr<LoopbackSource> open(const std::string& dir, std::vector<std::string> buses,
+                                                std::string& error);
+    ~LoopbackSource() override;
+    ReadStatus read(RxFrame& out, int timeout_ms) noexcept override;
+
+private:
+    LoopbackSource() = default;
+    std::vector<int> fds_;
+    std::vector<std::string> paths_;
+    size_t next_ = 0;  // round-robin start, so one busy bus cannot starve the others
+};
+
+class LoopbackSink {
+public:
+    static std::unique_ptr<LoopbackSink> open(const std::string& dir, const std::vector<std::string>& buses,
+                                              std::string& error);
+    ~LoopbackSink();
+    // false if the datagram could not be sent (no monitor listening, or its queue is full).
+    bool send(const can_frame& f, int bus) noexcept;
+
+private:
+    LoopbackSink() = default;
+    int fd_ = -1;
+    std::vector<std::string> paths_;
+};
+
+// ---- SocketCAN ---------------------------------------------------------------------------------------
+// Kernel filters that pass standard-ID data frames of the given message classes (ID bits 8-10) only; error
+// frames come through CAN_RAW_ERR_FILTER. The kernel passes a frame iff (id & mask) == (filter.id & mask).
+std::vector<can_filter> socketcan_filters(const std::vector<uint8_t>& classes);
+bool socketcan_filter_passes(const std::vector<can_filter>& filters, canid_t id) noexcept;
+
+class SocketCanSource final : public FrameSource {
+public:
+    // Opens one CAN_RAW socket per interface with the filters, error frames and SO_TIMESTAMP. On failure, one
+    // line naming the interface and the call (e.g. no AF_CAN in this kernel).
+    static std::unique_ptr<SocketCanSource> open(const std::vector<std::string>& interfaces,
+                                                 const std::vector<can_filter>& filters, std::string& error);
+    ~SocketCanSource() override;
+    ReadStatus read(RxFrame& out, int timeout_ms) noexcept override;
+
+private:
+    SocketCanSource() = default;
+    std::vector<int> fds_;
+    size_t next_ = 0;
+};
+
+// Shared by the loopback and SocketCAN sources: poll `fds` and read one datagram of struct can_frame from
+// the first ready one (starting at `next`). Timestamp: SO_TIMESTAMP's control message if present, else now.
+ReadStatus read_datagram(const std::vector<int>& fds, size_t& next, int timeout_ms, RxFrame& out,
+                         SourceCounters& counters, std::string& error) noexcept;
+
+int64_t realtime_us() noexcept;
+
+}  // namespace dynid::rt

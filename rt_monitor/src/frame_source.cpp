@@ -1,0 +1,330 @@
+// Frame sources: candump -L replay, the AF_UNIX loopback transport, and the datagram reader they share with
+// SocketCAN (socketcan.cpp). See frame_source.hpp.
+#include "rt_monitor/frame_source.hpp"
+
+#include <poll.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <ctime>
+
+namespace dynid::rt {
+
+int64_t realtime_us() noexcept {
+    timespec ts{};
+    clock_gettime(CLOCK_REALTIME, &ts);
+    return int64_t(ts.tv_sec) * 1000000 + ts.tv_nsec / 1000;
+}
+
+namespace {
+
+int hex_digit(char c) noexcept {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return -1;
+}
+
+// `(S.F)`: integer seconds and up to 9 fraction digits, to µs without floating point.
+const char* parse_time(const char* p, int64_t& us) noexcept {
+    if (*p++ != '(') return nullptr;
+    int64_t s = 0;
+    int digits = 0;
+    for (; *p >= '0' && *p <= '9'; ++p, ++digits) {
+        if (s > 922337203685LL) return nullptr;  // would overflow as µs
+        s = s * 10 + (*p - '0');
+    }
+    if (digits == 0) return nullptr;
+    int64_t frac = 0;
+    if (*p == '.') {
+        ++p;
+        int n = 0;
+        for (; *p >= '0' && *p <= '9'; ++p, ++n)
+            if (n < 6) frac = frac * 10 + (*p - '0');
+        if (n == 0 || n > 9) return nullptr;
+        for (; n < 6; ++n) frac *= 10;
+    }
+    if (*p++ != ')') return nullptr;
+    us = s * 1000000 + frac;
+    return p;
+}
+
+}  // namespace
+
+LineKind parse_candump_line(const char* line, const std::vector<std::string>& buses, RxFrame& out) noexcept {
+    const char* p = line;
+    while (*p == ' ' || *p == '\t') ++p;
+    if (*p == '\0' || *p == '\n' || *p == '\r' || *p == '#') return LineKind::kBlank;
+    int64_t t = 0;
+    p = parse_time(p, t);
+    if (!p || (*p != ' ' && *p != '\t')) return LineKind::kBad;
+    while (*p == ' ' || *p == '\t') ++p;
+    const char* iface = p;
+    while (*p && *p != ' ' && *p != '\t' && *p != '\n') ++p;
+    const size_t iface_len = size_t(p - iface);
+    if (iface_len == 0) return LineKind::kBad;
+    while (*p == ' ' || *p == '\t') ++p;
+
+    const char* id0 = p;
+    uint32_t id = 0;
+    for (int d; (d = hex_digit(*p)) >= 0; ++p) id = id << 4 | uint32_t(d);
+    const long id_digits = p - id0;
+    if (*p++ != '#' || (id_digits != 3 && id_digits != 8)) return LineKind::kBad;
+    if (*p == '#') return LineKind::kBad;  // CAN FD
+    can_frame f{};
+    if (id_digits == 3) {
+        if (id > CAN_SFF_MASK) return LineKind::kBad;
+        f.can_id = id;
+    } else if (id & CAN_ERR_FLAG) {
+        f.can_id = id & (CAN_ERR_FLAG | CAN_ERR_MASK);  // candump prints error frames with the flag in the ID
+    } else {
+        if (id > CAN_EFF_MASK) return LineKind::kBad;
+        f.can_id = id | CAN_EFF_FLAG;
+    }
+    if (*p == 'R' || *p == 'r') {
+        f.can_id |= CAN_RTR_FLAG;
+        ++p;
+        if (*p >= '0' && *p <= '8') f.len = uint8_t(*p++ - '0');
+    } else {
+        int n = 0;
+        while (true) {
+            if (*p == '.') { ++p; continue; }
+            const int hi = hex_digit(*p);
+            if (hi < 0) break;
+            const int lo = hex_digit(p[1]);
+            if (lo < 0 || n == CAN_MAX_DLEN) return LineKind::kBad;
+            f.data[n++] = uint8_t(hi << 4 | lo);
+            p += 2;
+        }
+        f.len = uint8_t(n);
+    }
+    while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n') ++p;
+    if (*p != '\0') return LineKind::kBad;  // trailing garbage (or a newer can-utils flag such as FD's)
+
+    for (size_t b = 0; b < buses.size(); ++b) {
+        if (buses[b].size() == iface_len && std::memcmp(buses[b].data(), iface, iface_len) == 0) {
+            out.frame = f;
+            out.t_us = t;
+            out.bus = int(b);
+            return LineKind::kFrame;
+        }
+    }
+    return LineKind::kUnknownBus;
+}
+
+std::string format_candump_line(const RxFrame& f, const std::vector<std::string>& buses) {
+    char buf[96];
+    const canid_t id = f.frame.can_id;
+    int n = std::snprintf(buf, sizeof buf, "(%lld.%06lld) %s ", static_cast<long long>(f.t_us / 1000000),
+                          static_cast<long long>(f.t_us % 1000000), buses.at(size_t(f.bus)).c_str());
+    if (id & CAN_ERR_FLAG)
+        n += std::snprintf(buf + n, sizeof buf - size_t(n), "%08X#", id & (CAN_ERR_FLAG | CAN_ERR_MASK));
+    else if (id & CAN_EFF_FLAG)
+        n += std::snprintf(buf + n, sizeof buf - size_t(n), "%08X#", id & CAN_EFF_MASK);
+    else
+        n += std::snprintf(buf + n, sizeof buf - size_t(n), "%03X#", id & CAN_SFF_MASK);
+    if (id & CAN_RTR_FLAG) {
+        n += std::snprintf(buf + n, sizeof buf - size_t(n), "R");
+        if (f.frame.len) n += std::snprintf(buf + n, sizeof buf - size_t(n), "%u", unsigned(f.frame.len));
+    } else {
+        for (int i = 0; i < f.frame.len && i < CAN_MAX_DLEN; ++i)
+            n += std::snprintf(buf + n, sizeof buf - size_t(n), "%02X", unsigned(f.frame.data[i]));
+    }
+    return std::string(buf, size_t(n));
+}
+
+// ---- replay -------------------------------------------------------------------------------------------
+
+std::unique_ptr<CandumpReplay> CandumpReplay::open(const std::string& path, std::vector<std::string> buses,
+                                                   bool realtime, std::string& error) {
+    std::FILE* f = std::fopen(path.c_str(), "rb");
+    if (!f) {
+        error = path + ": cannot open candump log: " + std::strerror(errno);
+        return nullptr;
+    }
+    std::unique_ptr<CandumpReplay> r(new CandumpReplay());
+    r->f_ = f;
+    r->buses_ = std::move(buses);
+    r->realtime_ = realtime;
+    return r;
+}
+
+CandumpReplay::~CandumpReplay() {
+    if (f_) std::fclose(f_);
+}
+
+ReadStatus CandumpReplay::read(RxFrame& out, int /*timeout_ms*/) noexcept {
+    char line[160];  // a classic-CAN candump -L line is < 80 characters
+    while (std::fgets(line, sizeof line, f_)) {
+        ++line_;
+        const size_t n = std::strlen(line);
+        if (n == sizeof line - 1 && line[n - 1] != '\n') {  // overlong: skip the rest of it
+            int c;
+            while ((c = std::fgetc(f_)) != EOF && c != '\n') {}
+            ++counters_.bad_lines;
+            continue;
+        }
+        switch (parse_candump_line(line, buses_, out)) {
+            case LineKind::kBlank: continue;
+            case LineKind::kBad: ++counters_.bad_lines; continue;
+            case LineKind::kUnknownBus: ++counters_.unknown_bus; continue;
+            case LineKind::kFrame: break;
+        }
+        if (realtime_) {
+            if (t0_log_ < 0) {
+                t0_log_ = out.t_us;
+                t0_wall_ = realtime_us();
+            }
+            const int64_t due = t0_wall_ + (out.t_us - t0_log_);
+            timespec ts{time_t(due / 1000000), long(due % 1000000) * 1000};
+            while (clock_nanosleep(CLOCK_REALTIME, TIMER_ABSTIME, &ts, nullptr) == EINTR) {}
+        }
+        ++counters_.frames;
+        return ReadStatus::kFrame;
+    }
+    if (std::ferror(f_)) {
+        error_ = std::string("candump log read error: ") + std::strerror(errno);
+        return ReadStatus::kError;
+    }
+    return ReadStatus::kEnd;
+}
+
+// ---- datagrams (loopback and SocketCAN) ---------------------------------------------------------------
+
+ReadStatus read_datagram(const std::vector<int>& fds, size_t& next, int timeout_ms, RxFrame& out,
+                         SourceCounters& counters, std::string& error) noexcept {
+    constexpr size_t kMaxFds = 16;
+    pollfd pfd[kMaxFds];
+    const size_t n = fds.size() < kMaxFds ? fds.size() : kMaxFds;
+    for (size_t i = 0; i < n; ++i) pfd[i] = pollfd{fds[i], POLLIN, 0};
+    while (true) {
+        const int r = poll(pfd, nfds_t(n), timeout_ms);
+        if (r < 0) {
+            if (errno == EINTR) return ReadStatus::kTimeout;  // a signal: let the caller look at its flags
+            error = std::string("poll: ") + std::strerror(errno);
+            return ReadStatus::kError;
+        }
+        if (r == 0) return ReadStatus::kTimeout;
+        for (size_t k = 0; k < n; ++k) {
+            const size_t i = (next + k) % n;
+            if (!(pfd[i].revents & POLLIN)) continue;
+            next = (i + 1) % n;
+            can_frame f{};
+            alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timeval))];
+            iovec iov{&f, sizeof f};
+            msghdr msg{};
+            msg.msg_iov = &iov;
+            msg.msg_iovlen = 1;
+            msg.msg_control = control;
+            msg.msg_controllen = sizeof control;
+            const ssize_t got = recvmsg(fds[i], &msg, MSG_DONTWAIT);
+            if (got < 0) {
+                if (errno == EAGAIN || errno == EINTR) continue;
+                error = std::string("recvmsg: ") + std::strerror(errno);
+                return ReadStatus::kError;
+            }
+            if (size_t(got) != sizeof f || (msg.msg_flags & MSG_TRUNC) || f.len > CAN_MAX_DLEN) {
+                ++counters.bad_size;
+                continue;
+            }
+            out.t_us = 0;
+            for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c; c = CMSG_NXTHDR(&msg, c)) {
+                if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_TIMESTAMP) {
+                    timeval tv{};
+                    std::memcpy(&tv, CMSG_DATA(c), sizeof tv);
+                    out.t_us = int64_t(tv.tv_sec) * 1000000 + tv.tv_usec;
+                }
+            }
+            if (out.t_us == 0) out.t_us = realtime_us();
+            out.frame = f;
+            out.bus = int(i);
+            ++counters.frames;
+            return ReadStatus::kFrame;
+        }
+        timeout_ms = 0;  // everything ready was bad: look once more without waiting
+        for (size_t i = 0; i < n; ++i) pfd[i].revents = 0;
+        if (poll(pfd, nfds_t(n), 0) <= 0) return ReadStatus::kTimeout;
+    }
+}
+
+// ---- loopback -----------------------------------------------------------------------------------------
+
+std::string loopback_path(const std::string& dir, const std::string& bus) { return dir + "/" + bus + ".can"; }
+
+namespace {
+bool make_address(const std::string& path, sockaddr_un& a, std::string& error) {
+    a = sockaddr_un{};
+    a.sun_family = AF_UNIX;
+    if (path.size() >= sizeof a.sun_path) {
+        error = path + ": loopback socket path too long";
+        return false;
+    }
+    std::memcpy(a.sun_path, path.c_str(), path.size() + 1);
+    return true;
+}
+}  // namespace
+
+std::unique_ptr<LoopbackSource> LoopbackSource::open(const std::string& dir, std::vector<std::string> buses,
+                                                     std::string& error) {
+    std::unique_ptr<LoopbackSource> s(new LoopbackSource());
+    for (const auto& bus : buses) {
+        const std::string path = loopback_path(dir, bus);
+        sockaddr_un a;
+        if (!make_address(path, a, error)) return nullptr;
+        const int fd = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+        if (fd < 0) {
+            error = std::string("loopback: socket(AF_UNIX): ") + std::strerror(errno);
+            return nullptr;
+        }
+        s->fds_.push_back(fd);
+        const int on = 1;
+        ::unlink(path.c_str());  // a stale socket of an earlier run
+        if (setsockopt(fd, SOL_SOCKET, SO_TIMESTAMP, &on, sizeof on) != 0 ||
+            bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) {
+            error = path + ": loopback bind: " + std::strerror(errno);
+            return nullptr;
+        }
+        s->paths_.push_back(path);
+    }
+    return s;
+}
+
+LoopbackSource::~LoopbackSource() {
+    for (int fd : fds_) ::close(fd);
+    for (const auto& p : paths_) ::unlink(p.c_str());
+}
+
+ReadStatus LoopbackSource::read(RxFrame& out, int timeout_ms) noexcept {
+    return read_datagram(fds_, next_, timeout_ms, out, counters_, error_);
+}
+
+std::unique_ptr<LoopbackSink> LoopbackSink::open(const std::string& dir, const std::vector<std::string>& buses,
+                                                 std::string& error) {
+    std::unique_ptr<LoopbackSink> s(new LoopbackSink());
+    s->fd_ = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    if (s->fd_ < 0) {
+        error = std::string("loopback: socket(AF_UNIX): ") + std::strerror(errno);
+        return nullptr;
+    }
+    for (const auto& bus : buses) s->paths_.push_back(loopback_path(dir, bus));
+    return s;
+}
+
+LoopbackSink::~LoopbackSink() {
+    if (fd_ >= 0) ::close(fd_);
+}
+
+bool LoopbackSink::send(const can_frame& f, int bus) noexcept {
+    if (bus < 0 || size_t(bus) >= paths_.size()) return false;
+    sockaddr_un a{};
+    a.sun_family = AF_UNIX;
+    const std::string& p = paths_[size_t(bus)];
+    if (p.size() >= sizeof a.sun_path) return false;
+    std::memcpy(a.sun_path, p.c_str(), p.size() + 1);
+    return sendto(fd_, &f, sizeof f, 0, reinterpret_cast<sockaddr*>(&a), sizeof a) == ssize_t(sizeof f);
+}
+
+}  // namespace dynid::rt

@@ -1,0 +1,246 @@
+// rt_monitor --model COEF --config CONFIG [--replay CANDUMP.log [--realtime]] [--loopback DIR] [--lcm-url URL]
+//
+// Frames in (SocketCAN on the configured buses, a candump -L replay, or the loopback transport), samples
+// assembled, the core stepped, contact events / status (10 Hz) / decimated residuals out on LCM.
+// SIGINT and SIGTERM end the run cleanly; the final counters are printed on stdout either way.
+// Exit codes: 0 done, 2 bad arguments or configuration, 1 a source or LCM failure, 10+ a refused coefficient file.
+#include <csignal>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+#include <lcm/lcm-cpp.hpp>
+#include <memory>
+#include <string>
+
+#include "dynid/contact_event_t.hpp"
+#include "dynid/monitor_status_t.hpp"
+#include "dynid/residual_t.hpp"
+#include "icub_can.h"
+#include "rt_monitor/assembler.hpp"
+#include "rt_monitor/core.hpp"
+
+using namespace dynid::rt;
+
+namespace {
+
+volatile std::sig_atomic_t g_stop = 0;
+void on_signal(int) { g_stop = 1; }
+
+int usage(const std::string& why) {
+    std::fprintf(stderr, "rt_monitor: error: %s\nusage: rt_monitor --model COEF --config CONFIG [--replay CANDUMP.log "
+                         "[--realtime]] [--loopback DIR] [--lcm-url URL]\n", why.c_str());
+    return 2;
+}
+
+double mono_us() {
+    timespec ts{};
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return double(ts.tv_sec) * 1e6 + double(ts.tv_nsec) * 1e-3;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    std::string model, config, replay, loopback, url;
+    bool have_url = false, realtime = false;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        auto value = [&](std::string& v) {
+            if (i + 1 >= argc) return false;
+            v = argv[++i];
+            return true;
+        };
+        bool ok = true;
+        if (a == "--model") ok = value(model);
+        else if (a == "--config") ok = value(config);
+        else if (a == "--replay") ok = value(replay);
+        else if (a == "--loopback") ok = value(loopback);
+        else if (a == "--lcm-url") ok = have_url = value(url);
+        else if (a == "--realtime") realtime = true;
+        else return usage("unknown argument '" + a + "'");
+        if (!ok) return usage("'" + a + "' needs a value");
+    }
+    if (model.empty() || config.empty()) return usage("--model and --config are required");
+    if (!replay.empty() && !loopback.empty()) return usage("--replay and --loopback exclude each other");
+
+    std::string err;
+    MonitorConfig cfg;
+    if (!load_monitor_config(config, cfg, err)) return usage(err);
+    auto coef = std::make_unique<Coefficients>();
+    const LoadResult lr = load_coefficients(model, cfg.robot, *coef);
+    if (lr.error != LoadError::kOk) {
+        std::fprintf(stderr, "rt_monitor: error: %s\n", lr.message.c_str());
+        return kExitBase + int(lr.error);
+    }
+    Assembler asm_;
+    if (!asm_.init(cfg, *coef, err)) return usage(config + ": " + err);
+
+    std::unique_ptr<FrameSource> src;
+    if (!replay.empty()) src = CandumpReplay::open(replay, cfg.buses, realtime, err);
+    else if (!loopback.empty()) src = LoopbackSource::open(loopback, cfg.buses, err);
+    else src = SocketCanSource::open(cfg.buses, socketcan_filters({ICUB_CAN_CLASS_MC, ICUB_CAN_CLASS_STRAIN,
+                                                                     ICUB_CAN_CLASS_SKIN}), err);
+    if (!src) {
+        std::fprintf(stderr, "rt_monitor: error: %s\n", err.c_str());
+        return replay.empty() ? 1 : 2;
+    }
+    lcm::LCM lcm(have_url ? url : cfg.lcm_url);
+    if (!lcm.good()) {
+        std::fprintf(stderr, "rt_monitor: error: cannot open LCM at '%s'\n", (have_url ? url : cfg.lcm_url).c_str());
+        return 1;
+    }
+
+    struct sigaction sa {};
+    sa.sa_handler = on_signal;  // no SA_RESTART: poll() returns, the loop sees the flag
+    sigaction(SIGINT, &sa, nullptr);
+    sigaction(SIGTERM, &sa, nullptr);
+
+    auto core = std::make_unique<Core>(*coef);
+    core->set_detector({coef->debounce_on, coef->debounce_off, coef->hysteresis});
+    const int n_out = coef->n_outputs;
+    dynid::contact_event_t ev;
+    ev.n_channels = n_out;
+    ev.channel.assign(coef->channel_names.begin(), coef->channel_names.begin() + n_out);
+    ev.normalized_residual.assign(size_t(n_out), 0.0);
+    dynid::residual_t res;
+    res.n_channels = n_out;
+    res.normalized_residual.assign(size_t(n_out), 0.0);
+    res.threshold = coef->threshold;
+    dynid::monitor_status_t st{};
+
+    const int64_t status_period_us = int64_t(1e6 / cfg.status_hz);
+    const double period_us = coef->sample_period * 1e6;
+    int64_t next_status = -1, evaluated = 0, onset_utime = 0, overruns = 0, events = 0;
+    double loop_sum = 0, loop_max = 0;
+    int64_t loop_n = 0;
+    bool was_stale = true;
+    int64_t interpolated = 0, restarts = 0;
+    constexpr int kMaxBridge = 3;  // missing samples bridged by interpolation; a longer gap restarts the filter
+    Sample s, prev, mid;
+    RxFrame f;
+    int rc = 0;
+
+    auto fill_residual = [&](std::vector<double>& r, const Output& o) {
+        for (int i = 0; i < n_out; ++i)
+            r[size_t(i)] = o.p.active[size_t(i)] ? o.p.e[i] / std::sqrt(coef->variance[size_t(i)]) : 0.0;
+    };
+    auto publish_status = [&](int64_t utime) {
+        const MonitorCounters& c = asm_.counters();
+        const SourceCounters& sc = src->counters();
+        st.utime = utime;
+        st.frames = c.frames;
+        st.samples = c.samples;
+        st.samples_evaluated = evaluated;
+        st.stale_samples = c.stale_samples;
+        st.unknown_id = c.unknown_id;
+        st.bad_length = c.bad_length;
+        st.error_frames = c.error_frames;
+        st.unpaired_strain = c.unpaired_strain;
+        st.saturated = c.saturated;
+        st.board_faults = c.board_faults;
+        st.board_restarts = c.board_restarts;
+        st.source_bad = int64_t(sc.bad_lines + sc.unknown_bus + sc.bad_size);
+        st.interpolated = interpolated;
+        st.filter_restarts = restarts;
+        st.in_contact = core->output().in_contact;
+        st.stale = s.stale;
+        st.loop_us_mean = loop_n ? loop_sum / double(loop_n) : 0.0;
+        st.loop_us_max = loop_max;
+        st.overruns = overruns;
+        lcm.publish("DYNID_STATUS", &st);
+        loop_sum = loop_max = 0;
+        loop_n = 0;
+    };
+
+    auto step = [&](const Sample& x) {
+        const double t0 = mono_us();
+        const Output& o = core->step(x.q.data(), x.y.data());
+        const double dt = mono_us() - t0;
+        loop_sum += dt;
+        loop_max = dt > loop_max ? dt : loop_max;
+        ++loop_n;
+        if (dt > period_us) ++overruns;
+        ++evaluated;
+        if (o.event != Event::kNone) {
+            ++events;
+            if (o.event == Event::kOnset) onset_utime = x.t_us;
+            ev.utime = x.t_us;
+            ev.kind = int8_t(o.event);
+            ev.side = int8_t(o.side);
+            ev.onset_utime = onset_utime;
+            ev.sample = evaluated - 1;
+            ev.t2 = o.p.t2;
+            ev.threshold = coef->threshold;
+            fill_residual(ev.normalized_residual, o);
+            for (int k = 0; k < 6; ++k) ev.wrench[k] = o.wrench[k];
+            lcm.publish("DYNID_CONTACT", &ev);
+        }
+        if (o.ready && evaluated % cfg.residual_every == 0) {
+            res.utime = x.t_us;
+            res.t2 = o.p.t2;
+            fill_residual(res.normalized_residual, o);
+            lcm.publish("DYNID_RESIDUAL", &res);
+        }
+    };
+
+    while (!g_stop) {
+        const ReadStatus r = src->read(f, 100);
+        if (r == ReadStatus::kEnd) break;
+        if (r == ReadStatus::kTimeout) continue;
+        if (r == ReadStatus::kError) {
+            std::fprintf(stderr, "rt_monitor: error: %s\n", src->error().c_str());
+            rc = 1;
+            break;
+        }
+        if (!asm_.push(f, s)) continue;
+        if (s.stale) {
+            // No contact from stale data: the core is not stepped, and restarts its filter afterwards (its
+            // window would otherwise span the gap).
+            was_stale = true;
+        } else if (s.held) {
+            // Bridged by interpolation when the next complete sample comes (or a restart, if none does soon).
+        } else {
+            // The filter assumes uniform samples: bridge a short gap (lost strain halves) by interpolating
+            // linearly between the last good sample and this one, restart the filter after a longer one.
+            const long missing = was_stale ? 0 : std::lround(double(s.t_us - prev.t_us) / period_us) - 1;
+            if (was_stale || missing > kMaxBridge || missing < 0) {
+                core->reset();
+                ++restarts;
+            } else {
+                for (long m = 1; m <= missing; ++m) {
+                    const double w = double(m) / double(missing + 1);
+                    mid.t_us = prev.t_us + std::llround(w * double(s.t_us - prev.t_us));
+                    for (int j = 0; j < coef->n_joints; ++j)
+                        mid.q[size_t(j)] = prev.q[size_t(j)] + w * (s.q[size_t(j)] - prev.q[size_t(j)]);
+                    for (int i = 0; i < n_out; ++i)
+                        mid.y[size_t(i)] = prev.y[size_t(i)] + w * (s.y[size_t(i)] - prev.y[size_t(i)]);
+                    step(mid);
+                    ++interpolated;
+                }
+            }
+            was_stale = false;
+            step(s);
+            prev = s;
+        }
+        if (next_status < 0) next_status = s.t_us;
+        if (s.t_us >= next_status) {
+            publish_status(s.t_us);
+            next_status += status_period_us;
+            if (next_status <= s.t_us) next_status = s.t_us + status_period_us;
+        }
+    }
+    publish_status(s.t_us);
+    const MonitorCounters& c = asm_.counters();
+    const SourceCounters& sc = src->counters();
+    std::printf("rt_monitor: %s; frames %lld, samples %lld, evaluated %lld, stale %lld, events %lld, unknown id %lld, "
+                "bad length %lld, error frames %lld, unpaired strain %lld, saturated %lld, board faults %lld, "
+                "board restarts %lld, bad source input %llu, interpolated %lld, filter restarts %lld, overruns %lld\n",
+                g_stop ? "stopped by signal" : (rc ? "failed" : "end of input"), (long long)c.frames,
+                (long long)c.samples, (long long)evaluated, (long long)c.stale_samples, (long long)events,
+                (long long)c.unknown_id, (long long)c.bad_length, (long long)c.error_frames,
+                (long long)c.unpaired_strain, (long long)c.saturated, (long long)c.board_faults,
+                (long long)c.board_restarts, (unsigned long long)(sc.bad_lines + sc.unknown_bus + sc.bad_size),
+                (long long)interpolated, (long long)restarts, (long long)overruns);
+    return rc;
+}

@@ -1,0 +1,362 @@
+"""CAN in, LCM out, end to end: simulate → export → candump log → rt_monitor --replay → LCM file:// log → decode.
+
+The monitor's events are checked against an independent path, the core fed the raw floating-point samples
+(`rt_eval --stream`), and against the skin's ground truth; the candump writer against the DBC decoder; and each
+kind of bad bus input against its counter in the status message.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import shutil
+import struct
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dynid.can_log import monitor_config_text, write_candump
+from dynid.can_protocol import Protocol
+from dynid.config import load_config
+from dynid.dataset import load_data
+from dynid.export import read_coefficients
+
+ROOT = Path(__file__).resolve().parents[2]
+BUILD = ROOT / "build" / "rt_monitor"
+RT_MONITOR, RT_EVAL = BUILD / "rt_monitor", BUILD / "rt_eval"
+T0_US = 1_700_000_000_000_000  # write_candump's default start time
+
+
+def _lcm_types(out: Path) -> dict[str, type]:
+    """The monitor's LCM types, generated for Python by lcm-gen (the same .lcm files CMake generates C++ from)."""
+    lcm_gen = shutil.which("lcm-gen", path=str(Path(sys.executable).parent))
+    assert lcm_gen, "lcm-gen not in the venv (the lcm wheel ships it)"
+    names = ("contact_event_t", "monitor_status_t", "residual_t")
+    subprocess.run([lcm_gen, "--python", "--ppath", str(out)] +
+                   [str(ROOT / "rt_monitor" / "lcmtypes" / f"{n}.lcm") for n in names], check=True)
+    types = {}
+    for n in names:  # loaded by path: the generated package is also called `dynid`
+        spec = importlib.util.spec_from_file_location(f"lcmgen_{n}", out / "dynid" / f"{n}.py")
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        types[n] = getattr(mod, n)
+    return types
+
+
+def _read_lcm_log(path: Path, types: dict[str, type]) -> dict[str, list]:
+    import lcm
+
+    by_channel = {"DYNID_CONTACT": "contact_event_t", "DYNID_STATUS": "monitor_status_t", "DYNID_RESIDUAL": "residual_t"}
+    out: dict[str, list] = {c: [] for c in by_channel}
+    for e in lcm.EventLog(str(path), "r"):
+        out[e.channel].append(types[by_channel[e.channel]].decode(e.data))
+    return out
+
+
+@pytest.fixture(scope="module")
+def setup(default_experiments: dict, default_model: Path, tmp_path_factory: pytest.TempPathFactory) -> dict:
+    assert RT_MONITOR.is_file(), f"{RT_MONITOR} is not built (scripts/setup)"
+    root = tmp_path_factory.mktemp("can_e2e")
+    coef = root / "model.dcoef"
+    done = subprocess.run([sys.executable, "-m", "dynid.cli", "export", "--model", str(default_model), "--out", str(coef)],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    config = load_config("icub_right_arm")
+    data = load_data(default_experiments["contact"], config)
+    return {"root": root, "coef": coef, "config": config, "data": data, "types": _lcm_types(root / "lcmgen")}
+
+
+def run_monitor(setup: dict, log: Path, name: str) -> tuple[subprocess.CompletedProcess, dict[str, list]]:
+    lcm_log = setup["root"] / f"{name}.lcmlog"
+    conf = setup["root"] / f"{name}.conf"
+    conf.write_text(monitor_config_text(setup["config"], f"file://{lcm_log}?mode=w"))
+    done = subprocess.run([str(RT_MONITOR), "--model", str(setup["coef"]), "--config", str(conf), "--replay", str(log)],
+                          capture_output=True, text=True, timeout=300)
+    return done, (_read_lcm_log(lcm_log, setup["types"]) if lcm_log.exists() else {})
+
+
+def _episodes(contact: np.ndarray) -> list[tuple[int, int]]:
+    edges = np.flatnonzero(np.diff(np.r_[0, contact.astype(int), 0]))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
+
+
+def test_writer_frames_decode_to_the_data_with_the_dbc(setup: dict, tmp_path: Path) -> None:
+    data, config = setup["data"], setup["config"]
+    part = data.slice(0, 50)
+    log = tmp_path / "x.log"
+    write_candump(part, config, log)
+    proto = Protocol()
+    fs = np.array(config.can["strain"][0]["full_scale"])
+    ft = {}
+    q = {}
+    for line in log.read_text().splitlines():
+        ts, bus, frame = line.split()
+        can_id, payload = frame.split("#")
+        f = proto.decode(int(can_id, 16), bytes.fromhex(payload))
+        k = round((int(ts[1:-1].replace(".", "")) - T0_US + 300) / 1000)
+        if f.name == "STRAIN_TORQUE":
+            ft.setdefault(k, [0.0] * 6)[3:] = [f.signals[c] * fs[3 + i] / 32768 for i, c in enumerate(("Tx", "Ty", "Tz"))]
+        elif f.name == "STRAIN_FORCE":
+            ft.setdefault(k, [0.0] * 6)[:3] = [f.signals[c] * fs[i] / 32768 for i, c in enumerate(("Fx", "Fy", "Fz"))]
+        elif f.name == "MC_POSITION" and f.address == 1:
+            q[k] = np.radians(f.signals["Axis0Position"] / config.can["motor_control"][0]["axes"][0]["ticks_per_degree"])
+    got = np.array([ft[k] for k in range(50)])
+    assert np.abs(got - part.ft["r_arm_ft"]).max(axis=0).tolist() <= (fs / 32768 / 2 * 1.0001).tolist()
+    j = part.joints.index(config.can["motor_control"][0]["axes"][0]["joint"])
+    step = np.radians(1 / config.can["motor_control"][0]["axes"][0]["ticks_per_degree"])
+    assert np.abs(np.array([q[k] for k in range(50)]) - part.q[:50, j]).max() <= step / 2 * 1.0001
+
+
+def test_replay_end_to_end(setup: dict) -> None:
+    data = setup["data"]
+    log = setup["root"] / "contact.log"
+    n_frames = write_candump(data, setup["config"], log)
+    done, msgs = run_monitor(setup, log, "contact")
+    assert done.returncode == 0, done.stderr
+    print(done.stdout.strip())
+    events = [(m.kind, (m.utime - T0_US) // 1000) for m in msgs["DYNID_CONTACT"]]
+
+    # Independent path: the same core on the raw floating-point samples, no CAN in between.
+    c = read_coefficients(setup["coef"])
+    raw = np.ascontiguousarray(np.hstack([data.q, data.ft["r_arm_ft"]] + [data.pwm[m][:, None] for m in c.motor_names]), "<f8")
+    (setup["root"] / "in.mx").write_bytes(b"DYMX" + struct.pack("<qq", *raw.shape) + raw.tobytes())
+    subprocess.run([str(RT_EVAL), "--coef", str(setup["coef"]), "--stream", str(setup["root"] / "in.mx"),
+                    str(setup["root"] / "out.mx")], check=True, capture_output=True)
+    b = (setup["root"] / "out.mx").read_bytes()
+    out = np.frombuffer(b, "<f8", offset=20).reshape(struct.unpack_from("<qq", b, 4))
+    ref = [(int(out[k, -2]), int(k)) for k in np.flatnonzero(out[:, -2])]
+    assert events == ref
+
+    # Ground truth: every onset lies in a contact episode, allowing for the filter lag and the debounce.
+    eps = _episodes(data.contact)
+    slack = c.lag + c.debounce_on + 5
+    onsets = [k for kind, k in events if kind == 1]
+    found = {i for k in onsets for i, (a, e) in enumerate(eps) if a <= k <= e + slack}
+    assert all(any(a <= k <= e + slack for a, e in eps) for k in onsets), "an onset in a contact-free stretch"
+    print(f"episodes {len(eps)}, found {len(found)}, onsets {len(onsets)}")
+    assert len(found) >= 0.6 * len(eps)
+
+    last = msgs["DYNID_STATUS"][-1]
+    assert (last.frames, last.samples, last.samples_evaluated) == (n_frames, data.n_samples, data.n_samples)
+    assert last.stale_samples == last.unknown_id == last.bad_length == last.error_frames == last.unpaired_strain == 0
+    duration = (data.t[-1] - data.t[0])
+    assert abs(len(msgs["DYNID_STATUS"]) - 10 * duration) <= 2  # 10 Hz of CAN time
+    assert len(msgs["DYNID_RESIDUAL"]) >= data.n_samples // 10 - 40
+
+
+# ---- bad bus input: each kind has its counter, no contact comes from stale data, the process never crashes --
+
+START, STOP = 10000, 16000  # 6 s of the contact run around its first detected contact
+
+
+@pytest.fixture(scope="module")
+def clean(setup: dict) -> dict:
+    part = setup["data"].slice(START, STOP)
+    log = setup["root"] / "clean.log"
+    write_candump(part, setup["config"], log)
+    done, msgs = run_monitor(setup, log, "clean")
+    assert done.returncode == 0, done.stderr
+    assert msgs["DYNID_CONTACT"], "the slice must hold a detected contact for the bad-input tests to mean anything"
+    return {"lines": log.read_text().splitlines(), "part": part, "msgs": msgs}
+
+
+def _sample_of(line: str) -> int:
+    return round((int(line[1:line.index(")")].replace(".", "")) - T0_US) / 1000)  # frames of sample k: t_k − 300 µs … t_k
+
+
+def _bad_run(setup: dict, clean: dict, lines: list[str], name: str):
+    log = setup["root"] / f"{name}.log"
+    log.write_text("\n".join(lines) + "\n")
+    done, msgs = run_monitor(setup, log, name)
+    assert done.returncode == 0, done.stderr  # never a crash
+    assert done.stdout.startswith("rt_monitor: end of input;")
+    status = msgs["DYNID_STATUS"][-1]
+    eps = _episodes(clean["part"].contact)
+    c = read_coefficients(setup["coef"])
+    slack = c.lag + c.debounce_on + 5
+    for m in msgs["DYNID_CONTACT"]:
+        k = (m.utime - T0_US) // 1000
+        if m.kind == 1:
+            assert any(a <= k <= e + slack for a, e in eps), f"{name}: an onset at sample {k}, outside every contact"
+    return status, msgs
+
+
+def test_unknown_ids(setup: dict, clean: dict) -> None:
+    lines = []
+    for i, line in enumerate(clean["lines"]):
+        lines.append(line)
+        if i % 100 == 0:  # class 5, and a strain type the protocol does not define, and an unconfigured board
+            head = line[:line.index(")") + 1]
+            lines += [f"{head} can0 514#0102", f"{head} can0 3DC#008000800080", f"{head} can2 171#0000000000000000"]
+    status, msgs = _bad_run(setup, clean, lines, "unknown")
+    assert status.unknown_id == 3 * len(range(0, len(clean["lines"]), 100))
+    assert len(msgs["DYNID_CONTACT"]) == len(clean["msgs"]["DYNID_CONTACT"])
+
+
+def test_wrong_lengths(setup: dict, clean: dict) -> None:
+    lines, n = [], 0
+    for i, line in enumerate(clean["lines"]):
+        if i % 500 == 7:
+            payload = line[line.index("#") + 1:]
+            if len(payload) == 16:
+                line = line[:-2]  # POSITION with 7 bytes
+            else:  # one byte more; a 6-byte strain frame gets two (7 bytes is its saturation form)
+                line += "0000" if " 3DA#" in line or " 3DB#" in line else "00"
+            n += 1
+        lines.append(line)
+    status, _ = _bad_run(setup, clean, lines, "lengths")
+    assert status.bad_length == n
+
+
+def test_error_frames(setup: dict, clean: dict) -> None:
+    lines = []
+    for i, line in enumerate(clean["lines"]):
+        lines.append(line)
+        if i % 1000 == 0:
+            lines.append(line[:line.index(")") + 1] + " can1 20000004#0004000000000000")
+    status, msgs = _bad_run(setup, clean, lines, "errors")
+    assert status.error_frames == len(range(0, len(clean["lines"]), 1000))
+    assert len(msgs["DYNID_CONTACT"]) == len(clean["msgs"]["DYNID_CONTACT"])
+
+
+def test_one_percent_dropped(setup: dict, clean: dict) -> None:
+    rng = np.random.default_rng(1)
+    keep = rng.random(len(clean["lines"])) >= 0.01
+    lines = [l for l, k in zip(clean["lines"], keep) if k]
+    status, msgs = _bad_run(setup, clean, lines, "dropped")
+    halves: dict[int, int] = {}  # sample -> strain halves dropped
+    held = set()  # samples with a POSITION frame dropped
+    for line, k in zip(clean["lines"], keep):
+        if not k and (" 3DA#" in line or " 3DB#" in line):
+            halves[_sample_of(line)] = halves.get(_sample_of(line), 0) + 1
+        if not k and line[line.index("#") - 1] == "1" and line[line.index("#") - 3] == "1":  # ID 1x1: POSITION
+            held.add(_sample_of(line))
+    assert status.samples == len(clean["part"].t) - len(halves)
+    assert status.unpaired_strain == sum(1 for v in halves.values() if v == 1)
+    # Lost samples, and those with a held encoder value, are bridged by interpolation: the filter never restarts.
+    assert status.interpolated == len(set(halves) | held) and status.filter_restarts == 1
+    assert msgs["DYNID_CONTACT"], "a 1 % loss must not hide the contact"
+
+
+def test_duplicated_and_reordered(setup: dict, clean: dict) -> None:
+    rng = np.random.default_rng(2)
+    lines = list(clean["lines"])
+    for i in sorted(rng.choice(len(lines) - 1, 60, replace=False)):
+        lines[i], lines[i + 1] = lines[i + 1], lines[i]
+    out = []
+    for i, line in enumerate(lines):
+        out.append(line)
+        if rng.random() < 0.01:
+            out.append(line)
+    status, _ = _bad_run(setup, clean, out, "dupes")
+    assert status.unpaired_strain > 0
+    assert status.samples <= len(clean["part"].t)  # a duplicated half never makes a second sample
+
+
+def test_stalled_board(setup: dict, clean: dict) -> None:
+    # Motor board 2 (can1, address 2) goes silent for 500 samples in the middle of the first contact.
+    eps = _episodes(clean["part"].contact)
+    a = eps[0][0] + 100
+    lines = [l for l in clean["lines"] if not (" can1 12" in l and a <= _sample_of(l) < a + 500)]
+    status, msgs = _bad_run(setup, clean, lines, "stalled")
+    assert 490 <= status.stale_samples <= 500  # stale once its last values are older than 5 ms
+    for m in msgs["DYNID_CONTACT"]:
+        k = (m.utime - T0_US) // 1000
+        assert not a <= k < a + 500 + 5, "an event from stale data"
+
+
+def test_saturation_flags(setup: dict, clean: dict) -> None:
+    lines, n = [], 0
+    for i, line in enumerate(clean["lines"]):
+        if " 3DA#" in line and i % 200 < 20:
+            line, n = line + "01", n + 1
+        lines.append(line)
+    status, _ = _bad_run(setup, clean, lines, "saturated")
+    assert status.saturated == n
+    assert status.stale_samples == n  # a saturated sample is never evaluated
+
+
+def test_board_restart(setup: dict, clean: dict) -> None:
+    # Board 1 restarts at sample 3000: a STATUS with the restarted flag and the counter from 0 again.
+    lines, seq = [], -1
+    for line in clean["lines"]:
+        if " can0 113#" in line and _sample_of(line) >= 3000:
+            seq += 1  # wraps 255 -> 0 on its own later: not a restart
+            line = line[:line.index("#") + 1] + ("000001" if seq == 0 else "000000") + f"{seq % 256:02X}"
+        lines.append(line)
+    status, _ = _bad_run(setup, clean, lines, "restart")
+    assert status.board_restarts == 1
+    assert status.stale_samples <= 1
+
+
+# ---- dynid import of candump logs -----------------------------------------------------------------------
+
+
+def test_import_candump_round_trip(setup: dict, clean: dict, tmp_path: Path) -> None:
+    """The writer's log imports back to the data (the simulation is quantised as the boards are: exact)."""
+    from dynid.dataset import Dataset
+
+    log = setup["root"] / "clean.log"
+    done = subprocess.run([sys.executable, "-m", "dynid.cli", "import", "--data", str(log), "--out", str(tmp_path / "d.npz")],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    got, want = Dataset.load(tmp_path / "d.npz"), clean["part"]
+    assert got.n_samples == want.n_samples
+    assert np.allclose(got.t, want.t - want.t[0], atol=1e-9)
+    fs = np.array(setup["config"].can["strain"][0]["full_scale"])
+    assert (np.abs(got.ft["r_arm_ft"] - want.ft["r_arm_ft"]).max(axis=0) <= fs / 65536 * 1.0001).all()
+    step = np.radians(1 / 182.04444444444445)
+    assert np.abs(got.q - want.q).max() <= step / 2 * 1.0001
+    assert all(np.abs(got.pwm[m] - want.pwm[m]).max() <= 0.5 / 1333 + 1e-12 for m in want.pwm)
+    assert (got.contact == want.contact).all()
+
+
+def test_import_refuses_a_bad_log_with_one_line(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.log"
+    bad.write_text("(1.000000) can0 514#00\n(1.001000) can0 515#00\n")
+    done = subprocess.run([sys.executable, "-m", "dynid.cli", "import", "--data", str(bad), "--out", str(tmp_path / "d.npz")],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2
+    assert done.stderr.strip().count("\n") == 0 and "no strain frames" in done.stderr, done.stderr
+    assert not (tmp_path / "d.npz").exists()
+
+
+def test_loopback_live_and_clean_shutdown(setup: dict, clean: dict, tmp_path: Path) -> None:
+    """Frames over the loopback transport (struct can_frame datagrams), then SIGTERM: exit 0, final counters."""
+    import signal
+    import socket
+    import time
+
+    conf = tmp_path / "live.conf"
+    conf.write_text(monitor_config_text(setup["config"], f"file://{tmp_path / 'live.lcmlog'}?mode=w"))
+    proc = subprocess.Popen([str(RT_MONITOR), "--model", str(setup["coef"]), "--config", str(conf), "--loopback",
+                             str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        buses = setup["config"].can["buses"]
+        for _ in range(100):  # the monitor binds its sockets at start-up
+            if all((tmp_path / f"{b}.can").exists() for b in buses):
+                break
+            time.sleep(0.05)
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+        n = 0
+        for line in clean["lines"][:14 * 200]:  # 200 samples
+            _, bus, frame = line.split()
+            can_id, payload = frame.split("#")
+            data = bytes.fromhex(payload)
+            sock.sendto(struct.pack("<IB3x8s", int(can_id, 16), len(data), data), str(tmp_path / f"{bus}.can"))
+            n += 1
+            if n % 500 == 0:
+                time.sleep(0.01)  # let the monitor drain its queue
+        time.sleep(0.3)
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert out.startswith("rt_monitor: stopped by signal; frames ")
+    frames = int(out.split("frames ")[1].split(",")[0])
+    assert frames == n
+    assert not any((tmp_path / f"{b}.can").exists() for b in buses)  # sockets removed on exit
