@@ -125,3 +125,15 @@ def test_bad_input_is_one_line_exit_2(tmp_path: Path) -> None:
     done = dynid("gaps", "--data", str(tmp_path / "missing.npz"))
     assert done.returncode == 2
     assert len(done.stderr.strip().splitlines()) == 1 and "Traceback" not in done.stderr
+
+
+def test_given_model_on_clean_validation_run(default_model: Path, default_experiments: dict[str, Path]) -> None:
+    """The session's fitted model on the contact-free validation run (no hidden effect): nothing named, the given
+    model's gap printed per channel, JSON on stdout with `--json -`."""
+    done = dynid("gaps", "--model", str(default_model), "--data", str(default_experiments["validation"]), "--json", "-")
+    assert done.returncode == 0, done.stderr
+    result = json.loads(done.stdout)
+    assert result["effects"] == []
+    assert result["given_model"] == str(default_model)
+    assert all(g["given_model_rms"] > 0 and g["before_rms"] > 0 for g in result["gap"])
+    assert "given" in done.stderr  # the human table went to stderr
