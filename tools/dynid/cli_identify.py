@@ -62,7 +62,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
             es.append(residuals(model, phi, sig))
             dqs.append(sig.dq)
     e, dq = np.vstack(es), np.vstack(dqs)
-    detectors = calibrate(model, e, dq, args.alpha, args.min_speed, args.n_mode, result.cv["n_components"])
+    detectors = calibrate(model, phi, e, dq, args.alpha, args.min_speed, args.n_mode, result.cv["n_components"])
     t2_cal = detectors["calibrated"].t2(model, e, dq)
     elapsed = time.perf_counter() - started
 

@@ -5,6 +5,9 @@
   n = ν; `n_mode="nu"`). That F threshold assumes independent Gaussian residuals; the PWM residuals are neither:
   at velocity reversals and while a joint rests, Coulomb friction flips or static friction holds what the
   model cannot say, so they are heavy-tailed and autocorrelated, and the threshold does not keep its promise.
+  While a friction coordinate rests its Coulomb law is set-valued (any torque in [−fc_neg, fc_pos] holds it), so
+  the residual of a row at rest is its distance to that band (`static_band_residuals`), not its distance to
+  the sign an encoder-derived q̇ happens to give; the band uses only the model's own Coulomb coefficients.
 - ``calibrated`` (dynid's default): a motor channel whose row is at rest (a joint or motor of it slower than
   `min_speed`, `dynid.regressors.stack.rows_at_rest`) is left out of the sum for that sample, Λ of the motor
   channels comes from moving samples only, and the threshold is the empirical α-quantile of this T² on the
@@ -20,8 +23,8 @@ import numpy as np
 from scipy import stats as scipy_stats
 
 from .model import RobotModel
-from .outputs import output_channels
-from .regressors.stack import rows_at_rest
+from .outputs import divisors, output_channels
+from .regressors.stack import group_row_maps, motor_velocities, rows_at_rest
 
 ALPHA = 0.99
 VARIANTS: tuple[str, ...] = ("calibrated", "paper")
@@ -47,7 +50,12 @@ class Detector:
             return np.ones((dq.shape[0], len(self.variance)), dtype=bool)
         return ~rows_at_rest(model, dq, self.min_speed)
 
-    def t2(self, model: RobotModel, e: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    def t2(self, model: RobotModel, e: np.ndarray, dq: np.ndarray, phi: np.ndarray | None = None) -> np.ndarray:
+        """T² per sample; the paper's variant needs the model's Φ for the static-friction band."""
+        if self.variant == "paper":
+            if phi is None:
+                raise ValueError("the paper's T² needs Φ (the static-friction band of resting rows)")
+            e = static_band_residuals(model, phi, dq, e, self.min_speed)
         return np.sum(np.where(self.active(model, dq), e**2 / self.variance, 0.0), axis=1)
 
     def as_dict(self) -> dict:
@@ -60,12 +68,55 @@ class Detector:
                    float(d["min_speed"]), int(d["n"]))
 
 
-def calibrate(model: RobotModel, e: np.ndarray, dq: np.ndarray, alpha: float = ALPHA, min_speed: float = 0.01,
+def static_band_residuals(model: RobotModel, phi: np.ndarray, dq: np.ndarray, e: np.ndarray,
+                          min_speed: float) -> np.ndarray:
+    """e with every row at rest replaced by its distance to the static-friction band of its resting coordinates.
+
+    A coordinate (joint, or coupled motor at q̇_m = T q̇) slower than `min_speed` contributes L·[−fc_neg, fc_pos]
+    (C· for a motor) to its rows instead of the Coulomb term its derived q̇'s sign chose. Rows with no resting
+    coordinate, and the F/T rows, are returned unchanged.
+    """
+    cfg, layout = model.config, model.layout
+    joint_col = {j: i for i, j in enumerate(cfg.joints)}
+    g = divisors(model, phi)
+    out = e.copy()
+    start = 6 * len(cfg.ft_sensors)
+    for group in cfg.actuation:
+        gj = [joint_col[j] for j in group.joints]
+        rows = slice(start, start + len(gj))
+        start = rows.stop
+        L, C = group_row_maps(group)
+        # L comes from inverting the coupling: structural zeros may be rounding residue (as in rows_at_rest)
+        L, C = (np.where(np.abs(M) > 1e-9 * np.abs(M).max(), M, 0.0) for M in (L, C))
+        coordinates = [(dq[:, c], L[:, li], phi[layout.block("joint_friction", j).slice])
+                       for li, (j, c) in enumerate(zip(group.joints, gj))]
+        if group.input != "torque" and group.coupled:
+            v = motor_velocities(dq[:, gj], group.coupling)
+            coordinates += [(v[:, mi], C[:, mi], phi[layout.block("motor_friction", m).slice])
+                            for mi, m in enumerate(group.motors)]
+        applied = np.zeros((dq.shape[0], len(gj)))  # the Coulomb torque the sign chose, on resting coordinates
+        lo, hi = np.zeros_like(applied), np.zeros_like(applied)
+        for velocity, share, (fc_pos, fc_neg, _, _) in coordinates:
+            slow = (np.abs(velocity) < min_speed)[:, None]
+            coulomb = fc_pos * (velocity > 0) - fc_neg * (velocity < 0)
+            applied += np.where(slow, coulomb[:, None] * share, 0.0)
+            ends = np.stack([share * fc_pos, -share * fc_neg])
+            lo += np.where(slow, ends.min(axis=0), 0.0)
+            hi += np.where(slow, ends.max(axis=0), 0.0)
+        gain = g[rows]
+        free = e[:, rows] + applied / gain  # e = (b − AΦ)/g: the residual without the resting Coulomb terms
+        band_lo, band_hi = np.minimum(lo / gain, hi / gain), np.maximum(lo / gain, hi / gain)
+        out[:, rows] = free - np.clip(free, band_lo, band_hi)
+    return out
+
+
+def calibrate(model: RobotModel, phi: np.ndarray, e: np.ndarray, dq: np.ndarray, alpha: float = ALPHA, min_speed: float = 0.01,
               n_mode: str = "dim", nu: int | None = None) -> dict[str, Detector]:
-    """Both detectors from contact-free residuals e (N, n_out) of the identification data."""
+    """Both detectors from contact-free residuals e (N, n_out) of the identification data, fitted Φ."""
     N, n_out = e.shape
     n = n_out if n_mode == "dim" else int(nu or n_out)
-    paper = Detector("paper", e.var(axis=0), f_threshold(n, N, alpha), alpha, min_speed, n)
+    banded = static_band_residuals(model, phi, dq, e, min_speed)
+    paper = Detector("paper", banded.var(axis=0), f_threshold(n, N, alpha), alpha, min_speed, n)
     rest = rows_at_rest(model, dq, min_speed)
     moving = np.where(rest, np.nan, e)
     variance = np.nanmean(moving**2, axis=0)

@@ -159,6 +159,6 @@ def detection(ev: Evaluated, model_label: str, data_label: str, alpha: float, n_
     result: dict[str, Any] = {"model": model_label, "data": data_label, "alpha": alpha, "variants": {}}
     t2s = {}
     for variant, d in dets.items():
-        t2s[variant] = d.t2(ev.model, ev.e, ev.signals.dq)
+        t2s[variant] = d.t2(ev.model, ev.e, ev.signals.dq, ev.identified.phi)
         result["variants"][variant] = score(ev.dataset.t, t2s[variant], d.threshold, ev.dataset.contact, side)
     return Detection(result, dets, t2s, side)

@@ -1,0 +1,92 @@
+"""The static-friction band of the paper's T²: a resting coordinate's Coulomb law is set-valued.
+
+Reference: the residual with that coordinate's Coulomb coefficients set to zero in Φ (computed by the regressors,
+not by the band code), then its distance to the interval the coordinate's static friction can cover in each row.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dynid.config import load_config
+from dynid.detection import static_band_residuals
+from dynid.model import RobotModel
+from dynid.outputs import divisors, output_channels, residuals
+from dynid.regressors.stack import Signals, group_row_maps, motor_velocities
+
+CONFIG = load_config()
+MODEL = RobotModel(CONFIG)
+MIN_SPEED = 0.01
+N = 400
+
+
+def _signals(rng: np.random.Generator, slow_joint: str) -> Signals:
+    n = len(CONFIG.joints)
+    q = rng.uniform(-0.5, 0.5, (N, n))
+    dq = rng.choice([-1.0, 1.0], (N, n)) * rng.uniform(0.2, 1.0, (N, n))
+    dq[:, CONFIG.joints.index(slow_joint)] = rng.uniform(-0.009, 0.009, N)  # at rest, either sign
+    ddq = rng.normal(0.0, 2.0, (N, n))
+    pwm = {m: rng.normal(0.0, 0.2, N) for m in CONFIG.motor_names}
+    ft = {s.name: rng.normal(0.0, 5.0, (N, 6)) for s in CONFIG.ft_sensors}
+    return Signals(q, dq, ddq, pwm, {}, ft)
+
+
+def _phi(rng: np.random.Generator) -> np.ndarray:
+    phi = rng.uniform(0.01, 0.1, len(MODEL.layout.names))
+    for m in CONFIG.motor_names:
+        phi[MODEL.layout.block("motor_gain", m).start] = rng.uniform(15.0, 25.0)
+    return phi
+
+
+def _motor_at_rest(dq: np.ndarray) -> np.ndarray:
+    shoulder = next(g for g in CONFIG.actuation if g.coupled)
+    cols = [CONFIG.joints.index(j) for j in shoulder.joints]
+    return np.any(np.abs(motor_velocities(dq[:, cols], shoulder.coupling)) < MIN_SPEED, axis=1)
+
+
+@pytest.mark.parametrize("slow_joint", ["r_elbow", "r_shoulder_roll", "r_shoulder_yaw"])  # uncoupled; coupled (L shares of both signs)
+def test_a_resting_joint_gives_the_distance_to_its_static_friction_band(slow_joint: str) -> None:
+    rng = np.random.default_rng(7)
+    sig, phi = _signals(rng, slow_joint), _phi(rng)
+    # PWMs that leave residuals of the static band's size (±0.004 duty ≈ ±0.08 Nm): inside and outside it.
+    e = residuals(MODEL, phi, sig)
+    for o in output_channels(MODEL):
+        if o.motor:
+            sig.inputs[o.motor][:] += -e[:, o.row] + rng.uniform(-0.004, 0.004, N)
+    e = residuals(MODEL, phi, sig)
+    friction = MODEL.layout.block("joint_friction", slow_joint).slice
+    no_coulomb = phi.copy()
+    no_coulomb[friction.start : friction.start + 2] = 0.0  # fc_pos, fc_neg
+    free = residuals(MODEL, no_coulomb, sig)
+    fc_pos, fc_neg = phi[friction.start], phi[friction.start + 1]
+
+    group = next(g for g in CONFIG.actuation if slow_joint in g.joints)
+    L, _ = group_row_maps(group)
+    share = L[:, group.joints.index(slow_joint)]
+    rows = [o.row for o in output_channels(MODEL) if o.motor in group.motors]
+    g = divisors(MODEL, phi)[rows]
+    ends = np.stack([share * fc_pos / g, -share * fc_neg / g])
+    lo, hi = ends.min(axis=0), ends.max(axis=0)
+    expected = free[:, rows] - np.clip(free[:, rows], lo, hi)
+
+    banded = static_band_residuals(MODEL, phi, sig.dq, e, MIN_SPEED)
+    keep = ~_motor_at_rest(sig.dq)  # a resting coupled motor would add its own band
+    banded, e, expected = banded[keep], e[keep], expected[keep]
+    touched = np.abs(share) > 1e-9
+    assert np.allclose(banded[:, rows][:, touched], expected[:, touched], rtol=0, atol=1e-12)
+    assert np.any(banded[:, rows][:, touched] == 0.0) and np.any(banded[:, rows][:, touched] != 0.0)  # both cases
+    others = np.setdiff1d(np.arange(e.shape[1]), np.asarray(rows)[touched])
+    assert np.array_equal(banded[:, others], e[:, others])  # F/T rows and untouched rows unchanged
+
+
+def test_nothing_at_rest_changes_nothing() -> None:
+    rng = np.random.default_rng(3)
+    sig, phi = _signals(rng, "r_elbow"), _phi(rng)
+    sig.dq[:, CONFIG.joints.index("r_elbow")] = 0.5
+    moving = Signals(sig.q, sig.dq, sig.ddq, sig.inputs, sig.tau, sig.ft)
+    e = residuals(MODEL, phi, moving)
+    banded = static_band_residuals(MODEL, phi, moving.dq, e, MIN_SPEED)
+    still = _motor_at_rest(moving.dq)
+    assert (~still).sum() > N // 2
+    assert np.array_equal(banded[~still], e[~still])
