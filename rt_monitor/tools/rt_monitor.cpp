@@ -1,10 +1,16 @@
 // rt_monitor --model COEF --config CONFIG [--replay CANDUMP.log [--realtime]] [--loopback DIR] [--lcm-url URL]
+//            [--mlockall] [--priority N] [--cpu K]
 //
 // Frames in (SocketCAN on the configured buses, a candump -L replay, or the loopback transport), samples
 // assembled, the core stepped, contact events / status (10 Hz) / decimated residuals out on LCM.
 // SIGINT and SIGTERM end the run cleanly; the final counters are printed on stdout either way.
-// Exit codes: 0 done, 2 bad arguments or configuration, 1 a source or LCM failure, 10+ a refused coefficient file.
+// --mlockall, --priority N (SCHED_FIFO) and --cpu K (affinity) are applied once before the loop; the start-up line
+// on stderr says what the process runs with.
+// Exit codes: 0 done, 2 bad arguments or configuration, 1 a source or LCM failure, 3 mlockall refused, 4 SCHED_FIFO
+// refused, 5 CPU affinity refused, 10+ a refused coefficient file.
+#include <cerrno>
 #include <csignal>
+#include <cstdlib>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -19,6 +25,7 @@
 #include "icub_can.h"
 #include "rt_monitor/assembler.hpp"
 #include "rt_monitor/core.hpp"
+#include "rt_monitor/rt_settings.hpp"
 
 using namespace dynid::rt;
 
@@ -29,8 +36,18 @@ void on_signal(int) { g_stop = 1; }
 
 int usage(const std::string& why) {
     std::fprintf(stderr, "rt_monitor: error: %s\nusage: rt_monitor --model COEF --config CONFIG [--replay CANDUMP.log "
-                         "[--realtime]] [--loopback DIR] [--lcm-url URL]\n", why.c_str());
+                         "[--realtime]] [--loopback DIR] [--lcm-url URL] [--mlockall] [--priority N] [--cpu K]\n", why.c_str());
     return 2;
+}
+
+// A whole decimal integer in [lo, hi], or false.
+bool parse_int(const std::string& text, long lo, long hi, int& out) {
+    char* end = nullptr;
+    errno = 0;
+    const long v = std::strtol(text.c_str(), &end, 10);
+    if (text.empty() || *end != '\0' || errno != 0 || v < lo || v > hi) return false;
+    out = int(v);
+    return true;
 }
 
 double mono_us() {
@@ -43,7 +60,9 @@ double mono_us() {
 
 int main(int argc, char** argv) {
     std::string model, config, replay, loopback, url;
+    std::string priority, cpu;
     bool have_url = false, realtime = false;
+    RtSettings rts;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         auto value = [&](std::string& v) {
@@ -58,11 +77,19 @@ int main(int argc, char** argv) {
         else if (a == "--loopback") ok = value(loopback);
         else if (a == "--lcm-url") ok = have_url = value(url);
         else if (a == "--realtime") realtime = true;
+        else if (a == "--mlockall") rts.mlockall = true;
+        else if (a == "--priority") ok = rts.fifo = value(priority);
+        else if (a == "--cpu") ok = value(cpu);
         else return usage("unknown argument '" + a + "'");
         if (!ok) return usage("'" + a + "' needs a value");
     }
     if (model.empty() || config.empty()) return usage("--model and --config are required");
     if (!replay.empty() && !loopback.empty()) return usage("--replay and --loopback exclude each other");
+    // Range checks are the system's (SCHED_FIFO's priorities, the allowed CPUs): a refusal has its own exit code.
+    if (rts.fifo && !parse_int(priority, -1000000, 1000000, rts.priority))
+        return usage("--priority needs an integer, got '" + priority + "'");
+    if (!cpu.empty() && !parse_int(cpu, 0, 1000000, rts.cpu))
+        return usage("--cpu needs a CPU number (0 or more), got '" + cpu + "'");
 
     std::string err;
     MonitorConfig cfg;
@@ -90,6 +117,17 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "rt_monitor: error: cannot open LCM at '%s'\n", (have_url ? url : cfg.lcm_url).c_str());
         return 1;
     }
+
+    const int refused = apply_rt_settings(rts, err);
+    if (refused) {
+        std::fprintf(stderr, "rt_monitor: error: %s\n", err.c_str());
+        return refused;
+    }
+    std::fprintf(stderr, "rt_monitor: running: %s; LCM %s; %s\n",
+                 !replay.empty() ? ("replay of " + replay + (realtime ? " in real time" : "")).c_str()
+                 : !loopback.empty() ? ("loopback transport in " + loopback).c_str() : "SocketCAN",
+                 (have_url ? url : cfg.lcm_url.empty() ? std::string("default URL") : cfg.lcm_url).c_str(),
+                 describe_rt_settings(rts).c_str());
 
     struct sigaction sa {};
     sa.sa_handler = on_signal;  // no SA_RESTART: poll() returns, the loop sees the flag

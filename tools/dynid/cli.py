@@ -17,7 +17,7 @@ from typing import Any, NoReturn
 
 import numpy as np
 
-from . import __version__, cli_export, cli_gaps
+from . import __version__, cli_export, cli_gaps, cli_spy
 from .config import DEFAULT_ROBOT, bundled_configs, load_config
 from .dataset import atomic_write
 from .errors import EXIT_BAD_INPUT, InputError
@@ -308,6 +308,7 @@ def build_parser() -> argparse.ArgumentParser:
     identification_commands(sub, robot_arg, json_arg, min_speed_arg, positive_int)
     cli_export.add_commands(sub, json_arg, positive_int)
     cli_gaps.add_commands(sub, robot_arg, json_arg)
+    cli_spy.add_commands(sub, positive_int, positive_float)
     return p
 
 
