@@ -1,17 +1,22 @@
 // rt_monitor --model COEF --config CONFIG [--replay CANDUMP.log [--realtime]] [--loopback DIR] [--lcm-url URL]
+//            [--latency-out FILE]
 //
 // Frames in (SocketCAN on the configured buses, a candump -L replay, or the loopback transport), samples
 // assembled, the core stepped, contact events / status (10 Hz) / decimated residuals out on LCM.
 // SIGINT and SIGTERM end the run cleanly; the final counters are printed on stdout either way.
+// --latency-out (benchmarks): per contact onset, CLOCK_MONOTONIC µs from the return of the read of the frame
+// that completed the onset sample to the return of its LCM publish, one per line, written at exit.
 // Exit codes: 0 done, 2 bad arguments or configuration, 1 a source or LCM failure, 10+ a refused coefficient file.
 #include <csignal>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <ctime>
+#include <fstream>
 #include <lcm/lcm-cpp.hpp>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "dynid/contact_event_t.hpp"
 #include "dynid/monitor_status_t.hpp"
@@ -29,7 +34,7 @@ void on_signal(int) { g_stop = 1; }
 
 int usage(const std::string& why) {
     std::fprintf(stderr, "rt_monitor: error: %s\nusage: rt_monitor --model COEF --config CONFIG [--replay CANDUMP.log "
-                         "[--realtime]] [--loopback DIR] [--lcm-url URL]\n", why.c_str());
+                         "[--realtime]] [--loopback DIR] [--lcm-url URL] [--latency-out FILE]\n", why.c_str());
     return 2;
 }
 
@@ -42,7 +47,7 @@ double mono_us() {
 }  // namespace
 
 int main(int argc, char** argv) {
-    std::string model, config, replay, loopback, url;
+    std::string model, config, replay, loopback, url, latency_out;
     bool have_url = false, realtime = false;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
@@ -57,6 +62,7 @@ int main(int argc, char** argv) {
         else if (a == "--replay") ok = value(replay);
         else if (a == "--loopback") ok = value(loopback);
         else if (a == "--lcm-url") ok = have_url = value(url);
+        else if (a == "--latency-out") ok = value(latency_out);
         else if (a == "--realtime") realtime = true;
         else return usage("unknown argument '" + a + "'");
         if (!ok) return usage("'" + a + "' needs a value");
@@ -119,6 +125,9 @@ int main(int argc, char** argv) {
     constexpr int kMaxBridge = 3;  // missing samples bridged by interpolation; a longer gap restarts the filter
     Sample s, prev, mid;
     RxFrame f;
+    double rx_mono = 0;  // when the read of the current frame returned
+    std::vector<double> latency;
+    if (!latency_out.empty()) latency.reserve(size_t(1) << 20);  // allocated once: no allocation in the loop
     int rc = 0;
 
     auto fill_residual = [&](std::vector<double>& r, const Output& o) {
@@ -175,6 +184,7 @@ int main(int argc, char** argv) {
             fill_residual(ev.normalized_residual, o);
             for (int k = 0; k < 6; ++k) ev.wrench[k] = o.wrench[k];
             lcm.publish("DYNID_CONTACT", &ev);
+            if (o.event == Event::kOnset && latency.size() < latency.capacity()) latency.push_back(mono_us() - rx_mono);
         }
         if (o.ready && evaluated % cfg.residual_every == 0) {
             res.utime = x.t_us;
@@ -188,6 +198,7 @@ int main(int argc, char** argv) {
         const ReadStatus r = src->read(f, 100);
         if (r == ReadStatus::kEnd) break;
         if (r == ReadStatus::kTimeout) continue;
+        rx_mono = mono_us();
         if (r == ReadStatus::kError) {
             std::fprintf(stderr, "rt_monitor: error: %s\n", src->error().c_str());
             rc = 1;
@@ -242,5 +253,16 @@ int main(int argc, char** argv) {
                 (long long)c.unpaired_strain, (long long)c.saturated, (long long)c.board_faults,
                 (long long)c.board_restarts, (unsigned long long)(sc.bad_lines + sc.unknown_bus + sc.bad_size),
                 (long long)interpolated, (long long)restarts, (long long)overruns);
+    if (!latency_out.empty()) {
+        const std::string tmp = latency_out + ".tmp";
+        {
+            std::ofstream out(tmp);
+            for (double v : latency) out << v << '\n';
+        }
+        if (std::rename(tmp.c_str(), latency_out.c_str()) != 0) {
+            std::fprintf(stderr, "rt_monitor: error: cannot write %s\n", latency_out.c_str());
+            rc = rc ? rc : 1;
+        }
+    }
     return rc;
 }
