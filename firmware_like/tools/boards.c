@@ -3,7 +3,7 @@
  *
  *   boards --config MONITOR.conf --data RUN_DIR|data.csv --sink candump:PATH|loopback:DIR|socketcan
  *          [--realtime] [--t0 SECONDS] [--sensor NAME] [--strain-sat auto|on|off] [--restart ADDR@SAMPLE]
- *          [--repeat N]
+ *          [--repeat N] [--rt-priority P]
  *
  * The configuration is rt_monitor's (rt_monitor/README.md, "Configuration"; `dynid` writes it from the robot
  * configuration): buses, the strain board, the motor-control boards' axes and PWMs, the skin boards. Per sample
@@ -13,15 +13,20 @@
  *   t_k - 200 us  TAXELS of every skin board (group 0 = the run's contact on that board's patch);
  *   t_k - 100 us  strain force half;  t_k  strain torque half (it closes the sample).
  * --repeat plays the run N times back to back (time continues; benchmarks that need many contacts).
- * --realtime paces the frames at those times with absolute CLOCK_MONOTONIC sleeps; else as fast as possible.
+ * --realtime wakes once per sample at its first frame's time (absolute CLOCK_MONOTONIC sleeps) and sends the
+ * sample's frames back to back; else as fast as possible. A live transport stamps frames when they are sent, so
+ * the monitor needs --realtime over loopback and SocketCAN; fast mode is for candump logs. --rt-priority runs
+ * the sender SCHED_FIFO so that its wake-ups keep the 1 kHz tick on a loaded machine (refused cleanly where
+ * the system does not allow it). Paced runs print the CLOCK_REALTIME µs of sample 0 (the monitor's clock).
  * Bus load: worst-case bit stuffing at 1 Mbit/s (board_frame_bits_worst), over the run's duration.
  */
-#define _POSIX_C_SOURCE 200809L
+#define _GNU_SOURCE /* sched_setscheduler, CLOCK_REALTIME stamps */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sched.h>
 #include <sys/stat.h>
 #include <time.h>
 
@@ -48,7 +53,7 @@ static int usage(const char *why)
 {
     fprintf(stderr, "boards: error: %s\nusage: boards --config MONITOR.conf --data RUN_DIR|data.csv "
                     "--sink candump:PATH|loopback:DIR|socketcan [--realtime] [--t0 S] [--sensor NAME] "
-                    "[--strain-sat auto|on|off] [--restart ADDRESS@SAMPLE] [--repeat N]\n", why);
+                    "[--strain-sat auto|on|off] [--restart ADDRESS@SAMPLE] [--repeat N] [--rt-priority P]\n", why);
     return BOARDS_EXIT_USAGE;
 }
 
@@ -85,9 +90,7 @@ typedef struct {
 static int emit(pace_t *p, int bus, const board_frame_t *f, int64_t t_us)
 {
     int rc;
-    if (p->realtime) {
-        sleep_until(&p->start, t_us - p->first_us);
-    }
+    (void)p;
     rc = boards_sink_send(&g_sink, bus, f, t_us, g_err);
     if (rc == 0) {
         g_bits[bus] += board_frame_bits_worst(f->dlc);
@@ -102,6 +105,11 @@ static int play_sample(pace_t *p, const double *v, int64_t t_us, long restart_ad
     board_frame_t f;
     double w[6];
     int i, s, rc;
+    if (p->realtime) {
+        /* One wake-up per sample, then its frames back to back: the boards share one 1 kHz tick, and a
+         * sleep per frame would only add scheduling jitter between the halves the monitor pairs. */
+        sleep_until(&p->start, t_us - 300 - p->first_us);
+    }
     for (i = 0; i < g_conf.n_mc; ++i) {
         double q[2] = {0.0, 0.0}, duty[2] = {0.0, 0.0};
         for (s = 0; s < 2; ++s) {
@@ -145,7 +153,8 @@ int main(int argc, char **argv)
     const char *conf = 0, *data = 0, *sink = 0, *sensor = 0, *sat = "auto";
     static char csv_path[4200];
     double t0 = 1700000000.0, t_first = 0.0, t_prev = 0.0, wall;
-    long n = 0, k = 0, restart_addr = -1, restart_at = -1, repeat = 1, r;
+    long n = 0, k = 0, restart_addr = -1, restart_at = -1, repeat = 1, r, rt_priority = 0;
+    long long real0_us = 0;
     int realtime = 0, rc, i, any_sat = 0, overloaded = 0;
     pace_t pace;
     struct stat st;
@@ -155,7 +164,8 @@ int main(int argc, char **argv)
         const int has = i + 1 < argc;
         if (strcmp(a, "--realtime") == 0) { realtime = 1; continue; }
         if (strcmp(a, "--config") && strcmp(a, "--data") && strcmp(a, "--sink") && strcmp(a, "--t0") &&
-            strcmp(a, "--sensor") && strcmp(a, "--strain-sat") && strcmp(a, "--restart") && strcmp(a, "--repeat")) {
+            strcmp(a, "--sensor") && strcmp(a, "--strain-sat") && strcmp(a, "--restart") && strcmp(a, "--repeat") &&
+            strcmp(a, "--rt-priority")) {
             snprintf(g_err, sizeof g_err, "unknown argument '%s'", a);
             return usage(g_err);
         }
@@ -169,7 +179,11 @@ int main(int argc, char **argv)
         else if (strcmp(a, "--sink") == 0) sink = argv[i];
         else if (strcmp(a, "--sensor") == 0) sensor = argv[i];
         else if (strcmp(a, "--strain-sat") == 0) sat = argv[i];
-        else if (strcmp(a, "--repeat") == 0) {
+        else if (strcmp(a, "--rt-priority") == 0) {
+            char *end = 0;
+            rt_priority = strtol(argv[i], &end, 10);
+            if (*end || rt_priority < 1 || rt_priority > 99) return usage("--rt-priority P needs 1 <= P <= 99");
+        } else if (strcmp(a, "--repeat") == 0) {
             char *end = 0;
             repeat = strtol(argv[i], &end, 10);
             if (*end || repeat < 1 || repeat > 100000) return usage("--repeat N needs 1 <= N <= 100000");
@@ -237,6 +251,17 @@ int main(int argc, char **argv)
     if ((rc = boards_sink_open(&g_sink, sink, &g_conf, g_err)) != 0) {
         return rc == BOARDS_EXIT_USAGE ? usage(g_err) : fail(rc);
     }
+    if (rt_priority > 0) {
+        struct sched_param sp;
+        memset(&sp, 0, sizeof sp);
+        sp.sched_priority = (int)rt_priority;
+        if (sched_setscheduler(0, SCHED_FIFO, &sp) != 0) {
+            snprintf(g_err, sizeof g_err, "--rt-priority %ld: SCHED_FIFO refused: %s", rt_priority, strerror(errno));
+            char ignore[BOARDS_ERR_LEN];
+            boards_sink_close(&g_sink, 0, ignore);
+            return fail(BOARDS_EXIT_SCHED);
+        }
+    }
     pace.realtime = realtime;
     pace.first_us = 0;
     wall = now_s();
@@ -248,8 +273,11 @@ int main(int argc, char **argv)
             /* µs timestamps as dynid.can_log computes them (rint: numpy's round, half to even) */
             const int64_t t_us = (int64_t)rint((g_csv.v[g_cols.t] - t_first + t0 + shift) * 1e6);
             if (k == 0) {
+                struct timespec rt;
                 pace.first_us = t_us - 300;
                 clock_gettime(CLOCK_MONOTONIC, &pace.start);
+                clock_gettime(CLOCK_REALTIME, &rt);
+                real0_us = (long long)rt.tv_sec * 1000000LL + rt.tv_nsec / 1000 + 300;
             }
             rc = play_sample(&pace, g_csv.v, t_us, k == restart_at ? restart_addr : -1);
             if (rc != 0) break;
@@ -271,6 +299,9 @@ int main(int argc, char **argv)
         const double duration = period * (double)n * (double)repeat;
         printf("boards: %ld samples, %llu frames, %.3f s of data in %.3f s (%.1fx real time)\n", k,
                (unsigned long long)g_sink.sent, duration, wall, wall > 0.0 ? duration / wall : 0.0);
+        if (realtime) {
+            printf("boards: sample 0 at CLOCK_REALTIME %lld us\n", real0_us);
+        }
         for (i = 0; i < g_conf.n_buses; ++i) {
             const double load = (double)g_bits[i] / (duration * BITRATE);
             printf("boards: bus %s load %.1f %% (%llu frames; worst-case bit stuffing, 1 Mbit/s)\n", g_conf.buses[i],

@@ -17,6 +17,7 @@
 #define BOARDS_EXIT_BADDATA 4 /* the CSV or the configuration is malformed */
 #define BOARDS_EXIT_SINK    5 /* the sink cannot be opened or refuses a frame */
 #define BOARDS_EXIT_LOAD    6 /* a bus would be loaded at 70 % or more */
+#define BOARDS_EXIT_SCHED   7 /* the system refused --rt-priority */
 
 #define BOARDS_MAX_BUSES 8
 #define BOARDS_MAX_MC    16
