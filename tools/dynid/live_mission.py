@@ -2,7 +2,12 @@
 its LCM messages go to a `file://` log (never UDP multicast on the host), and the events are summarised against
 the skin's ground truth (dynid.contact_summary).
 
-    python -m dynid.live_mission --model COEF --data RUN_DIR --out DIR [--realtime] [--json SUMMARY.json]
+    python -m dynid.live_mission --model COEF --data RUN_DIR --out DIR [--no-fifo] [--json SUMMARY.json]
+
+The boards play in real time: a live transport stamps each frame when it is sent (SO_TIMESTAMP), as a real bus
+stamps it on arrival, and the monitor's sample clock is that stamp. Where the system allows it, both programs
+run SCHED_FIFO (boards 20, rt_monitor 30), so that a sender woken late on a loaded machine does not bunch its
+frames; --no-fifo runs them as ordinary processes.
 
 Writes DIR/monitor.conf, DIR/events.lcmlog (every DYNID_* message) and prints the boards' bus loads, the
 monitor's final counters and the summary. Exit 2 with one line on bad input, 1 if a program fails.
@@ -28,6 +33,18 @@ RT_MONITOR = ROOT / "build" / "rt_monitor" / "rt_monitor"
 
 class MissionError(Exception):
     pass
+
+
+def fifo_allowed() -> bool:
+    """Whether this process may start SCHED_FIFO programs (root or CAP_SYS_NICE, and an RT budget)."""
+    try:
+        return subprocess.run(["chrt", "-f", "1", "true"], capture_output=True).returncode == 0
+    except OSError:
+        return False
+
+
+def fifo_args(on: bool) -> dict[str, tuple[str, ...]]:
+    return {"boards_args": ("--rt-priority", "20"), "monitor_prefix": ("chrt", "-f", "30")} if on else {}
 
 
 def play(coef: Path, data: Path, out: Path, robot: str = "icub_right_arm", realtime: bool = False,
@@ -94,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--data", required=True, type=Path, help="a simulated run with skin ground truth")
     p.add_argument("--out", required=True, type=Path)
     p.add_argument("--robot", default="icub_right_arm")
-    p.add_argument("--realtime", action="store_true", help="the boards pace their frames in real time")
+    p.add_argument("--no-fifo", action="store_true", help="never run the boards and the monitor SCHED_FIFO")
     p.add_argument("--json", type=Path)
     a = p.parse_args(argv)
     from . import contact_summary
@@ -104,7 +121,10 @@ def main(argv: list[str] | None = None) -> int:
             print(f"dynid.live_mission: error: {what} not found: {path}", file=sys.stderr)
             return 2
     try:
-        r = play(a.model, a.data, a.out, a.robot, a.realtime)
+        fifo = not a.no_fifo and fifo_allowed()
+        print(f"live mission: boards → loopback → rt_monitor → LCM {a.out / 'events.lcmlog'}, in real time"
+              f"{', SCHED_FIFO' if fifo else ''}", flush=True)
+        r = play(a.model, a.data, a.out, a.robot, True, **fifo_args(fifo))
     except MissionError as e:
         print(f"dynid.live_mission: error: {e}", file=sys.stderr)
         return 1

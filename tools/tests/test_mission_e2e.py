@@ -20,13 +20,9 @@ import pytest
 
 from dynid.contact_summary import episodes, read_lcm_log, summarize
 from dynid.export import read_coefficients
-from dynid.live_mission import play, sample0_us
+from dynid.live_mission import fifo_allowed, fifo_args, play, sample0_us
 
 WINDOW_S = 25.0
-
-
-def _fifo_allowed() -> bool:
-    return subprocess.run(["chrt", "-f", "1", "true"], capture_output=True).returncode == 0
 
 
 @pytest.fixture(scope="module")
@@ -47,9 +43,8 @@ def live(default_experiments: dict, default_model: Path, tmp_path_factory: pytes
     csv.write_text("\n".join([lines[0]] + rows) + "\n")
     # Both live programs SCHED_FIFO where allowed: on this shared 2-core machine a sender woken late bunches its
     # frames, and the monitor's sample clock is the frames' send time (SO_TIMESTAMP), as it is on a real bus.
-    fifo = _fifo_allowed()
-    r = play(coef, csv, root / "out", realtime=True, boards_args=("--rt-priority", "20") if fifo else (),
-             monitor_prefix=("chrt", "-f", "30") if fifo else ())
+    fifo = fifo_allowed()
+    r = play(coef, csv, root / "out", realtime=True, **fifo_args(fifo))
     print(r["boards"], r["monitor"], sep="\n")
     c = read_coefficients(coef)
     return {"r": r, "msgs": read_lcm_log(Path(r["lcm_log"])), "data": table[start:start + len(rows)], "head": head,
