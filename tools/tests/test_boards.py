@@ -189,3 +189,17 @@ def test_bad_input_one_line_and_a_distinct_exit_code(part: dict, case: str, code
     assert first.startswith("boards: error:") and words in first, done.stderr
     assert len(done.stderr.splitlines()) <= 2  # the error, and the usage line for a bad flag
     assert not (root / "bad.log").exists()
+
+
+def test_an_overloaded_bus_is_refused_after_printing_the_loads(part: dict) -> None:
+    # Every board on can0: 46.9 + 47.9 + 61.5 % of one bus.
+    text = part["conf"].read_text().splitlines()
+    one_bus = "\n".join(l if l.startswith(("buses", "#", "robot")) else l.replace(" can1 ", " can0 ").replace(" can2 ", " can0 ")
+                        for l in text) + "\n"
+    conf = part["root"] / "one_bus.conf"
+    conf.write_text(one_bus)
+    done = boards("--config", str(conf), "--data", str(part["csv"]), "--sink", f"candump:{part['root'] / 'one.log'}")
+    assert done.returncode == 6, done.stderr
+    load = float(re.search(r"bus can0 load ([\d.]+) %", done.stdout).group(1))
+    assert abs(load - (46.9 + 47.9 + 61.5)) < 0.3
+    assert done.stderr.strip() == "boards: error: a bus is loaded at 70 % or more: move boards to another bus"
