@@ -7,6 +7,7 @@
 // --latency-out (benchmarks): per contact onset, CLOCK_MONOTONIC µs from the return of the read of the frame
 // that completed the onset sample to the return of its LCM publish, one per line, written at exit.
 // Exit codes: 0 done, 2 bad arguments or configuration, 1 a source or LCM failure, 10+ a refused coefficient file.
+#include <algorithm>
 #include <csignal>
 #include <cmath>
 #include <cstdio>
@@ -214,8 +215,12 @@ int main(int argc, char** argv) {
         } else {
             // The filter assumes uniform samples: bridge a short gap (lost strain halves) by interpolating
             // linearly between the last good sample and this one, restart the filter after a longer one.
-            const long missing = was_stale ? 0 : std::lround(double(s.t_us - prev.t_us) / period_us) - 1;
-            if (was_stale || missing > kMaxBridge || missing < 0) {
+            // Arrival jitter (a frame stamped up to 0.75 period late, or two samples bunched) is not a loss: a
+            // lost sample shows as a gap of about two periods; only a gap of 1.75 periods or more is bridged,
+            // and only time running backwards (or a long gap) restarts the filter.
+            const int64_t gap = s.t_us - prev.t_us;
+            const long missing = (was_stale || gap <= 0) ? 0 : std::max(0L, std::lround(double(gap) / period_us - 0.25) - 1);
+            if (was_stale || gap <= 0 || missing > kMaxBridge) {
                 core->reset();
                 ++restarts;
             } else {
