@@ -58,7 +58,7 @@ def test_all_frames_arrive_and_every_sample_is_assembled(live: dict) -> None:
     assert (last.frames, last.samples) == (frames, n)
     assert last.unknown_id == last.bad_length == last.error_frames == last.unpaired_strain == 0
     # A late wake-up of the paced sender can still bunch samples; they are counted, and must stay rare.
-    assert last.filter_restarts <= (0.02 if live["fifo"] else 0.2) * n, last.filter_restarts
+    assert last.filter_restarts <= (0.01 if live["fifo"] else 0.2) * n, last.filter_restarts
 
 
 def test_every_distal_contact_found_and_no_event_without_contact(live: dict) -> None:
