@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import signal
 import subprocess
 import sys
@@ -58,12 +59,18 @@ def play(coef: Path, data: Path, out: Path, robot: str = "icub_right_arm", realt
         if not exe.is_file():
             raise MissionError(f"{exe} is not built (run scripts/setup)")
     out.mkdir(parents=True, exist_ok=True)
-    lcm_log = out / "events.lcmlog"
+    final_log = out / "events.lcmlog"
     conf = out / "monitor.conf"
     config = load_config(robot)
-    conf.write_text(monitor_config_text(config, f"file://{lcm_log}?mode=w"))
-    # AF_UNIX socket paths are limited to 108 bytes: the transport's directory is a short temporary one.
-    with tempfile.TemporaryDirectory(prefix="dynid-can-") as sock_dir:
+    # AF_UNIX socket paths are limited to 108 bytes: the transport's directory is a short temporary one. The LCM
+    # log is written in memory (/dev/shm) during the run and moved to `out` after it: a monitor blocked in a
+    # write to a busy disk stops reading, its socket queues (10 datagrams) fill, the boards block and their
+    # frames are stamped late, which the monitor reads as lost samples.
+    shm = Path("/dev/shm")
+    with tempfile.TemporaryDirectory(prefix="dynid-can-") as sock_dir, \
+            tempfile.TemporaryDirectory(prefix="dynid-lcm-", dir=shm if shm.is_dir() else None) as lcm_dir:
+        lcm_log = Path(lcm_dir) / "events.lcmlog"
+        conf.write_text(monitor_config_text(config, f"file://{lcm_log}?mode=w"))
         mon = subprocess.Popen([*monitor_prefix, str(RT_MONITOR), "--model", str(coef), "--config", str(conf), "--loopback", sock_dir,
                                 *monitor_args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
@@ -92,9 +99,11 @@ def play(coef: Path, data: Path, out: Path, robot: str = "icub_right_arm", realt
             if mon.poll() is None:
                 mon.kill()
                 mon.wait()
-    if mon.returncode != 0:
-        raise MissionError(f"rt_monitor failed ({mon.returncode}): {m_err.strip()}")
-    return {"boards": b.stdout, "monitor": m_out, "lcm_log": str(lcm_log), "conf": str(conf)}
+        if mon.returncode != 0:
+            raise MissionError(f"rt_monitor failed ({mon.returncode}): {m_err.strip()}")
+        shutil.move(str(lcm_log), str(final_log))
+    conf.write_text(monitor_config_text(config, f"file://{final_log}?mode=w"))  # as a replay of it would need
+    return {"boards": b.stdout, "monitor": m_out, "lcm_log": str(final_log), "conf": str(conf)}
 
 
 def sample0_us(boards_stdout: str) -> int:
