@@ -70,11 +70,11 @@ def write_candump(data: Dataset, config: RobotConfig, path: str | Path, t0: floa
     t_us = np.round((data.t - data.t[0] + t0) * 1e6).astype(np.int64)
     events: list[tuple[np.ndarray, str, int, np.ndarray, int]] = []  # (times, bus, id, payload bytes (n, dlc))
     counts, sat = _strain_counts(data.ft[s["sensor"]], np.asarray(s["full_scale"], float))
-    raw = (counts + 0x8000).astype("<u2")
+    raw = np.ascontiguousarray(counts + 0x8000, dtype="<u2")  # ft may be column-major (CSV-loaded data)
+    dlc = 7 if sat.any() else 6  # the board's saturation variant (7-byte frames) when a channel clamps in the run
     for half, typ, offset in ((0, 0xA, -100), (1, 0xB, 0)):
         flags = (sat[:, 3 * half:3 * half + 3] * np.array([1, 2, 4])).sum(axis=1).astype(np.uint8)
         payload = np.concatenate([raw[:, 3 * half:3 * half + 3].view(np.uint8).reshape(n, 6), flags[:, None]], axis=1)
-        dlc = 7 if flags.any() else 6  # the 7-byte form only when a channel saturates somewhere in the run
         events.append((t_us + offset, s["bus"], make_id(3, s["address"], typ), payload[:, :dlc], n))
     jidx = {j: i for i, j in enumerate(data.joints)}
     for b in can["motor_control"]:

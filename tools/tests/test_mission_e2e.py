@@ -1,0 +1,99 @@
+"""The mission live, end to end: boards (C emulators, paced in real time) → loopback transport (AF_UNIX datagrams
+of struct can_frame) → rt_monitor → LCM file:// → this process, decoding with the lcm-gen Python types.
+
+Checked against the skin's ground truth on a 25 s stretch of the default contact run (from 1 s before its first
+contact the F/T sensor sees): every episode distal of the F/T sensor is found, with the side named distal. No
+onset may come from a contact-free stretch (an onset must lie between an episode's start and the filter's lag
+plus the debounce after its end): asserted exactly on the same boards' frames through a candump log and
+`rt_monitor --replay` (CAN time stamps); live, where the monitor's sample clock is the send stamp and this
+loaded 2-core machine delays the sender, at most one such onset is tolerated and printed (a known issue: README,
+"Board emulators and the live mission"). Proximal contacts (above the sensor: only the motor PWM residuals see them) are
+reported, not asserted: on the full default run the identified model finds 4 of 13 of them, and 15 of 15 distal
+ones (README, "CAN and LCM").
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dynid.contact_summary import episodes, read_lcm_log, summarize
+from dynid.export import read_coefficients
+from dynid.live_mission import BOARDS, RT_MONITOR, fifo_allowed, fifo_args, play, sample0_us
+
+WINDOW_S = 25.0
+
+
+@pytest.fixture(scope="module")
+def live(default_experiments: dict, default_model: Path, tmp_path_factory: pytest.TempPathFactory) -> dict:
+    root = tmp_path_factory.mktemp("mission")
+    coef = root / "model.dcoef"
+    done = subprocess.run([sys.executable, "-m", "dynid.cli", "export", "--model", str(default_model), "--out", str(coef)],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    lines = (default_experiments["contact"] / "data.csv").read_text().splitlines()
+    head = lines[0].split(",")
+    table = np.array([[float(x) for x in l.split(",")] for l in lines[1:]])
+    side = table[:, head.index("skin.side")]
+    start = int(np.flatnonzero(side == 1.0)[0]) - 1000  # 1 s before the first distal contact
+    assert start > 0 and not table[start, head.index("contact")]
+    rows = lines[1 + start: 1 + start + int(WINDOW_S * 1000)]
+    csv = root / "stretch.csv"
+    csv.write_text("\n".join([lines[0]] + rows) + "\n")
+    # Both live programs SCHED_FIFO where allowed: on this shared 2-core machine a sender woken late bunches its
+    # frames, and the monitor's sample clock is the frames' send time (SO_TIMESTAMP), as it is on a real bus.
+    fifo = fifo_allowed()
+    r = play(coef, csv, root / "out", realtime=True, **fifo_args(fifo))
+    print(r["boards"], r["monitor"], sep="\n")
+    c = read_coefficients(coef)
+    # The same frames with CAN time stamps: boards → candump log → rt_monitor --replay.
+    log, conf = root / "stretch.log", root / "replay.conf"
+    conf.write_text(Path(r["conf"]).read_text().replace(str(Path(r["lcm_log"])), str(root / "replay.lcmlog")))
+    subprocess.run([str(BOARDS), "--config", str(conf), "--data", str(csv), "--sink", f"candump:{log}"], check=True,
+                   capture_output=True)
+    subprocess.run([str(RT_MONITOR), "--model", str(coef), "--config", str(conf), "--replay", str(log)], check=True,
+                   capture_output=True)
+    replay = read_lcm_log(root / "replay.lcmlog")["DYNID_CONTACT"]
+    return {"r": r, "replay": [(int(m.kind), round((m.utime - 1_700_000_000_000_000) / 1000), int(m.side))
+                               for m in replay], "msgs": read_lcm_log(Path(r["lcm_log"])), "data": table[start:start + len(rows)], "head": head,
+            "slack": c.lag + c.debounce_on + 5, "fifo": fifo}
+
+
+def test_all_frames_arrive_and_every_sample_is_assembled(live: dict) -> None:
+    n = len(live["data"])
+    frames = int(live["r"]["boards"].split(" frames,")[0].split()[-1])
+    last = live["msgs"]["DYNID_STATUS"][-1]
+    assert (last.frames, last.samples) == (frames, n)
+    assert last.unknown_id == last.bad_length == last.error_frames == last.unpaired_strain == 0
+    # A late wake-up of the paced sender can still bunch samples; they are counted, and must stay rare.
+    assert last.filter_restarts <= (0.01 if live["fifo"] else 0.2) * n, last.filter_restarts
+
+
+@pytest.mark.parametrize("path", ["replay", "live"])
+def test_every_distal_contact_found_and_no_event_without_contact(live: dict, path: str) -> None:
+    head, data = live["head"], live["data"]
+    contact, side = data[:, head.index("contact")], data[:, head.index("skin.side")]
+    t0 = sample0_us(live["r"]["boards"])
+    events = live["replay"] if path == "replay" else \
+        [(int(m.kind), round((m.utime - t0) / 1000), int(m.side)) for m in live["msgs"]["DYNID_CONTACT"]]
+    eps = episodes(contact)
+    slack = live["slack"]
+    onsets = [(k, s) for kind, k, s in events if kind == 1]
+    false = [k for k, _ in onsets if not any(a <= k <= e + slack for a, e in eps)]
+    print(f"{path}: onsets in contact-free stretches at samples {false}")
+    assert len(false) <= (0 if path == "replay" else 1), f"onsets in contact-free stretches at samples {false}"
+    distal = [(a, e) for a, e in eps if side[a] == 1.0 and e < len(contact)]  # ended inside the stretch
+    assert len(distal) >= 3
+    for a, e in distal:
+        hits = [s for k, s in onsets if a <= k <= e + slack]
+        assert hits, f"the distal contact of samples {a}..{e} was missed"
+        assert hits[0] == 1, "side named wrong"
+    s = summarize(contact, [(kind, k) for kind, k, _ in events], 1e-3, slack)
+    proximal = [(a, e) for a, e in eps if side[a] == -1.0]
+    print(f"{path}: {s['episodes_found']} of {s['episodes']} episodes found ({len(distal)} distal, all found; "
+          f"{len(proximal)} proximal), TPR {s['tpr']:.3f}, FPR {s['fpr']:.3f}, delay {s['delay_median_s']:.3f} s")
+    assert s["false_onsets"] == len(false)
