@@ -1,8 +1,9 @@
 """`dynid gaps --figures DIR`: the gap before/after per channel, and a figure per finding, drawn only from the
 result's numbers (``gap`` and ``profile``, dynid.gaps.profile) with matplotlib's Agg canvas.
 
-A finding is a channel the named effects act on, or a channel whose held-out residual stays above
-UNEXPLAINED × its noise floor after the fix. Each finding's figure shows where its residual grows: by the speed
+A finding is a channel whose residual a named effect (on a joint it depends on) lowers by more than 10 %
+("explained", or "partly explained" while it stays above UNEXPLAINED × its noise floor), or a channel that stays
+above that after the fix ("unexplained"). Each finding's figure shows where its residual grows: by the speed
 of the joint it depends on most (near zero … high speed), at that joint's direction reversals, by position and
 over time, before and after the fix. DIR also gets gaps.json (the result) and figures.json (what is drawn).
 """
@@ -35,10 +36,10 @@ def findings(result: dict) -> list[tuple[str, str, str]]:
         gain = 1 - g["after_over_noise"] / g["before_over_noise"] if g["before_over_noise"] > 0 else 0.0
         joints = prof[ch]["joints"]
         named = [j for j in joints if j in effect_joints]
-        if g["after_over_noise"] > UNEXPLAINED:
+        if named and gain > 0.1:
+            why = "explained" if g["after_over_noise"] <= UNEXPLAINED else "partly explained"
+        elif g["after_over_noise"] > UNEXPLAINED:
             why = "unexplained"
-        elif result.get("effects") and gain > 0.1 and named:
-            why = "explained"
         else:
             continue
         out.append((ch, named[0] if named else _worst_joint(joints), why))
