@@ -94,6 +94,7 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     if (c.n_motors > kMaxMotors) return cap("motors", c.n_motors, kMaxMotors);
     if (c.n_outputs > kMaxOutputs) return cap("outputs", c.n_outputs, kMaxOutputs);
     if (c.window > kMaxWindow) return cap("filter samples", c.window, kMaxWindow);
+    if (c.n_effects > kMaxEffects) return cap("effects", c.n_effects, kMaxEffects);
     auto dim = [](const std::string& m) { return fail(LoadError::kDimension, m); };
     if (c.n_joints < 1 || c.n_bodies < c.n_joints || c.n_outputs < 6 || c.n_motors < 0)
         return dim("dimensions out of range (joints " + str(c.n_joints) + ", bodies " + str(c.n_bodies) + ", outputs " +
@@ -103,6 +104,12 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
                    ", lag " + str(c.lag) + ")");
     if (c.sensor_body < 0 || c.sensor_body >= c.n_bodies) return dim("F/T sensor body out of range");
     if (c.debounce_on < 1 || c.debounce_off < 1) return dim("debounce counts must be at least 1");
+    if (c.n_effects < 0) return dim("negative effect count");
+    for (int k = 0; k < c.n_effects; ++k) {
+        if (c.effect_kind[k] != 1 && c.effect_kind[k] != 2)
+            return dim("effect " + str(k) + ": unknown kind " + str(c.effect_kind[k]) + " (this monitor knows 1 Stribeck, 2 spring)");
+        if (c.effect_joint[k] < 0 || c.effect_joint[k] >= c.n_joints) return dim("effect " + str(k) + ": joint out of range");
+    }
     std::array<bool, kMaxJoints> seen{};
     for (int i = 0; i < c.n_bodies; ++i) {
         if (c.parent[i] < -1 || c.parent[i] >= i) return dim("body " + str(i) + ": parent must come before it");
@@ -141,6 +148,11 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     if (!finite_all(c.divisor) || !finite_all(c.residual_variance)) return nf("the divisors or Λ");
     for (int i = 0; i < 3; ++i)
         if (!finite_all(c.filter[i])) return nf("the derivative filter");
+    for (int k = 0; k < c.n_effects; ++k)
+        if (!finite_all(c.effect_param[k])) return nf("the effects");
+    for (int k = 0; k < c.n_effects; ++k)
+        if (c.effect_kind[k] == 1 && !(c.effect_param[k][1] > 0))
+            return dim("effect " + str(k) + ": the Stribeck velocity must be positive");
     for (double v : {c.min_speed, c.alpha, c.threshold, c.ft_threshold, c.hysteresis, c.sample_period})
         if (!std::isfinite(v)) return nf("the detector or filter settings");
     for (int i = 0; i < c.n_outputs; ++i) {
@@ -216,6 +228,12 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     out.lag = c.lag;
     for (int r = 0; r < 3; ++r)
         for (int i = 0; i < c.window; ++i) out.filter(r, i) = c.filter[r][i];
+    out.n_effects = c.n_effects;
+    for (int k = 0; k < c.n_effects; ++k) {
+        out.effect_kind[k] = EffectKind(c.effect_kind[k]);
+        out.effect_joint[k] = c.effect_joint[k];
+        for (int m = 0; m < 3; ++m) out.effect_param[k][m] = c.effect_param[k][m];
+    }
     return LoadResult{};
 }
 

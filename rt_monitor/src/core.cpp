@@ -114,6 +114,18 @@ void Core::predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y
                               c_.joint_friction(j, 3)};
         load[j] += friction(dq[j], jf);
     }
+    // Effects of an augmented model (dynid.augmented.joint_torques): extra joint torques.
+    for (int k = 0; k < c_.n_effects; ++k) {
+        const int j = c_.effect_joint[k];
+        const auto& p = c_.effect_param[k];
+        if (c_.effect_kind[k] == EffectKind::kStribeck) {
+            const double x = dq[j] / p[1];
+            const double s = dq[j] > 0 ? 1.0 : (dq[j] < 0 ? -1.0 : 0.0);
+            load[j] += p[0] * s * std::exp(-x * x);
+        } else {
+            load[j] += p[0] * (q[j] - p[1]);
+        }
+    }
     out.t2 = out.t2_ft = 0;
     for (int i = 0; i < c_.n_outputs; ++i) {
         out.active[i] = true;

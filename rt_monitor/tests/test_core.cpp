@@ -116,9 +116,9 @@ TEST(Loader, RefusesDamagedBytes) {
     crc[200] ^= 0x40;
     cases.push_back({"flipped bit", crc, LoadError::kCrc, "CRC mismatch"});
     auto version = good;
-    put_le32(version, 8, 2);
+    put_le32(version, 8, 1);  // a file of the format before the effects: refused, not misread
     reseal(version);
-    cases.push_back({"version 2", version, LoadError::kVersion, "format version 2"});
+    cases.push_back({"version 1", version, LoadError::kVersion, "format version 1, this monitor reads 2"});
     auto magic = good;
     magic[0] = 'X';
     cases.push_back({"magic", magic, LoadError::kMagic, "bad magic"});
@@ -138,6 +138,14 @@ TEST(Loader, RefusesDamagedBytes) {
 
 TEST(Core, NoHeapAllocationOver100000Samples) {
     auto c = load_fixture();
+    // With an augmented model's effects on (the CAD fixture has none): their evaluation allocates nothing either.
+    c->n_effects = 2;
+    c->effect_kind[0] = EffectKind::kStribeck;
+    c->effect_joint[0] = 6;
+    c->effect_param[0] = {0.3, 0.05, 0.0};
+    c->effect_kind[1] = EffectKind::kSpring;
+    c->effect_joint[1] = 1;
+    c->effect_param[1] = {1.0, 0.2, 0.0};
     auto core = std::make_unique<Core>(*c);
     std::vector<double> q(7), y(10);
     long alarms = 0;

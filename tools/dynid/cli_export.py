@@ -66,7 +66,7 @@ def _export_cad(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
-    from .export import build_coefficients, describe, read_coefficients, write_coefficients
+    from .export import build_coefficients, describe, exportable_effects, read_coefficients, write_coefficients
     from .online import calibrate_online, estimator_for
 
     if args.print:
@@ -83,6 +83,8 @@ def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
 
     identified = load_model(args.model)
     model = identified.robot_model
+    effects = identified.effects
+    exportable_effects(effects)  # before the (slow) calibration: an effect the monitor lacks is refused at once
     datasets, data_digest = _calibration_data(identified, model, args.data)
     est = estimator_for(model, datasets[0].t, args.lag, args.window)
     for ds in datasets[1:]:
@@ -91,14 +93,16 @@ def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
     det = identified.record.get("detector", {}).get("calibrated", {})
     alpha = float(det.get("alpha", 0.99)) if args.alpha is None else args.alpha
     min_speed = float(det.get("min_speed", 0.01))
-    cal = calibrate_online(model, identified.phi, datasets, est, alpha, min_speed)
+    cal = calibrate_online(model, identified.phi, datasets, est, alpha, min_speed, effects=effects)
     c = build_coefficients(model, identified.phi, cal.variance, cal.threshold, cal.ft_threshold, alpha, min_speed,
                            cal.samples, est, {"model_sha256": file_digest(args.model), "data_sha256": data_digest,
                                                "estimator": str(identified.record.get("estimator", ""))},
-                           args.debounce_on, args.debounce_off, args.hysteresis)
+                           args.debounce_on, args.debounce_off, args.hysteresis, effects)
     size = write_coefficients(c, args.out)
     offline = np.asarray(det.get("variance", cal.variance), float)
     print(f"exported {model.config.name} -> {args.out} ({size} bytes)")
+    for e in effects:
+        print(f"  effect {e.kind} on {e.where}: " + ", ".join(f"{k} {v:.4g}" for k, v in e.parameters.items()))
     print(f"  online filter: fixed-lag Savitzky-Golay, window {est.window}, order {est.order}, lag {est.lag} "
           f"({1e3 * est.lag * est.sample_period:.3g} ms) at {1 / est.sample_period:.6g} Hz")
     print(f"  T²_α (α = {alpha}) through the online filter: {cal.threshold:.4g} (offline {det.get('threshold', float('nan')):.4g});"
@@ -106,7 +110,8 @@ def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
     print("  Λ online / offline: " + ", ".join(f"{n} {a / b:.2f}" for n, a, b in zip(c.channel_names, cal.variance, offline)))
     return {"model": args.model, "out": args.out, "bytes": size, "threshold": cal.threshold,
             "ft_threshold": cal.ft_threshold, "alpha": alpha, "residual_variance": dict(zip(c.channel_names, cal.variance.tolist())),
-            "filter": est.as_dict(), "calibration_samples": cal.samples}
+            "filter": est.as_dict(), "calibration_samples": cal.samples,
+            "effects": [{"kind": e.kind, "where": e.where, "parameters": e.parameters} for e in effects]}
 
 
 def add_commands(sub: argparse._SubParsersAction, json_arg, positive_int) -> None:

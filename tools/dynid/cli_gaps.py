@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from .errors import InputError
+
 
 def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
     from .config import load_config
@@ -12,11 +14,14 @@ def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
     from .gaps.workflow import format_report, run
     from .model import RobotModel
 
-    reference = None
+    reference, identified = None, None
     if args.model:
         from .identified import load_model
 
         identified = load_model(args.model)
+        if identified.effects:
+            raise InputError(f"{args.model} is already an augmented model (it names effects); give the standard "
+                             "model it came from")
         config = identified.config
         reference = (args.model, identified.phi)
     else:
@@ -24,8 +29,22 @@ def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
     model = RobotModel(config)
     ds = load_run(args.data, model)
     result = run(model, ds, reference=reference, log=print)
+    augmented = result.pop("_augmented")
     result["data"] = args.data
     print(format_report(result))
+    if args.out:
+        from .gaps.refit import augmented_model
+
+        aug = augmented_model(model, ds, args.data, result, augmented["phi"], augmented["effects"], identified)
+        aug.save(args.out)
+        result["out"] = args.out
+        kinds = ", ".join(f"{e.kind} on {e.where}" for e in augmented["effects"]) or "no effect (the standard model refitted)"
+        print(f"augmented model -> {args.out}: {kinds}")
+    if args.figures:
+        from .gaps.figures import write_figures
+
+        result["figures"] = write_figures(result, args.figures)
+        print(f"figures -> {args.figures}: {len(result['figures'])} files")
     return result
 
 
@@ -39,5 +58,9 @@ def add_commands(sub: argparse._SubParsersAction, robot_arg, json_arg) -> None:
     sp.add_argument("--data", required=True, metavar="DATA", help="the measured experiment (.csv, candump or .npz)")
     sp.add_argument("--model", metavar="MODEL", help="an identified model: its gap on DATA is shown too "
                     "(its robot configuration is used)")
+    sp.add_argument("--out", metavar="AUGMENTED_MODEL", help="write the refitted model with the named effects "
+                    "(a model file: validate, detect, report and export accept it; export carries Stribeck and spring)")
+    sp.add_argument("--figures", metavar="DIR", help="write a figure per finding and the gap before/after (PNG + "
+                    "gaps.json) to DIR; `dynid report --gaps DIR` shows them")
     json_arg(sp)
     sp.set_defaults(func=cmd_gaps)

@@ -71,6 +71,11 @@ def evaluate(model_path: str, data_path: str, identified: IdentifiedModel | None
     model = identified.robot_model
     ds = dataset if dataset is not None else load_run(data_path, model)
     sig = signals_from_dataset(model, ds, filter_outputs=True)
+    effects = identified.effects  # an augmented model (`dynid gaps --out`) predicts with its named effects
+    if effects:
+        from .augmented import augmented_residuals
+
+        return Evaluated(identified, model, ds, sig, augmented_residuals(model, identified.phi, effects, sig, ds.t - ds.t[0]))
     return Evaluated(identified, model, ds, sig, residuals(model, identified.phi, sig))
 
 

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
+from .augmented import EXPORTABLE
 from .dataset import atomic_write
 from .errors import DataError
 from .lcm_coefficients import coefficients_t
@@ -31,7 +32,7 @@ from .outputs import output_channels
 from .regressors.stack import group_row_maps
 
 MAGIC = b"DYNIDCOF"
-FILE_VERSION = 1
+FILE_VERSION = 2  # 2: the effects of an augmented model (Stribeck, spring); version 1 files are refused
 HEADER = struct.Struct("<8sII")
 KIND = {"ft": 0, "input": 1, "torque": 2}
 JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
@@ -105,8 +106,9 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, variance: np.ndarray,
                        ft_threshold: float, alpha: float, min_speed: float, samples: int,
                        est: FixedLagSavitzkyGolay, provenance: dict[str, str],
                        debounce_on: int = DEFAULT_DEBOUNCE_ON, debounce_off: int = DEFAULT_DEBOUNCE_OFF,
-                       hysteresis: float = DEFAULT_HYSTERESIS) -> coefficients_t:
+                       hysteresis: float = DEFAULT_HYSTERESIS, effects: list | None = None) -> coefficients_t:
     cfg, layout, pm = model.config, model.layout, model.pin_model
+    exportable_effects(effects or [])
     if len(cfg.ft_sensors) != 1:
         raise DataError(f"the monitor needs exactly one F/T sensor; {cfg.name} has {len(cfg.ft_sensors)}")
     c = coefficients_t()
@@ -192,7 +194,25 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, variance: np.ndarray,
     c.debounce_on, c.debounce_off, c.hysteresis = int(debounce_on), int(debounce_off), float(hysteresis)
     c.sample_period, c.window, c.order, c.lag = est.sample_period, est.window, est.order, est.lag
     c.filter = est.weights().tolist()
+    c.n_effects, c.effect_kind, c.effect_joint, c.effect_param = 0, [], [], []
+    for e in effects or []:
+        p = e.parameters
+        c.effect_kind.append(EXPORTABLE[e.kind])
+        c.effect_joint.append(col[e.target[1]])
+        c.effect_param.append([p["static_torque"], p["velocity"], 0.0] if e.kind == "stribeck"
+                              else [p["stiffness"], p["rest"], 0.0])
+    c.n_effects = len(c.effect_kind)
     return c
+
+
+def exportable_effects(effects: list) -> None:
+    """The monitor implements Stribeck friction and the spring torque; any other effect is refused, named."""
+    for e in effects:
+        if e.kind not in EXPORTABLE:
+            raise DataError(f"the monitor does not implement effect '{e.kind}' (on {e.where}); it exports only "
+                            f"{' and '.join(EXPORTABLE)}: refit without it (dynid gaps) or drop it from the model file")
+        if e.kind == "stribeck" and not e.parameters["velocity"] > 0:
+            raise DataError(f"stribeck on {e.where}: the Stribeck velocity must be positive")
 
 
 def describe(c: coefficients_t) -> str:
@@ -224,4 +244,10 @@ def describe(c: coefficients_t) -> str:
                  f"off {c.debounce_off}, hysteresis {c.hysteresis}")
     lines.append(f"derivatives: fixed-lag Savitzky-Golay, window {c.window}, order {c.order}, lag {c.lag} "
                  f"({1e3 * c.lag * c.sample_period:.3g} ms), period {c.sample_period:.6g} s")
+    names = {1: "stribeck", 2: "spring"}
+    for k in range(c.n_effects):
+        j, p = c.joint_names[c.effect_joint[k]], c.effect_param[k]
+        what = (f"extra static torque {p[0]:.6g} Nm, Stribeck velocity {p[1]:.6g} rad/s" if c.effect_kind[k] == 1
+                else f"stiffness {p[0]:.6g} Nm/rad, rest {p[1]:.6g} rad")
+        lines.append(f"effect {names.get(c.effect_kind[k], '?')} on joint {j}: {what}")
     return "\n".join(lines)

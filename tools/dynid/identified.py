@@ -17,6 +17,8 @@ JSON (``format: dynid-model``, ``format_version: 1``), written atomically:
     derivatives       the offline derivative estimator (the configuration's)
     data              [{path, sha256, samples, duration_s}]: what it was fitted on
     detector          calibration for T² (added by the fit; see dynid.detection)
+    effects           (format_version 2, written by `dynid gaps --out`) the named missing effects, refitted with
+                      the standard parts (dynid.augmented); `gaps` what the refit was made on and its gap
 """
 
 from __future__ import annotations
@@ -36,7 +38,7 @@ from .errors import DataError
 from .model import RobotModel
 
 FORMAT_NAME = "dynid-model"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: an `effects` section; files without one are still written as 1
 
 
 @dataclass
@@ -69,6 +71,12 @@ class IdentifiedModel:
         return np.array([self.parameters[n] for n in names], dtype=float)
 
     @property
+    def effects(self) -> list:  # list[dynid.augmented.Effect]
+        from .augmented import parse_effects
+
+        return parse_effects(self.record.get("effects"), self.robot_model, self.path or "model file")
+
+    @property
     def output_channels(self) -> list[str]:
         return list(self.record["outputs"]["channels"])
 
@@ -84,7 +92,8 @@ class IdentifiedModel:
         return ind + (np.asarray(b["K"], dtype=float).reshape(len(ind), len(dep)) @ dep if len(dep) else 0.0)
 
     def to_json(self) -> dict[str, Any]:
-        return {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "robot": self.robot,
+        version = FORMAT_VERSION if self.record.get("effects") else 1
+        return {"format": FORMAT_NAME, "format_version": version, "robot": self.robot,
                 "parameters": self.parameters, **self.record}
 
     def save(self, path: str | Path) -> None:

@@ -14,11 +14,11 @@ import struct
 
 class coefficients_t(object):
 
-    __slots__ = ["robot_name", "config_digest", "dynid_version", "model_sha256", "data_sha256", "estimator", "n_joints", "joint_names", "n_bodies", "body_names", "parent", "joint_type", "joint_index", "axis", "rotation", "translation", "inertial", "gravity", "sensor_body", "sensor_name", "n_motors", "motor_names", "motor_velocity", "motor_friction_on", "motor_friction", "joint_friction", "n_outputs", "channel_names", "channel_kind", "ft_offset", "row_map", "channel_motor", "divisor", "residual_variance", "gate_joints", "gate_motors", "min_speed", "alpha", "threshold", "ft_threshold", "calibration_samples", "debounce_on", "debounce_off", "hysteresis", "sample_period", "window", "order", "lag", "filter"]
+    __slots__ = ["robot_name", "config_digest", "dynid_version", "model_sha256", "data_sha256", "estimator", "n_joints", "joint_names", "n_bodies", "body_names", "parent", "joint_type", "joint_index", "axis", "rotation", "translation", "inertial", "gravity", "sensor_body", "sensor_name", "n_motors", "motor_names", "motor_velocity", "motor_friction_on", "motor_friction", "joint_friction", "n_outputs", "channel_names", "channel_kind", "ft_offset", "row_map", "channel_motor", "divisor", "residual_variance", "gate_joints", "gate_motors", "min_speed", "alpha", "threshold", "ft_threshold", "calibration_samples", "debounce_on", "debounce_off", "hysteresis", "sample_period", "window", "order", "lag", "filter", "n_effects", "effect_kind", "effect_joint", "effect_param"]
 
-    __typenames__ = ["string", "string", "string", "string", "string", "string", "int32_t", "string", "int32_t", "string", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "double", "int32_t", "string", "int32_t", "string", "double", "int8_t", "double", "double", "int32_t", "string", "int8_t", "double", "double", "int32_t", "double", "double", "int64_t", "int64_t", "double", "double", "double", "double", "int32_t", "int32_t", "int32_t", "double", "double", "int32_t", "int32_t", "int32_t", "double"]
+    __typenames__ = ["string", "string", "string", "string", "string", "string", "int32_t", "string", "int32_t", "string", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "double", "int32_t", "string", "int32_t", "string", "double", "int8_t", "double", "double", "int32_t", "string", "int8_t", "double", "double", "int32_t", "double", "double", "int64_t", "int64_t", "double", "double", "double", "double", "int32_t", "int32_t", "int32_t", "double", "double", "int32_t", "int32_t", "int32_t", "double", "int32_t", "int8_t", "int32_t", "double"]
 
-    __dimensions__ = [None, None, None, None, None, None, None, ["n_joints"], None, ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies", 3], ["n_bodies", 9], ["n_bodies", 3], ["n_bodies", 10], [3], None, None, None, ["n_motors"], ["n_motors", "n_joints"], ["n_motors"], ["n_motors", 4], ["n_joints", 4], None, ["n_outputs"], ["n_outputs"], [6], ["n_outputs", "n_joints"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], None, None, None, None, None, None, None, None, None, None, None, None, [3, "window"]]
+    __dimensions__ = [None, None, None, None, None, None, None, ["n_joints"], None, ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies", 3], ["n_bodies", 9], ["n_bodies", 3], ["n_bodies", 10], [3], None, None, None, ["n_motors"], ["n_motors", "n_joints"], ["n_motors"], ["n_motors", 4], ["n_joints", 4], None, ["n_outputs"], ["n_outputs"], [6], ["n_outputs", "n_joints"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], None, None, None, None, None, None, None, None, None, None, None, None, [3, "window"], None, ["n_effects"], ["n_effects"], ["n_effects", 3]]
 
     def __init__(self):
         self.robot_name = ""
@@ -275,6 +275,20 @@ class coefficients_t(object):
         LCM Type: double[3][window]
         """
 
+        self.n_effects = 0
+        """
+        effects named by `dynid gaps` (format version 2): extra joint torques added to τ + τ_f of joint
+        effect_joint. Kind 1 Stribeck: p0·sign(q̇)·exp(−(q̇/p1)²), p0 extra static torque (Nm), p1 Stribeck
+        velocity (rad/s). Kind 2 spring: p0·(q − p1), p0 stiffness (Nm/rad), p1 rest position (rad). p2 unused (0).
+        LCM Type: int32_t
+        """
+
+        self.effect_kind = []
+        """ LCM Type: int8_t[n_effects] """
+        self.effect_joint = []
+        """ LCM Type: int32_t[n_effects] """
+        self.effect_param = []
+        """ LCM Type: double[n_effects][3] """
 
     def encode(self):
         buf = BytesIO()
@@ -367,6 +381,11 @@ class coefficients_t(object):
         buf.write(struct.pack(">ddddiiiddiii", self.min_speed, self.alpha, self.threshold, self.ft_threshold, self.calibration_samples, self.debounce_on, self.debounce_off, self.hysteresis, self.sample_period, self.window, self.order, self.lag))
         for i0 in range(3):
             buf.write(struct.pack('>%dd' % self.window, *self.filter[i0][:self.window]))
+        buf.write(struct.pack(">i", self.n_effects))
+        buf.write(struct.pack('>%db' % self.n_effects, *self.effect_kind[:self.n_effects]))
+        buf.write(struct.pack('>%di' % self.n_effects, *self.effect_joint[:self.n_effects]))
+        for i0 in range(self.n_effects):
+            buf.write(struct.pack('>3d', *self.effect_param[i0][:3]))
 
     @staticmethod
     def decode(data: bytes):
@@ -456,12 +475,18 @@ class coefficients_t(object):
         self.filter = []
         for i0 in range(3):
             self.filter.append(struct.unpack('>%dd' % self.window, buf.read(self.window * 8)))
+        self.n_effects = struct.unpack(">i", buf.read(4))[0]
+        self.effect_kind = struct.unpack('>%db' % self.n_effects, buf.read(self.n_effects))
+        self.effect_joint = struct.unpack('>%di' % self.n_effects, buf.read(self.n_effects * 4))
+        self.effect_param = []
+        for i0 in range(self.n_effects):
+            self.effect_param.append(struct.unpack('>3d', buf.read(24)))
         return self
 
     @staticmethod
     def _get_hash_recursive(parents):
         if coefficients_t in parents: return 0
-        tmphash = (0xe1ea63a56e540748) & 0xffffffffffffffff
+        tmphash = (0x738e806ec911deab) & 0xffffffffffffffff
         tmphash  = (((tmphash<<1)&0xffffffffffffffff) + (tmphash>>63)) & 0xffffffffffffffff
         return tmphash
     _packed_fingerprint = None

@@ -136,16 +136,18 @@ class OnlineCalibration:
 
 
 def calibrate_online(model: RobotModel, phi: np.ndarray, datasets: list, est: FixedLagSavitzkyGolay, alpha: float,
-                     min_speed: float, stride: int = 2) -> OnlineCalibration:
-    """Λ and the thresholds of dynid's calibrated detector, on contact-free data seen through the online filter."""
+                     min_speed: float, stride: int = 2, effects: list | None = None) -> OnlineCalibration:
+    """Λ and the thresholds of dynid's calibrated detector, on contact-free data seen through the online filter
+    (with the augmented model's `effects`, dynid.augmented, as the monitor evaluates them)."""
+    from .augmented import augmented_residuals
     from .detection import calibrate
-    from .outputs import output_channels, residuals
+    from .outputs import output_channels
 
     es, dqs = [], []
     for ds in datasets:
         sig = online_signals(model, est, *raw_signals(model, ds))
         sig = sig.slice(slice(None, None, stride))
-        es.append(residuals(model, phi, sig))
+        es.append(augmented_residuals(model, phi, effects or [], sig))
         dqs.append(sig.dq)
     e, dq = np.vstack(es), np.vstack(dqs)
     det = calibrate(model, phi, e, dq, alpha, min_speed)["calibrated"]

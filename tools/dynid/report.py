@@ -76,6 +76,11 @@ def cmd_report(args: argparse.Namespace) -> dict[str, Any]:
         raise DataError(f"cannot write '{out}': the directory {out.parent} does not exist")
     if out.exists() and not out.is_file():
         raise DataError(f"cannot write '{out}': it exists and is not a regular file")
+    gaps_section = None
+    if args.gaps:  # read before minutes of work: a bad directory fails at once
+        from .gaps.figures import report_section
+
+        gaps_section = report_section(args.gaps)
     identified = load_model(args.model)
     model = identified.robot_model
     ds_val = load_run(args.validation, model)
@@ -117,6 +122,10 @@ def cmd_report(args: argparse.Namespace) -> dict[str, Any]:
         "figures": [f[0] for f in state["figures"]],
     }
     html_text = _page(result, identified, units, state["figures"])
+    if gaps_section is not None:  # `dynid gaps --figures DIR`: its section goes before the closing tags
+        extra, gaps = gaps_section
+        html_text = html_text.replace("\n</body></html>", "\n" + "\n".join(extra) + "\n</body></html>")
+        result["gaps"] = {"dir": args.gaps, "effects": gaps.get("effects", []), "gap": gaps["gap"]}
     atomic_write(out, lambda f: f.write(html_text.encode("utf-8")))
 
     print(f"report of {args.model} ({identified.config.name}) -> {out}")
@@ -252,5 +261,7 @@ def add_report_command(sub: argparse._SubParsersAction, json_arg) -> None:
     sp.add_argument("--n-mode", choices=["dim", "nu"], default="dim", help="n of the paper's F threshold")
     sp.add_argument("--window", type=positive_float, default=DEFAULT_WINDOW_S, metavar="S",
                     help=f"length of the predicted-against-measured window (default {DEFAULT_WINDOW_S:g} s)")
+    sp.add_argument("--gaps", metavar="DIR", help="add the model-gap section: the figures and numbers of "
+                    "`dynid gaps --figures DIR`")
     json_arg(sp)
     sp.set_defaults(func=cmd_report)

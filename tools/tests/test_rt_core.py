@@ -225,7 +225,7 @@ def _bad_files(good: bytes) -> dict[str, tuple[bytes, int, str]]:
     flipped = bytearray(good)
     flipped[len(good) // 2] ^= 0x01
     bad["wrong CRC"] = (bytes(flipped), EXIT_BASE + 5, "CRC mismatch")
-    bad["wrong version"] = (wrap(payload, version=2), EXIT_BASE + 4, "format version 2")
+    bad["wrong version"] = (wrap(payload, version=1), EXIT_BASE + 4, "format version 1, this monitor reads 2")
 
     c = coefficients_t.decode(payload)
     nj = 9  # capacity is 8

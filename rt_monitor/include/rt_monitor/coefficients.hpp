@@ -17,8 +17,9 @@ constexpr int kMaxBodies = 12;
 constexpr int kMaxMotors = 8;
 constexpr int kMaxOutputs = 16;
 constexpr int kMaxWindow = 64;
+constexpr int kMaxEffects = 8;
 
-constexpr uint32_t kFileVersion = 1;
+constexpr uint32_t kFileVersion = 2;  // 2: effects (Stribeck, spring) of an augmented model
 constexpr char kMagic[8] = {'D', 'Y', 'N', 'I', 'D', 'C', 'O', 'F'};
 
 using Vec3 = Eigen::Vector3d;
@@ -27,6 +28,9 @@ using Vec6 = Eigen::Matrix<double, 6, 1>;
 
 enum class JointType : int8_t { kFixed = 0, kRevolute = 1, kPrismatic = 2 };
 enum class ChannelKind : int8_t { kFt = 0, kInput = 1, kTorque = 2 };
+// Extra joint torques of an augmented model (`dynid gaps --out`), added to τ + τ_f of their joint:
+// Stribeck p0·sign(q̇)·exp(−(q̇/p1)²), spring p0·(q − p1).
+enum class EffectKind : int8_t { kStribeck = 1, kSpring = 2 };
 
 struct Coefficients {
     std::string robot_name, config_digest, dynid_version, model_sha256, data_sha256, estimator;
@@ -59,6 +63,11 @@ struct Coefficients {
     double sample_period = 0;
     int window = 0, order = 0, lag = 0;
     Eigen::Matrix<double, 3, kMaxWindow> filter = decltype(filter)::Zero();
+
+    int n_effects = 0;
+    std::array<EffectKind, kMaxEffects> effect_kind{};
+    std::array<int, kMaxEffects> effect_joint{};
+    std::array<std::array<double, 3>, kMaxEffects> effect_param{};
 
     std::array<std::string, kMaxJoints> joint_names;
     std::array<std::string, kMaxOutputs> channel_names;

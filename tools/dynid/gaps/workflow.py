@@ -23,6 +23,8 @@ from ..model import RobotModel
 from ..outputs import output_channels
 from ..regressors.stack import fill_rows, row_channels
 from .candidates import LIBRARY, NOT_IN_LIBRARY, Candidate, Context, refined
+from .profile import profile
+from .refit import reference_phi, refit
 from .selection import Design, Trial, evaluate, weighted_columns
 
 MAX_SAMPLES = 6000  # decimated samples kept: the filtered signals are smooth, and selection stays seconds
@@ -152,17 +154,12 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
         named.append({"trial": best})
 
     # Final refit with every named effect; coefficients in row units (the columns were weighted like the rows).
-    x, _ = current.fit(None)
-    phi = V @ x[:dof]
-    effects = []
-    start = dof
-    for c, item in zip(accepted, named):
-        k = c.values.shape[2]
-        th = x[start : start + k]
-        start += k
-        tr: Trial = item["trial"]
-        effects.append({"name": c.kind, "where": c.where, "parameters": c.interpret(th, phi),
-                        "search": c.nonlinear, "cv_gain": tr.gain, "p_value": tr.p_value})
+    # Φ outside the run's identifiable subspace keeps the given model's (or CAD) values (dynid.gaps.refit).
+    resid_after = y - current.D @ current.fit(None)[0]
+    phi, fitted = refit(current, V, accepted, ctx, reference_phi(model, reference[1] if reference else None))
+    effects = [{"name": f.kind, "where": f.where, "parameters": f.parameters, "standard_errors": f.standard_errors,
+                "search": dict(c.nonlinear), "cv_gain": item["trial"].gain, "p_value": item["trial"].p_value}
+               for f, c, item in zip(fitted, accepted, named)]
     after = _rms_per_channel(cur_cv.sum(axis=0), current.rows.sum(axis=0))
 
     best_by_key: dict[str, Trial] = {}
@@ -183,9 +180,12 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
                 for ch, bf, af, gv in zip(channels, before, after, given if given is not None else before)],
         "given_model": reference[0] if reference is not None else None,
         "where": _where(model, ctx, resid0, w),
+        "profile": profile(model, ctx, resid0, resid_after, w),  # binned, before/after: what the figures plot
         "ruled_out": ruled_out[:12],
         "not_in_library": list(NOT_IN_LIBRARY),
         "seconds": elapsed,
+        # the augmented model (`dynid gaps --out`): not part of the --json result (see cli_gaps)
+        "_augmented": {"phi": phi, "effects": fitted},
     }
 
 

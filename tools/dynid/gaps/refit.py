@@ -1,0 +1,115 @@
+"""The refit with the named effects, as an augmented model: full Φ, each effect's parameters with block-jackknife
+standard errors, and the model file `dynid gaps --out` writes (dynid.identified, dynid.augmented)."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..augmented import UNITS, Effect, augmented_residuals
+from ..dataset import SIMULATION_DATASET, Dataset
+from ..identification import FitSettings, SignalSource
+from ..identified import IdentifiedModel, file_digest, robot_record
+from ..model import RobotModel
+from ..outputs import output_channels
+from .candidates import Candidate, Context
+from .selection import Design, _solve
+
+CALIBRATION_CHUNK, CALIBRATION_STRIDE = 30_000, 2  # as `dynid fit` calibrates T²
+
+
+def reference_phi(model: RobotModel, given: np.ndarray | None) -> np.ndarray:
+    """What fills the directions the run cannot see: the given model's Φ, else CAD inertia and zeros."""
+    return np.asarray(given, float) if given is not None else np.nan_to_num(model.cad_parameters(), nan=0.0)
+
+
+def refit(current: Design, V: np.ndarray, accepted: list[Candidate], ctx: Context,
+          phi_ref: np.ndarray) -> tuple[np.ndarray, list[Effect]]:
+    """(Φ, effects) of the final fit. Φ = Φ_ref outside the identifiable subspace V, the fit inside it.
+    Standard errors: block jackknife (the rows are correlated within a block, not across blocks)."""
+    dof = V.shape[1]
+    G, g = current.augmented(None)
+    Gb, gb = G.sum(axis=1), g.sum(axis=1)
+    x = _solve(Gb.sum(axis=0), gb.sum(axis=0))
+    folds = [_solve(Gb.sum(axis=0) - Gb[b], gb.sum(axis=0) - gb[b]) for b in range(current.n_blocks)]
+
+    def full(xx: np.ndarray) -> np.ndarray:
+        return phi_ref - V @ (V.T @ phi_ref) + V @ xx[:dof]
+
+    phi = full(x)
+    effects, start = [], dof
+    B = current.n_blocks
+    for c in accepted:
+        k = c.values.shape[2]
+        th = x[start : start + k]
+        params = dict(c.interpret(th, phi))
+        jack = [c.interpret(xb[start : start + k], full(xb)) for xb in folds]
+        se: dict[str, float | None] = {}
+        for name in params:
+            if name in c.nonlinear:  # found by search, not by regression
+                se[name] = None
+                continue
+            vals = np.array([j[name] for j in jack], float)
+            se[name] = float(np.sqrt((B - 1) / B * np.sum((vals - vals.mean()) ** 2)))
+        if c.kind == "spring":  # the column was q − mean(q) of this run: the rest position the torque is zero at
+            j = ctx.model.config.joints.index(c.where.partition(" ")[2])
+            params["rest"], se["rest"] = float(ctx.sig.q[:, j].mean()), None
+        start += k
+        effects.append(Effect(c.kind, c.where, params, se, tuple(float(v) for v in th), dict(c.nonlinear)))
+    return phi, effects
+
+
+def effect_summary(effects: list[Effect]) -> list[dict[str, Any]]:
+    return [{"name": e.kind, "where": e.where, "parameters": e.parameters, "standard_errors": e.standard_errors,
+             "units": {k: UNITS.get(k, "") for k in e.parameters}} for e in effects]
+
+
+def augmented_model(model: RobotModel, ds: Dataset, data_path: str, result: dict, phi: np.ndarray,
+                    effects: list[Effect], given: IdentifiedModel | None, alpha: float = 0.99,
+                    min_speed: float = 0.01) -> IdentifiedModel:
+    """The model file of the refit: the given model's sections (or a fresh record), the refitted Φ, the effects,
+    Λ and the T² detector recalibrated on the run with the effects (so detect and export see the augmented
+    residuals). Sections that describe the given model's own fit (base, estimators, cv) are dropped: they no
+    longer describe these parameters."""
+    from ..detection import calibrate
+
+    record: dict[str, Any] = copy.deepcopy(given.record) if given is not None else {}
+    for stale in ("base", "estimators", "cv", "n_components", "fit_time_s"):
+        record.pop(stale, None)
+    if given is not None:
+        det = record.get("detector", {}).get("calibrated", {})
+        alpha, min_speed = float(det.get("alpha", alpha)), float(det.get("min_speed", min_speed))
+    source = SignalSource(model, ds, FitSettings(), instruments=False)
+    es, dqs = [], []
+    for lo in range(0, ds.n_samples, CALIBRATION_CHUNK):
+        hi = min(lo + CALIBRATION_CHUNK, ds.n_samples)
+        sig = source(lo, hi)[0]
+        keep = slice(None, None, CALIBRATION_STRIDE)
+        es.append(augmented_residuals(model, phi, effects, sig.slice(keep), ds.t[lo:hi][keep] - ds.t[0]))
+        dqs.append(sig.dq[keep])
+    e, dq = np.vstack(es), np.vstack(dqs)
+    detectors = calibrate(model, e, dq, alpha, min_speed)
+    outs = output_channels(model)
+    path = Path(data_path)
+    digest_path = path / SIMULATION_DATASET if path.is_dir() else path
+    record.update({
+        "estimator": "gaps",
+        "settings": {**record.get("settings", {}), "estimator": "gaps", "alpha": alpha, "min_speed": min_speed},
+        "outputs": {"channels": [o.name for o in outs], "units": [o.unit for o in outs],
+                    "noise_std": [o.sigma for o in outs],
+                    "residual_variance": detectors["calibrated"].variance.tolist()},
+        "detector": {**{k: d.as_dict() for k, d in detectors.items()}, "calibration_samples": int(e.shape[0])},
+        "data": [{"path": str(path.resolve()), "sha256": file_digest(digest_path), "samples": ds.n_samples,
+                  "duration_s": ds.duration}],
+        "effects": [eff.as_dict() for eff in effects],
+        "gaps": {"given_model": result.get("given_model"), "gap": result["gap"], "thresholds": result["thresholds"],
+                 "rank": result["rank"], "blocks": result["blocks"]},
+    })
+    robot = given.robot if given is not None else robot_record(model.config)
+    if "derivatives" not in record:
+        cfg = model.config
+        record["derivatives"] = {"method": "savgol", **cfg.derivatives} if cfg.derivatives else {"method": "savgol"}
+    return IdentifiedModel(robot, dict(zip(model.layout.names, phi.tolist())), record)
