@@ -310,7 +310,6 @@ def ft_gain(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
     that is the right-hand side itself); row a gains Σ_b E_ab w_b, with E trace-free (see `_trace_free_basis`)."""
     if ctx.rigid is None:
         return
-    axes = ("fx", "fy", "fz", "tx", "ty", "tz")
     P = _trace_free_basis()
     for i, s in enumerate(ctx.model.config.ft_sensors):
         w = ctx.rigid[:, 6 * i : 6 * i + 6]
@@ -320,10 +319,9 @@ def ft_gain(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
         values = full @ P
 
         def interpret(th: np.ndarray, phi: np.ndarray) -> dict[str, float | list]:
-            E = (P @ th).reshape(6, 6)
-            off = E[~np.eye(6, dtype=bool)]
-            return {"gain_rms": float(np.sqrt(np.mean(np.diag(E) ** 2))), "crosstalk_rms": float(np.sqrt(np.mean(off**2))),
-                    **{f"gain_{c}": float(E[k, k]) for k, c in enumerate(axes)}, "matrix": E.tolist()}
+            # Not printed as gains: arm motion cannot separate E from the inertias beyond the sensor (README).
+            return {"matrix": (P @ th).reshape(6, 6).tolist(),
+                    "note": "E (trace-free, --json) corrects the wrench; its entries are not identifiable one by one"}
 
         yield Candidate("ft_gain", f"sensor {s.name}", {}, values, tuple(f"E{k}" for k in range(35)), interpret)
 
@@ -353,5 +351,6 @@ def refined(ctx: Context, best: Candidate) -> list[Candidate]:
     return [c for c in LIBRARY[best.kind](ctx, tuple(float(v) for v in value * (1 + REFINE))) if c.where == best.where]
 
 
-# Effects of dynid's simulator this library does not model yet: named in the report as not ruled out.
+# Effects of dynid's simulator this library cannot name: named in the report as not ruled out. A payload is a
+# change of one link's inertial parameters, which the standard model refitted on the run absorbs exactly.
 NOT_IN_LIBRARY = ("payload",)

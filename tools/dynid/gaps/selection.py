@@ -20,13 +20,6 @@ from scipy import stats as sps
 from .candidates import Candidate
 
 
-def _solve(G: np.ndarray, g: np.ndarray) -> np.ndarray:
-    """Minimum-norm least squares from normal equations (the augmented design may be rank deficient)."""
-    s, V = np.linalg.eigh(G)
-    keep = s > 1e-10 * max(s.max(), 1e-300)
-    return V[:, keep] @ ((V[:, keep].T @ g) / s[keep])
-
-
 SPAN_TOL = 1e-9  # a candidate direction whose residual after the design is below this share of its size: spanned
 
 
