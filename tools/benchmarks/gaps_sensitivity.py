@@ -11,7 +11,7 @@ Bounded: short runs (30 s), early stops, and a wall-clock budget after which the
 not measured. Results are written atomically to --json after every effect.
 
     .venv/bin/python tools/benchmarks/gaps_sensitivity.py [--seeds 5] [--need 4] [--duration 30]
-        [--budget-min 40] [--only cogging,spring] [--json FILE]
+        [--budget-min 40] [--only cogging,spring] [--ladder-scale 0.25] [--json FILE]
 """
 
 from __future__ import annotations
@@ -87,6 +87,7 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=30.0)
     ap.add_argument("--budget-min", type=float, default=40.0)
     ap.add_argument("--only", default="", help="comma-separated effects (default: all)")
+    ap.add_argument("--ladder-scale", type=float, default=1.0, help="multiply every rung (to bracket lower)")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     started = time.perf_counter()
@@ -103,7 +104,7 @@ def main() -> None:
     for name in chosen:
         template, ladder, unit = LADDERS[name]
         row: dict = {"unit": unit, "rungs": [], "smallest_reliable": None}
-        for m in ladder:
+        for m in (float(x) * args.ladder_scale for x in ladder):
             if time.perf_counter() - started > 60 * args.budget_min:
                 row["stopped"] = "budget"
                 break
