@@ -52,7 +52,8 @@ def add_commands(sub: argparse._SubParsersAction, robot_arg, json_arg) -> None:
     sp = sub.add_parser(
         "gaps", help="where model and data disagree, which missing effect explains it, and the gap after the fix",
         description="Refit the standard model on DATA, measure the residual per channel on held-out time blocks, "
-        "select missing effects from a library (Stribeck, spring, cogging, PWM dead-zone, F/T drift) by "
+        "select missing effects from a library (Stribeck, spring, cogging, PWM dead-zone, F/T drift, armature, "
+        "load-dependent friction, PWM delay, coupling error, base tilt, F/T gain) by "
         "cross-validated forward selection, refit with them and print the gap before and after per channel.")
     robot_arg(sp)
     sp.add_argument("--data", required=True, metavar="DATA", help="the measured experiment (.csv, candump or .npz)")

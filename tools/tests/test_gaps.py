@@ -7,12 +7,18 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from conftest import dynid
 
-DURATION = "45"  # s: each case costs ~5 s of simulation and ~5-10 s of analysis (idle machine)
+DURATION = "45"  # s: each case costs ~10 s of simulation and ~5-10 s of analysis (idle machine)
 
+# One simulated run per case (same arm, robot seed 0), one effect per run: combining effects on channels that do
+# not share a row was tried and weakens the claim (F/T gain + armature on m3: the F/T gain's freedom moves the
+# elbow inertias, armature came out 0.0155 for 0.03), so only the "two" case combines, on purpose. Magnitudes are the plant's defaults where those are visible on 45 s of this slow reaching motion, larger where
+# they are not (README "Model gaps" has the sensitivity table: armature 0.01 kg m², load friction 0.05 and delays
+# up to ~40 ms hide in the noise or in the standard model here).
 CASES = {
     "control": [],
     "cogging": ["cogging"],
@@ -20,9 +26,16 @@ CASES = {
     "spring": ["spring"],
     "stribeck": ["stribeck:joint=r_shoulder_pitch,excess=2,velocity=0.05"],
     "pwm_deadzone": ["pwm_deadzone"],
+    "base_tilt": ["base_tilt"],
+    "load_friction": ["load_friction:coefficient=0.15"],
+    "pwm_delay": ["pwm_delay:ms=100"],
+    "ft_gain": ["ft_gain"],
+    "armature": ["armature:inertia=0.03"],
     "two": ["cogging:motor=m3", "spring:joint=r_shoulder_yaw,stiffness=1.0"],
-    "outside": ["base_tilt"],  # not in the library
+    "outside": ["drag"],  # quadratic drag on r_elbow: not in the library
 }
+FT = [f"ft.r_arm_ft.{c}" for c in ("fx", "fy", "fz", "tx", "ty", "tz")]
+PWM = [f"pwm.m{i}" for i in range(4)]
 
 
 @pytest.fixture(scope="module")
@@ -57,6 +70,10 @@ def _named(result: dict) -> list[tuple[str, str]]:
     return [(e["name"], e["where"]) for e in result["effects"]]
 
 
+def _effect(result: dict, name: str) -> dict:
+    return next(e for e in result["effects"] if e["name"] == name)
+
+
 def test_control_names_nothing(gaps) -> None:
     result, _, stdout = gaps("control")
     assert result["effects"] == []
@@ -70,31 +87,51 @@ def _stribeck_static(truth: dict) -> float:
     return float(e["excess"]) * (coulomb[0] + coulomb[1]) / 2
 
 
+# (case, effect, where, estimated parameter, its truth key (None: computed), channels it acts on, bound after/floor)
+# The floor of a channel is max(its noise σ, its held-out RMS in the control run of the same arm): the shoulder's
+# pwm.m0/m1 sit at 1.8–2.2 σ with no hidden effect (the plant's supply-voltage variation and stiction, which the
+# standard model lacks), so there 1.3× is judged against what the standard model achieves without the effect.
 # The dead-zone's one-column form (sign u) leaves the filtered zero crossings unexplained: 1.4× noise measured.
-@pytest.mark.parametrize(
-    "case, where, parameter, truth_key, channels, floor",
-    [
-        ("cogging", "motor m3", "amplitude", "amplitude", ["pwm.m3"], 1.3),
-        ("spring", "joint r_elbow", "stiffness", "stiffness", ["pwm.m3"], 1.3),
-        ("stribeck", "joint r_shoulder_pitch", "static_torque", None, ["pwm.m0"], None),
-        ("pwm_deadzone", "motor m3", "width", "width", ["pwm.m3"], 1.5),
-        ("ft_drift", "sensor r_arm_ft", "force", "force", [f"ft.r_arm_ft.{c}" for c in ("fx", "fy", "fz", "tx", "ty", "tz")], 1.3),
-    ],
-)
-def test_hidden_effect_is_named_and_closed(gaps, case: str, where: str, parameter: str, truth_key: str | None,
-                                           channels: list[str], floor: float | None) -> None:
+EXPECTED = [
+    ("cogging", "cogging", "motor m3", "amplitude", "amplitude", ["pwm.m3"], 1.3),
+    ("spring", "spring", "joint r_elbow", "stiffness", "stiffness", ["pwm.m3"], 1.3),
+    ("stribeck", "stribeck", "joint r_shoulder_pitch", "static_torque", None, ["pwm.m0"], 1.3),
+    ("pwm_deadzone", "pwm_deadzone", "motor m3", "width", "width", ["pwm.m3"], 1.5),
+    ("ft_drift", "ft_drift", "sensor r_arm_ft", "force", "force", FT, 1.3),
+    ("base_tilt", "base_tilt", "base", "degrees", "degrees", FT + PWM, 1.3),
+    ("load_friction", "load_friction", "motor m3", "coefficient", "coefficient", ["pwm.m3"], 1.3),
+    ("pwm_delay", "pwm_delay", "pwm stream", "ms", "ms", PWM, 1.3),
+    ("armature", "armature", "motor m3", "inertia", "inertia", ["pwm.m3"], 1.3),
+    ("ft_gain", "ft_gain", "sensor r_arm_ft", None, None, FT, 1.3),
+]
+
+
+@pytest.mark.parametrize("case, effect, where, parameter, truth_key, channels, bound", EXPECTED,
+                         ids=[f"{c}:{e}" for c, e, *_ in EXPECTED])
+def test_hidden_effect_is_named_and_closed(gaps, case: str, effect: str, where: str, parameter: str | None,
+                                           truth_key: str | None, channels: list[str], bound: float) -> None:
     result, truth, stdout = gaps(case)
-    assert _named(result) == [(case, where)], stdout
-    estimate = result["effects"][0]["parameters"][parameter]
-    true = float(_truth(truth, case)[truth_key]) if truth_key else _stribeck_static(truth)
-    assert abs(abs(estimate) - true) <= 0.2 * true, (estimate, true)
+    control, _, _ = gaps("control")
+    assert (effect, where) in _named(result), stdout
+    assert len(result["effects"]) == len(CASES[case]), stdout  # nothing else named
+    named = _effect(result, effect)
+    assert named["where"] == where and named["confident"], stdout
+    if parameter is not None:  # ft_gain: see test_ft_gain_matrix_is_not_identifiable
+        estimate = named["parameters"][parameter]
+        true = float(_truth(truth, effect)[truth_key]) if truth_key else _stribeck_static(truth)
+        assert abs(abs(estimate) - true) <= 0.2 * true, (estimate, true)
+    floors = {c: max(1.0, _gap(control, c)["after_over_noise"]) for c in channels}
     for c in channels:
         g = _gap(result, c)
-        if floor is not None:  # (the shoulder's pwm.m0 is above its floor in the control run too)
-            assert g["after_over_noise"] <= floor, g
-        assert g["after_rms"] <= g["before_rms"]
-    # the gap was real: the effect's channels stood out above the noise before
-    assert max(_gap(result, c)["before_over_noise"] for c in channels) > 1.3
+        assert g["after_over_noise"] <= bound * floors[c], (g, floors[c])
+    # the fix lowered the held-out error of its channels together (an effect on every row, a base tilt, may move
+    # a little error between channels in the refit)
+    assert sum(_gap(result, c)["after_over_noise"] ** 2 for c in channels) < sum(_gap(result, c)["before_over_noise"] ** 2 for c in channels)
+    # the gap was real: on its most affected channel the effect added at least half a noise σ (in quadrature) to
+    # what the same arm leaves without it (measured: armature 0.03 kg m² adds 0.7 σ on pwm.m3, Stribeck on the
+    # shoulder 1.5 σ on pwm.m0, the others more)
+    excess = max((_gap(result, c)["before_over_noise"] ** 2 - floors[c] ** 2) for c in channels)
+    assert excess >= 0.25, excess
 
 
 def test_nonlinear_parameters_found_by_search(gaps) -> None:
@@ -104,21 +141,53 @@ def test_nonlinear_parameters_found_by_search(gaps) -> None:
     result, truth, _ = gaps("ft_drift")
     tau = result["effects"][0]["parameters"]["tau"]
     assert abs(tau - _truth(truth, "ft_drift")["tau"]) <= 0.2 * _truth(truth, "ft_drift")["tau"]
+    result, truth, _ = gaps("base_tilt")
+    assert result["effects"][0]["parameters"]["axis"] == _truth(truth, "base_tilt")["axis"]
 
 
 def test_two_effects_on_different_joints_are_both_named(gaps) -> None:
     result, truth, stdout = gaps("two")
     assert sorted(_named(result)) == [("cogging", "motor m3"), ("spring", "joint r_shoulder_yaw")], stdout
-    stiffness = next(e for e in result["effects"] if e["name"] == "spring")["parameters"]["stiffness"]
+    stiffness = _effect(result, "spring")["parameters"]["stiffness"]
     # measured 0.78 on this run: part of a shoulder spring is absorbed by the refitted gravity terms
     assert abs(stiffness - 1.0) <= 0.25
 
 
 def test_effect_outside_library_is_reported_unexplained(gaps) -> None:
+    """Quadratic drag on the elbow: the closest library shape (a Stribeck curve) may be selected, but only as
+    'tentative' (it removes too little of the excess); the residual is reported unexplained."""
     result, _, stdout = gaps("outside")
-    assert result["effects"] == [], stdout
+    assert not [e for e in result["effects"] if e["confident"]], stdout
     assert "unexplained:" in stdout
-    assert max(g["after_over_noise"] for g in result["gap"]) > 1.3
+    assert _gap(result, "pwm.m3")["after_over_noise"] > 1.3
+
+
+def test_ft_gain_is_estimated_trace_free(gaps) -> None:
+    """The F/T gain error is named and its gap closed (above), but its matrix is not recoverable from arm motion:
+    a common scale of the sensor is a scale of every inertia and motor gain (hence the trace-free estimate), and,
+    nearly, force-vs-torque scales trade against the inertias beyond the sensor. So its parameter is not compared
+    to the truth (README "Model gaps", known limits); the estimate is a full trace-free 6×6 matrix."""
+    result, _, _ = gaps("ft_gain")
+    E = np.array(_effect(result, "ft_gain")["parameters"]["matrix"])
+    assert E.shape == (6, 6) and abs(np.trace(E)) < 1e-9 * np.abs(E).max()
+    assert np.abs(E[~np.eye(6, dtype=bool)]).max() > 0  # cross-talk estimated, not only gains
+
+
+def test_coupling_error_of_this_shoulder_is_a_gain_change() -> None:
+    """The plant's coupling error scales every ratio entry of T (not 0, not ±1) by 1 + e. For the iCub shoulder
+    T = [[1,0,0],[-r,r,0],[-r,r,r]] that is T' = (1+e)T − e·E₀₀, and T'ᵀτ = Tᵀ diag(1, 1+e, 1+e) τ: exactly a gain
+    change of m1 and m2, which the standard model fits. So the library's coupling_error candidate (kept for robots
+    with known gains) cannot be named here, and no test of it on plant data is possible."""
+    from dynid.config import load_config
+
+    g = next(g for g in load_config("icub_right_arm").actuation if g.name == "shoulder")
+    e = 0.07
+    T = g.coupling
+    ratio = ~np.isclose(np.abs(T), 1.0) & (T != 0)
+    T_true = T.copy()
+    T_true[ratio] *= 1 + e
+    tau = np.random.default_rng(1).normal(size=(3, 50))
+    assert np.allclose(T_true.T @ tau, T.T @ np.diag([1, 1 + e, 1 + e]) @ tau)
 
 
 def test_bad_input_is_one_line_exit_2(tmp_path: Path) -> None:
@@ -137,3 +206,26 @@ def test_given_model_on_clean_validation_run(default_model: Path, default_experi
     assert result["given_model"] == str(default_model)
     assert all(g["given_model_rms"] > 0 and g["before_rms"] > 0 for g in result["gap"])
     assert "given" in done.stderr  # the human table went to stderr
+
+
+def test_candidate_solve_matches_least_squares() -> None:
+    """The Schur-complement solve of a candidate against the cached design equals a plain least-squares fit of
+    the augmented design (numpy's lstsq), in held-out and in-sample error; a candidate inside the design's span
+    changes nothing."""
+    from dynid.gaps.selection import Design
+
+    rng = np.random.default_rng(3)
+    n, r, d = 400, 2, 5
+    D = rng.normal(size=(n, r, d))
+    E = rng.normal(size=(n, r, 2))
+    y = D @ rng.normal(size=d) + E @ np.array([0.5, -0.2]) + 0.01 * rng.normal(size=(n, r))
+    design = Design(D, y, np.linspace(0, n, 5).astype(int))
+    cv = design.cv_sse(E)
+    X = np.concatenate([D, E], axis=2)
+    for b in range(4):
+        train = np.r_[0 : 100 * b, 100 * (b + 1) : n]
+        x = np.linalg.lstsq(X[train].reshape(-1, d + 2), y[train].reshape(-1), rcond=None)[0]
+        e = y[100 * b : 100 * (b + 1)] - X[100 * b : 100 * (b + 1)] @ x
+        assert np.allclose(cv[b], (e**2).sum(axis=0), rtol=1e-8)
+    inside = D[:, :, :1] * 2.0 - D[:, :, 2:3]
+    assert np.allclose(design.cv_sse(inside), design.cv_sse(None), rtol=1e-8)

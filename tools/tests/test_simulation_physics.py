@@ -155,7 +155,7 @@ def same(a: Simulation, b: Simulation, channel: str) -> bool:
 @pytest.mark.parametrize(
     "effect",
     ["stribeck:excess=2", "spring:stiffness=1.0", "armature:inertia=0.02", "pwm_deadzone:width=0.03",
-     "load_friction:coefficient=0.1", "cogging:amplitude=0.2"],
+     "load_friction:coefficient=0.1", "cogging:amplitude=0.2", "drag:coefficient=2.0"],
 )
 def test_an_elbow_actuator_effect_breaks_the_elbow_row_only(effect: str) -> None:
     _, hidden, _, r = compare(effect)

@@ -14,13 +14,16 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
 from ..model import RobotModel
+from ..regressors.rigid_body import rigid_body_regressors
 from ..regressors.stack import Signals, group_row_maps, row_channels
 
 STRIBECK_VELOCITIES = (0.005, 0.01, 0.015, 0.02, 0.03, 0.045, 0.07, 0.1)  # rad/s
 COGGING_PERIODS_DEG = tuple(float(p) for p in np.round(np.geomspace(1.0, 30.0, 48), 3))  # ~7 % steps
 DRIFT_TAUS = (10.0, 20.0, 30.0, 45.0, 60.0, 90.0, 130.0, 200.0, 400.0)  # s; plus "linear"
+DELAYS_MS = (1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 18.0, 27.0, 40.0, 60.0, 90.0, 135.0)
 REFINE = np.linspace(-0.1, 0.1, 21)  # a chosen nonlinear value is refined on ±10 % in 1 % steps
 
 
@@ -31,6 +34,11 @@ class Context:
     model: RobotModel
     sig: Signals
     t: np.ndarray  # s, from the first sample
+    phi: np.ndarray | None = None  # the standard model refitted on the run: bilinear effects linearise about it
+    rigid: np.ndarray | None = None  # (N, r) its rigid-body part of every row (the predicted wrench on F/T rows)
+    inputs_full: dict[str, np.ndarray] | None = None  # each filtered input at the full rate (before decimation)
+    index_full: np.ndarray | None = None  # (N,) the kept samples' indices into the full rate
+    rate: float = 0.0  # Hz of the full rate
 
     @property
     def n(self) -> int:
@@ -70,8 +78,8 @@ def _joint_rows(ctx: Context) -> dict[str, tuple[int, np.ndarray]]:
     return out
 
 
-def _motor_rows(ctx: Context) -> dict[str, tuple[np.ndarray, np.ndarray, str]]:
-    """motor -> (its position q_m = T q (N,), its (r,) share of each row, its group's input name)."""
+def _motor_rows(ctx: Context, x: str = "q") -> dict[str, tuple[np.ndarray, np.ndarray, str]]:
+    """motor -> (its coordinate T x (N,) for x = q, dq or ddq, its (r,) share of each row, its group's input)."""
     cfg = ctx.model.config
     out: dict[str, tuple[np.ndarray, np.ndarray, str]] = {}
     start = 6 * len(cfg.ft_sensors)
@@ -79,13 +87,24 @@ def _motor_rows(ctx: Context) -> dict[str, tuple[np.ndarray, np.ndarray, str]]:
         cols = [cfg.joints.index(j) for j in g.joints]
         if g.input != "torque" and g.motors:
             _, C = group_row_maps(g)
-            qm = ctx.sig.q[:, cols] @ g.coupling.T if g.coupled else ctx.sig.q[:, cols]
+            xj = getattr(ctx.sig, x)[:, cols]
+            xm = xj @ g.coupling.T if g.coupled else xj
             for mi, m in enumerate(g.motors):
                 share = np.zeros(ctx.r)
                 share[start : start + len(g.joints)] = C[:, mi]
-                out[m] = (qm[:, mi], share, g.input)
+                out[m] = (xm[:, mi], share, g.input)
         start += len(g.joints)
     return out
+
+
+def _gain(ctx: Context, phi: np.ndarray | None, m: str) -> float:
+    """Motor m's gain (Nm per unit duty): the configured one if known, else the fitted one in `phi`."""
+    known = ctx.model.config.motor(m).known_gain
+    if known is not None:
+        return float(known)
+    if phi is None:
+        return float("nan")
+    return float(phi[ctx.model.layout.block("motor_gain", m).start])
 
 
 def _on_rows(f: np.ndarray, share: np.ndarray) -> np.ndarray:
@@ -168,15 +187,159 @@ def ft_drift(ctx: Context, grid: Sequence[float] = DRIFT_TAUS) -> Iterable[Candi
             yield Candidate("ft_drift", f"sensor {s.name}", nonlinear, values, labels, interpret)
 
 
+def armature(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
+    """Rotor inertia J seen in the motor coordinate: the motor also drives J·q̈_m (q̈_m = T q̈), which the link
+    inertias cannot mimic because it loads only that motor's rows."""
+    for m, (ddqm, share, _) in _motor_rows(ctx, "ddq").items():
+        yield Candidate("armature", f"motor {m}", {}, _on_rows(ddqm, share), ("inertia",),
+                        lambda th, phi: {"inertia": float(th[0])})
+
+
+def load_friction(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
+    """Coulomb friction growing with the transmitted torque: c·|gain·u|·sign(q̇_m), one column sign(q̇_m)|u| with
+    θ = c·gain (it differs from a gain error only where the drive opposes the motion: braking, lowering)."""
+    dq = _motor_rows(ctx, "dq")
+    for m, (_, share, kind) in _motor_rows(ctx).items():
+        if kind == "torque":
+            continue
+        f = np.sign(dq[m][0]) * np.abs(ctx.sig.inputs[m])
+
+        def interpret(th: np.ndarray, phi: np.ndarray, m=m) -> dict[str, float]:
+            return {"coefficient": float(th[0]) / _gain(ctx, phi, m)}
+
+        yield Candidate("load_friction", f"motor {m}", {}, _on_rows(f, share), ("gain_x_coefficient",), interpret)
+
+
+def pwm_delay(ctx: Context, grid: Sequence[float] = DELAYS_MS) -> Iterable[Candidate]:
+    """The PWM stream lags the encoders by d: the drive is gain·u(t + d), one column Σ_m gain_m (u_m(t + d) − u_m(t))
+    (gains of the baseline refit, u shifted at the full rate), θ ≈ 1 at the true d, which is searched. Every PWM
+    motor shares the one stream clock. (Much of a delay looks like extra inertia and damping through the closed
+    loop, u̇ ≈ −D q̈ + K(q̇_ref − q̇): the standard model absorbs that part.)"""
+    if ctx.phi is None or ctx.inputs_full is None or ctx.index_full is None:
+        return
+    pwm = [(m, share) for m, (_, share, kind) in _motor_rows(ctx).items() if kind == "pwm"]
+    if not pwm:
+        return
+    for ms in grid:
+        shift = ms * 1e-3 * ctx.rate
+        values = np.zeros((ctx.n, ctx.r, 1))
+        for m, share in pwm:
+            u = ctx.inputs_full[m]
+            ahead = np.interp(np.minimum(ctx.index_full + shift, len(u) - 1), np.arange(len(u)), u)
+            values += _on_rows(_gain(ctx, ctx.phi, m) * (ahead - u[ctx.index_full]), share)
+        yield Candidate("pwm_delay", "pwm stream", {"ms": ms}, values, ("scale",),
+                        lambda th, phi, ms=ms: {"ms": ms, "scale": -float(th[0])})
+
+
+def coupling_error(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
+    """Every ratio entry of a coupled group's T (not 0, not ±1) off by a factor (1 + e): the joint torques gain
+    e·T_rᵀ τ_m, on the rows −e·L T_rᵀ (gain ∘ u); one column with θ = e (gains of the baseline refit)."""
+    if ctx.phi is None:
+        return
+    cfg = ctx.model.config
+    start = 6 * len(cfg.ft_sensors)
+    for g in cfg.actuation:
+        rows = slice(start, start + len(g.joints))
+        start += len(g.joints)
+        if not (g.coupled and g.motors and g.input != "torque"):
+            continue
+        Tr = np.where(~np.isclose(np.abs(g.coupling), 1.0) & (g.coupling != 0), g.coupling, 0.0)
+        L, _ = group_row_maps(g)
+        drive = np.column_stack([_gain(ctx, ctx.phi, m) * ctx.sig.inputs[m] for m in g.motors])  # (N, motors)
+        values = np.zeros((ctx.n, ctx.r, 1))
+        values[:, rows, 0] = -drive @ (L @ Tr.T).T
+        yield Candidate("coupling_error", f"group {g.name}", {}, values, ("error",),
+                        lambda th, phi: {"error": float(th[0])})
+
+
+def _inertial_rows(ctx: Context, gravity: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """(N, r) rigid-body part of every row at rest (q̇ = q̈ = 0) under `gravity`, with the inertias of `phi`."""
+    model, cfg = ctx.model, ctx.model.config
+    saved = model.pin_model.gravity.copy()
+    try:
+        model.pin_model.gravity = pin.Motion(np.asarray(gravity, float), np.zeros(3))
+        zero = np.zeros_like(ctx.sig.q)
+        rb = rigid_body_regressors(model, ctx.sig.q, zero, zero)
+    finally:
+        model.pin_model.gravity = saved
+    inertial = phi[model.layout.span("inertial")]
+    out = np.zeros((ctx.n, ctx.r))
+    for i, s in enumerate(cfg.ft_sensors):
+        out[:, 6 * i : 6 * i + 6] = rb.ft[s.name] @ inertial
+    start = 6 * len(cfg.ft_sensors)
+    for g in cfg.actuation:
+        gj = [cfg.joints.index(j) for j in g.joints]
+        L, _ = group_row_maps(g)
+        out[:, start : start + len(gj)] = np.einsum("rj,njp,p->nr", L, rb.tau[:, gj], inertial)
+        start += len(gj)
+    return out
+
+
+def base_tilt(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
+    """Gravity rotated by a small vector ω: g' ≈ g + ω × g, so the rows gain Σ_k ω_k Y(q; e_k × g) φ (the
+    baseline's inertias). The rotation about g itself changes nothing and is dropped. Acts on every row."""
+    if ctx.phi is None:
+        return
+    g = np.asarray(ctx.model.config.gravity, float)
+    axes = [k for k in range(3) if np.linalg.norm(np.cross(np.eye(3)[k], g)) > 1e-9 * np.linalg.norm(g)]
+    values = np.stack([_inertial_rows(ctx, np.cross(np.eye(3)[k], g), ctx.phi) for k in axes], axis=2)
+
+    def interpret(th: np.ndarray, phi: np.ndarray) -> dict[str, float | str]:
+        w = np.zeros(3)
+        w[axes] = th
+        out: dict[str, float | str] = {"degrees": float(np.rad2deg(np.linalg.norm(w))), "axis": "xyz"[int(np.argmax(np.abs(w)))]}
+        out.update({f"deg_{'xyz'[k]}": float(np.rad2deg(w[k])) for k in range(3)})
+        return out
+
+    yield Candidate("base_tilt", "base", {}, values, tuple(f"tilt_{'xyz'[k]}" for k in axes), interpret)
+
+
+def _trace_free_basis() -> np.ndarray:
+    """(36, 35) basis of the 6×6 matrices with zero trace: a common scale of the whole sensor is the scale of every
+    inertia and motor gain at once, which the data cannot see, so only the trace-free part of E is estimated."""
+    P = np.eye(36)[:, [k for k in range(36) if k % 7 != 0]]  # the 30 off-diagonal entries
+    diag = np.zeros((36, 5))
+    for k in range(5):  # e_k − mean of the diagonal, k < 5 (the sixth is their negative sum)
+        diag[7 * k, k] = 1.0
+        diag[np.arange(6) * 7, k] -= 1.0 / 6
+    return np.concatenate([P, diag], axis=1)
+
+
+def ft_gain(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
+    """F/T gain and cross-talk: measured = (I + E) w + o, w the baseline's predicted wrench (not the measured one:
+    that is the right-hand side itself); row a gains Σ_b E_ab w_b, with E trace-free (see `_trace_free_basis`)."""
+    if ctx.rigid is None:
+        return
+    P = _trace_free_basis()
+    for i, s in enumerate(ctx.model.config.ft_sensors):
+        w = ctx.rigid[:, 6 * i : 6 * i + 6]
+        full = np.zeros((ctx.n, ctx.r, 36))
+        for a in range(6):
+            full[:, 6 * i + a, 6 * a : 6 * a + 6] = w - w.mean(axis=0)
+        values = full @ P
+
+        def interpret(th: np.ndarray, phi: np.ndarray) -> dict[str, float | list]:
+            # Not printed as gains: arm motion cannot separate E from the inertias beyond the sensor (README).
+            return {"matrix": (P @ th).reshape(6, 6).tolist(),
+                    "note": "E (trace-free, --json) corrects the wrench; its entries are not identifiable one by one"}
+
+        yield Candidate("ft_gain", f"sensor {s.name}", {}, values, tuple(f"E{k}" for k in range(35)), interpret)
+
 LIBRARY: dict[str, Callable[..., Iterable[Candidate]]] = {
     "stribeck": stribeck,
     "spring": spring,
     "cogging": cogging,
     "pwm_deadzone": pwm_deadzone,
     "ft_drift": ft_drift,
+    "armature": armature,
+    "load_friction": load_friction,
+    "pwm_delay": pwm_delay,
+    "coupling_error": coupling_error,
+    "base_tilt": base_tilt,
+    "ft_gain": ft_gain,
 }
 
-SEARCHED = {"stribeck": "velocity", "cogging": "period_deg", "ft_drift": "tau"}
+SEARCHED = {"stribeck": "velocity", "cogging": "period_deg", "ft_drift": "tau", "pwm_delay": "ms"}
 
 
 def refined(ctx: Context, best: Candidate) -> list[Candidate]:
@@ -188,5 +351,6 @@ def refined(ctx: Context, best: Candidate) -> list[Candidate]:
     return [c for c in LIBRARY[best.kind](ctx, tuple(float(v) for v in value * (1 + REFINE))) if c.where == best.where]
 
 
-# Effects of dynid's simulator this library does not model yet: named in the report as not ruled out.
-NOT_IN_LIBRARY = ("armature", "payload", "pwm_delay", "coupling_error", "load_friction", "base_tilt", "ft_gain")
+# Effects of dynid's simulator this library cannot name: named in the report as not ruled out. A payload is a
+# change of one link's inertial parameters, which the standard model refitted on the run absorbs exactly.
+NOT_IN_LIBRARY = ("payload",)

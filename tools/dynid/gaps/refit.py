@@ -49,7 +49,7 @@ def refit(current: Design, V: np.ndarray, accepted: list[Candidate], ctx: Contex
         jack = [c.interpret(xb[start : start + k], full(xb)) for xb in folds]
         se: dict[str, float | None] = {}
         for name in params:
-            if name in c.nonlinear:  # found by search, not by regression
+            if name in c.nonlinear or not isinstance(params[name], (int, float)):  # searched, or a label / matrix
                 se[name] = None
                 continue
             vals = np.array([j[name] for j in jack], float)

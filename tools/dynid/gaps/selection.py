@@ -20,11 +20,26 @@ from scipy import stats as sps
 from .candidates import Candidate
 
 
-def _solve(G: np.ndarray, g: np.ndarray) -> np.ndarray:
-    """Minimum-norm least squares from normal equations (the augmented design may be rank deficient)."""
+SPAN_TOL = 1e-9  # a candidate direction whose residual after the design is below this share of its size: spanned
+
+
+def _pinv(G: np.ndarray) -> np.ndarray:
     s, V = np.linalg.eigh(G)
     keep = s > 1e-10 * max(s.max(), 1e-300)
-    return V[:, keep] @ ((V[:, keep].T @ g) / s[keep])
+    return (V[:, keep] / s[keep]) @ V[:, keep].T
+
+
+def _bordered_solve(Ginv: np.ndarray, G: np.ndarray, g: np.ndarray, d: int) -> np.ndarray:
+    """Least squares of the normal equations G (d + K square) whose leading d×d block has the (cached) pseudo-
+    inverse Ginv: a Schur complement on the K candidate columns, K small, instead of a new (d + K) solve.
+    Candidate directions the design already spans (Schur complement ~ 0 against their own scale) get 0."""
+    B, C = G[:d, d:], G[d:, d:]
+    GiB = Ginv @ B
+    S = C - B.T @ GiB
+    s, V = np.linalg.eigh(S)
+    keep = s > SPAN_TOL * max(float(np.abs(np.diag(C)).max()), 1e-300)
+    th = V[:, keep] @ ((V[:, keep].T @ (g[d:] - GiB.T @ g[:d])) / s[keep])
+    return np.concatenate([Ginv @ g[:d] - GiB @ th, th])
 
 
 @dataclass
@@ -38,6 +53,8 @@ class Design:
     g: np.ndarray = field(init=False)  # (B, r, d)
     yy: np.ndarray = field(init=False)  # (B, r)
     rows: np.ndarray = field(init=False)  # (B, r) rows that count (nonzero weight)
+    inv_folds: np.ndarray = field(init=False)  # (B, d, d) pseudo-inverse of each fold's training normal matrix
+    inv_all: np.ndarray = field(init=False)  # (d, d) the same over all blocks
 
     @property
     def n_blocks(self) -> int:
@@ -56,6 +73,9 @@ class Design:
             self.g[b] = np.einsum("nri,nr->ri", Db, yb)
             self.yy[b] = (yb**2).sum(axis=0)
             self.rows[b] = (np.abs(Db).sum(axis=2) > 0).sum(axis=0)
+        Gb = self.G.sum(axis=1)
+        self.inv_all = _pinv(Gb.sum(axis=0))
+        self.inv_folds = np.stack([_pinv(Gb.sum(axis=0) - Gb[b]) for b in range(B)])
 
     def cross(self, E: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(D'E, E'E, E'y) per (block, channel) for extra columns E (N, r, K)."""
@@ -86,15 +106,17 @@ class Design:
         Gb, gb = G.sum(axis=1), g.sum(axis=1)  # (B, d, d), (B, d): all channels of a block
         Gt, gt = Gb.sum(axis=0), gb.sum(axis=0)
         out = np.zeros((self.n_blocks, G.shape[1]))
+        d = self.D.shape[2]
         for b in range(self.n_blocks):
-            x = _solve(Gt - Gb[b], gt - gb[b])
+            x = self.inv_folds[b] @ (gt - gb[b]) if E is None else _bordered_solve(self.inv_folds[b], Gt - Gb[b], gt - gb[b], d)
             out[b] = np.einsum("i,rij,j->r", x, G[b], x) - 2 * g[b] @ x + self.yy[b]
         return out
 
     def fit(self, E: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         """(x over all blocks, in-sample SSE per channel)."""
         G, g = self.augmented(E)
-        x = _solve(G.sum(axis=(0, 1)), g.sum(axis=(0, 1)))
+        Gs, gs = G.sum(axis=(0, 1)), g.sum(axis=(0, 1))
+        x = self.inv_all @ gs if E is None else _bordered_solve(self.inv_all, Gs, gs, self.D.shape[2])
         Gc, gc, yy = G.sum(axis=0), g.sum(axis=0), self.yy.sum(axis=0)
         return x, np.einsum("i,rij,j->r", x, Gc, x) - 2 * gc @ x + yy
 

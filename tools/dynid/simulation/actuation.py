@@ -133,7 +133,8 @@ class Actuators:
         self.spring_rest = rest
         J = per("armature", "inertia", motors)
         self.armature = self.Tt @ np.diag(J) @ self.T if J.any() else None
-        self.has_effects = bool(self.cogging.any() or self.spring.any())
+        self.drag = per("drag", "coefficient", joints)
+        self.has_effects = bool(self.cogging.any() or self.spring.any() or self.drag.any())
         self.has_deadzone = bool(self.deadzone.any())
         self._law = FrictionStep(self.S, *self.friction.T.copy())
         self._stribeck_rows = np.arange(nj)
@@ -153,7 +154,7 @@ class Actuators:
             motor = drive + self.cogging * np.sin(self.cogging_wavenumber * (self.T @ q) + self.cogging_phase)
         tau = self.Tt @ motor + self.direct * tau_direct
         if self.has_effects:
-            tau -= self.spring * (q - self.spring_rest)
+            tau -= self.spring * (q - self.spring_rest) + self.drag * v * np.abs(v)
         below, above = q < self.lower, q > self.upper
         if below.any() or above.any():  # rubber end stops: never reached in the default experiments
             past = np.where(below, q - self.lower, 0.0) + np.where(above, q - self.upper, 0.0)

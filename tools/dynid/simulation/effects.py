@@ -63,6 +63,9 @@ CATALOG: dict[str, EffectKind] = {
                    {"degrees": 2.0, "axis": "x"}, {"degrees": "deg", "axis": "x|y|z of the URDF root frame"}),
         EffectKind("ft_gain", "sensor", "sensor", "F/T gain and cross-talk errors: measured = (I + E) w",
                    {"gain": 0.03, "crosstalk": 0.01}, {"gain": "std of the diagonal of E", "crosstalk": "std off the diagonal"}),
+        # Outside the gap library on purpose: the test of an effect it cannot name.
+        EffectKind("drag", "joint", "actuator", "quadratic drag (a dragged cable or hose), -c q̇|q̇|",
+                   {"coefficient": 2.0}, {"coefficient": "Nm per (rad/s)²"}),
     )
 }
 
