@@ -16,7 +16,6 @@ monitor's final counters and the summary. Exit 2 with one line on bad input, 1 i
 from __future__ import annotations
 
 import argparse
-import json
 import shutil
 import signal
 import subprocess

@@ -91,7 +91,7 @@ def augmented_model(model: RobotModel, ds: Dataset, data_path: str, result: dict
         es.append(augmented_residuals(model, phi, effects, sig.slice(keep), ds.t[lo:hi][keep] - ds.t[0]))
         dqs.append(sig.dq[keep])
     e, dq = np.vstack(es), np.vstack(dqs)
-    detectors = calibrate(model, e, dq, alpha, min_speed)
+    detectors = calibrate(model, phi, e, dq, alpha, min_speed)
     outs = output_channels(model)
     path = Path(data_path)
     digest_path = path / SIMULATION_DATASET if path.is_dir() else path

@@ -29,6 +29,11 @@ def _pinv(G: np.ndarray) -> np.ndarray:
     return (V[:, keep] / s[keep]) @ V[:, keep].T
 
 
+def _solve(G: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """Minimum-norm least squares from normal equations (the augmented design may be rank deficient)."""
+    return _pinv(G) @ g
+
+
 def _bordered_solve(Ginv: np.ndarray, G: np.ndarray, g: np.ndarray, d: int) -> np.ndarray:
     """Least squares of the normal equations G (d + K square) whose leading d×d block has the (cached) pseudo-
     inverse Ginv: a Schur complement on the K candidate columns, K small, instead of a new (d + K) solve.
