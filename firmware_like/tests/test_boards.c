@@ -7,31 +7,10 @@
 #include "board_strain.h"
 #include "icub_can.h"
 
+#include "check.h"
+
 #include <stdio.h>
 #include <string.h>
-
-static unsigned g_checks;
-static unsigned g_failed;
-
-#define CHECK_EQ(a, b)                                                           \
-    do {                                                                         \
-        long long a_ = (long long)(a), b_ = (long long)(b);                      \
-        ++g_checks;                                                              \
-        if (a_ != b_) {                                                          \
-            ++g_failed;                                                          \
-            printf("FAIL %s:%d: %s == %s (%lld != %lld)\n", __FILE__, __LINE__, \
-                   #a, #b, a_, b_);                                              \
-        }                                                                        \
-    } while (0)
-#define CHECK_BYTES(p, ...)                                                      \
-    do {                                                                         \
-        static const uint8_t want_[] = {__VA_ARGS__};                            \
-        ++g_checks;                                                              \
-        if (memcmp((p), want_, sizeof want_) != 0) {                             \
-            ++g_failed;                                                          \
-            printf("FAIL %s:%d: bytes of %s\n", __FILE__, __LINE__, #p);         \
-        }                                                                        \
-    } while (0)
 
 static void test_bits(void)
 {

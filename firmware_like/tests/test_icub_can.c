@@ -5,32 +5,10 @@
  */
 #include "icub_can.h"
 
+#include "check.h"
+
 #include <stdio.h>
 #include <string.h>
-
-static unsigned g_checks;
-static unsigned g_failed;
-
-#define CHECK(cond)                                                              \
-    do {                                                                         \
-        ++g_checks;                                                              \
-        if (!(cond)) {                                                           \
-            ++g_failed;                                                          \
-            printf("FAIL %s:%d: %s\n", __FILE__, __LINE__, #cond);               \
-        }                                                                        \
-    } while (0)
-
-/* Integer equality, printing both sides (everything here fits long long). */
-#define CHECK_EQ(a, b)                                                           \
-    do {                                                                         \
-        long long a_ = (long long)(a), b_ = (long long)(b);                      \
-        ++g_checks;                                                              \
-        if (a_ != b_) {                                                          \
-            ++g_failed;                                                          \
-            printf("FAIL %s:%d: %s == %s (%lld != %lld)\n", __FILE__, __LINE__, \
-                   #a, #b, a_, b_);                                              \
-        }                                                                        \
-    } while (0)
 
 static int bytes_eq(const uint8_t *p, const uint8_t *want, unsigned n)
 {

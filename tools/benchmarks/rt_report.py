@@ -62,7 +62,7 @@ def main() -> None:
             side[c.lag :] = ds.extra["skin.side"][: -c.lag]
         line = f"  {kind}: FPR {100 * above[ready & ~truth].mean():.2f} %, {int(onsets.sum())} onset events"
         if truth.any():
-            from dynid.detection import episodes
+            from dynid.dataset import contact_episodes as episodes
 
             delays, missed = [], 0
             for a, b in episodes(truth.astype(int)):

@@ -116,14 +116,8 @@ def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
 
 def add_commands(sub: argparse._SubParsersAction, json_arg, positive_int) -> None:
     from .export import DEFAULT_DEBOUNCE_OFF, DEFAULT_DEBOUNCE_ON, DEFAULT_HYSTERESIS
-    def lag(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"'{text}' is not an integer") from None
-        if value < 0:
-            raise argparse.ArgumentTypeError(f"must be 0 or more, got {value}")
-        return value
+    from .cli import confidence as alpha
+    from .cli import non_negative_int as lag
 
     def fraction(text: str) -> float:
         try:
@@ -132,12 +126,6 @@ def add_commands(sub: argparse._SubParsersAction, json_arg, positive_int) -> Non
             raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
         if not 0 < value <= 1:
             raise argparse.ArgumentTypeError(f"must be in (0, 1], got {text}")
-        return value
-
-    def alpha(text: str) -> float:
-        value = fraction(text)
-        if not 0.5 <= value < 1:
-            raise argparse.ArgumentTypeError(f"must be in [0.5, 1), got {text}")
         return value
 
     sp = sub.add_parser("export", help="write the real-time monitor's coefficient file (or --print one)",

@@ -194,14 +194,7 @@ def add_commands(sub: argparse._SubParsersAction, robot_arg, json_arg, min_speed
     from .detection import ALPHA
     from .identification import DEFAULT_ESTIMATOR, ESTIMATORS
 
-    def alpha(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
-        if not 0.5 <= value < 1.0:
-            raise argparse.ArgumentTypeError(f"must be in [0.5, 1), got {text}")
-        return value
+    from .cli import confidence as alpha
 
     sp = sub.add_parser("fit", help="identify inertia, F/T offsets, friction and motor gains in one regression",
                         description="Fit the model of DESIGN.md §3 to one or more experiments (stacked): OLS on the "

@@ -27,16 +27,11 @@ from typing import Any
 
 import numpy as np
 
+from .dataset import contact_episodes as episodes
 from .errors import DataError, InputError
 
 PAPER = {"tpr": 0.67, "fpr": 0.06}  # Traversaro et al. 2013 on the real iCub arm, α = 0.99 (DESIGN.md §3)
 LCMTYPES = Path(__file__).resolve().parents[2] / "rt_monitor" / "lcmtypes"
-
-
-def episodes(contact: np.ndarray) -> list[tuple[int, int]]:
-    """[start, end) sample ranges where the ground truth is non-zero."""
-    edges = np.flatnonzero(np.diff(np.r_[0, (np.asarray(contact) != 0).astype(int), 0]))
-    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
 
 
 def summarize(contact: np.ndarray, events: list[tuple[int, int]], period_s: float, slack: int,

@@ -340,6 +340,12 @@ class Dataset:
 # Helpers shared by the readers and writers
 
 
+def contact_episodes(contact: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) sample ranges where the skin's ground truth (or any mask) is non-zero."""
+    edges = np.flatnonzero(np.diff(np.r_[0, (np.asarray(contact) != 0).astype(np.int8), 0]))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
+
+
 def atomic_write(path: str | Path, write: Callable[[BinaryIO], None]) -> None:
     """Write a file through `write(binary_file)` so that `path` is either the old file or the complete new one.
 

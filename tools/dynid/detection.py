@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats as scipy_stats
 
+from .dataset import contact_episodes
 from .model import RobotModel
 from .outputs import divisors, output_channels
 from .regressors.stack import group_row_maps, motor_velocities, rows_at_rest
@@ -130,13 +131,6 @@ def calibrate(model: RobotModel, phi: np.ndarray, e: np.ndarray, dq: np.ndarray,
 # Scoring against the skin's ground truth
 
 
-def episodes(contact: np.ndarray) -> list[tuple[int, int]]:
-    """[start, stop) sample ranges where contact != 0."""
-    c = np.concatenate([[0], (contact != 0).astype(np.int8), [0]])
-    edges = np.flatnonzero(np.diff(c))
-    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
-
-
 def score(t: np.ndarray, t2: np.ndarray, threshold: float, contact: np.ndarray | None,
           side: np.ndarray | None = None) -> dict:
     """TPR, FPR (per sample), ROC and AUC, detection delays per episode, TPR per side of the F/T sensor."""
@@ -157,7 +151,7 @@ def score(t: np.ndarray, t2: np.ndarray, threshold: float, contact: np.ndarray |
         out["auc"] = float(roc_auc_score(truth, t2))
         out["roc"] = {"fpr": fpr[keep].tolist(), "tpr": tpr[keep].tolist()}
     delays, missed = [], 0
-    for a, b in episodes(contact):
+    for a, b in contact_episodes(contact):
         hits = np.flatnonzero(alarm[a:b])
         if hits.size:
             delays.append(float(t[a + hits[0]] - t[a]))

@@ -235,17 +235,8 @@ def _truth_note(check: dict[str, Any] | None) -> str:
 
 
 def add_report_command(sub: argparse._SubParsersAction, json_arg) -> None:
-    from .cli import positive_float
+    from .cli import confidence as alpha, positive_float
     from .detection import ALPHA
-
-    def alpha(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
-        if not 0.5 <= value < 1.0:
-            raise argparse.ArgumentTypeError(f"must be in [0.5, 1), got {text}")
-        return value
 
     sp = sub.add_parser("report", help="the identification report: one HTML page with figures and tables",
                         description="Table II and the detection numbers beside the paper's, T² on the validation "

@@ -13,6 +13,8 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
+from .dataset import contact_episodes
+
 COLORS = {"calibrated": "#1f77b4", "paper": "#d62728", "distal": "#ff7f0e", "proximal": "#9467bd"}
 BINS = 2000
 
@@ -54,12 +56,6 @@ def t2_validation(t: np.ndarray, t2: dict[str, np.ndarray], thresholds: dict[str
     return png(fig)
 
 
-def episodes(mask: np.ndarray) -> list[tuple[int, int]]:
-    c = np.concatenate([[0], mask.astype(np.int8), [0]])
-    edges = np.flatnonzero(np.diff(c))
-    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
-
-
 def t2_contact(t: np.ndarray, t2: dict[str, np.ndarray], thresholds: dict[str, float], contact: np.ndarray,
                side: np.ndarray | None, rates: dict[str, str]) -> bytes:
     """Fig. 4: T² on the contact run, the skin's contact periods shaded by side of the F/T sensor."""
@@ -69,7 +65,7 @@ def t2_contact(t: np.ndarray, t2: dict[str, np.ndarray], thresholds: dict[str, f
     sides = {"distal": truth & (side > 0), "proximal": truth & (side < 0)} if side is not None else {"contact": truth}
     for ax, (variant, values) in zip(axes, t2.items()):
         for name, mask in sides.items():
-            for a, b in episodes(mask):
+            for a, b in contact_episodes(mask):
                 ax.axvspan(t[a], t[min(b, t.size - 1)], color=COLORS.get(name, "#aaaaaa"), alpha=0.25, linewidth=0)
         _t2_axis(ax, t, values, thresholds[variant], variant, f"{variant}: {rates[variant]}")
         handles, labels = ax.get_legend_handles_labels()

@@ -20,7 +20,7 @@ import pytest
 from dynid.can_log import monitor_config_text, write_candump
 from dynid.can_protocol import Protocol
 from dynid.config import load_config
-from dynid.dataset import load_data
+from dynid.dataset import contact_episodes, load_data
 from dynid.export import read_coefficients
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -77,11 +77,6 @@ def run_monitor(setup: dict, log: Path, name: str) -> tuple[subprocess.Completed
     return done, (_read_lcm_log(lcm_log, setup["types"]) if lcm_log.exists() else {})
 
 
-def _episodes(contact: np.ndarray) -> list[tuple[int, int]]:
-    edges = np.flatnonzero(np.diff(np.r_[0, contact.astype(int), 0]))
-    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
-
-
 def test_writer_frames_decode_to_the_data_with_the_dbc(setup: dict, tmp_path: Path) -> None:
     data, config = setup["data"], setup["config"]
     part = data.slice(0, 50)
@@ -130,7 +125,7 @@ def test_replay_end_to_end(setup: dict) -> None:
     assert events == ref
 
     # Ground truth: every onset lies in a contact episode, allowing for the filter lag and the debounce.
-    eps = _episodes(data.contact)
+    eps = contact_episodes(data.contact)
     slack = c.lag + c.debounce_on + 5
     onsets = [k for kind, k in events if kind == 1]
     found = {i for k in onsets for i, (a, e) in enumerate(eps) if a <= k <= e + slack}
@@ -173,7 +168,7 @@ def _bad_run(setup: dict, clean: dict, lines: list[str], name: str):
     assert done.returncode == 0, done.stderr  # never a crash
     assert done.stdout.startswith("rt_monitor: end of input;")
     status = msgs["DYNID_STATUS"][-1]
-    eps = _episodes(clean["part"].contact)
+    eps = contact_episodes(clean["part"].contact)
     c = read_coefficients(setup["coef"])
     slack = c.lag + c.debounce_on + 5
     for m in msgs["DYNID_CONTACT"]:
@@ -257,7 +252,7 @@ def test_duplicated_and_reordered(setup: dict, clean: dict) -> None:
 
 def test_stalled_board(setup: dict, clean: dict) -> None:
     # Motor board 2 (can1, address 2) goes silent for 500 samples in the middle of the first contact.
-    eps = _episodes(clean["part"].contact)
+    eps = contact_episodes(clean["part"].contact)
     a = eps[0][0] + 100
     lines = [l for l in clean["lines"] if not (" can1 12" in l and a <= _sample_of(l) < a + 500)]
     status, msgs = _bad_run(setup, clean, lines, "stalled")
