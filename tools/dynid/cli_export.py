@@ -12,8 +12,8 @@ from .errors import DataError, InputError
 
 def _calibration_data(identified, model, data: list[str] | None) -> tuple[list, str]:
     """The contact-free data Λ and T²_α come from: --data, else what the model was fitted on (checked by sha256)."""
-    from .cli_identify import _load, ds_path
-    from .identified import file_digest
+    from .evaluation import load_run
+    from .identified import data_file, file_digest
 
     if data:
         paths = data
@@ -23,14 +23,14 @@ def _calibration_data(identified, model, data: list[str] | None) -> tuple[list, 
             raise DataError(f"{identified.path} names no identification data; pass --data")
         paths = []
         for entry in record:
-            p = ds_path(entry["path"])
+            p = data_file(entry["path"])
             if not p.is_file():
                 raise DataError(f"the identification data {entry['path']} are gone; pass the contact-free data with --data")
             if file_digest(p) != entry["sha256"]:
                 raise DataError(f"the identification data {entry['path']} changed since the fit (sha256); pass --data")
             paths.append(entry["path"])
-    digests = ",".join(file_digest(ds_path(p)) for p in paths)
-    return [_load(p, model) for p in paths], digests
+    digests = ",".join(file_digest(data_file(p)) for p in paths)
+    return [load_run(p, model) for p in paths], digests
 
 
 CAD_SAMPLES = 100_000  # the N of the F threshold of an uncalibrated (CAD) export

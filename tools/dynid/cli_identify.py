@@ -4,22 +4,18 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .config import load_config
-from .evaluation import load_run as _load
+from .evaluation import load_run
 from .model import RobotModel
 from .report import add_report_command
 
 PAPER = {"tpr": 0.67, "fpr": 0.06, "force_error": (1.33, 0.64), "force_error_cad": (1.86, 0.59),
          "torque_error": (0.15, 0.13), "torque_error_cad": (0.15, 0.07)}
 SHOW_COMBINATIONS = 30  # print every base combination when there are at most this many (else see --json)
-CALIBRATION_CHUNK = 30_000  # samples (even, so the stride stays aligned across chunks)
-CALIBRATION_STRIDE = 2  # every other sample of the identification run calibrates T² (quantiles need no more)
-QUANTILE_LEVELS = np.sort(1.0 - np.logspace(-4, np.log10(0.5), 240))  # α in 0.5 … 0.9999, ascending
 
 
 def _cad_offsets(model: RobotModel, stats) -> np.ndarray:  # stats: dynid.statistics.Statistics
@@ -37,14 +33,14 @@ def _cad_offsets(model: RobotModel, stats) -> np.ndarray:  # stats: dynid.statis
 
 
 def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
-    from .detection import calibrate
-    from .identification import FitSettings, SignalSource, fit
-    from .identified import IdentifiedModel, file_digest, robot_record
+    from .detection import calibrate, calibration_residuals, detector_record
+    from .identification import FitSettings, fit
+    from .identified import IdentifiedModel, data_record, robot_record
     from .outputs import output_channels, residuals
 
     config = load_config(args.robot)
     model = RobotModel(config)
-    datasets = [_load(p, model) for p in args.data]
+    datasets = [load_run(p, model) for p in args.data]
     settings = FitSettings(estimator=args.estimator, n_components=args.n_components, min_speed=args.min_speed,
                            blocks=args.blocks)
     started = time.perf_counter()
@@ -53,17 +49,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     phi = result.phi
 
     # T² calibration on the identification data (contact-free), offline derivatives.
-    es, dqs = [], []
-    for ds in datasets:
-        source = SignalSource(model, ds, settings, instruments=False)
-        for lo in range(0, ds.n_samples, CALIBRATION_CHUNK):  # a chunk at a time: bounded memory
-            sig = source(lo, min(lo + CALIBRATION_CHUNK, ds.n_samples))[0]
-            sig = sig.slice(slice(None, None, CALIBRATION_STRIDE))
-            es.append(residuals(model, phi, sig))
-            dqs.append(sig.dq)
-    e, dq = np.vstack(es), np.vstack(dqs)
+    e, dq = calibration_residuals(model, datasets, settings, lambda sig, t: residuals(model, phi, sig))
     detectors = calibrate(model, phi, e, dq, args.alpha, args.min_speed, args.n_mode, result.cv["n_components"])
-    t2_cal = detectors["calibrated"].t2(model, e, dq)
     elapsed = time.perf_counter() - started
 
     outs = output_channels(model)
@@ -89,13 +76,9 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
                     "noise_std": [o.sigma for o in outs],
                     "residual_variance": result.residual_variance[result.chosen].tolist()},
         "derivatives": {"method": "savgol", **config.derivatives} if config.derivatives else {"method": "savgol"},
-        "detector": {**{k: d.as_dict() for k, d in detectors.items()},
-                     "calibration_samples": int(e.shape[0]),
-                     "calibrated_t2_quantiles": {"levels": QUANTILE_LEVELS.tolist(),
-                                                 "values": np.quantile(t2_cal, QUANTILE_LEVELS).tolist()}},
+        "detector": detector_record(model, detectors, e, dq),
         "cad_ft_offsets": _cad_offsets(model, result.statistics).tolist(),
-        "data": [{"path": str(Path(p).resolve()), "sha256": file_digest(ds_path(p)), "samples": ds.n_samples,
-                  "duration_s": ds.duration} for p, ds in zip(args.data, datasets)],
+        "data": [data_record(p, ds.n_samples, ds.duration) for p, ds in zip(args.data, datasets)],
         "fit_time_s": elapsed,
     }
     identified = IdentifiedModel(robot_record(config), dict(zip(model.layout.names, phi.tolist())), record)
@@ -132,13 +115,6 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
             "undetermined": undetermined, "estimators": record["estimators"],
             "base": record["base"], "residual_rms": dict(zip(record["outputs"]["channels"], rms.tolist())),
             "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed}
-
-
-def ds_path(p: str) -> Path:
-    from .dataset import SIMULATION_DATASET
-
-    path = Path(p)
-    return path / SIMULATION_DATASET if path.is_dir() else path
 
 
 def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:

@@ -17,6 +17,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,10 +26,13 @@ from scipy import stats as scipy_stats
 from .dataset import contact_episodes
 from .model import RobotModel
 from .outputs import divisors, output_channels
-from .regressors.stack import group_row_maps, motor_velocities, rows_at_rest
+from .regressors.stack import Signals, group_row_maps, motor_velocities, rows_at_rest
 
 ALPHA = 0.99
 VARIANTS: tuple[str, ...] = ("calibrated", "paper")
+CALIBRATION_CHUNK = 30_000  # samples (even, so the stride stays aligned across chunks)
+CALIBRATION_STRIDE = 2  # every other sample of the identification run calibrates T² (quantiles need no more)
+QUANTILE_LEVELS = np.sort(1.0 - np.logspace(-4, np.log10(0.5), 240))  # α in 0.5 … 0.9999, ascending
 
 
 def f_threshold(n: int, N: int, alpha: float) -> float:
@@ -111,20 +115,51 @@ def static_band_residuals(model: RobotModel, phi: np.ndarray, dq: np.ndarray, e:
     return out
 
 
+def calibration_residuals(model: RobotModel, datasets: Sequence, settings,
+                          residual_of: Callable[[Signals, np.ndarray], np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """(e, q̇) on every CALIBRATION_STRIDE-th sample of the contact-free runs, a chunk at a time (bounded memory),
+    with offline derivatives; residual_of(signals, t since the run's start) gives e of a chunk."""
+    from .identification import SignalSource
+
+    es, dqs = [], []
+    keep = slice(None, None, CALIBRATION_STRIDE)
+    for ds in datasets:
+        source = SignalSource(model, ds, settings, instruments=False)
+        for lo in range(0, ds.n_samples, CALIBRATION_CHUNK):
+            hi = min(lo + CALIBRATION_CHUNK, ds.n_samples)
+            sig = source(lo, hi)[0].slice(keep)
+            es.append(residual_of(sig, ds.t[lo:hi][keep] - ds.t[0]))
+            dqs.append(sig.dq)
+    return np.vstack(es), np.vstack(dqs)
+
+
+def detector_record(model: RobotModel, detectors: dict[str, Detector], e: np.ndarray, dq: np.ndarray) -> dict:
+    """The model file's `detector` section: both variants, N, and the calibrated T²'s quantiles (`--alpha`)."""
+    t2 = detectors["calibrated"].t2(model, e, dq)
+    return {**{k: d.as_dict() for k, d in detectors.items()}, "calibration_samples": int(e.shape[0]),
+            "calibrated_t2_quantiles": {"levels": QUANTILE_LEVELS.tolist(),
+                                        "values": np.quantile(t2, QUANTILE_LEVELS).tolist()}}
+
+
 def calibrate(model: RobotModel, phi: np.ndarray, e: np.ndarray, dq: np.ndarray, alpha: float = ALPHA, min_speed: float = 0.01,
-              n_mode: str = "dim", nu: int | None = None) -> dict[str, Detector]:
-    """Both detectors from contact-free residuals e (N, n_out) of the identification data, fitted Φ."""
+              n_mode: str = "dim", nu: int | None = None, variants: Sequence[str] = VARIANTS) -> dict[str, Detector]:
+    """The detectors (both by default) from contact-free residuals e (N, n_out) of the identification data, fitted Φ."""
     N, n_out = e.shape
-    n = n_out if n_mode == "dim" else int(nu or n_out)
-    banded = static_band_residuals(model, phi, dq, e, min_speed)
-    paper = Detector("paper", banded.var(axis=0), f_threshold(n, N, alpha), alpha, min_speed, n)
+    out: dict[str, Detector] = {}
+    if "paper" in variants:
+        n = n_out if n_mode == "dim" else int(nu or n_out)
+        banded = static_band_residuals(model, phi, dq, e, min_speed)
+        out["paper"] = Detector("paper", banded.var(axis=0), f_threshold(n, N, alpha), alpha, min_speed, n)
+    if "calibrated" not in variants:
+        return out
     rest = rows_at_rest(model, dq, min_speed)
     moving = np.where(rest, np.nan, e)
     variance = np.nanmean(moving**2, axis=0)
     variance = np.where(np.isfinite(variance) & (variance > 0), variance, e.var(axis=0))
     draft = Detector("calibrated", variance, np.inf, alpha, min_speed, n_out)
     threshold = float(np.quantile(draft.t2(model, e, dq), alpha))
-    return {"paper": paper, "calibrated": Detector("calibrated", variance, threshold, alpha, min_speed, n_out)}
+    out["calibrated"] = Detector("calibrated", variance, threshold, alpha, min_speed, n_out)
+    return out
 
 
 # ------------------------------------------------------------------------------------------------------------

@@ -152,6 +152,20 @@ def load_model(path: str | Path) -> IdentifiedModel:
     return IdentifiedModel(data["robot"], {k: float(v) for k, v in params.items()}, record, str(path))
 
 
+def data_file(path: str | Path) -> Path:
+    """The file behind a DATA argument: a `dynid simulate` directory's dataset, else the path itself."""
+    from .dataset import SIMULATION_DATASET
+
+    p = Path(path)
+    return p / SIMULATION_DATASET if p.is_dir() else p
+
+
+def data_record(path: str | Path, samples: int, duration_s: float) -> dict[str, Any]:
+    """What a model file says of the data it was fitted on (export checks the sha256 before reusing them)."""
+    return {"path": str(Path(path).resolve()), "sha256": file_digest(data_file(path)), "samples": samples,
+            "duration_s": duration_s}
+
+
 def file_digest(path: str | Path) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as f:

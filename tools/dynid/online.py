@@ -150,7 +150,7 @@ def calibrate_online(model: RobotModel, phi: np.ndarray, datasets: list, est: Fi
         es.append(augmented_residuals(model, phi, effects or [], sig))
         dqs.append(sig.dq)
     e, dq = np.vstack(es), np.vstack(dqs)
-    det = calibrate(model, phi, e, dq, alpha, min_speed)["calibrated"]
+    det = calibrate(model, phi, e, dq, alpha, min_speed, variants=("calibrated",))["calibrated"]
     ft = [o.row for o in output_channels(model) if o.kind == "ft"]
     t2_ft = np.sum(e[:, ft] ** 2 / det.variance[ft], axis=1)
     return OnlineCalibration(det.variance, det.threshold, float(np.quantile(t2_ft, alpha)), int(e.shape[0]))

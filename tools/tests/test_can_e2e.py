@@ -98,7 +98,7 @@ def test_writer_frames_decode_to_the_data_with_the_dbc(setup: dict, tmp_path: Pa
         elif f.name == "MC_POSITION" and f.address == 1:
             q[k] = np.radians(f.signals["Axis0Position"] / config.can["motor_control"][0]["axes"][0]["ticks_per_degree"])
     got = np.array([ft[k] for k in range(50)])
-    assert np.abs(got - part.ft["r_arm_ft"]).max(axis=0).tolist() <= (fs / 32768 / 2 * 1.0001).tolist()
+    assert (np.abs(got - part.ft["r_arm_ft"]).max(axis=0) <= fs / 32768 / 2 * 1.0001).all()
     j = part.joints.index(config.can["motor_control"][0]["axes"][0]["joint"])
     step = np.radians(1 / config.can["motor_control"][0]["axes"][0]["ticks_per_degree"])
     assert np.abs(np.array([q[k] for k in range(50)]) - part.q[:50, j]).max() <= step / 2 * 1.0001

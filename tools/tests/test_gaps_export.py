@@ -71,6 +71,11 @@ def test_augmented_model_round_trip(augmented: dict, default_model: Path) -> Non
     assert not np.allclose(m.phi, given.phi)  # refitted on the run
     done = dynid("validate", "--model", str(augmented["model"]), "--data", str(augmented["runs"]["replay"]))
     assert done.returncode == 0, done.stderr
+    # detect at an α other than the calibrated one reads the calibrated T²'s stored quantiles (as for `dynid fit`)
+    assert raw["detector"]["calibrated_t2_quantiles"]["levels"]
+    done = dynid("detect", "--model", str(augmented["model"]), "--data", str(augmented["runs"]["replay"]),
+                 "--alpha", "0.95")
+    assert done.returncode == 0, done.stderr
     # On the unseen replay run, with rows at rest left out (where static friction holds what no model says, as
     # the fit and the detector leave them out): the elbow's motor (m3) carries the Stribeck torque, and the
     # augmented model predicts it.

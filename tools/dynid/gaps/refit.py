@@ -4,22 +4,18 @@ standard errors, and the model file `dynid gaps --out` writes (dynid.identified,
 from __future__ import annotations
 
 import copy
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..augmented import UNITS, Effect, augmented_residuals
-from ..dataset import SIMULATION_DATASET, Dataset
-from ..identification import FitSettings, SignalSource
-from ..identified import IdentifiedModel, file_digest, robot_record
+from ..augmented import Effect, augmented_residuals
+from ..dataset import Dataset
+from ..identification import FitSettings
+from ..identified import IdentifiedModel, data_record, robot_record
 from ..model import RobotModel
 from ..outputs import output_channels
 from .candidates import Candidate, Context
 from .selection import Design, _solve
-
-CALIBRATION_CHUNK, CALIBRATION_STRIDE = 30_000, 2  # as `dynid fit` calibrates T²
-
 
 def reference_phi(model: RobotModel, given: np.ndarray | None) -> np.ndarray:
     """What fills the directions the run cannot see: the given model's Φ, else CAD inertia and zeros."""
@@ -62,11 +58,6 @@ def refit(current: Design, V: np.ndarray, accepted: list[Candidate], ctx: Contex
     return phi, effects
 
 
-def effect_summary(effects: list[Effect]) -> list[dict[str, Any]]:
-    return [{"name": e.kind, "where": e.where, "parameters": e.parameters, "standard_errors": e.standard_errors,
-             "units": {k: UNITS.get(k, "") for k in e.parameters}} for e in effects]
-
-
 def augmented_model(model: RobotModel, ds: Dataset, data_path: str, result: dict, phi: np.ndarray,
                     effects: list[Effect], given: IdentifiedModel | None, alpha: float = 0.99,
                     min_speed: float = 0.01) -> IdentifiedModel:
@@ -74,7 +65,7 @@ def augmented_model(model: RobotModel, ds: Dataset, data_path: str, result: dict
     Λ and the T² detector recalibrated on the run with the effects (so detect and export see the augmented
     residuals). Sections that describe the given model's own fit (base, estimators, cv) are dropped: they no
     longer describe these parameters."""
-    from ..detection import calibrate
+    from ..detection import calibrate, calibration_residuals, detector_record
 
     record: dict[str, Any] = copy.deepcopy(given.record) if given is not None else {}
     for stale in ("base", "estimators", "cv", "n_components", "fit_time_s"):
@@ -82,28 +73,18 @@ def augmented_model(model: RobotModel, ds: Dataset, data_path: str, result: dict
     if given is not None:
         det = record.get("detector", {}).get("calibrated", {})
         alpha, min_speed = float(det.get("alpha", alpha)), float(det.get("min_speed", min_speed))
-    source = SignalSource(model, ds, FitSettings(), instruments=False)
-    es, dqs = [], []
-    for lo in range(0, ds.n_samples, CALIBRATION_CHUNK):
-        hi = min(lo + CALIBRATION_CHUNK, ds.n_samples)
-        sig = source(lo, hi)[0]
-        keep = slice(None, None, CALIBRATION_STRIDE)
-        es.append(augmented_residuals(model, phi, effects, sig.slice(keep), ds.t[lo:hi][keep] - ds.t[0]))
-        dqs.append(sig.dq[keep])
-    e, dq = np.vstack(es), np.vstack(dqs)
+    e, dq = calibration_residuals(model, [ds], FitSettings(),
+                                  lambda sig, t: augmented_residuals(model, phi, effects, sig, t))
     detectors = calibrate(model, phi, e, dq, alpha, min_speed)
     outs = output_channels(model)
-    path = Path(data_path)
-    digest_path = path / SIMULATION_DATASET if path.is_dir() else path
     record.update({
         "estimator": "gaps",
         "settings": {**record.get("settings", {}), "estimator": "gaps", "alpha": alpha, "min_speed": min_speed},
         "outputs": {"channels": [o.name for o in outs], "units": [o.unit for o in outs],
                     "noise_std": [o.sigma for o in outs],
                     "residual_variance": detectors["calibrated"].variance.tolist()},
-        "detector": {**{k: d.as_dict() for k, d in detectors.items()}, "calibration_samples": int(e.shape[0])},
-        "data": [{"path": str(path.resolve()), "sha256": file_digest(digest_path), "samples": ds.n_samples,
-                  "duration_s": ds.duration}],
+        "detector": detector_record(model, detectors, e, dq),
+        "data": [data_record(data_path, ds.n_samples, ds.duration)],
         "effects": [eff.as_dict() for eff in effects],
         "gaps": {"given_model": result.get("given_model"), "gap": result["gap"], "thresholds": result["thresholds"],
                  "rank": result["rank"], "blocks": result["blocks"]},
