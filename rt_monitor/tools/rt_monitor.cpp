@@ -119,9 +119,10 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "rt_monitor: error: %s\n", err.c_str());
         return replay.empty() ? 1 : 2;
     }
-    lcm::LCM lcm(have_url ? url : cfg.lcm_url);
+    if (!have_url) url = cfg.lcm_url;
+    lcm::LCM lcm(url);
     if (!lcm.good()) {
-        std::fprintf(stderr, "rt_monitor: error: cannot open LCM at '%s'\n", (have_url ? url : cfg.lcm_url).c_str());
+        std::fprintf(stderr, "rt_monitor: error: cannot open LCM at '%s'\n", url.c_str());
         return 1;
     }
 
@@ -133,7 +134,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "rt_monitor: running: %s; LCM %s; %s\n",
                  !replay.empty() ? ("replay of " + replay + (realtime ? " in real time" : "")).c_str()
                  : !loopback.empty() ? ("loopback transport in " + loopback).c_str() : "SocketCAN",
-                 (have_url ? url : cfg.lcm_url.empty() ? std::string("default URL") : cfg.lcm_url).c_str(),
+                 (url.empty() ? std::string("default URL") : url).c_str(),
                  describe_rt_settings(rts).c_str());
 
     struct sigaction sa {};
@@ -152,7 +153,19 @@ int main(int argc, char** argv) {
     res.n_channels = n_out;
     res.normalized_residual.assign(size_t(n_out), 0.0);
     res.threshold = coef->threshold;
+    ev.threshold = coef->threshold;
     dynid::monitor_status_t st{};
+    // Channel residuals are published in units of their σ; σ once here, not per message.
+    std::vector<double> sigma(static_cast<size_t>(n_out));
+    for (int i = 0; i < n_out; ++i) sigma[size_t(i)] = std::sqrt(coef->variance[size_t(i)]);
+    // One encode buffer for every message (their sizes are fixed from here on), so a publish does not allocate
+    // the way lcm::LCM::publish(channel, const T*) does; channel names built once too.
+    const std::string kContact = "DYNID_CONTACT", kResidual = "DYNID_RESIDUAL", kStatus = "DYNID_STATUS";
+    std::vector<uint8_t> wire(size_t(std::max({ev.getEncodedSize(), res.getEncodedSize(), st.getEncodedSize()})));
+    auto send = [&](const std::string& channel, const auto& msg) {
+        const int n = msg.encode(wire.data(), 0, int(wire.size()));  // < 0 only if a size changed: not sent
+        if (n > 0) lcm.publish(channel, wire.data(), unsigned(n));
+    };
 
     const int64_t status_period_us = int64_t(1e6 / cfg.status_hz);
     const double period_us = coef->sample_period * 1e6;
@@ -171,7 +184,7 @@ int main(int argc, char** argv) {
 
     auto fill_residual = [&](std::vector<double>& r, const Output& o) {
         for (int i = 0; i < n_out; ++i)
-            r[size_t(i)] = o.p.active[size_t(i)] ? o.p.e[i] / std::sqrt(coef->variance[size_t(i)]) : 0.0;
+            r[size_t(i)] = o.p.active[size_t(i)] ? o.p.e[i] / sigma[size_t(i)] : 0.0;
     };
     auto publish_status = [&](int64_t utime) {
         const MonitorCounters& c = asm_.counters();
@@ -196,7 +209,7 @@ int main(int argc, char** argv) {
         st.loop_us_mean = loop_n ? loop_sum / double(loop_n) : 0.0;
         st.loop_us_max = loop_max;
         st.overruns = overruns;
-        lcm.publish("DYNID_STATUS", &st);
+        send(kStatus, st);
         loop_sum = loop_max = 0;
         loop_n = 0;
     };
@@ -219,17 +232,16 @@ int main(int argc, char** argv) {
             ev.onset_utime = onset_utime;
             ev.sample = evaluated - 1;
             ev.t2 = o.p.t2;
-            ev.threshold = coef->threshold;
             fill_residual(ev.normalized_residual, o);
             for (int k = 0; k < 6; ++k) ev.wrench[k] = o.wrench[k];
-            lcm.publish("DYNID_CONTACT", &ev);
+            send(kContact, ev);
             if (o.event == Event::kOnset && latency.size() < latency.capacity()) latency.push_back(mono_us() - rx_mono);
         }
         if (o.ready && evaluated % cfg.residual_every == 0) {
             res.utime = x.t_us;
             res.t2 = o.p.t2;
             fill_residual(res.normalized_residual, o);
-            lcm.publish("DYNID_RESIDUAL", &res);
+            send(kResidual, res);
         }
     };
 
@@ -248,17 +260,16 @@ int main(int argc, char** argv) {
             // No contact from stale data: the core is not stepped, and restarts its filter afterwards (its
             // window would otherwise span the gap).
             was_stale = true;
-        } else if (s.held) {
-            // Bridged by interpolation when the next complete sample comes (or a restart, if none does soon).
-        } else {
+        } else if (!s.held) {  // a held sample is bridged when the next complete one comes (or the filter restarts)
             // The filter assumes uniform samples: bridge a short gap (lost strain halves) by interpolating
             // linearly between the last good sample and this one, restart the filter after a longer one.
             // Arrival jitter (a frame stamped up to 0.75 period late, or two samples bunched) is not a loss: a
             // lost sample shows as a gap of about two periods; only a gap of 1.75 periods or more is bridged,
             // and only time running backwards (or a long gap) restarts the filter.
             const int64_t gap = s.t_us - prev.t_us;
-            const long missing = (was_stale || gap <= 0) ? 0 : std::max(0L, std::lround(double(gap) / period_us - 0.25) - 1);
-            if (was_stale || gap <= 0 || missing > kMaxBridge) {
+            const bool restart = was_stale || gap <= 0;
+            const long missing = restart ? 0 : std::max(0L, std::lround(double(gap) / period_us - 0.25) - 1);
+            if (restart || missing > kMaxBridge) {
                 core->reset();
                 ++restarts;
             } else {
