@@ -85,13 +85,27 @@ def test_every_distal_contact_found_and_no_event_without_contact(live: dict, pat
     onsets = [(k, s) for kind, k, s in events if kind == 1]
     false = [k for k, _ in onsets if not any(a <= k <= e + slack for a, e in eps)]
     print(f"{path}: onsets in contact-free stretches at samples {false}")
-    assert len(false) <= (0 if path == "replay" else 1), f"onsets in contact-free stretches at samples {false}"
+    if path == "replay":
+        assert not false, f"onsets in contact-free stretches at samples {false}"
+    else:
+        # The live path's known artefact (README, "phantom samples"): a send stamp late by ≥ 1.75 periods is
+        # bridged by an interpolated sample that shifts the filter's time base. A false onset is tolerated only
+        # where the monitor's own `interpolated` counter rose within 300 ms before it (to the next status).
+        status = [(round((m.utime - t0) / 1000), int(m.interpolated)) for m in live["msgs"]["DYNID_STATUS"]]
+
+        def interpolated(k0: int, k1: int) -> int:
+            before = [n for k, n in status if k <= k0]
+            after = [n for k, n in status if k >= k1]
+            return (after[0] if after else status[-1][1]) - (before[-1] if before else 0)
+
+        unexplained = [k for k in false if interpolated(k - 300, k) == 0]
+        assert not unexplained, f"onsets in contact-free stretches without an interpolated sample: {unexplained}"
     distal = [(a, e) for a, e in eps if side[a] == 1.0 and e < len(contact)]  # ended inside the stretch
     assert len(distal) >= 3
     for a, e in distal:
         hits = [s for k, s in onsets if a <= k <= e + slack]
         if not hits and path == "live":
-            # The one tolerated live false onset (a late sender under load) may still be held when the contact
+            # A tolerated live false onset (a phantom sample, above) may still be held when the contact
             # starts: the monitor then reports contact throughout it, with no second onset. Counted as found only
             # if that onset's state is held into the episode (no end event between it and the contact's start).
             before = [(k, s) for kind, k, s in events if kind == 1 and k < a]
