@@ -155,6 +155,13 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
             return dim("effect " + str(k) + ": the Stribeck velocity must be positive");
     for (double v : {c.min_speed, c.alpha, c.threshold, c.ft_threshold, c.hysteresis, c.sample_period})
         if (!std::isfinite(v)) return nf("the detector or filter settings");
+    if (!std::isfinite(c.supply_time_constant) || !std::isfinite(c.supply_prior) || !finite_all(c.supply_gate))
+        return nf("the supply tracking");
+    if (c.supply_time_constant < 0 || (c.supply_time_constant > 0 && !(c.supply_prior > 0)))
+        return dim("supply tracking: the time constant must be ≥ 0, and the prior positive when it is on");
+    for (int i = 0; i < c.n_outputs; ++i)
+        if (c.supply_gate[i] < 0 || (c.supply_gate[i] > 0 && c.channel_kind[i] != 1))
+            return dim("supply tracking: the gate of " + c.channel_names[i] + " must be ≥ 0, and 0 unless it is a motor input");
     for (int i = 0; i < c.n_outputs; ++i) {
         if (c.residual_variance[i] <= 0) return dim("Λ of " + c.channel_names[i] + " is not positive");
         if (c.divisor[i] == 0) return dim("the divisor (motor gain) of " + c.channel_names[i] + " is zero");
@@ -213,7 +220,10 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
         out.variance[i] = c.residual_variance[i];
         out.gate_joints[i] = uint64_t(c.gate_joints[i]);
         out.gate_motors[i] = uint64_t(c.gate_motors[i]);
+        out.supply_gate[i] = c.supply_gate[i];
     }
+    out.supply_time_constant = c.supply_time_constant;
+    out.supply_prior = c.supply_prior;
     out.min_speed = c.min_speed;
     out.alpha = c.alpha;
     out.threshold = c.threshold;

@@ -27,6 +27,10 @@ Core::Core(const Coefficients& c) noexcept : c_(c) {
     det_.debounce_off = c.debounce_off;
     det_.hysteresis = c.hysteresis;
     width_ = c.n_joints + c.n_outputs;
+    if (c.supply_time_constant > 0) lambda_ = std::exp(-c.sample_period / c.supply_time_constant);
+    num_.fill(0.0);
+    den_.fill(0.0);
+    ratio_.fill(1.0);
     reset();
 }
 
@@ -140,7 +144,8 @@ void Core::predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y
                                       c_.motor_friction(m, 3)};
                 s += friction(vm, mf);
             }
-            out.y_hat[i] = s / c_.divisor[i];
+            out.y_model[i] = s / c_.divisor[i];
+            out.y_hat[i] = c_.channel_kind[i] == ChannelKind::kInput ? ratio_[i] * out.y_model[i] : out.y_model[i];
             // Gate: a channel whose joints or motors rest carries static friction the model lacks.
             for (int j = 0; j < nj; ++j)
                 if ((c_.gate_joints[i] >> j & 1u) && std::abs(dq[j]) < c_.min_speed) out.active[i] = false;
@@ -150,6 +155,8 @@ void Core::predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y
                 for (int j = 0; j < nj; ++j) vm += c_.motor_velocity(k, j) * dq[j];
                 if (std::abs(vm) < c_.min_speed) out.active[i] = false;
             }
+        } else {
+            out.y_model[i] = out.y_hat[i];  // the F/T wrench
         }
         out.e[i] = y[i] - out.y_hat[i];
         const double z = out.e[i] * out.e[i] / c_.variance[i];
@@ -184,7 +191,22 @@ const Output& Core::step(const double* q, const double* y) noexcept {
     out_.ready = true;
     predict(out_.q, out_.dq, out_.ddq, out_.y, out_.p);
     detect();
+    track_supply();  // after this sample's residual: the sample never explains itself
     return out_;
+}
+
+void Core::track_supply() noexcept {
+    // dynid.supply.SupplyTracker, term for term: only moving rows (in T²) whose residual is inside the gate.
+    if (c_.supply_time_constant <= 0) return;
+    const double a = 1.0 - lambda_;
+    for (int i = 6; i < c_.n_outputs; ++i) {
+        if (c_.channel_kind[i] != ChannelKind::kInput || !out_.p.active[i]) continue;
+        if (std::abs(out_.p.e[i]) > c_.supply_gate[i]) continue;
+        const double p = out_.p.y_model[i], y = out_.y[i];
+        num_[i] = lambda_ * num_[i] + a * p * y;
+        den_[i] = lambda_ * den_[i] + a * p * p;
+        ratio_[i] = (num_[i] + c_.supply_prior) / (den_[i] + c_.supply_prior);
+    }
 }
 
 void Core::detect() noexcept {

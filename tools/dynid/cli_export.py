@@ -93,11 +93,12 @@ def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
     det = identified.record.get("detector", {}).get("calibrated", {})
     alpha = float(det.get("alpha", 0.99)) if args.alpha is None else args.alpha
     min_speed = float(det.get("min_speed", 0.01))
-    cal = calibrate_online(model, identified.phi, datasets, est, alpha, min_speed, effects=effects)
+    tracking = identified.supply_tracking
+    cal = calibrate_online(model, identified.phi, datasets, est, alpha, min_speed, effects=effects, tracking=tracking)
     c = build_coefficients(model, identified.phi, cal.variance, cal.threshold, cal.ft_threshold, alpha, min_speed,
                            cal.samples, est, {"model_sha256": file_digest(args.model), "data_sha256": data_digest,
                                                "estimator": str(identified.record.get("estimator", ""))},
-                           args.debounce_on, args.debounce_off, args.hysteresis, effects)
+                           args.debounce_on, args.debounce_off, args.hysteresis, effects, tracking)
     size = write_coefficients(c, args.out)
     offline = np.asarray(det.get("variance", cal.variance), float)
     print(f"exported {model.config.name} -> {args.out} ({size} bytes)")
@@ -105,6 +106,8 @@ def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
         print(f"  effect {e.kind} on {e.where}: " + ", ".join(f"{k} {v:.4g}" for k, v in e.parameters.items()))
     print(f"  online filter: fixed-lag Savitzky-Golay, window {est.window}, order {est.order}, lag {est.lag} "
           f"({1e3 * est.lag * est.sample_period:.3g} ms) at {1 / est.sample_period:.6g} Hz")
+    if tracking is not None:
+        print(f"  supply tracking: time constant {tracking.time_constant_s:g} s, gate {tracking.gate:g} noise stds")
     print(f"  T²_α (α = {alpha}) through the online filter: {cal.threshold:.4g} (offline {det.get('threshold', float('nan')):.4g});"
           f" F/T-side threshold {cal.ft_threshold:.4g}; {cal.samples} calibration samples")
     print("  Λ online / offline: " + ", ".join(f"{n} {a / b:.2f}" for n, a, b in zip(c.channel_names, cal.variance, offline)))

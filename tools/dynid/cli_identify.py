@@ -37,6 +37,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     from .identification import FitSettings, fit
     from .identified import IdentifiedModel, data_record, robot_record
     from .outputs import output_channels, residuals
+    from .supply import SupplyTracking
 
     config = load_config(args.robot)
     model = RobotModel(config)
@@ -49,8 +50,10 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     phi = result.phi
 
     # T² calibration on the identification data (contact-free), offline derivatives.
-    e, dq = calibration_residuals(model, datasets, settings, lambda sig, t: residuals(model, phi, sig))
-    detectors = calibrate(model, phi, e, dq, args.alpha, args.min_speed, args.n_mode, result.cv["n_components"])
+    tracking = SupplyTracking(args.supply_time_constant) if args.supply_time_constant > 0 else None
+    e, dq, e_constant = calibration_residuals(model, datasets, settings, lambda sig, t: residuals(model, phi, sig), tracking)
+    detectors = calibrate(model, phi, e, dq, args.alpha, args.min_speed, args.n_mode, result.cv["n_components"],
+                          e_constant=e_constant)
     elapsed = time.perf_counter() - started
 
     outs = output_channels(model)
@@ -77,6 +80,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
                     "residual_variance": result.residual_variance[result.chosen].tolist()},
         "derivatives": {"method": "savgol", **config.derivatives} if config.derivatives else {"method": "savgol"},
         "detector": detector_record(model, detectors, e, dq),
+        "supply_tracking": tracking.as_dict() if tracking is not None else None,
         "cad_ft_offsets": _cad_offsets(model, result.statistics).tolist(),
         "data": [data_record(p, ds.n_samples, ds.duration) for p, ds in zip(args.data, datasets)],
         "fit_time_s": elapsed,
@@ -133,7 +137,11 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
     print("  per channel: RMS of e = y − ŷ, and against the channel's noise std")
     for o in ev.outputs:
         entry = result["channels"][o.name]
-        print(f"    {o.name:18s} {entry['rms']:10.4g} {o.unit:4s} {entry['ratio_to_noise']:6.2f}× noise")
+        line = f"    {o.name:18s} {entry['rms']:10.4g} {o.unit:4s} {entry['ratio_to_noise']:6.2f}× noise"
+        if "ratio_to_noise_moving" in entry:
+            line += (f"; moving rows {entry['ratio_to_noise_moving']:.2f}× "
+                     f"(constant gains {entry['ratio_to_noise_moving_constant_gains']:.2f}×)")
+        print(line)
     if "relative_torque_error" in result:
         print(f"  relative torque error ‖τ − τ̂‖ / ‖τ‖: {100 * result['relative_torque_error']:.2f} %")
     if any(o.kind == "input" for o in ev.outputs):
@@ -171,6 +179,8 @@ def add_commands(sub: argparse._SubParsersAction, robot_arg, json_arg, min_speed
     from .identification import DEFAULT_ESTIMATOR, ESTIMATORS
 
     from .cli import confidence as alpha
+    from .cli import non_negative_float
+    from .supply import SupplyTracking
 
     sp = sub.add_parser("fit", help="identify inertia, F/T offsets, friction and motor gains in one regression",
                         description="Fit the model of DESIGN.md §3 to one or more experiments (stacked): OLS on the "
@@ -188,6 +198,9 @@ def add_commands(sub: argparse._SubParsersAction, robot_arg, json_arg, min_speed
     sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"T² confidence level (default {ALPHA})")
     sp.add_argument("--n-mode", choices=["dim", "nu"], default="dim",
                     help="n of the paper's F threshold: dim(e) (default) or ν as the paper writes")
+    sp.add_argument("--supply-time-constant", type=non_negative_float, default=SupplyTracking.time_constant_s,
+                    metavar="S", help="track each motor's supply (its torque per unit duty) with this time constant "
+                    f"when predicting inputs (dynid.supply; default {SupplyTracking.time_constant_s:g} s, 0 = constant gains)")
     min_speed_arg(sp)
     json_arg(sp)
     sp.set_defaults(func=cmd_fit)

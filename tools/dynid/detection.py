@@ -27,6 +27,7 @@ from .dataset import contact_episodes
 from .model import RobotModel
 from .outputs import divisors, output_channels
 from .regressors.stack import Signals, group_row_maps, motor_velocities, rows_at_rest
+from .supply import SupplyTracker, SupplyTracking
 
 ALPHA = 0.99
 VARIANTS: tuple[str, ...] = ("calibrated", "paper")
@@ -116,21 +117,28 @@ def static_band_residuals(model: RobotModel, phi: np.ndarray, dq: np.ndarray, e:
 
 
 def calibration_residuals(model: RobotModel, datasets: Sequence, settings,
-                          residual_of: Callable[[Signals, np.ndarray], np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """(e, q̇) on every CALIBRATION_STRIDE-th sample of the contact-free runs, a chunk at a time (bounded memory),
-    with offline derivatives; residual_of(signals, t since the run's start) gives e of a chunk."""
+                          residual_of: Callable[[Signals, np.ndarray], np.ndarray],
+                          tracking: SupplyTracking | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(e, q̇, e with constant gains) on every CALIBRATION_STRIDE-th sample of the contact-free runs, a chunk at
+    a time (bounded memory), with offline derivatives; residual_of(signals, t since the run's start) gives e of a
+    chunk. With `tracking`, e's input channels are those of the supply tracker (dynid.supply), one tracker per
+    run; without, the two residual arrays are the same."""
     from .identification import SignalSource
 
-    es, dqs = [], []
+    es, dqs, constant = [], [], []
     keep = slice(None, None, CALIBRATION_STRIDE)
     for ds in datasets:
         source = SignalSource(model, ds, settings, instruments=False)
+        tracker = SupplyTracker(model, tracking, settings.min_speed) if tracking is not None else None
         for lo in range(0, ds.n_samples, CALIBRATION_CHUNK):
             hi = min(lo + CALIBRATION_CHUNK, ds.n_samples)
             sig = source(lo, hi)[0].slice(keep)
-            es.append(residual_of(sig, ds.t[lo:hi][keep] - ds.t[0]))
+            e = residual_of(sig, ds.t[lo:hi][keep] - ds.t[0])
+            constant.append(e)
+            es.append(e if tracker is None else tracker.apply(e, sig, ds.t[lo:hi][keep])[0])
             dqs.append(sig.dq)
-    return np.vstack(es), np.vstack(dqs)
+    e = np.vstack(es)
+    return e, np.vstack(dqs), (e if tracking is None else np.vstack(constant))
 
 
 def detector_record(model: RobotModel, detectors: dict[str, Detector], e: np.ndarray, dq: np.ndarray) -> dict:
@@ -142,13 +150,15 @@ def detector_record(model: RobotModel, detectors: dict[str, Detector], e: np.nda
 
 
 def calibrate(model: RobotModel, phi: np.ndarray, e: np.ndarray, dq: np.ndarray, alpha: float = ALPHA, min_speed: float = 0.01,
-              n_mode: str = "dim", nu: int | None = None, variants: Sequence[str] = VARIANTS) -> dict[str, Detector]:
-    """The detectors (both by default) from contact-free residuals e (N, n_out) of the identification data, fitted Φ."""
+              n_mode: str = "dim", nu: int | None = None, variants: Sequence[str] = VARIANTS,
+              e_constant: np.ndarray | None = None) -> dict[str, Detector]:
+    """The detectors (both by default) from contact-free residuals e (N, n_out) of the identification data, fitted Φ;
+    the paper's variant, as published, on the residuals with constant gains `e_constant` (default e)."""
     N, n_out = e.shape
     out: dict[str, Detector] = {}
     if "paper" in variants:
         n = n_out if n_mode == "dim" else int(nu or n_out)
-        banded = static_band_residuals(model, phi, dq, e, min_speed)
+        banded = static_band_residuals(model, phi, dq, e if e_constant is None else e_constant, min_speed)
         out["paper"] = Detector("paper", banded.var(axis=0), f_threshold(n, N, alpha), alpha, min_speed, n)
     if "calibrated" not in variants:
         return out

@@ -21,7 +21,8 @@ from .errors import DataError, InputError
 from .identified import IdentifiedModel, load_model
 from .model import RobotModel
 from .outputs import OutputChannel, output_channels, residuals
-from .regressors.stack import Signals, signals_from_dataset
+from .regressors.stack import Signals, rows_at_rest, signals_from_dataset
+from .supply import tracked_residuals
 
 if TYPE_CHECKING:  # dynid.detection pulls in scipy.stats (0.6 s): imported where T² is computed, not by every command
     from .detection import Detector
@@ -53,7 +54,8 @@ class Evaluated:
     model: RobotModel
     dataset: Dataset
     signals: Signals  # with the outputs filtered as q̇, q̈ are (see signals_from_dataset)
-    e: np.ndarray  # (N, n_out) e = y − ŷ
+    e: np.ndarray  # (N, n_out) e = y − ŷ, the inputs predicted with the model's supply tracking (dynid.supply)
+    e_constant: np.ndarray  # the same with constant motor gains (the paper's model); e itself without tracking
 
     @property
     def config(self) -> RobotConfig:
@@ -75,8 +77,11 @@ def evaluate(model_path: str, data_path: str, identified: IdentifiedModel | None
     if effects:
         from .augmented import augmented_residuals
 
-        return Evaluated(identified, model, ds, sig, augmented_residuals(model, identified.phi, effects, sig, ds.t - ds.t[0]))
-    return Evaluated(identified, model, ds, sig, residuals(model, identified.phi, sig))
+        e = augmented_residuals(model, identified.phi, effects, sig, ds.t - ds.t[0])
+    else:
+        e = residuals(model, identified.phi, sig)
+    tracked = tracked_residuals(model, identified.supply_tracking, identified.min_speed, e, sig, ds.t)
+    return Evaluated(identified, model, ds, sig, tracked, e)
 
 
 def _norm_stats(x: np.ndarray) -> dict[str, float]:
@@ -107,12 +112,22 @@ def validation(ev: Evaluated, model_label: str, data_label: str,
         cad_e = cad_ft_residuals(ev) if cad_e is None else cad_e
         result["table_ii"] = {"identified": {"force": _norm_stats(e[:, ft[:3]]), "torque": _norm_stats(e[:, ft[3:6]])},
                               "cad": {"force": _norm_stats(cad_e[:, :3]), "torque": _norm_stats(cad_e[:, 3:6])}}
+    rest = rows_at_rest(ev.model, ev.signals.dq, ev.identified.min_speed)
     for o in outs:
         rms = float(np.sqrt(np.mean(e[:, o.row] ** 2)))
         entry = {"rms": rms, "mean": float(e[:, o.row].mean()), "std": float(e[:, o.row].std()),
                  "noise_std": o.sigma, "ratio_to_noise": rms / o.sigma}
         if o.kind == "input":
             entry["cad"] = None  # no friction and no gains in a CAD model: undefined (the paper says so too)
+            # Static friction holds a resting joint with any torque inside its band: the model says nothing
+            # there, so the motor rows at rest are also left out, as in the fit and in T².
+            moving = ~rest[:, o.row]
+            entry["moving_samples"] = int(moving.sum())
+            if moving.any():
+                entry["rms_moving"] = float(np.sqrt(np.mean(e[moving, o.row] ** 2)))
+                entry["ratio_to_noise_moving"] = entry["rms_moving"] / o.sigma
+                const = float(np.sqrt(np.mean(ev.e_constant[moving, o.row] ** 2)))
+                entry["ratio_to_noise_moving_constant_gains"] = const / o.sigma
         result["channels"][o.name] = entry
     torque = [o.row for o in outs if o.kind == "torque"]
     if torque:  # joint torque sensors: the error the torque-identification literature reports
@@ -164,6 +179,7 @@ def detection(ev: Evaluated, model_label: str, data_label: str, alpha: float, n_
     result: dict[str, Any] = {"model": model_label, "data": data_label, "alpha": alpha, "variants": {}}
     t2s = {}
     for variant, d in dets.items():
-        t2s[variant] = d.t2(ev.model, ev.e, ev.signals.dq, ev.identified.phi)
+        e = ev.e_constant if variant == "paper" else ev.e  # the paper's model has constant gains
+        t2s[variant] = d.t2(ev.model, e, ev.signals.dq, ev.identified.phi)
         result["variants"][variant] = score(ev.dataset.t, t2s[variant], d.threshold, ev.dataset.contact, side)
     return Detection(result, dets, t2s, side)

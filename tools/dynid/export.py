@@ -30,9 +30,10 @@ from .model import RobotModel
 from .online import FixedLagSavitzkyGolay
 from .outputs import output_channels
 from .regressors.stack import group_row_maps
+from .supply import SupplyTracking
 
 MAGIC = b"DYNIDCOF"
-FILE_VERSION = 2  # 2: the effects of an augmented model (Stribeck, spring); version 1 files are refused
+FILE_VERSION = 3  # 2: the effects of an augmented model (Stribeck, spring); 3: supply tracking; older files are refused
 HEADER = struct.Struct("<8sII")
 KIND = {"ft": 0, "input": 1, "torque": 2}
 JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
@@ -106,7 +107,8 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, variance: np.ndarray,
                        ft_threshold: float, alpha: float, min_speed: float, samples: int,
                        est: FixedLagSavitzkyGolay, provenance: dict[str, str],
                        debounce_on: int = DEFAULT_DEBOUNCE_ON, debounce_off: int = DEFAULT_DEBOUNCE_OFF,
-                       hysteresis: float = DEFAULT_HYSTERESIS, effects: list | None = None) -> coefficients_t:
+                       hysteresis: float = DEFAULT_HYSTERESIS, effects: list | None = None,
+                       tracking: SupplyTracking | None = None) -> coefficients_t:
     cfg, layout, pm = model.config, model.layout, model.pin_model
     exportable_effects(effects or [])
     if len(cfg.ft_sensors) != 1:
@@ -202,6 +204,10 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, variance: np.ndarray,
         c.effect_param.append([p["static_torque"], p["velocity"], 0.0] if e.kind == "stribeck"
                               else [p["stiffness"], p["rest"], 0.0])
     c.n_effects = len(c.effect_kind)
+    # Supply tracking (dynid.supply): off is a zero time constant; gates only on the motor inputs.
+    c.supply_time_constant = tracking.time_constant_s if tracking is not None else 0.0
+    c.supply_prior = tracking.prior_input ** 2 if tracking is not None else 0.0
+    c.supply_gate = [tracking.gate_of(o.sigma) if tracking is not None and o.kind == "input" else 0.0 for o in outs]
     return c
 
 
@@ -244,6 +250,12 @@ def describe(c: coefficients_t) -> str:
                  f"off {c.debounce_off}, hysteresis {c.hysteresis}")
     lines.append(f"derivatives: fixed-lag Savitzky-Golay, window {c.window}, order {c.order}, lag {c.lag} "
                  f"({1e3 * c.lag * c.sample_period:.3g} ms), period {c.sample_period:.6g} s")
+    if c.supply_time_constant > 0:
+        gates = ", ".join(f"{n} {g:.4g}" for n, g in zip(c.channel_names, c.supply_gate) if g > 0)
+        lines.append(f"supply tracking: time constant {c.supply_time_constant:g} s, prior weight {c.supply_prior:.4g}; "
+                     f"gates {gates}")
+    else:
+        lines.append("supply tracking: off (constant motor gains)")
     names = {1: "stribeck", 2: "spring"}
     for k in range(c.n_effects):
         j, p = c.joint_names[c.effect_joint[k]], c.effect_param[k]

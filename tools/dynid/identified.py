@@ -34,7 +34,7 @@ import numpy as np
 
 from .config import RobotConfig, load_config
 from .dataset import atomic_write
-from .errors import DataError
+from .errors import DataError, InputError
 from .model import RobotModel
 
 FORMAT_NAME = "dynid-model"
@@ -75,6 +75,23 @@ class IdentifiedModel:
         from .augmented import parse_effects
 
         return parse_effects(self.record.get("effects"), self.robot_model, self.path or "model file")
+
+    @property
+    def supply_tracking(self):  # dynid.supply.SupplyTracking | None
+        """The input channels' supply tracking, None for a model fitted without it (or by an earlier dynid)."""
+        from .supply import SupplyTracking
+
+        d = self.record.get("supply_tracking")
+        if d is None:
+            return None
+        try:
+            return SupplyTracking.from_dict(d)
+        except (KeyError, TypeError, ValueError, InputError) as e:
+            raise DataError(f"{self.path or 'model file'}: bad supply_tracking section: {e}") from None
+
+    @property
+    def min_speed(self) -> float:
+        return float(self.record.get("settings", {}).get("min_speed", 0.01))
 
     @property
     def output_channels(self) -> list[str]:

@@ -14,11 +14,11 @@ import struct
 
 class coefficients_t(object):
 
-    __slots__ = ["robot_name", "config_digest", "dynid_version", "model_sha256", "data_sha256", "estimator", "n_joints", "joint_names", "n_bodies", "body_names", "parent", "joint_type", "joint_index", "axis", "rotation", "translation", "inertial", "gravity", "sensor_body", "sensor_name", "n_motors", "motor_names", "motor_velocity", "motor_friction_on", "motor_friction", "joint_friction", "n_outputs", "channel_names", "channel_kind", "ft_offset", "row_map", "channel_motor", "divisor", "residual_variance", "gate_joints", "gate_motors", "min_speed", "alpha", "threshold", "ft_threshold", "calibration_samples", "debounce_on", "debounce_off", "hysteresis", "sample_period", "window", "order", "lag", "filter", "n_effects", "effect_kind", "effect_joint", "effect_param"]
+    __slots__ = ["robot_name", "config_digest", "dynid_version", "model_sha256", "data_sha256", "estimator", "n_joints", "joint_names", "n_bodies", "body_names", "parent", "joint_type", "joint_index", "axis", "rotation", "translation", "inertial", "gravity", "sensor_body", "sensor_name", "n_motors", "motor_names", "motor_velocity", "motor_friction_on", "motor_friction", "joint_friction", "n_outputs", "channel_names", "channel_kind", "ft_offset", "row_map", "channel_motor", "divisor", "residual_variance", "gate_joints", "gate_motors", "min_speed", "alpha", "threshold", "ft_threshold", "calibration_samples", "debounce_on", "debounce_off", "hysteresis", "sample_period", "window", "order", "lag", "filter", "n_effects", "effect_kind", "effect_joint", "effect_param", "supply_time_constant", "supply_prior", "supply_gate"]
 
-    __typenames__ = ["string", "string", "string", "string", "string", "string", "int32_t", "string", "int32_t", "string", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "double", "int32_t", "string", "int32_t", "string", "double", "int8_t", "double", "double", "int32_t", "string", "int8_t", "double", "double", "int32_t", "double", "double", "int64_t", "int64_t", "double", "double", "double", "double", "int32_t", "int32_t", "int32_t", "double", "double", "int32_t", "int32_t", "int32_t", "double", "int32_t", "int8_t", "int32_t", "double"]
+    __typenames__ = ["string", "string", "string", "string", "string", "string", "int32_t", "string", "int32_t", "string", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "double", "int32_t", "string", "int32_t", "string", "double", "int8_t", "double", "double", "int32_t", "string", "int8_t", "double", "double", "int32_t", "double", "double", "int64_t", "int64_t", "double", "double", "double", "double", "int32_t", "int32_t", "int32_t", "double", "double", "int32_t", "int32_t", "int32_t", "double", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double"]
 
-    __dimensions__ = [None, None, None, None, None, None, None, ["n_joints"], None, ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies", 3], ["n_bodies", 9], ["n_bodies", 3], ["n_bodies", 10], [3], None, None, None, ["n_motors"], ["n_motors", "n_joints"], ["n_motors"], ["n_motors", 4], ["n_joints", 4], None, ["n_outputs"], ["n_outputs"], [6], ["n_outputs", "n_joints"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], None, None, None, None, None, None, None, None, None, None, None, None, [3, "window"], None, ["n_effects"], ["n_effects"], ["n_effects", 3]]
+    __dimensions__ = [None, None, None, None, None, None, None, ["n_joints"], None, ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies", 3], ["n_bodies", 9], ["n_bodies", 3], ["n_bodies", 10], [3], None, None, None, ["n_motors"], ["n_motors", "n_joints"], ["n_motors"], ["n_motors", 4], ["n_joints", 4], None, ["n_outputs"], ["n_outputs"], [6], ["n_outputs", "n_joints"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], None, None, None, None, None, None, None, None, None, None, None, None, [3, "window"], None, ["n_effects"], ["n_effects"], ["n_effects", 3], None, None, ["n_outputs"]]
 
     def __init__(self):
         self.robot_name = ""
@@ -289,6 +289,26 @@ class coefficients_t(object):
         """ LCM Type: int32_t[n_effects] """
         self.effect_param = []
         """ LCM Type: double[n_effects][3] """
+        self.supply_time_constant = 0.0
+        """
+        supply tracking (format version 3, dynid.supply): each input channel's prediction ŷ is scaled by
+        r = (num + p)/(den + p), num ← λ num + (1 − λ) ŷ y, den ← λ den + (1 − λ) ŷ², λ = exp(−sample_period/τ),
+        updated on samples where the channel is in T² and |y − r ŷ| ≤ its gate. s; 0: off (constant gains)
+        LCM Type: double
+        """
+
+        self.supply_prior = 0.0
+        """
+        p: the weight of the prior r = 1
+        LCM Type: double
+        """
+
+        self.supply_gate = []
+        """
+        per channel, in the channel's unit (0 on channels that are not motor inputs)
+        LCM Type: double[n_outputs]
+        """
+
 
     def encode(self):
         buf = BytesIO()
@@ -386,6 +406,8 @@ class coefficients_t(object):
         buf.write(struct.pack('>%di' % self.n_effects, *self.effect_joint[:self.n_effects]))
         for i0 in range(self.n_effects):
             buf.write(struct.pack('>3d', *self.effect_param[i0][:3]))
+        buf.write(struct.pack(">dd", self.supply_time_constant, self.supply_prior))
+        buf.write(struct.pack('>%dd' % self.n_outputs, *self.supply_gate[:self.n_outputs]))
 
     @staticmethod
     def decode(data: bytes):
@@ -481,12 +503,14 @@ class coefficients_t(object):
         self.effect_param = []
         for i0 in range(self.n_effects):
             self.effect_param.append(struct.unpack('>3d', buf.read(24)))
+        self.supply_time_constant, self.supply_prior = struct.unpack(">dd", buf.read(16))
+        self.supply_gate = struct.unpack('>%dd' % self.n_outputs, buf.read(self.n_outputs * 8))
         return self
 
     @staticmethod
     def _get_hash_recursive(parents):
         if coefficients_t in parents: return 0
-        tmphash = (0x738e806ec911deab) & 0xffffffffffffffff
+        tmphash = (0x939d9a8fb6ed911b) & 0xffffffffffffffff
         tmphash  = (((tmphash<<1)&0xffffffffffffffff) + (tmphash>>63)) & 0xffffffffffffffff
         return tmphash
     _packed_fingerprint = None

@@ -21,6 +21,7 @@ import numpy as np
 from .errors import DataError
 from .model import RobotModel
 from .regressors.stack import Signals
+from .supply import SupplyTracking, tracked_residuals
 
 # Sample steps count as uniform within this fraction of the median step; the monitor's filter assumes them.
 UNIFORM_RTOL = 0.05
@@ -135,19 +136,28 @@ class OnlineCalibration:
     samples: int
 
 
+def online_times(est: FixedLagSavitzkyGolay, t: np.ndarray) -> np.ndarray:
+    """The time stamps of the samples `online_signals` estimates (k − lag for k = window − 1 … N − 1)."""
+    return np.asarray(t, float)[est.window - 1 - est.lag : len(t) - est.lag]
+
+
 def calibrate_online(model: RobotModel, phi: np.ndarray, datasets: list, est: FixedLagSavitzkyGolay, alpha: float,
-                     min_speed: float, stride: int = 2, effects: list | None = None) -> OnlineCalibration:
+                     min_speed: float, stride: int = 2, effects: list | None = None,
+                     tracking: SupplyTracking | None = None) -> OnlineCalibration:
     """Λ and the thresholds of dynid's calibrated detector, on contact-free data seen through the online filter
-    (with the augmented model's `effects`, dynid.augmented, as the monitor evaluates them)."""
+    (with the augmented model's `effects`, dynid.augmented, and the supply `tracking`, as the monitor evaluates
+    them; the tracker sees every `stride`-th sample, with the same time constant in seconds)."""
     from .augmented import augmented_residuals
     from .detection import calibrate
     from .outputs import output_channels
 
     es, dqs = [], []
     for ds in datasets:
-        sig = online_signals(model, est, *raw_signals(model, ds))
-        sig = sig.slice(slice(None, None, stride))
-        es.append(augmented_residuals(model, phi, effects or [], sig))
+        raw = raw_signals(model, ds)
+        keep = slice(None, None, stride)
+        sig = online_signals(model, est, *raw).slice(keep)
+        e = augmented_residuals(model, phi, effects or [], sig)
+        es.append(tracked_residuals(model, tracking, min_speed, e, sig, online_times(est, raw[0])[keep]))
         dqs.append(sig.dq)
     e, dq = np.vstack(es), np.vstack(dqs)
     det = calibrate(model, phi, e, dq, alpha, min_speed, variants=("calibrated",))["calibrated"]

@@ -19,9 +19,10 @@ from dynid.detection import Detector
 from dynid.export import read_coefficients, unwrap, wrap
 from dynid.identified import load_model
 from dynid.lcm_coefficients import coefficients_t
-from dynid.online import FixedLagSavitzkyGolay, online_signals, raw_signals
+from dynid.online import FixedLagSavitzkyGolay, online_signals, online_times, raw_signals
 from dynid.outputs import residuals
 from dynid.regressors.stack import Signals
+from dynid.supply import SupplyTracker
 
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -153,7 +154,12 @@ def test_stream_matches_the_python_mirror(exported: Path, default_model: Path, d
     est = FixedLagSavitzkyGolay(c.window, c.order, c.lag, c.sample_period)
     assert np.array_equal(est.weights(), np.asarray(c.filter))
     sig = online_signals(model, est, t, q, inputs, {}, ft)
-    e = residuals(model, identified.phi, sig)
+    constant = residuals(model, identified.phi, sig)
+    tracking = identified.supply_tracking
+    assert tracking is not None and c.supply_time_constant == tracking.time_constant_s
+    e, ratio = SupplyTracker(model, tracking, c.min_speed).apply(constant, sig, online_times(est, t))
+    pwm = [i for i, k in enumerate(c.channel_kind) if k == 1]
+    assert np.ptp(ratio[:, pwm], axis=0).min() > 1e-3  # the tracker moves within these 4 s: the check has teeth
     det = Detector("calibrated", np.asarray(c.residual_variance), c.threshold, c.alpha, c.min_speed, c.n_outputs)
     t2 = det.t2(model, e, sig.dq)
 
@@ -225,7 +231,7 @@ def _bad_files(good: bytes) -> dict[str, tuple[bytes, int, str]]:
     flipped = bytearray(good)
     flipped[len(good) // 2] ^= 0x01
     bad["wrong CRC"] = (bytes(flipped), EXIT_BASE + 5, "CRC mismatch")
-    bad["wrong version"] = (wrap(payload, version=1), EXIT_BASE + 4, "format version 1, this monitor reads 2")
+    bad["wrong version"] = (wrap(payload, version=2), EXIT_BASE + 4, "format version 2, this monitor reads 3")
 
     c = coefficients_t.decode(payload)
     nj = 9  # capacity is 8
@@ -240,6 +246,18 @@ def _bad_files(good: bytes) -> dict[str, tuple[bytes, int, str]]:
     c.inertial = [list(r) for r in c.inertial]
     c.inertial[4][0] = float("nan")
     bad["NaN inside"] = (_reencode(c), EXIT_BASE + 9, "non-finite value in the inertial parameters")
+
+    c = coefficients_t.decode(payload)
+    c.supply_time_constant, c.supply_prior = 3.0, 0.0
+    bad["supply tracking without a prior"] = (_reencode(c), EXIT_BASE + 8, "the prior positive when it is on")
+
+    c = coefficients_t.decode(payload)
+    c.supply_gate = [0.01] * c.n_outputs
+    bad["supply gate on an F/T channel"] = (_reencode(c), EXIT_BASE + 8, "the gate of ft.r_arm_ft.fx")
+
+    c = coefficients_t.decode(payload)
+    c.supply_time_constant = float("inf")
+    bad["infinite supply time constant"] = (_reencode(c), EXIT_BASE + 9, "non-finite value in the supply tracking")
 
     c = coefficients_t.decode(payload)
     c.robot_name = "panda_arm"

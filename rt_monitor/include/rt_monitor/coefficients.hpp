@@ -19,7 +19,7 @@ constexpr int kMaxOutputs = 16;
 constexpr int kMaxWindow = 64;
 constexpr int kMaxEffects = 8;
 
-constexpr uint32_t kFileVersion = 2;  // 2: effects (Stribeck, spring) of an augmented model
+constexpr uint32_t kFileVersion = 3;  // 2: effects (Stribeck, spring) of an augmented model; 3: supply tracking
 constexpr char kMagic[8] = {'D', 'Y', 'N', 'I', 'D', 'C', 'O', 'F'};
 
 using Vec3 = Eigen::Vector3d;
@@ -68,6 +68,10 @@ struct Coefficients {
     std::array<EffectKind, kMaxEffects> effect_kind{};
     std::array<int, kMaxEffects> effect_joint{};
     std::array<std::array<double, 3>, kMaxEffects> effect_param{};
+
+    // Supply tracking of the input channels (dynid.supply): time constant (s, 0 = off), prior weight, gates.
+    double supply_time_constant = 0, supply_prior = 0;
+    std::array<double, kMaxOutputs> supply_gate{};
 
     std::array<std::string, kMaxJoints> joint_names;
     std::array<std::string, kMaxOutputs> channel_names;

@@ -16,6 +16,7 @@ enum class Side : int8_t { kNone = 0, kDistal = 1, kProximal = -1 };  // of the 
 
 struct Prediction {
     VecO y_hat = VecO::Zero();   // predicted outputs (F/T wrench in the sensor frame, then motor inputs)
+    VecO y_model = VecO::Zero(); // the same before the supply ratio (differs on tracked motor inputs only)
     VecO e = VecO::Zero();       // residuals y − ŷ
     std::array<bool, kMaxOutputs> active{};  // channels in T² (motor channels at rest are left out)
     double t2 = 0;               // eᵀ Λ⁻¹ e over the active channels
@@ -49,7 +50,11 @@ public:
     // The model alone, on given states and (filtered) outputs: what the cross-language vectors check.
     void predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y, Prediction& out) const noexcept;
 
+    // Restart the filter and the detector (after a gap in the frames). The supply estimate survives: a gap in
+    // the data does not change the boards' supply, and starting it over would put its drift back into e.
     void reset() noexcept;
+    // The supply ratio r of output channel i (1 on untracked channels; dynid.supply).
+    double supply_ratio(int i) const noexcept { return ratio_[i]; }
     void set_detector(const DetectorSettings& s) noexcept { det_ = s; }
     const DetectorSettings& detector() const noexcept { return det_; }
     const Output& output() const noexcept { return out_; }
@@ -57,6 +62,7 @@ public:
 private:
     void rnea(const VecJ& q, const VecJ& dq, const VecJ& ddq, VecJ& tau, Vec6& sensor_force) const noexcept;
     void detect() noexcept;
+    void track_supply() noexcept;
 
     const Coefficients& c_;
     DetectorSettings det_;
@@ -66,6 +72,9 @@ private:
     int slot_ = 0;
     long count_ = 0;
     int above_run_ = 0, below_run_ = 0;
+    // Supply tracking: exponentially forgotten sums of ŷ y and ŷ², and their ratio r, per output channel.
+    double lambda_ = 1.0;
+    std::array<double, kMaxOutputs> num_{}, den_{}, ratio_{};
     Output out_;
 };
 

@@ -73,9 +73,10 @@ def augmented_model(model: RobotModel, ds: Dataset, data_path: str, result: dict
     if given is not None:
         det = record.get("detector", {}).get("calibrated", {})
         alpha, min_speed = float(det.get("alpha", alpha)), float(det.get("min_speed", min_speed))
-    e, dq = calibration_residuals(model, [ds], FitSettings(),
-                                  lambda sig, t: augmented_residuals(model, phi, effects, sig, t))
-    detectors = calibrate(model, phi, e, dq, alpha, min_speed)
+    tracking = given.supply_tracking if given is not None else None  # `record` keeps it: detect will track too
+    e, dq, e_constant = calibration_residuals(model, [ds], FitSettings(min_speed=min_speed),
+                                              lambda sig, t: augmented_residuals(model, phi, effects, sig, t), tracking)
+    detectors = calibrate(model, phi, e, dq, alpha, min_speed, e_constant=e_constant)
     outs = output_channels(model)
     record.update({
         "estimator": "gaps",
