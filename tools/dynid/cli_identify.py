@@ -170,6 +170,12 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
         if s.get("tpr_by_side"):
             print("             TPR by side of the F/T sensor: " + ", ".join(
                 f"{k} {100 * v:.1f} %" for k, v in s["tpr_by_side"].items() if v is not None))
+    vis = found.result.get("visibility")
+    if vis:
+        hidden = [v for v in vis["episodes"] if not v["visible"]]
+        print(f"  calibrated: the contact alone reaches T²_α in {vis['visible']} of {len(vis['episodes'])} episodes "
+              f"(plant truth), {vis['visible_found']} of them found"
+              + ("; below it: " + ", ".join(f"{v['start_s']:.1f} s (peak {v['peak_t2']:.3g})" for v in hidden) if hidden else ""))
     print(f"  paper (real iCub arm, α = 0.99): TPR {100 * PAPER['tpr']:.0f} %, FPR {100 * PAPER['fpr']:.0f} %")
     return found.result
 

@@ -182,4 +182,23 @@ def detection(ev: Evaluated, model_label: str, data_label: str, alpha: float, n_
         e = ev.e_constant if variant == "paper" else ev.e  # the paper's model has constant gains
         t2s[variant] = d.t2(ev.model, e, ev.signals.dq, ev.identified.phi)
         result["variants"][variant] = score(ev.dataset.t, t2s[variant], d.threshold, ev.dataset.contact, side)
+    truth = Path(data_label) / "truth.npz"
+    if ev.dataset.contact is not None and ev.dataset.contact.any() and truth.is_file():
+        result["visibility"] = visibility(ev, dets["calibrated"], t2s["calibrated"], np.load(truth))
     return Detection(result, dets, t2s, side)
+
+
+def visibility(ev: Evaluated, det: Detector, t2: np.ndarray, truth) -> dict[str, Any]:
+    """For a simulated run: which contact episodes the calibrated detector can see at all (the contact's own
+    residual, from the plant's truth: dynid.contact_visibility; no debounce offline) and how many of those it found."""
+    from .contact_visibility import contact_residuals, episode_visibility
+    from .outputs import divisors
+
+    signal = contact_residuals(ev.model, divisors(ev.model, ev.identified.phi), truth)
+    episodes = episode_visibility(ev.dataset.contact, signal, det.active(ev.model, ev.signals.dq), det.variance,
+                                  det.threshold, debounce=1)
+    found = [bool(np.any(t2[v.start : v.end] > det.threshold)) for v in episodes]
+    t = ev.dataset.t - ev.dataset.t[0]
+    return {"visible": sum(v.visible for v in episodes),
+            "visible_found": sum(f for v, f in zip(episodes, found) if v.visible),
+            "episodes": [{**v.as_dict(), "start_s": float(t[v.start]), "found": f} for v, f in zip(episodes, found)]}
