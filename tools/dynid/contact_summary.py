@@ -35,11 +35,13 @@ LCMTYPES = Path(__file__).resolve().parents[2] / "rt_monitor" / "lcmtypes"
 
 
 def summarize(contact: np.ndarray, events: list[tuple[int, int]], period_s: float, slack: int,
-              t2: list[tuple[int, float, float]] | None = None, side: np.ndarray | None = None) -> dict[str, Any]:
+              t2: list[tuple[int, float, float]] | None = None, side: np.ndarray | None = None,
+              visible: list[bool] | None = None) -> dict[str, Any]:
     """events: (kind, sample) with kind 1 onset, 2 end, in time order; t2: (sample, T², T²_α) of the residual
     stream. The filter's lag shifts the T² test: a sample's alarm is compared with the truth `lag` earlier
     than it, here taken as 0 (the lag is a few ms against contacts of 0.3 s or more). side: the simulator's
-    skin.side (1 distal of the F/T sensor, -1 proximal) for a per-side count of the episodes found."""
+    skin.side (1 distal of the F/T sensor, -1 proximal) for a per-side count of the episodes found. visible:
+    per episode, whether the contact alone reaches the monitor's T²_α for its debounce (dynid.contact_visibility)."""
     truth = np.asarray(contact) != 0
     n = truth.size
     state = np.zeros(n, bool)
@@ -56,8 +58,11 @@ def summarize(contact: np.ndarray, events: list[tuple[int, int]], period_s: floa
     onsets = [k for kind, k in events if kind == 1]
     delays, found = [], 0
     by_side = {"distal": [0, 0], "proximal": [0, 0]}  # found, total
-    for a, e in eps:
+    missed_visible: list[int] = []
+    for i, (a, e) in enumerate(eps):
         hits = [k for k in onsets if a <= k <= e + slack]
+        if visible is not None and visible[i] and not hits:
+            missed_visible.append(int(a))
         name = None if side is None else {1: "distal", -1: "proximal"}.get(int(side[a]))
         if name:
             by_side[name][1] += 1
@@ -78,6 +83,9 @@ def summarize(contact: np.ndarray, events: list[tuple[int, int]], period_s: floa
                     "t2_samples": int(ok.sum())}
     if side is not None:
         t2_rates["episodes_by_side"] = {k: {"found": v[0], "episodes": v[1]} for k, v in by_side.items()}
+    if visible is not None:
+        t2_rates["episodes_visible"] = int(sum(visible))
+        t2_rates["visible_missed_at"] = missed_visible  # sample of each visible episode's start
     return {
         **t2_rates,
         "samples": int(n), "episodes": len(eps), "episodes_found": found, "onsets": len(onsets),
@@ -95,7 +103,9 @@ def format_summary(s: dict[str, Any]) -> str:
             f"{s['false_onsets']} false onsets"
             + ("".join(f", {k} {v['found']} of {v['episodes']}" for k, v in s["episodes_by_side"].items())
                if "episodes_by_side" in s else "") + "\n"
-            f"  monitor in contact (onset to end, debounced): {100 * s['tpr']:.1f} % of contact samples, "
+            + (f"  episodes the contact alone makes visible to the monitor (plant truth): {s['episodes_visible']}, "
+               f"{s['episodes_visible'] - len(s['visible_missed_at'])} of them found\n" if "episodes_visible" in s else "")
+            + f"  monitor in contact (onset to end, debounced): {100 * s['tpr']:.1f} % of contact samples, "
             f"{100 * s['fpr']:.2f} % of contact-free ones\n"
             f"  detection delay median {1e3 * s['delay_median_s']:.0f} ms, p90 {1e3 * s['delay_p90_s']:.0f} ms "
             f"(from the skin's onset to the monitor's confirmed onset)"
@@ -166,7 +176,15 @@ def main(argv: list[str] | None = None) -> int:
         events = [(int(m.kind), round((m.utime - t0_us) / (period * 1e6))) for m in msgs["DYNID_CONTACT"]]
         t2 = [(round((m.utime - t0_us) / (period * 1e6)), float(m.t2), float(m.threshold))
               for m in msgs["DYNID_RESIDUAL"]]
-        s = summarize(data.contact, events, period, coef.lag + coef.debounce_on + 5, t2, data.extra.get("skin.side"))
+        visible = None
+        truth = (a.data if a.data.is_dir() else a.data.parent) / "truth.npz"
+        if truth.is_file():
+            from .contact_visibility import monitor_visibility
+            from .model import RobotModel
+
+            visible = [v.visible for v in monitor_visibility(RobotModel(load_config(a.robot)), coef, np.load(truth))]
+        s = summarize(data.contact, events, period, coef.lag + coef.debounce_on + 5, t2, data.extra.get("skin.side"),
+                      visible)
         if msgs["DYNID_STATUS"]:
             last = msgs["DYNID_STATUS"][-1]
             s["monitor"] = {"frames": int(last.frames), "samples": int(last.samples),

@@ -78,3 +78,16 @@ def episode_visibility(contact: np.ndarray, signal: np.ndarray, active: np.ndarr
             best = max(best, run)
         out.append(EpisodeVisibility(int(a), int(b), float(t2[a:b].max()), best, best >= debounce))
     return out
+
+
+def monitor_visibility(model: RobotModel, coef, truth: Mapping[str, np.ndarray]) -> list[EpisodeVisibility]:
+    """The episodes of a simulated contact run that the monitor's detector (a coefficient file: Λ, T²_α through
+    its online filter, the debounce, the gates) can see, with the channels in use decided on the true q̇."""
+    from .regressors.stack import rows_at_rest
+
+    if "contact" not in truth or "dq" not in truth:
+        raise DataError("the ground truth has no contact or q̇ record (not a simulated contact run?)")
+    signal = contact_residuals(model, np.asarray(coef.divisor, float), truth)
+    active = ~rows_at_rest(model, np.asarray(truth["dq"], float), float(coef.min_speed))
+    return episode_visibility(np.asarray(truth["contact"]), signal, active, np.asarray(coef.residual_variance, float),
+                              float(coef.threshold), int(coef.debounce_on))

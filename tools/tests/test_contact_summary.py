@@ -49,3 +49,13 @@ def test_t2_rates_from_the_residual_stream() -> None:
     s = summarize(contact, [], 0.001, 5, t2)
     assert s["t2_tpr"] == 3 / 4 and s["t2_fpr"] == 1 / 6 and s["t2_samples"] == 10
     assert "T² > T²_α per sample (every 10th, no debounce): TPR 75.0 %, FPR 16.67 %" in format_summary(s)
+
+
+def test_visible_episodes_missed_are_named() -> None:
+    # Three episodes; the monitor finds the first; the second is visible (the contact alone reaches T²_α) and
+    # missed, the third is not visible and missed.
+    contact = np.zeros(60, int)
+    contact[5:10] = contact[20:30] = contact[40:50] = 1
+    s = summarize(contact, [(1, 7), (2, 12)], 0.001, 2, visible=[True, True, False])
+    assert (s["episodes_found"], s["episodes_visible"], s["visible_missed_at"]) == (1, 2, [20])
+    assert "visible to the monitor (plant truth): 2, 1 of them found" in format_summary(s)
