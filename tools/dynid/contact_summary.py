@@ -1,7 +1,7 @@
 """The monitor's contact events against the skin's ground truth: what `scripts/main` prints at the end.
 
-Events come from an LCM log of `DYNID_CONTACT` (`dynid.contact_event_t`, decoded with the lcm-gen Python type of
-rt_monitor/lcmtypes), sample times from the boards' CAN time (sample k at t0 + k · period). Figures:
+Events come from an LCM log of `DYNID_CONTACT` (`dynid.contact_event_t`, decoded with the lcm-gen Python types of
+rt_monitor/lcmtypes, `dynid.lcm_messages`), sample times from the boards' CAN time (sample k at t0 + k · period). Figures:
 - TPR / FPR per sample: the fraction of contact (contact-free) samples during which the monitor is between an
   onset and its end — the paper's definition of its 67 % / 6 % (Traversaro et al. 2013, at α = 0.99);
 - episodes found: an onset between the episode's start and `slack` samples after its end (the causal filter's
@@ -16,12 +16,8 @@ Run as `python -m dynid.contact_summary --events LOG --data RUN_DIR --model COEF
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
-import shutil
-import subprocess
 import sys
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +27,6 @@ from .dataset import contact_episodes as episodes
 from .errors import DataError, InputError
 
 PAPER = {"tpr": 0.67, "fpr": 0.06}  # Traversaro et al. 2013 on the real iCub arm, α = 0.99 (DESIGN.md §3)
-LCMTYPES = Path(__file__).resolve().parents[2] / "rt_monitor" / "lcmtypes"
 
 
 def summarize(contact: np.ndarray, events: list[tuple[int, int]], period_s: float, slack: int,
@@ -114,41 +109,23 @@ def format_summary(s: dict[str, Any]) -> str:
                if "t2_tpr" in s else ""))
 
 
-def lcm_types(out: Path) -> dict[str, type]:
-    """The monitor's message types, generated for Python by the venv's lcm-gen from rt_monitor/lcmtypes."""
-    lcm_gen = shutil.which("lcm-gen", path=str(Path(sys.executable).parent)) or shutil.which("lcm-gen")
-    if not lcm_gen:
-        raise DataError("lcm-gen not found (the lcm wheel of the venv ships it; run scripts/setup)")
-    names = ("contact_event_t", "monitor_status_t", "residual_t")
-    subprocess.run([lcm_gen, "--python", "--ppath", str(out)] + [str(LCMTYPES / f"{n}.lcm") for n in names],
-                   check=True, capture_output=True)
-    types = {}
-    for n in names:  # loaded by path: the generated package is also called `dynid`
-        spec = importlib.util.spec_from_file_location(f"lcmgen_{n}", out / "dynid" / f"{n}.py")
-        assert spec and spec.loader
-        mod = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(mod)
-        types[n] = getattr(mod, n)
-    return types
-
-
 def read_lcm_log(path: Path) -> dict[str, list]:
-    """Every DYNID_* message of an LCM log file, decoded."""
+    """Every DYNID_* message of an LCM log file, decoded with the lcm-gen types of rt_monitor/lcmtypes
+    (dynid.lcm_messages, checked against lcm-gen's output by test_lcm_deploy)."""
     import lcm
+
+    from .lcm_messages import contact_event_t, monitor_status_t, residual_t
 
     if not Path(path).is_file():
         raise InputError(f"LCM log not found: {path}")
-    by_channel = {"DYNID_CONTACT": "contact_event_t", "DYNID_STATUS": "monitor_status_t",
-                  "DYNID_RESIDUAL": "residual_t"}
-    with tempfile.TemporaryDirectory() as tmp:
-        types = lcm_types(Path(tmp))
-        out: dict[str, list] = {c: [] for c in by_channel}
-        try:
-            for e in lcm.EventLog(str(path), "r"):
-                if e.channel in by_channel:
-                    out[e.channel].append(types[by_channel[e.channel]].decode(e.data))
-        except (OSError, ValueError) as err:
-            raise DataError(f"{path}: not a readable LCM log: {err}") from None
+    types = {"DYNID_CONTACT": contact_event_t, "DYNID_STATUS": monitor_status_t, "DYNID_RESIDUAL": residual_t}
+    out: dict[str, list] = {c: [] for c in types}
+    try:
+        for e in lcm.EventLog(str(path), "r"):
+            if e.channel in types:
+                out[e.channel].append(types[e.channel].decode(e.data))
+    except (OSError, ValueError) as err:
+        raise DataError(f"{path}: not a readable LCM log: {err}") from None
     return out
 
 

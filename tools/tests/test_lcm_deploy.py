@@ -19,6 +19,7 @@ import pytest
 
 from dynid.can_log import monitor_config_text, write_candump
 from dynid.config import load_config
+from dynid.contact_summary import read_lcm_log
 from dynid.dataset import load_data
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -26,18 +27,6 @@ BUILD = ROOT / "build" / "rt_monitor"
 RT_MONITOR = BUILD / "rt_monitor"
 VENV_BIN = Path(sys.executable).parent
 START, STOP = 10000, 16000  # the slice test_can_e2e's bad-input tests use: it holds a detected contact
-
-
-def _read_log(path: Path) -> dict[str, list]:
-    import lcm
-
-    from dynid.lcm_messages import contact_event_t, monitor_status_t, residual_t
-
-    types = {"DYNID_CONTACT": contact_event_t, "DYNID_STATUS": monitor_status_t, "DYNID_RESIDUAL": residual_t}
-    out: dict[str, list] = {c: [] for c in types}
-    for e in lcm.EventLog(str(path), "r"):
-        out[e.channel].append(types[e.channel].decode(e.data))
-    return out
 
 
 @pytest.fixture(scope="module")
@@ -59,7 +48,7 @@ def run(default_experiments: dict, default_model: Path, tmp_path_factory: pytest
     done = subprocess.run([str(RT_MONITOR), "--model", str(coef), "--config", str(root / "file.conf"), "--replay", str(log)],
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
-    msgs = _read_log(lcm_log)
+    msgs = read_lcm_log(lcm_log)
     assert msgs["DYNID_CONTACT"], "the slice must hold a detected contact"
     return {"root": root, "coef": coef, "log": log, "lcm_log": lcm_log, "msgs": msgs, "stdout": done.stdout}
 
