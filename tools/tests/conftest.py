@@ -42,3 +42,12 @@ def default_model(default_experiments: dict[str, Path], tmp_path_factory: pytest
                  "--json", str(out.with_suffix(".fit.json")))
     assert done.returncode == 0, done.stderr
     return out
+
+
+@pytest.fixture(scope="session")
+def exported(default_model: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """`dynid export` of the default model: the coefficient file rt_monitor loads, as scripts/main writes it."""
+    out = tmp_path_factory.mktemp("export") / "model.dcoef"
+    done = dynid("export", "--model", str(default_model), "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    return out

@@ -31,13 +31,10 @@ T0_US = 1_700_000_000_000_000  # write_candump's default start time
 
 
 @pytest.fixture(scope="module")
-def setup(default_experiments: dict, default_model: Path, tmp_path_factory: pytest.TempPathFactory) -> dict:
+def setup(default_experiments: dict, exported: Path, tmp_path_factory: pytest.TempPathFactory) -> dict:
     assert RT_MONITOR.is_file(), f"{RT_MONITOR} is not built (scripts/setup)"
     root = tmp_path_factory.mktemp("can_e2e")
-    coef = root / "model.dcoef"
-    done = subprocess.run([sys.executable, "-m", "dynid.cli", "export", "--model", str(default_model), "--out", str(coef)],
-                          capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stderr
+    coef = exported
     config = load_config("icub_right_arm")
     data = load_data(default_experiments["contact"], config)
     return {"root": root, "coef": coef, "config": config, "data": data}

@@ -30,14 +30,11 @@ START, STOP = 10000, 16000  # the slice test_can_e2e's bad-input tests use: it h
 
 
 @pytest.fixture(scope="module")
-def run(default_experiments: dict, default_model: Path, tmp_path_factory: pytest.TempPathFactory) -> dict:
+def run(default_experiments: dict, exported: Path, tmp_path_factory: pytest.TempPathFactory) -> dict:
     """The coefficient file, the candump log, a configuration without lcm_url (LCM's default), and the file:// run."""
     assert RT_MONITOR.is_file(), f"{RT_MONITOR} is not built (scripts/setup)"
     root = tmp_path_factory.mktemp("lcm_deploy")
-    coef = root / "model.dcoef"
-    done = subprocess.run([sys.executable, "-m", "dynid.cli", "export", "--model", str(default_model), "--out", str(coef)],
-                          capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stderr
+    coef = exported
     config = load_config("icub_right_arm")
     part = load_data(default_experiments["contact"], config).slice(START, STOP)
     log = root / "contact.log"

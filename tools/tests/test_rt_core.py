@@ -53,14 +53,6 @@ def rt_eval(*args: str, exe: Path = RT_EVAL) -> subprocess.CompletedProcess:
     return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=600)
 
 
-@pytest.fixture(scope="session")
-def exported(default_model: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("export") / "model.dcoef"
-    done = dynid("export", "--model", str(default_model), "--out", str(out))
-    assert done.returncode == 0, done.stderr
-    return out
-
-
 def rel_err(a: np.ndarray, b: np.ndarray, scale: np.ndarray) -> float:
     return float(np.max(np.abs(a - b) / scale))
 
