@@ -26,7 +26,7 @@ from scipy import stats as scipy_stats
 from .dataset import contact_episodes
 from .model import RobotModel
 from .outputs import divisors, output_channels
-from .regressors.stack import Signals, group_row_maps, motor_velocities, rows_at_rest
+from .regressors.stack import Signals, friction_coordinates, rows_at_rest
 from .supply import SupplyTracker, SupplyTracking
 
 ALPHA = 0.99
@@ -82,31 +82,17 @@ def static_band_residuals(model: RobotModel, phi: np.ndarray, dq: np.ndarray, e:
     (C· for a motor) to its rows instead of the Coulomb term its derived q̇'s sign chose. Rows with no resting
     coordinate, and the F/T rows, are returned unchanged.
     """
-    cfg, layout = model.config, model.layout
-    joint_col = {j: i for i, j in enumerate(cfg.joints)}
     g = divisors(model, phi)
     out = e.copy()
-    start = 6 * len(cfg.ft_sensors)
-    for group in cfg.actuation:
-        gj = [joint_col[j] for j in group.joints]
-        rows = slice(start, start + len(gj))
-        start = rows.stop
-        L, C = group_row_maps(group)
-        # L comes from inverting the coupling: structural zeros may be rounding residue (as in rows_at_rest)
-        L, C = (np.where(np.abs(M) > 1e-9 * np.abs(M).max(), M, 0.0) for M in (L, C))
-        coordinates = [(dq[:, c], L[:, li], phi[layout.block("joint_friction", j).slice])
-                       for li, (j, c) in enumerate(zip(group.joints, gj))]
-        if group.input != "torque" and group.coupled:
-            v = motor_velocities(dq[:, gj], group.coupling)
-            coordinates += [(v[:, mi], C[:, mi], phi[layout.block("motor_friction", m).slice])
-                            for mi, m in enumerate(group.motors)]
-        applied = np.zeros((dq.shape[0], len(gj)))  # the Coulomb torque the sign chose, on resting coordinates
+    for rows, coordinates in friction_coordinates(model, dq):
+        applied = np.zeros((dq.shape[0], rows.stop - rows.start))  # the Coulomb torque the sign chose, on resting ones
         lo, hi = np.zeros_like(applied), np.zeros_like(applied)
-        for velocity, share, (fc_pos, fc_neg, _, _) in coordinates:
-            slow = (np.abs(velocity) < min_speed)[:, None]
-            coulomb = fc_pos * (velocity > 0) - fc_neg * (velocity < 0)
-            applied += np.where(slow, coulomb[:, None] * share, 0.0)
-            ends = np.stack([share * fc_pos, -share * fc_neg])
+        for c in coordinates:
+            fc_pos, fc_neg = phi[model.layout.block(*c.block).slice][:2]
+            slow = (np.abs(c.velocity) < min_speed)[:, None]
+            coulomb = fc_pos * (c.velocity > 0) - fc_neg * (c.velocity < 0)
+            applied += np.where(slow, coulomb[:, None] * c.share, 0.0)
+            ends = np.stack([c.share * fc_pos, -c.share * fc_neg])
             lo += np.where(slow, ends.min(axis=0), 0.0)
             hi += np.where(slow, ends.max(axis=0), 0.0)
         gain = g[rows]

@@ -37,12 +37,14 @@ def load_run(path: str, model: RobotModel) -> Dataset:
     return ds
 
 
-def cad_phi(model: RobotModel, record: dict) -> np.ndarray:
-    """The CAD parameters, with the F/T offsets that fit them best on the identification data."""
-    phi = np.nan_to_num(model.cad_parameters(), nan=0.0)
-    offsets = np.asarray(record.get("cad_ft_offsets", np.zeros(len(phi))), float)
-    span = model.layout.span("ft_offset")
-    phi[span] = offsets[span]
+def cad_phi(model: RobotModel, record: dict, missing: float = 0.0) -> np.ndarray:
+    """The CAD parameters, with the F/T offsets that fit them best on the identification data (when the model
+    file has them); `missing` where a CAD model has no value (friction, gains)."""
+    phi = np.nan_to_num(model.cad_parameters(), nan=missing)
+    offsets = record.get("cad_ft_offsets")
+    if offsets is not None:
+        span = model.layout.span("ft_offset")
+        phi[span] = np.asarray(offsets, float)[span]
     return phi
 
 

@@ -50,17 +50,6 @@ def combine(terms: list[tuple[float, str]], values: dict[str, float]) -> float |
     return total
 
 
-def cad_values(identified: IdentifiedModel) -> dict[str, float]:
-    """The CAD Φ by name (NaN where a CAD model has no value), with the fitted F/T offsets."""
-    model = identified.robot_model
-    phi = np.asarray(model.cad_parameters(), float).copy()
-    offsets = identified.record.get("cad_ft_offsets")
-    if offsets is not None:
-        span = model.layout.span("ft_offset")
-        phi[span] = np.asarray(offsets, float)[span]
-    return dict(zip(model.layout.names, phi.tolist()))
-
-
 @dataclass(frozen=True)
 class Truth:
     path: str
@@ -111,7 +100,10 @@ def parameter_table(identified: IdentifiedModel, truth: Truth | None) -> list[di
     keys = ("combinations", "independent", "values", "standard_errors", "identified")
     if any(k not in base for k in keys) or len({len(base[k]) for k in keys}) != 1:
         raise DataError(f"{identified.path}: the model file's 'base' section is incomplete")
-    cad = cad_values(identified)
+    from .evaluation import cad_phi
+
+    model = identified.robot_model
+    cad = dict(zip(model.layout.names, cad_phi(model, identified.record, missing=float("nan")).tolist()))
     rows = []
     for text, name, value, se, ok in zip(*(base[k] for k in keys)):
         terms = parse_combination(text)

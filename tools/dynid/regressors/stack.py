@@ -192,29 +192,45 @@ def group_row_maps(group: ActuationGroup) -> tuple[np.ndarray, np.ndarray]:
     return np.eye(len(group.joints)), group.coupling.T
 
 
+@dataclass(frozen=True)
+class FrictionCoordinate:
+    """A coordinate with its own friction law: a joint, or a coupled motor at q̇_m = T q̇."""
+
+    velocity: np.ndarray  # (N,)
+    share: np.ndarray  # (rows of its group,) its friction torque's coefficient in each row; 0 where it is absent
+    block: tuple[str, str]  # its friction parameters: ("joint_friction", joint) or ("motor_friction", motor)
+
+
+def friction_coordinates(model: RobotModel, dq: np.ndarray) -> Iterator[tuple[slice, list[FrictionCoordinate]]]:
+    """Per actuation group: its row channels and the friction coordinates that enter them."""
+    cfg = model.config
+    joint_col = {j: i for i, j in enumerate(cfg.joints)}
+    start = 6 * len(cfg.ft_sensors)
+    for g in cfg.actuation:
+        gj = [joint_col[j] for j in g.joints]
+        rows = slice(start, start + len(gj))
+        start = rows.stop
+        # L comes from inverting the coupling: its structural zeros may be rounding residue (1e-17).
+        L, C = (np.where(np.abs(M) > 1e-9 * np.abs(M).max(), M, 0.0) for M in group_row_maps(g))
+        coordinates = [FrictionCoordinate(dq[:, c], L[:, li], ("joint_friction", j))
+                       for li, (j, c) in enumerate(zip(g.joints, gj))]
+        if g.input != "torque" and g.coupled:
+            v = motor_velocities(dq[:, gj], g.coupling)
+            coordinates += [FrictionCoordinate(v[:, mi], C[:, mi], ("motor_friction", m))
+                            for mi, m in enumerate(g.motors)]
+        yield rows, coordinates
+
+
 def rows_at_rest(model: RobotModel, dq: np.ndarray, min_speed: float = DEFAULT_MIN_SPEED) -> np.ndarray:
     """(N, r) bool: rows whose equation holds a friction coordinate (a joint, or a coupled motor at q̇_m = T q̇)
     slower than `min_speed`; static friction, which the model lacks, may hold any torque there.
 
     F/T rows hold no friction and are never at rest.
     """
-    cfg = model.config
-    joint_col = {j: i for i, j in enumerate(cfg.joints)}
-    n = dq.shape[0]
-    out = np.zeros((n, len(row_channels(model))), dtype=bool)
-    start = 6 * len(cfg.ft_sensors)
-    for g in cfg.actuation:
-        gj = [joint_col[j] for j in g.joints]
-        L, C = group_row_maps(g)
-        slow = np.abs(dq[:, gj]) < min_speed
-        # L comes from inverting the coupling: its structural zeros may be rounding residue (1e-17)
-        touches, touches_motor = np.abs(L) > 1e-9 * np.abs(L).max(), np.abs(C) > 1e-9 * np.abs(C).max()
-        rest = slow.astype(float) @ touches.T.astype(float) > 0
-        if g.input != "torque" and g.coupled:
-            slow_motor = np.abs(motor_velocities(dq[:, gj], g.coupling)) < min_speed
-            rest |= slow_motor.astype(float) @ touches_motor.T.astype(float) > 0
-        out[:, start : start + len(gj)] = rest
-        start += len(gj)
+    out = np.zeros((dq.shape[0], len(row_channels(model))), dtype=bool)
+    for rows, coordinates in friction_coordinates(model, dq):
+        for c in coordinates:
+            out[:, rows] |= (np.abs(c.velocity) < min_speed)[:, None] & (c.share != 0)[None, :]
     return out
 
 
