@@ -32,7 +32,7 @@ from dynid.simulation import SimulationSettings, parse_effect, simulate
 
 # effect -> (spec template with {m}, the ladder of m, the unit of m, the parameter the ladder scales)
 LADDERS: dict[str, tuple[str, tuple[float, ...], str]] = {
-    "stribeck": ("stribeck:excess={m}", (2.0, 4.0, 8.0), "× Coulomb (velocity 0.02 rad/s)"),
+    "stribeck": ("stribeck:excess={m},velocity=0.1", (2.0, 4.0, 8.0), "× Coulomb (velocity 0.1 rad/s)"),
     "spring": ("spring:stiffness={m}", (0.1, 0.2, 0.4), "Nm/rad"),
     "cogging": ("cogging:amplitude={m}", (0.04, 0.08, 0.16), "Nm (period 5°)"),
     "pwm_deadzone": ("pwm_deadzone:width={m}", (0.01, 0.02, 0.04), "duty"),

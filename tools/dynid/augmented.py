@@ -84,6 +84,29 @@ def parse_effects(raw: Any, model: RobotModel, where: str = "model file") -> lis
     return out
 
 
+def stribeck_shape(v: np.ndarray, velocity: float) -> np.ndarray:
+    """sign(v)·exp(−(v/v_s)²): the Stribeck curve per unit static torque, the one definition the fit's candidate
+    columns (dynid.gaps.candidates), the augmented model's prediction and the monitor's (core.cpp) all follow."""
+    return np.sign(v) * np.exp(-((v / velocity) ** 2))
+
+
+def joint_row_shares(model: RobotModel) -> dict[str, tuple[int, np.ndarray]]:
+    """joint -> (its column in q, its (r,) share of each row channel): joint rows are L times the group's joint
+    equations (dynid.regressors.stack), so a joint torque τ_j adds τ_j·share to the rows."""
+    cfg = model.config
+    r = len(row_channels(model))
+    out: dict[str, tuple[int, np.ndarray]] = {}
+    start = 6 * len(cfg.ft_sensors)
+    for g in cfg.actuation:
+        L, _ = group_row_maps(g)
+        for li, j in enumerate(g.joints):
+            share = np.zeros(r)
+            share[start : start + len(g.joints)] = L[:, li]
+            out[j] = (cfg.joints.index(j), share)
+        start += len(g.joints)
+    return out
+
+
 def joint_torques(model: RobotModel, effects: list[Effect], q: np.ndarray, dq: np.ndarray) -> np.ndarray:
     """(N, n_joints) extra joint torque of the Stribeck and spring effects (others contribute nothing here)."""
     tau = np.zeros_like(np.asarray(q, float))
@@ -93,8 +116,7 @@ def joint_torques(model: RobotModel, effects: list[Effect], q: np.ndarray, dq: n
         j = model.config.joints.index(e.target[1])
         p = e.parameters
         if e.kind == "stribeck":
-            v = dq[:, j]
-            tau[:, j] += p["static_torque"] * np.sign(v) * np.exp(-((v / p["velocity"]) ** 2))
+            tau[:, j] += p["static_torque"] * stribeck_shape(dq[:, j], p["velocity"])
         else:
             tau[:, j] += p["stiffness"] * (q[:, j] - p["rest"])
     return tau
@@ -103,16 +125,9 @@ def joint_torques(model: RobotModel, effects: list[Effect], q: np.ndarray, dq: n
 def effect_rows(model: RobotModel, effects: list[Effect], sig: Signals, t: np.ndarray | None = None) -> np.ndarray:
     """(N, r) what the effects add to a·Φ of every row channel (row units); t: s since the run's start (only
     time-dependent effects, an F/T drift, need it)."""
-    cfg = model.config
-    n, r = sig.q.shape[0], len(row_channels(model))
-    out = np.zeros((n, r))
     tau = joint_torques(model, effects, sig.q, sig.dq)
-    start = 6 * len(cfg.ft_sensors)
-    for g in cfg.actuation:  # joint rows are L times the group's joint equations (dynid.regressors.stack)
-        L, _ = group_row_maps(g)
-        cols = [cfg.joints.index(j) for j in g.joints]
-        out[:, start : start + len(g.joints)] = tau[:, cols] @ L.T
-        start += len(g.joints)
+    out = sum((np.outer(tau[:, c], share) for c, share in joint_row_shares(model).values()),
+              np.zeros((sig.q.shape[0], len(row_channels(model)))))
     others = [e for e in effects if e.kind not in REQUIRED]
     if others:
         out += _library_rows(model, others, sig, t)

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from ..augmented import joint_row_shares, stribeck_shape
 from ..model import RobotModel
 from ..regressors.rigid_body import rigid_body_regressors
 from ..regressors.stack import Signals, group_row_maps, row_channels
@@ -57,6 +58,7 @@ class Candidate:
     values: np.ndarray  # (N, r, K) columns in row units
     labels: tuple[str, ...]  # one per column
     interpret: Callable[[np.ndarray, np.ndarray], dict[str, float]]  # (θ, Φ of the refit) -> named parameters
+    positive: bool = False  # physical only with every θ > 0 (a fit of the other sign is not this effect)
 
     @property
     def key(self) -> str:
@@ -64,18 +66,7 @@ class Candidate:
 
 
 def _joint_rows(ctx: Context) -> dict[str, tuple[int, np.ndarray]]:
-    """joint -> (its column in q, its (r,) share of each row): rows are L times the joint equations."""
-    cfg = ctx.model.config
-    out: dict[str, tuple[int, np.ndarray]] = {}
-    start = 6 * len(cfg.ft_sensors)
-    for g in cfg.actuation:
-        L, _ = group_row_maps(g)
-        for li, j in enumerate(g.joints):
-            share = np.zeros(ctx.r)
-            share[start : start + len(g.joints)] = L[:, li]
-            out[j] = (cfg.joints.index(j), share)
-        start += len(g.joints)
-    return out
+    return joint_row_shares(ctx.model)
 
 
 def _motor_rows(ctx: Context, x: str = "q") -> dict[str, tuple[np.ndarray, np.ndarray, str]]:
@@ -114,11 +105,10 @@ def _on_rows(f: np.ndarray, share: np.ndarray) -> np.ndarray:
 def stribeck(ctx: Context, grid: Sequence[float] = STRIBECK_VELOCITIES) -> Iterable[Candidate]:
     """Extra Coulomb friction that decays with speed: s·sign(q̇)·exp(−(q̇/v_s)²); s the extra static torque."""
     for j, (c, share) in _joint_rows(ctx).items():
-        v = ctx.sig.dq[:, c]
         for vs in grid:
-            f = np.sign(v) * np.exp(-((v / vs) ** 2))
-            yield Candidate("stribeck", f"joint {j}", {"velocity": vs}, _on_rows(f, share), ("static_torque",),
-                            lambda th, phi, vs=vs: {"static_torque": float(th[0]), "velocity": vs})
+            yield Candidate("stribeck", f"joint {j}", {"velocity": vs}, _on_rows(stribeck_shape(ctx.sig.dq[:, c], vs), share),
+                            ("static_torque",), lambda th, phi, vs=vs: {"static_torque": float(th[0]), "velocity": vs},
+                            positive=True)
 
 
 def spring(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:

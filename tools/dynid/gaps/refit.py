@@ -15,7 +15,7 @@ from ..identified import IdentifiedModel, data_record, robot_record
 from ..model import RobotModel
 from ..outputs import output_channels
 from .candidates import Candidate, Context
-from .selection import Design, _solve
+from .selection import Design
 
 def reference_phi(model: RobotModel, given: np.ndarray | None) -> np.ndarray:
     """What fills the directions the run cannot see: the given model's Φ, else CAD inertia and zeros."""
@@ -27,10 +27,8 @@ def refit(current: Design, V: np.ndarray, accepted: list[Candidate], ctx: Contex
     """(Φ, effects) of the final fit. Φ = Φ_ref outside the identifiable subspace V, the fit inside it.
     Standard errors: block jackknife (the rows are correlated within a block, not across blocks)."""
     dof = V.shape[1]
-    G, g = current.augmented(None)
-    Gb, gb = G.sum(axis=1), g.sum(axis=1)
-    x = _solve(Gb.sum(axis=0), gb.sum(axis=0))
-    folds = [_solve(Gb.sum(axis=0) - Gb[b], gb.sum(axis=0) - gb[b]) for b in range(current.n_blocks)]
+    x = current.fit(None)[0]  # the selection's own solve (same column scaling, same cut)
+    folds = current.fold_fits()
 
     def full(xx: np.ndarray) -> np.ndarray:
         return phi_ref - V @ (V.T @ phi_ref) + V @ xx[:dof]

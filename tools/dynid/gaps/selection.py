@@ -5,9 +5,11 @@ reduced to its identifiable subspace Z. Statistics are Gram matrices per (time b
 candidate costs one cross product with Z, and every fold's fit and held-out error are small solves.
 
 A candidate is accepted when (1) it lowers the held-out weighted SSE of the channels it acts on by at least
-`min_gain` (relative), on every fold's average, and (2) its in-sample F-test is significant at `alpha` with
-the samples counted after decimation. (1) is the practical bar: simulation and robot residuals are coloured
-(derivative filters, vibration), so an F-test alone names something on any long enough run.
+`min_gain` (relative), on every fold's average, and (2) its coefficients are significant by a Wald test whose
+covariance is robust to autocorrelated, heteroscedastic residuals (`robust_p_value`: batch means of the scores
+over ~1 s batches). Residuals of a real or simulated arm are coloured (derivative filters, supply variation,
+stiction: lag-1 autocorrelation 0.5–0.9 at the decimated rate), so a test that counts every row as independent
+(an F-test) over-counts the evidence by one to two orders of magnitude and names something on a control run.
 """
 
 from __future__ import annotations
@@ -20,18 +22,22 @@ from scipy import stats as sps
 from .candidates import Candidate
 
 
+MIN_DOF = 10  # batches beyond the number of columns tested, at least (the F reference's denominator dof)
 SPAN_TOL = 1e-9  # a candidate direction whose residual after the design is below this share of its size: spanned
 
 
 def _pinv(G: np.ndarray) -> np.ndarray:
+    """Pseudo-inverse of an equilibrated normal matrix (unit-norm columns): the same cut as `_bordered_solve`, so a
+    column the selection kept is kept by the refit too."""
     s, V = np.linalg.eigh(G)
-    keep = s > 1e-10 * max(s.max(), 1e-300)
+    keep = s > SPAN_TOL * max(float(np.diag(G).max()), 1e-300)
     return (V[:, keep] / s[keep]) @ V[:, keep].T
 
 
-def _solve(G: np.ndarray, g: np.ndarray) -> np.ndarray:
-    """Minimum-norm least squares from normal equations (the augmented design may be rank deficient)."""
-    return _pinv(G) @ g
+def _norms(X: np.ndarray) -> np.ndarray:
+    """(K,) Euclidean norm of each column of X (N, r, K) over all rows; 1 for an all-zero column."""
+    n = np.sqrt(np.einsum("nrk,nrk->k", X, X))
+    return np.where(n > 0, n, 1.0)
 
 
 def _bordered_solve(Ginv: np.ndarray, G: np.ndarray, g: np.ndarray, d: int) -> np.ndarray:
@@ -49,7 +55,11 @@ def _bordered_solve(Ginv: np.ndarray, G: np.ndarray, g: np.ndarray, d: int) -> n
 
 @dataclass
 class Design:
-    """Per (block, channel) statistics of the weighted system D x = y, D = [Z, accepted effect columns]."""
+    """Per (block, channel) statistics of the weighted system D x = y, D = [Z, accepted effect columns].
+
+    Every column is scaled to unit norm inside (G, g, the pseudo-inverses, the bordered solves): a candidate's
+    columns can be 1e-6 of the design's (a Stribeck curve that lives only near q̇ = 0), and a cut relative to the
+    largest eigenvalue would drop them in one solve and keep them in another. `fit` returns x in D's own units."""
 
     D: np.ndarray  # (N, r, d) weighted columns
     y: np.ndarray  # (N, r) weighted right-hand side
@@ -60,6 +70,7 @@ class Design:
     rows: np.ndarray = field(init=False)  # (B, r) rows that count (nonzero weight)
     inv_folds: np.ndarray = field(init=False)  # (B, d, d) pseudo-inverse of each fold's training normal matrix
     inv_all: np.ndarray = field(init=False)  # (d, d) the same over all blocks
+    scale: np.ndarray = field(init=False)  # (d,) norm of each column of D; G, g are of D / scale
 
     @property
     def n_blocks(self) -> int:
@@ -78,12 +89,15 @@ class Design:
             self.g[b] = np.einsum("nri,nr->ri", Db, yb)
             self.yy[b] = (yb**2).sum(axis=0)
             self.rows[b] = (np.abs(Db).sum(axis=2) > 0).sum(axis=0)
+        self.scale = _norms(self.D)
+        self.G /= np.outer(self.scale, self.scale)
+        self.g /= self.scale
         Gb = self.G.sum(axis=1)
         self.inv_all = _pinv(Gb.sum(axis=0))
         self.inv_folds = np.stack([_pinv(Gb.sum(axis=0) - Gb[b]) for b in range(B)])
 
     def cross(self, E: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(D'E, E'E, E'y) per (block, channel) for extra columns E (N, r, K)."""
+        """(D'E, E'E, E'y) per (block, channel) for extra columns E (N, r, K), both scaled to unit-norm columns."""
         B, r, d, K = self.n_blocks, self.D.shape[1], self.D.shape[2], E.shape[2]
         DE, EE, Ey = np.zeros((B, r, d, K)), np.zeros((B, r, K, K)), np.zeros((B, r, K))
         active = np.flatnonzero(np.abs(E).sum(axis=(0, 2)) > 0)
@@ -94,7 +108,8 @@ class Design:
                 DE[b, c] = self.D[sel, c].T @ Ec
                 EE[b, c] = Ec.T @ Ec
                 Ey[b, c] = Ec.T @ self.y[sel, c]
-        return DE, EE, Ey
+        e = _norms(E)
+        return DE / np.outer(self.scale, e), EE / np.outer(e, e), Ey / e
 
     def augmented(self, E: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         """(G, g) per (block, channel) of [D, E]."""
@@ -118,39 +133,83 @@ class Design:
         return out
 
     def fit(self, E: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        """(x over all blocks, in-sample SSE per channel)."""
+        """(x over all blocks in the columns' own units, in-sample SSE per channel)."""
         G, g = self.augmented(E)
         Gs, gs = G.sum(axis=(0, 1)), g.sum(axis=(0, 1))
         x = self.inv_all @ gs if E is None else _bordered_solve(self.inv_all, Gs, gs, self.D.shape[2])
         Gc, gc, yy = G.sum(axis=0), g.sum(axis=0), self.yy.sum(axis=0)
-        return x, np.einsum("i,rij,j->r", x, Gc, x) - 2 * gc @ x + yy
+        scale = self.scale if E is None else np.concatenate([self.scale, _norms(E)])
+        return x / scale, np.einsum("i,rij,j->r", x, Gc, x) - 2 * gc @ x + yy
+
+    def fold_fits(self) -> list[np.ndarray]:
+        """x (own units) fitted on all blocks but b, for each b: the block jackknife's replicates."""
+        Gb, gb = self.G.sum(axis=1), self.g.sum(axis=1)
+        gt = gb.sum(axis=0)
+        return [self.inv_folds[b] @ (gt - gb[b]) / self.scale for b in range(self.n_blocks)]
 
 
 @dataclass
 class Trial:
     candidate: Candidate
     channels: np.ndarray  # row channels it acts on
-    cv_before: float  # held-out SSE on those channels
-    cv_after: float
+    before_blocks: np.ndarray  # (B,) held-out SSE on those channels, per block
+    after_blocks: np.ndarray
     p_value: float
+
+    @property
+    def cv_before(self) -> float:
+        return float(self.before_blocks.sum())
+
+    @property
+    def cv_after(self) -> float:
+        return float(self.after_blocks.sum())
 
     @property
     def gain(self) -> float:
         return 1.0 - self.cv_after / self.cv_before if self.cv_before > 0 else 0.0
 
 
-def evaluate(design: Design, cand: Candidate, weights: np.ndarray, base_cv: np.ndarray, base_sse: float, dof: int) -> Trial:
-    """The candidate's columns, weighted like the rows (1/σ, 0 at rest), against the current design."""
+def evaluate(design: Design, cand: Candidate, weights: np.ndarray, base_cv: np.ndarray) -> Trial:
+    """The candidate's columns, weighted like the rows (1/σ, 0 at rest), against the current design; its p-value
+    is left NaN (`robust_p_value` costs a pass over the rows: only the best candidate of a round gets one)."""
     E = weighted_columns(cand.values, weights)
     channels = np.flatnonzero(np.abs(E).sum(axis=(0, 2)) > 0)
+    before = base_cv[:, channels].sum(axis=1)
+    if cand.positive:
+        k = E.shape[2]
+        if not np.all(design.fit(E)[0][-k:] > 0):  # e.g. a "negative Stribeck bump": not the effect, never named
+            return Trial(cand, channels, before, before, float("nan"))
     cv = design.cv_sse(E)
-    _, sse = design.fit(E)
-    k = E.shape[2]
-    n = int(design.rows.sum())
-    drop = max(base_sse - float(sse.sum()), 0.0)
-    F = (drop / k) / (float(sse.sum()) / max(n - dof - k, 1))
-    p = float(sps.f.sf(F, k, max(n - dof - k, 1)))
-    return Trial(cand, channels, float(base_cv[:, channels].sum()), float(cv[:, channels].sum()), p)
+    return Trial(cand, channels, before, cv[:, channels].sum(axis=1), float("nan"))
+
+
+def robust_p_value(design: Design, E: np.ndarray, batch: int) -> float:
+    """p-value of H0: θ = 0 for the extra columns E (N, r, K), by a Wald test with a batch-means (HAC) covariance.
+
+    Frisch–Waugh: Ẽ = E minus its projection on D, θ = (ẼᵀẼ)⁻¹ Ẽᵀy. The score of sample t is s_t = Σ_r Ẽ_tr e_tr
+    (e the residual of the fit with E); summed over consecutive batches of `batch` samples, long against the
+    residual's correlation time, the batch sums S_b are nearly independent, so Ω = Σ_b S_b S_bᵀ estimates the
+    score's covariance whatever the autocorrelation and heteroscedasticity within a batch. W = θᵀ V⁻¹ θ with
+    V = M⁻¹ Ω M⁻¹ (M = ẼᵀẼ), and (m − K)/(K (m − 1)) W ~ F(K, m − K) over m batches (Hotelling's T²); at
+    least K + MIN_DOF batches, shorter than `batch` samples if need be."""
+    n, k = E.shape[0], E.shape[2]
+    Ds = design.D / design.scale
+    beta = design.inv_all @ np.einsum("nri,nrk->ik", Ds, E)
+    Et = E - np.einsum("nri,ik->nrk", Ds, beta)
+    x, _ = design.fit(E)
+    e = design.y - design.D @ x[: design.D.shape[2]] - E @ x[design.D.shape[2] :]
+    M = np.einsum("nrk,nrl->kl", Et, Et)
+    Minv = np.linalg.pinv(M)
+    theta = Minv @ np.einsum("nrk,nr->k", Et, design.y)
+    scores = np.einsum("nrk,nr->nk", Et, e)
+    # m > K batches are needed to invert Ω: an effect with many columns (the F/T gain's 35) gets shorter batches
+    m = min(max(n // max(batch, 1), k + MIN_DOF), n)
+    S = np.stack([b.sum(axis=0) for b in np.array_split(scores, m)])
+    if m <= k:
+        return 1.0
+    V = Minv @ (S.T @ S) @ Minv
+    W = float(theta @ np.linalg.pinv(V) @ theta)
+    return float(sps.f.sf((m - k) / (k * (m - 1)) * W, k, m - k))
 
 
 def weighted_columns(values: np.ndarray, weights: np.ndarray) -> np.ndarray:

@@ -25,12 +25,14 @@ from ..regressors.stack import fill_rows, row_channels
 from .candidates import LIBRARY, NOT_IN_LIBRARY, Candidate, Context, refined
 from .profile import profile
 from .refit import reference_phi, refit
-from .selection import Design, Trial, evaluate, weighted_columns
+from .selection import Design, Trial, evaluate, robust_p_value, weighted_columns
 
 MAX_SAMPLES = 6000  # decimated samples kept: the filtered signals are smooth, and selection stays seconds
 N_BLOCKS = 5
 MIN_GAIN = 0.20  # relative held-out SSE reduction on the channels an effect acts on
-ALPHA = 1e-6  # F-test level (decimated rows are still correlated: a strict level)
+ALPHA = 0.01  # family-wise level of the robust Wald test, Bonferroni over the candidates of a round
+BATCH_S = 2.0  # s per batch of the robust test: about one reaching motion; control runs' score variance stops growing there
+MIN_BATCHES = 10
 MAX_EFFECTS = 4
 CONFIDENT = 0.6  # share of its channels' excess over FLOOR a named effect must remove to be trusted
 # The held-out RMS (× noise) below which a channel counts as explained: what the standard model leaves on a plant
@@ -137,32 +139,37 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
     candidates: list[Candidate] = [c for make in LIBRARY.values() for c in make(ctx)]
     named: list[dict] = []
     tried: list[Trial] = []
+    not_significant: dict | None = None  # the round's best by held-out gain, when the robust test rejected it
     accepted_E: list[np.ndarray] = []
     accepted: list[Candidate] = []
     current = design
-    cur_cv, cur_sse = base_cv, float(sse0.sum())
+    cur_cv = base_cv
     taken: set[str] = set()
+    duration = float(ctx.t[-1] - ctx.t[0]) if ctx.n > 1 else 0.0
+    batch = max(1, min(int(round(BATCH_S * n / max(duration, 1e-9))), n // MIN_BATCHES))  # samples per batch (target)
     for _ in range(settings.max_effects):
-        trials = [evaluate(current, c, w, cur_cv, cur_sse, dof + sum(e.shape[2] for e in accepted_E))
-                  for c in candidates if c.key not in taken]
+        trials = [evaluate(current, c, w, cur_cv) for c in candidates if c.key not in taken]
         if not trials:
             break
         best = max(trials, key=lambda tr: tr.gain)
-        fine = [evaluate(current, c, w, cur_cv, cur_sse, dof + sum(e.shape[2] for e in accepted_E))
-                for c in refined(ctx, best.candidate)]
+        fine = [evaluate(current, c, w, cur_cv) for c in refined(ctx, best.candidate)]
         best = max([best, *fine], key=lambda tr: tr.gain)
         # best per effect/place, for the report of what was ruled out
         tried = trials
-        if best.gain < settings.min_gain or best.p_value > settings.alpha:
+        if best.gain < settings.min_gain:
             break
         c = best.candidate
         Ew = weighted_columns(c.values, w)
+        best = replace(best, p_value=robust_p_value(current, Ew, batch))
+        if best.p_value > settings.alpha / len(trials):
+            not_significant = {"effect": c.key, "search": dict(c.nonlinear), "cv_gain": best.gain,
+                               "p_value": best.p_value, "level": settings.alpha / len(trials)}
+            break
         accepted_E.append(Ew)
         accepted.append(c)
         taken.add(c.key)
         current = Design(np.concatenate([design.D] + accepted_E, axis=2), y, bounds)
         cur_cv = current.cv_sse(None)
-        cur_sse = float(current.fit(None)[1].sum())
         named.append({"trial": best})
 
     # Final refit with every named effect; coefficients in row units (the columns were weighted like the rows).
@@ -191,7 +198,8 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
     elapsed = time.perf_counter() - started
     return {
         "samples": ds.n_samples, "kept_every": stride, "blocks": settings.n_blocks, "rank": dof,
-        "thresholds": {"min_cv_gain": settings.min_gain, "alpha": settings.alpha},
+        "thresholds": {"min_cv_gain": settings.min_gain, "alpha": settings.alpha, "batch_samples": batch,
+                       "test": "Wald, batch-means covariance; alpha family-wise over a round's candidates"},
         "effects": effects,
         "gap": [{"channel": ch.name, "unit": ch.unit, "sigma": ch.sigma,
                  "before_rms": float(bf * ch.sigma), "after_rms": float(af * ch.sigma),
@@ -202,6 +210,7 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
         "where": _where(model, ctx, resid0, w),
         "profile": profile(model, ctx, resid0, resid_after, w),  # binned, before/after: what the figures plot
         "ruled_out": ruled_out[:12],
+        "not_significant": not_significant,
         "not_in_library": list(NOT_IN_LIBRARY),
         "seconds": elapsed,
         # the augmented model (`dynid gaps --out`): not part of the --json result (see cli_gaps)
@@ -217,18 +226,24 @@ def format_report(result: dict) -> str:
                                if not isinstance(v, list))  # matrices go to --json only
             lead = "named" if e["confident"] else "tentative"
             lines.append(f"{lead}: {e['name']} on {e['where']}: {params} "
-                         f"(held-out error on its channels −{100 * e['cv_gain']:.1f} %, F-test p={e['p_value']:.1e})")
+                         f"(held-out error on its channels −{100 * e['cv_gain']:.1f} %, robust p={e['p_value']:.1e})")
             if not e["confident"]:
                 lines.append(f"  it removes only {100 * e['explained']:.0f} % of its channels' excess over {FLOOR:g}× noise: "
                              "the residual's shape is not this effect's; likely an effect outside the library")
     else:
         best = result["ruled_out"][0] if result["ruled_out"] else None
-        extra = f"; best candidate {best['effect']} lowers the held-out error only {100 * best['cv_gain']:.1f} %" if best else ""
+        weak = result.get("not_significant")
+        if weak is not None:
+            extra = (f"; best candidate {weak['effect']} lowers the held-out error {100 * weak['cv_gain']:.1f} %, but not "
+                     f"consistently over the run (robust p={weak['p_value']:.1e} > {weak['level']:.1e})")
+        else:
+            extra = f"; best candidate {best['effect']} lowers the held-out error only {100 * best['cv_gain']:.1f} %" if best else ""
         lines.append("named: nothing — no effect in the library explains a significant part of the residual" + extra)
-    worst = max(result["gap"], key=lambda g: g["after_over_noise"])
-    if worst["after_over_noise"] > 1.3:
-        lines.append(f"unexplained: {worst['channel']} stays at {worst['after_over_noise']:.2f}× its noise floor after the "
-                     f"fix; not in the library: {', '.join(result['not_in_library'])}")
+    high = sorted((g for g in result["gap"] if g["after_over_noise"] > 1.3), key=lambda g: -g["after_over_noise"])
+    if high:
+        listed = ", ".join(f"{g['channel']} {g['after_over_noise']:.2f}×" for g in high)
+        lines.append(f"unexplained: {listed} its noise floor after the fix; not in the library: "
+                     f"{', '.join(result['not_in_library'])}")
     given = result.get("given_model")
     head = f"{'given':>10s} " if given else ""
     lines.append(f"{'channel':24s} {head}{'before':>10s} {'after':>10s}  {'(× noise)':>18s}")
