@@ -143,7 +143,7 @@ class Design:
 
     def fold_fits(self) -> list[np.ndarray]:
         """x (own units) fitted on all blocks but b, for each b: the block jackknife's replicates."""
-        Gb, gb = self.G.sum(axis=1), self.g.sum(axis=1)
+        gb = self.g.sum(axis=1)
         gt = gb.sum(axis=0)
         return [self.inv_folds[b] @ (gt - gb[b]) / self.scale for b in range(self.n_blocks)]
 
