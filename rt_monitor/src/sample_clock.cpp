@@ -72,23 +72,20 @@ void SampleClock::commit(const Sample& s, int64_t idx) noexcept {
 void SampleClock::decide(bool all, int64_t extra_slot) noexcept {
     while (n_held_ > 0) {
         int64_t l_max = INT64_MAX;
-        for (int j = 0; j < n_held_; ++j) l_max = std::min(l_max, held_slot_[size_t(j)] - last_idx_ - 1 - j);
+        for (int j = 0; j < n_held_; ++j) l_max = std::min(l_max, held_slot_[at(j)] - last_idx_ - 1 - j);
         if (extra_slot >= 0) l_max = std::min(l_max, extra_slot - last_idx_ - 1 - n_held_);
         // The sender is taken as on time again (the bound as tight) once it kept the sample period twice in a row
         // after the gap: held samples 0.5 to 1.5 periods apart (a catch-up burst sends back to back; a sender
         // preempted inside a burst leaves a longer interval).
         auto interval = [&](int j) {
-            const double d = double(held_[size_t(j)].t_us - held_[size_t(j - 1)].t_us);
+            const double d = double(held_[at(j)].t_us - held_[at(j - 1)].t_us);
             return d >= 0.5 * period_ && d <= 1.5 * period_;
         };
         const bool paced = n_held_ >= 3 && interval(n_held_ - 1) && interval(n_held_ - 2);
         if (l_max > 0 && !all && !paced && n_held_ < kWindow) return;
-        if (l_max <= 0 && held_slot_[0] > last_idx_ + 1) ++n_.late;  // it looked past a gap: it was late
-        commit(held_[0], last_idx_ + 1 + std::max<int64_t>(l_max, 0));
-        for (int j = 1; j < n_held_; ++j) {
-            held_[size_t(j - 1)] = held_[size_t(j)];
-            held_slot_[size_t(j - 1)] = held_slot_[size_t(j)];
-        }
+        if (l_max <= 0 && held_slot_[at(0)] > last_idx_ + 1) ++n_.late;  // it looked past a gap: it was late
+        commit(held_[at(0)], last_idx_ + 1 + std::max<int64_t>(l_max, 0));
+        head_ = (head_ + 1) % kWindow;
         --n_held_;
     }
 }
@@ -115,8 +112,8 @@ int SampleClock::push(const Sample& s) noexcept {
         commit(s, last_idx_ + 1);
         return n_out_;
     }
-    held_[size_t(n_held_)] = s;
-    held_slot_[size_t(n_held_)] = k;
+    held_[at(n_held_)] = s;
+    held_slot_[at(n_held_)] = k;
     ++n_held_;
     decide(false, -1);
     return n_out_;

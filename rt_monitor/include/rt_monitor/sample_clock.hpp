@@ -9,14 +9,15 @@
 // with the samples after it (up to kWindow in all), and the number of lost samples L before it is bounded by the
 // stamps: no sample is stamped before its own tick, so with the held samples consecutive after the L lost ones,
 // L ≤ min_j (slot_j − last − j) = L_max. As soon as L_max is 0 (a catch-up burst shows the sender was behind)
-// the held samples are consecutive. Once the sender has kept a period between samples twice in a row after the
-// gap (it sleeps to each deadline, so it is on time), or kWindow samples are held, the bound is taken as tight:
-// the first held sample had L_max samples lost before it, bridged by linear interpolation (at most kMaxBridge; a
-// longer gap restarts the filter). The cost: typically two samples of delay, only after a gap. Stamps alone
-// cannot tell every case: a loss right next to a late sample can be placed a sample or two off (the count stays
-// right), and a loss followed by samples each stamped most of a period late, with no burst, reads as lateness.
+// the held samples are consecutive. Once the sender has kept the period twice in a row after the gap (it sleeps
+// to each deadline, so it is on time), or kWindow samples are held, the bound is taken as tight: the first held
+// sample had L_max samples lost before it, bridged by linear interpolation (at most kMaxBridge; a longer gap
+// restarts the filter). The cost is a delay, only after a gap: two samples after a real loss, the catch-up burst
+// after a stalled sender (its samples were late anyway). Stamps alone cannot tell every case: a loss right next
+// to a late sample can be placed a sample off (the count stays right), and a loss followed by samples each
+// stamped most of a period late, with no burst, reads as lateness.
 //
-// No allocation, locking, exceptions or I/O: push() copies at most a few fixed-size samples.
+// No allocation, locking, exceptions or I/O: fixed-size samples are copied in and out of fixed arrays.
 #pragma once
 
 #include <array>
@@ -33,13 +34,13 @@ struct ClockStep {
 };
 
 struct ClockCounters {
-    int64_t interpolated = 0, restarts = 0, late = 0;  // late: samples past a gap that the next stamp showed were late
+    int64_t interpolated = 0, restarts = 0, late = 0;  // late: samples past a gap that later stamps showed were late
 };
 
 class SampleClock {
 public:
     static constexpr int kMaxBridge = 3;  // missing samples bridged; a longer gap restarts the filter
-    static constexpr int kWindow = 8;     // at most this many samples held after a gap
+    static constexpr int kWindow = 64;    // at most this many samples held after a gap (a 60 ms stall's catch-up)
     static constexpr int kMaxSteps = (kWindow + 1) * (kMaxBridge + 1);
 
     explicit SampleClock(double period_us = 1000.0) noexcept : period_(period_us) {}
@@ -65,9 +66,10 @@ private:
     bool have_good_ = false;    // good_: the last evaluated sample, the left end of a bridge
     Sample good_;
     int64_t good_idx_ = 0;
-    std::array<Sample, kWindow> held_{};   // samples past a gap, oldest first, with their slots
+    std::array<Sample, kWindow> held_{};   // samples past a gap (a ring from head_), with their slots
     std::array<int64_t, kWindow> held_slot_{};
-    int n_held_ = 0;
+    int head_ = 0, n_held_ = 0;
+    size_t at(int j) const noexcept { return size_t((head_ + j) % kWindow); }
     bool restart_next_ = false;
     std::array<ClockStep, kMaxSteps> out_{};
     int n_out_ = 0;
