@@ -75,13 +75,15 @@ void SampleClock::decide(bool all, int64_t extra_slot) noexcept {
         for (int j = 0; j < n_held_; ++j) l_max = std::min(l_max, held_slot_[at(j)] - last_idx_ - 1 - j);
         if (extra_slot >= 0) l_max = std::min(l_max, extra_slot - last_idx_ - 1 - n_held_);
         // The sender is taken as on time again (the bound as tight) once it kept the sample period twice in a row
-        // after the gap: held samples 0.5 to 1.5 periods apart (a catch-up burst sends back to back; a sender
-        // preempted inside a burst leaves a longer interval).
-        auto interval = [&](int j) {
+        // after the gap, on its ticks: the last two held samples 0.5 to 1.5 periods apart (a catch-up burst sends
+        // back to back) and each within half a period of its tick with L_max lost (a sender preempted twice inside
+        // its catch-up keeps a period but stays behind).
+        auto on_tick = [&](int j) {
             const double d = double(held_[at(j)].t_us - held_[at(j - 1)].t_us);
-            return d >= 0.5 * period_ && d <= 1.5 * period_;
+            const double late = double(held_[at(j)].t_us - base_t_) - offset_ - double(last_idx_ + 1 + l_max + j) * period_;
+            return d >= 0.5 * period_ && d <= 1.5 * period_ && late < 0.5 * period_;
         };
-        const bool paced = n_held_ >= 3 && interval(n_held_ - 1) && interval(n_held_ - 2);
+        const bool paced = n_held_ >= 3 && on_tick(n_held_ - 1) && on_tick(n_held_ - 2);
         if (l_max > 0 && !all && !paced && n_held_ < kWindow) return;
         if (l_max <= 0 && held_slot_[at(0)] > last_idx_ + 1) ++n_.late;  // it looked past a gap: it was late
         commit(held_[at(0)], last_idx_ + 1 + std::max<int64_t>(l_max, 0));

@@ -107,6 +107,20 @@ TEST_P(LateSender, CatchUpIsNotALoss) {
 
 INSTANTIATE_TEST_SUITE_P(LatenessInPeriods, LateSender, ::testing::Values(0.5, 0.8, 1.0, 1.3, 1.8, 2.5, 3.5));
 
+TEST(SampleClock, ASenderPreemptedInsideItsCatchUpIsStillLate) {
+    // 100 sent 2.8 periods late, 101 right behind it, then the sender is preempted before each of 102–104: they
+    // keep the period but stay 1.6 periods behind their ticks; 105 comes 0.9 late, 106 on time. Nothing was lost.
+    std::vector<int64_t> late(300, 0);
+    late[100] = 2800;
+    late[102] = late[103] = late[104] = 1600;
+    late[105] = 900;
+    SampleClock clock(kP);
+    const auto ev = run(clock, sender_stamps(late));
+    expect_every_tick(ev, 300);
+    EXPECT_EQ(clock.counters().interpolated, 0);
+    EXPECT_EQ(clock.counters().restarts, 1);
+}
+
 TEST(SampleClock, ALostSampleIsBridgedByExactlyOneInterpolatedOne) {
     SampleClock clock(kP);
     const auto ev = run(clock, sender_stamps(std::vector<int64_t>(300, 0)), {100});
