@@ -80,7 +80,8 @@ void SampleClock::decide(bool all, int64_t extra_slot) noexcept {
         // its catch-up keeps a period but stays behind).
         auto on_tick = [&](int j) {
             const double d = double(held_[at(j)].t_us - held_[at(j - 1)].t_us);
-            const double late = double(held_[at(j)].t_us - base_t_) - offset_ - double(last_idx_ + 1 + l_max + j) * period_;
+            const double tick = offset_ + double(last_idx_ + 1 + l_max + j) * period_;
+            const double late = double(held_[at(j)].t_us - base_t_) - tick;
             return d >= 0.5 * period_ && d <= 1.5 * period_ && late < 0.5 * period_;
         };
         const bool paced = n_held_ >= 3 && on_tick(n_held_ - 1) && on_tick(n_held_ - 2);

@@ -9,13 +9,14 @@
 // with the samples after it (up to kWindow in all), and the number of lost samples L before it is bounded by the
 // stamps: no sample is stamped before its own tick, so with the held samples consecutive after the L lost ones,
 // L ≤ min_j (slot_j − last − j) = L_max. As soon as L_max is 0 (a catch-up burst shows the sender was behind)
-// the held samples are consecutive. Once the sender has kept the period twice in a row after the gap (it sleeps
-// to each deadline, so it is on time), or kWindow samples are held, the bound is taken as tight: the first held
-// sample had L_max samples lost before it, bridged by linear interpolation (at most kMaxBridge; a longer gap
-// restarts the filter). The cost is a delay, only after a gap: two samples after a real loss, the catch-up burst
-// after a stalled sender (its samples were late anyway). Stamps alone cannot tell every case: a loss right next
-// to a late sample can be placed a sample off (the count stays right), and a loss followed by samples each
-// stamped most of a period late, with no burst, reads as lateness.
+// the held samples are consecutive. Once the sender has kept the period twice in a row after the gap, within half
+// a period of its ticks (it sleeps to each deadline, so it is on time), or kWindow samples are held, the bound is
+// taken as tight: the first held sample had L_max samples lost before it, bridged by linear interpolation (at
+// most kMaxBridge; a longer gap restarts the filter). The cost is a delay, only after a gap: two samples after a
+// real loss, the catch-up burst after a stalled sender (its samples were late anyway). Stamps alone cannot tell
+// every case: a loss right next to a late sample can be placed a sample off (the count stays right), a loss
+// followed by samples each stamped most of a period late, with no burst, reads as lateness, and a sender that
+// keeps the period a whole number of periods behind reads as losses.
 //
 // No allocation, locking, exceptions or I/O: fixed-size samples are copied in and out of fixed arrays.
 #pragma once
