@@ -135,7 +135,6 @@ bool Assembler::init(const MonitorConfig& cfg, const Coefficients& coef, std::st
     }
     q_.assign(cfg.axes.size(), 0.0);
     t_q_.assign(cfg.axes.size(), -1);
-    period_us_ = std::llround(coef.sample_period * 1e6);
     pwm_.assign(cfg.pwms.size(), 0.0);
     t_pwm_.assign(cfg.pwms.size(), -1);
     status_seq_.assign(size_t(kMaxBus) * 16, -1);
@@ -166,6 +165,9 @@ bool Assembler::push(const RxFrame& f, Sample& out) noexcept {
         }
         if (flags) ++n_.saturated;
         const int base = type == ICUB_CAN_STRAIN_FORCE ? 0 : 3;
+        // A force half opens a sample: the strain frame before it closed the previous one (or tried to).
+        if (type == ICUB_CAN_STRAIN_FORCE) t_boundary_ = t_strain_;
+        t_strain_ = f.t_us;
         if (type == ICUB_CAN_STRAIN_FORCE) {
             if (t_force_ >= 0) ++n_.unpaired_strain;  // the previous force half never got its torque half
             for (int k = 0; k < 3; ++k) force_[size_t(k)] = icub_can_strain_value(s[k], cfg_->full_scale[size_t(k)]);
@@ -187,13 +189,17 @@ bool Assembler::push(const RxFrame& f, Sample& out) noexcept {
         out.t_us = f.t_us;
         out.stale = force_saturated_ || flags != 0;
         t_force_ = -1;
+        // A value that came after the previous sample's strain frames is this sample's, however late the sender
+        // sent the pair (a sender preempted between its frames stamps them far apart); one that did not is held,
+        // and stale once it has been repeated for longer than stale_us.
         out.held = false;
+        auto old = [&](int64_t t) { return t < 0 || (t <= t_boundary_ && out.t_us - t > cfg_->stale_us); };
         for (int j = 0; j < n_joints_; ++j) {
             const int a = joint_axis_[size_t(j)];
             out.q[size_t(j)] = q_[size_t(a)];
             const int64_t t = t_q_[size_t(a)];
-            out.held = out.held || out.t_us - t > period_us_;
-            if (t < 0 || out.t_us - t > cfg_->stale_us) out.stale = true;
+            out.held = out.held || t <= t_boundary_;
+            if (old(t)) out.stale = true;
         }
         for (int o = 0; o < n_outputs_; ++o) {
             const int s6 = out_src_[size_t(o)];
@@ -201,8 +207,7 @@ bool Assembler::push(const RxFrame& f, Sample& out) noexcept {
                 out.y[size_t(o)] = w[size_t(s6)];
             } else {
                 out.y[size_t(o)] = pwm_[size_t(s6 - 6)];
-                const int64_t t = t_pwm_[size_t(s6 - 6)];
-                if (t < 0 || out.t_us - t > cfg_->stale_us) out.stale = true;
+                if (old(t_pwm_[size_t(s6 - 6)])) out.stale = true;
             }
         }
         out.skin_mask = skin_mask_;

@@ -194,13 +194,71 @@ ReadStatus CandumpReplay::read(RxFrame& out, int /*timeout_ms*/) noexcept {
 
 // ---- datagrams (loopback and SocketCAN) ---------------------------------------------------------------
 
-ReadStatus read_datagram(const std::vector<int>& fds, size_t& next, int timeout_ms, RxFrame& out,
+namespace {
+
+enum class Got { kFrame, kNone, kBad, kError };
+
+// One non-blocking read of one socket.
+Got read_one(int fd, RxFrame& out, std::string& error) noexcept {
+    can_frame f{};
+    alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timeval))];
+    iovec iov{&f, sizeof f};
+    msghdr msg{};
+    msg.msg_iov = &iov;
+    msg.msg_iovlen = 1;
+    msg.msg_control = control;
+    msg.msg_controllen = sizeof control;
+    const ssize_t got = recvmsg(fd, &msg, MSG_DONTWAIT);
+    if (got < 0) {
+        if (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) return Got::kNone;
+        error = std::string("recvmsg: ") + std::strerror(errno);
+        return Got::kError;
+    }
+    if (size_t(got) != sizeof f || (msg.msg_flags & MSG_TRUNC) || f.len > CAN_MAX_DLEN) return Got::kBad;
+    out.t_us = 0;
+    for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c; c = CMSG_NXTHDR(&msg, c)) {
+        if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_TIMESTAMP) {
+            timeval tv{};
+            std::memcpy(&tv, CMSG_DATA(c), sizeof tv);
+            out.t_us = int64_t(tv.tv_sec) * 1000000 + tv.tv_usec;
+        }
+    }
+    if (out.t_us == 0) out.t_us = realtime_us();
+    out.frame = f;
+    return Got::kFrame;
+}
+
+}  // namespace
+
+ReadStatus read_datagram(const std::vector<int>& fds, DatagramQueue& q, int timeout_ms, RxFrame& out,
                          SourceCounters& counters, std::string& error) noexcept {
-    constexpr size_t kMaxFds = 16;
-    pollfd pfd[kMaxFds];
-    const size_t n = fds.size() < kMaxFds ? fds.size() : kMaxFds;
-    for (size_t i = 0; i < n; ++i) pfd[i] = pollfd{fds[i], POLLIN, 0};
+    const size_t n = fds.size() < DatagramQueue::kMaxFds ? fds.size() : DatagramQueue::kMaxFds;
+    pollfd pfd[DatagramQueue::kMaxFds];
     while (true) {
+        // Top up: a frame ahead from every socket that has one queued (bad datagrams are counted and skipped).
+        for (size_t i = 0; i < n; ++i) {
+            while (!q.has[i]) {
+                const Got g = read_one(fds[i], q.ahead[i], error);
+                if (g == Got::kError) return ReadStatus::kError;
+                if (g == Got::kNone) break;
+                if (g == Got::kBad) {
+                    ++counters.bad_size;
+                    continue;
+                }
+                q.ahead[i].bus = int(i);
+                q.has[i] = true;
+            }
+        }
+        size_t best = n;
+        for (size_t i = 0; i < n; ++i)
+            if (q.has[i] && (best == n || q.ahead[i].t_us < q.ahead[best].t_us)) best = i;
+        if (best < n) {
+            out = q.ahead[best];
+            q.has[best] = false;
+            ++counters.frames;
+            return ReadStatus::kFrame;
+        }
+        for (size_t i = 0; i < n; ++i) pfd[i] = pollfd{fds[i], POLLIN, 0};
         const int r = poll(pfd, nfds_t(n), timeout_ms);
         if (r < 0) {
             if (errno == EINTR) return ReadStatus::kTimeout;  // a signal: let the caller look at its flags
@@ -208,45 +266,6 @@ ReadStatus read_datagram(const std::vector<int>& fds, size_t& next, int timeout_
             return ReadStatus::kError;
         }
         if (r == 0) return ReadStatus::kTimeout;
-        for (size_t k = 0; k < n; ++k) {
-            const size_t i = (next + k) % n;
-            if (!(pfd[i].revents & POLLIN)) continue;
-            next = (i + 1) % n;
-            can_frame f{};
-            alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timeval))];
-            iovec iov{&f, sizeof f};
-            msghdr msg{};
-            msg.msg_iov = &iov;
-            msg.msg_iovlen = 1;
-            msg.msg_control = control;
-            msg.msg_controllen = sizeof control;
-            const ssize_t got = recvmsg(fds[i], &msg, MSG_DONTWAIT);
-            if (got < 0) {
-                if (errno == EAGAIN || errno == EINTR) continue;
-                error = std::string("recvmsg: ") + std::strerror(errno);
-                return ReadStatus::kError;
-            }
-            if (size_t(got) != sizeof f || (msg.msg_flags & MSG_TRUNC) || f.len > CAN_MAX_DLEN) {
-                ++counters.bad_size;
-                continue;
-            }
-            out.t_us = 0;
-            for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c; c = CMSG_NXTHDR(&msg, c)) {
-                if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_TIMESTAMP) {
-                    timeval tv{};
-                    std::memcpy(&tv, CMSG_DATA(c), sizeof tv);
-                    out.t_us = int64_t(tv.tv_sec) * 1000000 + tv.tv_usec;
-                }
-            }
-            if (out.t_us == 0) out.t_us = realtime_us();
-            out.frame = f;
-            out.bus = int(i);
-            ++counters.frames;
-            return ReadStatus::kFrame;
-        }
-        timeout_ms = 0;  // everything ready was bad: look once more without waiting
-        for (size_t i = 0; i < n; ++i) pfd[i].revents = 0;
-        if (poll(pfd, nfds_t(n), 0) <= 0) return ReadStatus::kTimeout;
     }
 }
 
@@ -298,7 +317,7 @@ LoopbackSource::~LoopbackSource() {
 }
 
 ReadStatus LoopbackSource::read(RxFrame& out, int timeout_ms) noexcept {
-    return read_datagram(fds_, next_, timeout_ms, out, counters_, error_);
+    return read_datagram(fds_, queue_, timeout_ms, out, counters_, error_);
 }
 
 std::unique_ptr<LoopbackSink> LoopbackSink::open(const std::string& dir, const std::vector<std::string>& buses,

@@ -74,7 +74,7 @@ SocketCanSource::~SocketCanSource() {
 }
 
 ReadStatus SocketCanSource::read(RxFrame& out, int timeout_ms) noexcept {
-    return read_datagram(fds_, next_, timeout_ms, out, counters_, error_);
+    return read_datagram(fds_, queue_, timeout_ms, out, counters_, error_);
 }
 
 }  // namespace dynid::rt

@@ -3,9 +3,11 @@
 // detector's debounce, hysteresis and contact side. Cross-language equality is tested from Python
 // (tests/test_rt_core.py) against dynid's own residuals.
 #include "rt_monitor/core.hpp"
+#include "rt_monitor/sample_clock.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
@@ -150,17 +152,28 @@ TEST(Core, NoHeapAllocationOver100000Samples) {
     c->supply_prior = 1e-4;
     for (int i = 6; i < c->n_outputs; ++i) c->supply_gate[i] = 0.02;
     auto core = std::make_unique<Core>(*c);
-    std::vector<double> q(7), y(10);
+    // Through the monitor's sample clock, with late stamps (held, then caught up) and lost samples (bridged).
+    auto clock = std::make_unique<SampleClock>(1000.0);
+    Sample s;
     long alarms = 0;
     g_allocations = 0;
     g_counting = true;
     for (int k = 0; k < 100000; ++k) {
+        if (k % 997 == 500) continue;  // lost
         const double t = 1e-3 * k;
-        for (int j = 0; j < 7; ++j) q[j] = 0.3 * std::sin(0.7 * t * (j + 1) + j);  // both velocity signs, rests
-        for (int i = 0; i < 10; ++i) y[i] = 0.01 * std::cos(3.0 * t + i);
-        alarms += core->step(q.data(), y.data()).above;
+        // a sender woken 1.8 periods late now and then, catching up back to back (20 µs apart)
+        s.t_us = std::max(s.t_us + 20, 1'700'000'000'000'000 + 1000 * int64_t(k) + (k % 1009 == 7 ? 1800 : 0));
+        for (int j = 0; j < 7; ++j) s.q[size_t(j)] = 0.3 * std::sin(0.7 * t * (j + 1) + j);  // both velocity signs
+        for (int i = 0; i < 10; ++i) s.y[size_t(i)] = 0.01 * std::cos(3.0 * t + i);
+        for (int i = 0, n = clock->push(s); i < n; ++i) {
+            const ClockStep& st = clock->step(i);
+            if (st.restart) core->reset();
+            alarms += core->step(st.sample.q.data(), st.sample.y.data()).above;
+        }
     }
     g_counting = false;
+    EXPECT_GT(clock->counters().interpolated, 90);  // the clock did bridge and hold
+    EXPECT_GT(clock->counters().late, 90);
     EXPECT_EQ(g_allocations.load(), 0) << "heap allocations in the loop";
     EXPECT_GT(alarms, 0);  // the loop did real work: these outputs are not what the arm would produce
 #ifdef RT_COUNTS_MALLOC

@@ -199,6 +199,33 @@ TEST(Loopback, CarriesCanFrameBytesPerBusWithTimestamps) {
     EXPECT_EQ(src->counters().frames, 3u);
 }
 
+TEST(Loopback, FramesQueuedOnSeveralBusesComeOutInStampOrder) {
+    // A monitor that fell behind finds a sample's frames queued on three buses: it must read them as they were
+    // sent (the strain pair after the positions of the same sample), not bus by bus.
+    const std::string dir = temp_dir();
+    std::string err;
+    auto src = LoopbackSource::open(dir, kBuses, err);
+    ASSERT_TRUE(src) << err;
+    auto sink = LoopbackSink::open(dir, kBuses, err);
+    ASSERT_TRUE(sink) << err;
+    const int order[] = {2, 1, 0, 2, 0, 1, 1, 2, 0, 0, 2};
+    for (size_t k = 0; k < sizeof order / sizeof order[0]; ++k) {
+        can_frame f{};
+        f.can_id = canid_t(0x100 + k);
+        f.len = 1;
+        ASSERT_TRUE(sink->send(f, order[k]));
+        const int64_t t = realtime_us();
+        while (realtime_us() == t) {}  // distinct µs stamps
+    }
+    RxFrame f;
+    for (size_t k = 0; k < sizeof order / sizeof order[0]; ++k) {
+        ASSERT_EQ(src->read(f, 1000), ReadStatus::kFrame);
+        EXPECT_EQ(f.frame.can_id, canid_t(0x100 + k));
+        EXPECT_EQ(f.bus, order[k]);
+    }
+    EXPECT_EQ(src->read(f, 10), ReadStatus::kTimeout);
+}
+
 TEST(SocketCan, FiltersPassOnlyStandardDataFramesOfTheClasses) {
     const auto filters = socketcan_filters({1, 3, 4});
     for (canid_t id : {0x3DAu, 0x3DBu, 0x111u, 0x1F3u, 0x480u, 0x4FFu, 0x100u})

@@ -31,6 +31,7 @@
 #include "rt_monitor/assembler.hpp"
 #include "rt_monitor/core.hpp"
 #include "rt_monitor/rt_settings.hpp"
+#include "rt_monitor/sample_clock.hpp"
 
 using namespace dynid::rt;
 
@@ -172,10 +173,8 @@ int main(int argc, char** argv) {
     int64_t next_status = -1, evaluated = 0, onset_utime = 0, overruns = 0, events = 0;
     double loop_sum = 0, loop_max = 0;
     int64_t loop_n = 0;
-    bool was_stale = true;
-    int64_t interpolated = 0, restarts = 0;
-    constexpr int kMaxBridge = 3;  // missing samples bridged by interpolation; a longer gap restarts the filter
-    Sample s, prev, mid;
+    SampleClock clock(period_us);
+    Sample s;
     RxFrame f;
     double rx_mono = 0;  // when the read of the current frame returned
     std::vector<double> latency;
@@ -202,8 +201,8 @@ int main(int argc, char** argv) {
         st.board_faults = c.board_faults;
         st.board_restarts = c.board_restarts;
         st.source_bad = int64_t(sc.bad_lines + sc.unknown_bus + sc.bad_size);
-        st.interpolated = interpolated;
-        st.filter_restarts = restarts;
+        st.interpolated = clock.counters().interpolated;
+        st.filter_restarts = clock.counters().restarts;
         st.in_contact = core->output().in_contact;
         st.stale = s.stale;
         st.loop_us_mean = loop_n ? loop_sum / double(loop_n) : 0.0;
@@ -245,6 +244,11 @@ int main(int argc, char** argv) {
         }
     };
 
+    auto evaluate = [&](const ClockStep& c) {
+        if (c.restart) core->reset();
+        step(c.sample);
+    };
+
     while (!g_stop) {
         const ReadStatus r = src->read(f, 100);
         if (r == ReadStatus::kEnd) break;
@@ -256,38 +260,9 @@ int main(int argc, char** argv) {
             break;
         }
         if (!asm_.push(f, s)) continue;
-        if (s.stale) {
-            // No contact from stale data: the core is not stepped, and restarts its filter afterwards (its
-            // window would otherwise span the gap).
-            was_stale = true;
-        } else if (!s.held) {  // a held sample is bridged when the next complete one comes (or the filter restarts)
-            // The filter assumes uniform samples: bridge a short gap (lost strain halves) by interpolating
-            // linearly between the last good sample and this one, restart the filter after a longer one.
-            // Arrival jitter (a frame stamped up to 0.75 period late, or two samples bunched) is not a loss: a
-            // lost sample shows as a gap of about two periods; only a gap of 1.75 periods or more is bridged,
-            // and only time running backwards (or a long gap) restarts the filter.
-            const int64_t gap = s.t_us - prev.t_us;
-            const bool restart = was_stale || gap <= 0;
-            const long missing = restart ? 0 : std::max(0L, std::lround(double(gap) / period_us - 0.25) - 1);
-            if (restart || missing > kMaxBridge) {
-                core->reset();
-                ++restarts;
-            } else {
-                for (long m = 1; m <= missing; ++m) {
-                    const double w = double(m) / double(missing + 1);
-                    mid.t_us = prev.t_us + std::llround(w * double(s.t_us - prev.t_us));
-                    for (int j = 0; j < coef->n_joints; ++j)
-                        mid.q[size_t(j)] = prev.q[size_t(j)] + w * (s.q[size_t(j)] - prev.q[size_t(j)]);
-                    for (int i = 0; i < n_out; ++i)
-                        mid.y[size_t(i)] = prev.y[size_t(i)] + w * (s.y[size_t(i)] - prev.y[size_t(i)]);
-                    step(mid);
-                    ++interpolated;
-                }
-            }
-            was_stale = false;
-            step(s);
-            prev = s;
-        }
+        // The sample clock decides which tick each sample is (jitter or loss, from the stamps), bridges real
+        // gaps and says when the filter restarts; stale samples are not evaluated (no contact from stale data).
+        for (int i = 0, n = clock.push(s); i < n; ++i) evaluate(clock.step(i));
         if (next_status < 0) next_status = s.t_us;
         if (s.t_us >= next_status) {
             publish_status(s.t_us);
@@ -295,18 +270,20 @@ int main(int argc, char** argv) {
             if (next_status <= s.t_us) next_status = s.t_us + status_period_us;
         }
     }
+    for (int i = 0, n = clock.flush(); i < n; ++i) evaluate(clock.step(i));
     publish_status(s.t_us);
+    const ClockCounters& cc = clock.counters();
     const MonitorCounters& c = asm_.counters();
     const SourceCounters& sc = src->counters();
     std::printf("rt_monitor: %s; frames %lld, samples %lld, evaluated %lld, stale %lld, events %lld, unknown id %lld, "
                 "bad length %lld, error frames %lld, unpaired strain %lld, saturated %lld, board faults %lld, "
-                "board restarts %lld, bad source input %llu, interpolated %lld, filter restarts %lld, overruns %lld\n",
+                "board restarts %lld, bad source input %llu, interpolated %lld, late %lld, filter restarts %lld, overruns %lld\n",
                 g_stop ? "stopped by signal" : (rc ? "failed" : "end of input"), (long long)c.frames,
                 (long long)c.samples, (long long)evaluated, (long long)c.stale_samples, (long long)events,
                 (long long)c.unknown_id, (long long)c.bad_length, (long long)c.error_frames,
                 (long long)c.unpaired_strain, (long long)c.saturated, (long long)c.board_faults,
                 (long long)c.board_restarts, (unsigned long long)(sc.bad_lines + sc.unknown_bus + sc.bad_size),
-                (long long)interpolated, (long long)restarts, (long long)overruns);
+                (long long)cc.interpolated, (long long)cc.late, (long long)cc.restarts, (long long)overruns);
     if (!latency_out.empty()) {
         const std::string tmp = latency_out + ".tmp";
         {

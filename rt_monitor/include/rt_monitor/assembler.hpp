@@ -3,10 +3,12 @@
 // - The strain board's force half (type 0xA) and torque half (0xB) are paired only when the torque half
 //   follows the force half within `pair_us` with no other strain frame between: a half is never paired with
 //   a half of another sample (DESIGN.md §5). The pair's time is the sample's time.
-// - Encoder positions and PWMs are held at their latest values; a sample with any of them older than
-//   `stale_us` (or never received) is stale, and so is one with a saturated strain channel. A sample with an
-//   encoder value older than one sample period is `held`: the monitor bridges it like a lost sample (a held
-//   position is a kink the derivative filter would read as an acceleration spike).
+// - Encoder positions and PWMs are held at their latest values; a sample with any of them not renewed for
+//   more than `stale_us` (or never received) is stale, and so is one with a saturated strain channel. A sample with an
+//   encoder value that did not come after the previous sample is `held`: the monitor bridges it like a lost
+//   sample (a held position is a kink the derivative filter would read as an acceleration spike). Whether a
+//   value is new is told by order, not by its age: a sender preempted between its frames stamps the position
+//   long before the strain pair, and that value is still this sample's (neither held nor stale).
 // - Every bad frame has a counter (MonitorCounters); nothing throws, nothing allocates after set-up.
 #pragma once
 
@@ -62,7 +64,7 @@ struct Sample {
     std::array<double, kMaxJoints> q{};
     std::array<double, kMaxOutputs> y{};
     bool stale = false;      // an input too old or missing, or a saturated strain channel
-    bool held = false;       // an encoder value is older than one sample period: it is held, not new
+    bool held = false;       // an encoder value did not come after the previous sample: it is held, not new
     uint16_t skin_mask = 0;  // patches in contact (bit = index in the configuration's skin list)
 };
 
@@ -88,10 +90,10 @@ private:
     std::array<int, kMaxOutputs> out_src_{};    // channel -> 0..5 F/T component, or 6 + index in cfg.pwms
     std::vector<double> q_, pwm_;               // latest values, by cfg index
     std::vector<int64_t> t_q_, t_pwm_;          // their times (-1: never)
-    int64_t period_us_ = 1000;
     std::vector<int> status_seq_;               // last STATUS sequence per motor board address (-1: none)
     std::array<double, 3> force_{};
     int64_t t_force_ = -1;
+    int64_t t_strain_ = -1, t_boundary_ = -1;   // the last strain frame; the last one before the current force half
     bool force_saturated_ = false;
     uint16_t skin_mask_ = 0;
     MonitorCounters n_;

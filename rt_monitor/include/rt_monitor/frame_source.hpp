@@ -11,6 +11,7 @@
 
 #include <cstdint>
 #include <cstdio>
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -43,6 +44,16 @@ public:
 protected:
     SourceCounters counters_;
     std::string error_;
+};
+
+// Shared by the loopback and SocketCAN sources: one frame read ahead per socket, so that frames queued on
+// several buses come out in stamp order. A monitor that fell behind (preempted, or a late sender's burst)
+// otherwise reads them bus by bus, and a strain pair read before the same sample's positions on another bus
+// takes the previous sample's (held) positions.
+struct DatagramQueue {
+    static constexpr size_t kMaxFds = 16;
+    std::array<RxFrame, kMaxFds> ahead{};
+    std::array<bool, kMaxFds> has{};
 };
 
 // ---- candump -L ---------------------------------------------------------------------------------------
@@ -86,7 +97,7 @@ private:
     LoopbackSource() = default;
     std::vector<int> fds_;
     std::vector<std::string> paths_;
-    size_t next_ = 0;  // round-robin start, so one busy bus cannot starve the others
+    DatagramQueue queue_;
 };
 
 class LoopbackSink {
@@ -121,12 +132,12 @@ public:
 private:
     SocketCanSource() = default;
     std::vector<int> fds_;
-    size_t next_ = 0;
+    DatagramQueue queue_;
 };
 
-// Shared by the loopback and SocketCAN sources: poll `fds` and read one datagram of struct can_frame from
-// the first ready one (starting at `next`). Timestamp: SO_TIMESTAMP's control message if present, else now.
-ReadStatus read_datagram(const std::vector<int>& fds, size_t& next, int timeout_ms, RxFrame& out,
+// Reads one datagram of struct can_frame: the earliest-stamped of those queued on `fds` (waiting up to
+// timeout_ms for one). Timestamp: SO_TIMESTAMP's control message if present, else now.
+ReadStatus read_datagram(const std::vector<int>& fds, DatagramQueue& q, int timeout_ms, RxFrame& out,
                          SourceCounters& counters, std::string& error) noexcept;
 
 int64_t realtime_us() noexcept;
