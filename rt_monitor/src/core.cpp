@@ -201,7 +201,7 @@ void Core::track_supply() noexcept {
     const double a = 1.0 - lambda_;
     for (int i = 6; i < c_.n_outputs; ++i) {
         if (c_.channel_kind[i] != ChannelKind::kInput || !out_.p.active[i]) continue;
-        if (std::abs(out_.p.e[i]) > c_.supply_gate[i]) continue;
+        if (!(std::abs(out_.p.e[i]) <= c_.supply_gate[i])) continue;  // outside the gate, or not a number
         const double p = out_.p.y_model[i], y = out_.y[i];
         num_[i] = lambda_ * num_[i] + a * p * y;
         den_[i] = lambda_ * den_[i] + a * p * p;

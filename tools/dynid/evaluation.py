@@ -184,7 +184,8 @@ def detection(ev: Evaluated, model_label: str, data_label: str, alpha: float, n_
         e = ev.e_constant if variant == "paper" else ev.e  # the paper's model has constant gains
         t2s[variant] = d.t2(ev.model, e, ev.signals.dq, ev.identified.phi)
         result["variants"][variant] = score(ev.dataset.t, t2s[variant], d.threshold, ev.dataset.contact, side)
-    truth = Path(data_label) / "truth.npz"
+    run = Path(data_label)
+    truth = (run if run.is_dir() else run.parent) / "truth.npz"  # beside the data of a `dynid simulate` run
     if ev.dataset.contact is not None and ev.dataset.contact.any() and truth.is_file():
         result["visibility"] = visibility(ev, dets["calibrated"], t2s["calibrated"], np.load(truth))
     return Detection(result, dets, t2s, side)
