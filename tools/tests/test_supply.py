@@ -154,3 +154,30 @@ def test_a_bad_supply_section_is_one_line_exit_2(default_model: Path, default_ex
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and "supply_tracking" in lines[0] and "Traceback" not in done.stderr
+
+
+def test_a_model_without_tracking_predicts_with_constant_gains(default_model: Path, default_experiments,
+                                                               tmp_path: Path) -> None:
+    """`dynid fit --supply-time-constant 0` writes `supply_tracking: null`: validate then reports the constant-gain
+    residuals, and export writes a coefficient file with tracking off."""
+    from dynid.evaluation import evaluate
+    from dynid.export import read_coefficients
+
+    record = json.loads(Path(default_model).read_text())
+    record["supply_tracking"] = None
+    plain = tmp_path / "plain.json"
+    plain.write_text(json.dumps(record))
+    ev = evaluate(str(plain), str(default_experiments["validation"]))
+    assert ev.identified.supply_tracking is None and np.array_equal(ev.e, ev.e_constant)
+    result = run_json(tmp_path, "validate", "--model", str(plain), "--data", str(default_experiments["validation"]))
+    ch = result["channels"]["pwm.m0"]
+    assert ch["ratio_to_noise_moving"] == ch["ratio_to_noise_moving_constant_gains"]
+    done = dynid("export", "--model", str(plain), "--out", str(tmp_path / "plain.dcoef"))
+    assert done.returncode == 0, done.stderr
+    c = read_coefficients(tmp_path / "plain.dcoef")
+    assert c.supply_time_constant == 0.0 and c.supply_prior == 0.0 and not any(c.supply_gate)
+
+
+def test_fit_refuses_a_negative_time_constant(tmp_path: Path) -> None:
+    done = dynid("fit", "--data", str(tmp_path), "--out", str(tmp_path / "m.json"), "--supply-time-constant", "-1")
+    assert done.returncode == 2 and "--supply-time-constant" in done.stderr and "Traceback" not in done.stderr
