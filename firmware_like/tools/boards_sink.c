@@ -57,7 +57,10 @@ int boards_sink_open(boards_sink_t *s, const char *spec, const boards_conf_t *c,
         const char *dir = spec + 9;
         for (i = 0; i < c->n_buses; ++i) {
             /* the monitor's LoopbackSource binds <dir>/<bus>.can (rt_monitor/include/rt_monitor/frame_source.hpp) */
-            if ((size_t)snprintf(s->dest[i], sizeof s->dest[i], "%s/%s.can", dir, c->buses[i]) >= sizeof s->dest[i]) {
+            memset(&s->dest[i], 0, sizeof s->dest[i]);
+            s->dest[i].sun_family = AF_UNIX;
+            if ((size_t)snprintf(s->dest[i].sun_path, sizeof s->dest[i].sun_path, "%s/%s.can", dir, c->buses[i]) >=
+                sizeof s->dest[i].sun_path) {
                 snprintf(err, BOARDS_ERR_LEN, "loopback directory too long for a socket path: %s", dir);
                 return BOARDS_EXIT_USAGE;
             }
@@ -120,14 +123,11 @@ int boards_sink_send(boards_sink_t *s, int bus, const board_frame_t *f, int64_t 
             return BOARDS_EXIT_SINK;
         }
     } else if (s->kind == SINK_LOOPBACK) {
-        struct sockaddr_un a;
-        memset(&a, 0, sizeof a);
-        a.sun_family = AF_UNIX;
-        memcpy(a.sun_path, s->dest[bus], strlen(s->dest[bus]) + 1);
         to_can_frame(f, &cf);
         /* Blocking: a full receive queue makes the boards wait for the monitor instead of dropping frames. */
-        if (sendto(s->fd, &cf, sizeof cf, 0, (struct sockaddr *)&a, sizeof a) != (ssize_t)sizeof cf) {
-            snprintf(err, BOARDS_ERR_LEN, "loopback: %s: %s%s", s->dest[bus], strerror(errno),
+        if (sendto(s->fd, &cf, sizeof cf, 0, (const struct sockaddr *)&s->dest[bus], sizeof s->dest[bus]) !=
+            (ssize_t)sizeof cf) {
+            snprintf(err, BOARDS_ERR_LEN, "loopback: %s: %s%s", s->dest[bus].sun_path, strerror(errno),
                      (errno == ENOENT || errno == ECONNREFUSED) ? " (is rt_monitor --loopback running?)" : "");
             return BOARDS_EXIT_SINK;
         }

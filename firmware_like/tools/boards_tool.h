@@ -7,6 +7,7 @@
 
 #include <stdint.h>
 #include <stdio.h>
+#include <sys/un.h>
 
 #include "board_frame.h"
 #include "board_mc.h"
@@ -84,7 +85,7 @@ typedef struct {
     char tmp[4096];
     int fd;
     int can_fd[BOARDS_MAX_BUSES];
-    char dest[BOARDS_MAX_BUSES][108];
+    struct sockaddr_un dest[BOARDS_MAX_BUSES]; /* loopback: each bus's socket address, made at open */
     const boards_conf_t *conf;
     uint64_t sent;
 } boards_sink_t;

@@ -328,7 +328,11 @@ std::unique_ptr<LoopbackSink> LoopbackSink::open(const std::string& dir, const s
         error = std::string("loopback: socket(AF_UNIX): ") + std::strerror(errno);
         return nullptr;
     }
-    for (const auto& bus : buses) s->paths_.push_back(loopback_path(dir, bus));
+    for (const auto& bus : buses) {  // addresses made once: send() is on the boards' paced path
+        sockaddr_un a;
+        if (!make_address(loopback_path(dir, bus), a, error)) return nullptr;
+        s->addresses_.push_back(a);
+    }
     return s;
 }
 
@@ -337,13 +341,9 @@ LoopbackSink::~LoopbackSink() {
 }
 
 bool LoopbackSink::send(const can_frame& f, int bus) noexcept {
-    if (bus < 0 || size_t(bus) >= paths_.size()) return false;
-    sockaddr_un a{};
-    a.sun_family = AF_UNIX;
-    const std::string& p = paths_[size_t(bus)];
-    if (p.size() >= sizeof a.sun_path) return false;
-    std::memcpy(a.sun_path, p.c_str(), p.size() + 1);
-    return sendto(fd_, &f, sizeof f, 0, reinterpret_cast<sockaddr*>(&a), sizeof a) == ssize_t(sizeof f);
+    if (bus < 0 || size_t(bus) >= addresses_.size()) return false;
+    const sockaddr_un& a = addresses_[size_t(bus)];
+    return sendto(fd_, &f, sizeof f, 0, reinterpret_cast<const sockaddr*>(&a), sizeof a) == ssize_t(sizeof f);
 }
 
 }  // namespace dynid::rt

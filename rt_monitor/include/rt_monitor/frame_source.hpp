@@ -8,6 +8,7 @@
 #pragma once
 
 #include <linux/can.h>
+#include <sys/un.h>
 
 #include <cstdint>
 #include <cstdio>
@@ -111,7 +112,7 @@ public:
 private:
     LoopbackSink() = default;
     int fd_ = -1;
-    std::vector<std::string> paths_;
+    std::vector<sockaddr_un> addresses_;  // per bus, made at open
 };
 
 // ---- SocketCAN ---------------------------------------------------------------------------------------
