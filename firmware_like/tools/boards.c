@@ -34,6 +34,7 @@
 #include "board_skin.h"
 #include "board_strain.h"
 #include "boards_tool.h"
+#include "icub_can.h"
 
 #define BITRATE 1000000.0
 #define LOAD_LIMIT 0.70
@@ -215,9 +216,11 @@ int main(int argc, char **argv)
             snprintf(g_err, sizeof g_err, "%.400s:%ld: t is not strictly increasing", csv_path, g_csv.line);
             return fail(BOARDS_EXIT_BADDATA);
         }
-        for (i = 0; i < 6; ++i) {
-            const double c = g_csv.v[g_cols.ft[i]] * 32768.0 / g_conf.strain_fs[i];
-            any_sat |= (c >= 32767.5 || c <= -32768.5);
+        for (i = 0; i < 6; ++i) {  /* the strain board's own conversion decides what clamps */
+            int16_t count;
+            uint8_t clamped = 0u;
+            if (icub_can_strain_count(g_csv.v[g_cols.ft[i]], g_conf.strain_fs[i], &count, &clamped) == ICUB_CAN_OK)
+                any_sat |= clamped;
         }
         if (n == 0) t_first = t;
         t_prev = t;
