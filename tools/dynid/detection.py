@@ -27,7 +27,7 @@ from .dataset import contact_episodes
 from .model import RobotModel
 from .outputs import divisors, output_channels
 from .regressors.stack import Signals, friction_coordinates, rows_at_rest
-from .supply import SupplyTracker, SupplyTracking
+from .supply import SupplyTracking, smoothed_residuals
 
 ALPHA = 0.99
 VARIANTS: tuple[str, ...] = ("calibrated", "paper")
@@ -107,22 +107,29 @@ def calibration_residuals(model: RobotModel, datasets: Sequence, settings,
                           tracking: SupplyTracking | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(e, q̇, e with constant gains) on every CALIBRATION_STRIDE-th sample of the contact-free runs, a chunk at
     a time (bounded memory), with offline derivatives; residual_of(signals, t since the run's start) gives e of a
-    chunk. With `tracking`, e's input channels are those of the supply tracker (dynid.supply), one tracker per
-    run; without, the two residual arrays are the same."""
+    chunk. With `tracking`, e's input channels are those of the offline, two-sided supply estimate
+    (dynid.supply.smoothed_residuals) of each run; without, the two residual arrays are the same."""
     from .identification import SignalSource
 
     es, dqs, constant = [], [], []
     keep = slice(None, None, CALIBRATION_STRIDE)
     for ds in datasets:
         source = SignalSource(model, ds, settings, instruments=False)
-        tracker = SupplyTracker(model, tracking, settings.min_speed) if tracking is not None else None
+        run_e, run_dq, run_inputs = [], [], []
         for lo in range(0, ds.n_samples, CALIBRATION_CHUNK):
             hi = min(lo + CALIBRATION_CHUNK, ds.n_samples)
             sig = source(lo, hi)[0].slice(keep)
-            e = residual_of(sig, ds.t[lo:hi][keep] - ds.t[0])
-            constant.append(e)
-            es.append(e if tracker is None else tracker.apply(e, sig, ds.t[lo:hi][keep])[0])
-            dqs.append(sig.dq)
+            run_e.append(residual_of(sig, ds.t[lo:hi][keep] - ds.t[0]))
+            run_dq.append(sig.dq)
+            run_inputs.append(sig.inputs)
+        e, dq = np.vstack(run_e), np.vstack(run_dq)
+        constant.append(e)
+        dqs.append(dq)
+        if tracking is not None:  # two-sided over the whole run (the strided samples: the same seconds)
+            inputs = {m: np.concatenate([part[m] for part in run_inputs]) for m in run_inputs[0]}
+            whole = Signals(dq, dq, dq, inputs, {}, {})  # the tracker reads q̇ and the inputs only
+            e = smoothed_residuals(model, tracking, settings.min_speed, e, whole, ds.t[keep])
+        es.append(e)
     e = np.vstack(es)
     return e, np.vstack(dqs), (e if tracking is None else np.vstack(constant))
 

@@ -22,7 +22,7 @@ from .identified import IdentifiedModel, load_model
 from .model import RobotModel
 from .outputs import OutputChannel, output_channels, residuals
 from .regressors.stack import Signals, rows_at_rest, signals_from_dataset
-from .supply import tracked_residuals
+from .supply import smoothed_residuals
 
 if TYPE_CHECKING:  # dynid.detection pulls in scipy.stats (0.6 s): imported where T² is computed, not by every command
     from .detection import Detector
@@ -56,7 +56,7 @@ class Evaluated:
     model: RobotModel
     dataset: Dataset
     signals: Signals  # with the outputs filtered as q̇, q̈ are (see signals_from_dataset)
-    e: np.ndarray  # (N, n_out) e = y − ŷ, the inputs predicted with the model's supply tracking (dynid.supply)
+    e: np.ndarray  # (N, n_out) e = y − ŷ, the inputs predicted with the model's offline supply estimate (dynid.supply)
     e_constant: np.ndarray  # the same with constant motor gains (the paper's model); e itself without tracking
 
     @property
@@ -82,7 +82,7 @@ def evaluate(model_path: str, data_path: str, identified: IdentifiedModel | None
         e = augmented_residuals(model, identified.phi, effects, sig, ds.t - ds.t[0])
     else:
         e = residuals(model, identified.phi, sig)
-    tracked = tracked_residuals(model, identified.supply_tracking, identified.min_speed, e, sig, ds.t)
+    tracked = smoothed_residuals(model, identified.supply_tracking, identified.min_speed, e, sig, ds.t)
     return Evaluated(identified, model, ds, sig, tracked, e)
 
 

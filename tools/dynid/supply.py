@@ -18,7 +18,8 @@ leaves the estimate as it was (a joint resting for a minute keeps its supply est
 is the weight of the prior r = 1: a motor that has not yet driven keeps its identified gain.
 
 The recurrence runs sample by sample in the order the monitor would see them; rt_monitor's core runs the same
-one (`rt_monitor/src/core.cpp`), checked against this code.
+one (`rt_monitor/src/core.cpp`), checked against this code. Offline (`validate`, `detect`, the fit's T²
+calibration) the estimate is two-sided, as the offline derivatives are: `smoothed_residuals`.
 """
 
 from __future__ import annotations
@@ -36,12 +37,13 @@ from .regressors.stack import Signals, rows_at_rest
 
 @dataclass(frozen=True)
 class SupplyTracking:
-    time_constant_s: float = 3.0  # the supply drifts over tens of seconds, a contact lasts about one (README)
+    time_constant_s: float = 3.0  # the monitor's, causal: the supply drifts over tens of seconds, a contact lasts about one (README)
     gate: float = 3.0  # noise stds of the input channel: a larger residual never updates the estimate
     prior_input: float = 0.01  # duty: the prior r = 1 weighs as much as a sample predicting this input
+    offline_time_constant_s: float = 1.5  # each pass of the offline, two-sided estimate (`smoothed_residuals`)
 
     def __post_init__(self) -> None:
-        for name in ("time_constant_s", "gate", "prior_input"):
+        for name in ("time_constant_s", "gate", "prior_input", "offline_time_constant_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise InputError(f"supply tracking: {name} must be a positive number, got {value}")
@@ -51,11 +53,13 @@ class SupplyTracking:
         return self.gate * sigma
 
     def as_dict(self) -> dict[str, float]:
-        return {"time_constant_s": self.time_constant_s, "gate": self.gate, "prior_input": self.prior_input}
+        return {"time_constant_s": self.time_constant_s, "gate": self.gate, "prior_input": self.prior_input,
+                "offline_time_constant_s": self.offline_time_constant_s}
 
     @classmethod
     def from_dict(cls, d: dict) -> SupplyTracking:
-        return cls(float(d["time_constant_s"]), float(d["gate"]), float(d["prior_input"]))
+        return cls(float(d["time_constant_s"]), float(d["gate"]), float(d["prior_input"]),
+                   float(d["offline_time_constant_s"]))
 
 
 @dataclass
@@ -112,7 +116,31 @@ class SupplyTracker:
 
 def tracked_residuals(model: RobotModel, settings: SupplyTracking | None, min_speed: float, e: np.ndarray,
                       sig: Signals, t: np.ndarray) -> np.ndarray:
-    """e of one whole run with supply tracking (unchanged when `settings` is None)."""
+    """e of one whole run with the monitor's causal supply tracking (unchanged when `settings` is None)."""
     if settings is None:
         return e
     return SupplyTracker(model, settings, min_speed).apply(e, sig, t)[0]
+
+
+def smoothed_residuals(model: RobotModel, settings: SupplyTracking | None, min_speed: float, e: np.ndarray,
+                       sig: Signals, t: np.ndarray) -> np.ndarray:
+    """e of one whole run with the offline, two-sided supply estimate: the mean of the tracker run forwards and
+    backwards in time, with `offline_time_constant_s` (unchanged when `settings` is None).
+
+    Offline, dynid's derivatives are non-causal (the paper's set-up), and so is this: the two passes' lags cancel
+    on a supply that drifts linearly, so a shorter time constant keeps the same robustness to contacts. It is
+    what `validate`, `detect` and the fit's T² calibration use; the monitor runs the causal tracker."""
+    if settings is None:
+        return e
+    offline = SupplyTracking(settings.offline_time_constant_s, settings.gate, settings.prior_input,
+                             settings.offline_time_constant_s)
+    forward = SupplyTracker(model, offline, min_speed).apply(e, sig, t)[1]
+    back = slice(None, None, -1)
+    backward = SupplyTracker(model, offline, min_speed).apply(e[back], sig.slice(back), -t[back])[1][back]
+    ratio = 0.5 * (forward + backward)
+    out = np.array(e, dtype=float, copy=True)
+    for o in output_channels(model):
+        if o.kind == "input":
+            y = sig.inputs[o.motor]
+            out[:, o.row] = y - ratio[:, o.row] * (y - e[:, o.row])
+    return out

@@ -100,7 +100,7 @@ def test_calibrated_threshold_keeps_its_promise(default_model: Path, default_exp
     assert cal["delay_s"]["median"] is not None and cal["delay_s"]["median"] < 0.1
     # Every episode whose contact alone reaches T²_α (plant truth, dynid.contact_visibility) is found; the
     # others (a push through a joint axis, a resting joint) are below what any T² at this α sees (measured:
-    # 22 of 28 visible, 22 found; the six below peak at 0–25 against T²_α 34.8).
+    # 22 of 28 visible, 22 found; the six below peak at 0–32 against T²_α 34.9).
     vis = contact["visibility"]
     print(f"visible episodes {vis['visible']} of {len(vis['episodes'])}, found {vis['visible_found']}")
     assert vis["visible"] >= 20 and vis["visible_found"] == vis["visible"]

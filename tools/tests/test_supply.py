@@ -14,7 +14,7 @@ from dynid.errors import InputError
 from dynid.model import RobotModel
 from dynid.outputs import output_channels
 from dynid.regressors.stack import Signals
-from dynid.supply import SupplyTracker, SupplyTracking
+from dynid.supply import SupplyTracker, SupplyTracking, smoothed_residuals
 
 from conftest import dynid
 from test_identification import run_json
@@ -97,6 +97,24 @@ def test_chunks_continue_the_same_recurrence(arm: RobotModel) -> None:
     np.testing.assert_array_equal(np.vstack(parts), whole)
 
 
+def test_two_sided_estimate_has_no_lag_on_a_ramp(arm: RobotModel) -> None:
+    """Offline, the forward and backward passes' lags cancel on a supply that drifts linearly: the residual is at
+    the noise where the causal tracker, with the same time constant, trails the ramp."""
+    supply = np.linspace(1.0, 0.88, 8000)  # −12 % over 8 s: a sagging bus
+    e, sig, t = synthetic(arm, supply)
+    settings = SupplyTracking(time_constant_s=1.0, offline_time_constant_s=1.0)
+    causal = SupplyTracker(arm, settings, 0.01).apply(e, sig, t)[0]
+    offline = smoothed_residuals(arm, settings, 0.01, e, sig, t)
+    rows = input_rows(arm)
+    sigma = np.array([o.sigma for o in output_channels(arm)])[rows]
+    middle = slice(2000, 6000)
+    lagging = np.sqrt(np.mean(causal[middle][:, rows] ** 2, axis=0)) / sigma
+    centred = np.sqrt(np.mean(offline[middle][:, rows] ** 2, axis=0)) / sigma
+    print(f"ramp: causal {np.round(lagging, 2)}, two-sided {np.round(centred, 2)} × noise")
+    assert np.all(centred < 1.05) and np.all(lagging > 1.2 * centred)
+    assert smoothed_residuals(arm, None, 0.01, e, sig, t) is e
+
+
 def test_no_drive_keeps_the_identified_gain(arm: RobotModel) -> None:
     """A motor that predicts and measures no input gives the estimate nothing: the prior r = 1 holds."""
     e, sig, t = synthetic(arm, np.full(3000, 0.9))
@@ -105,7 +123,8 @@ def test_no_drive_keeps_the_identified_gain(arm: RobotModel) -> None:
     assert np.all(ratio[:, input_rows(arm)] == 1.0)
 
 
-@pytest.mark.parametrize("field,value", [("time_constant_s", 0.0), ("gate", -1.0), ("prior_input", float("nan"))])
+@pytest.mark.parametrize("field,value", [("time_constant_s", 0.0), ("gate", -1.0), ("prior_input", float("nan")),
+                                         ("offline_time_constant_s", float("inf"))])
 def test_bad_settings_are_refused(field: str, value: float) -> None:
     with pytest.raises(InputError, match=field):
         SupplyTracking(**{field: value})
@@ -141,8 +160,8 @@ def test_validate_reports_moving_rows_with_and_without_tracking(default_model: P
         print(f"{name}: moving rows {ch['ratio_to_noise_moving']:.2f}× (constant gains "
               f"{ch['ratio_to_noise_moving_constant_gains']:.2f}×)")
         assert ch["ratio_to_noise_moving"] < ch["ratio_to_noise_moving_constant_gains"]
-        # Issue 4 asks for ≤ 1.2×; pwm.m0 (the shoulder pitch, the largest drive) measures 1.36× (README).
-        assert ch["ratio_to_noise_moving"] <= (1.45 if name == "pwm.m0" else 1.2), name
+        # Issue 4: ≤ 1.2× the injected noise (measured 1.15, 0.63, 0.26, 0.36×; constant gains 2.47, 2.49, 0.56, 0.72×).
+        assert ch["ratio_to_noise_moving"] <= 1.2, name
 
 
 def test_a_bad_supply_section_is_one_line_exit_2(default_model: Path, default_experiments, tmp_path: Path) -> None:
