@@ -151,13 +151,21 @@ TEST(Candump, RealTimeReplayKeepsTheLogsPace) {
     EXPECT_LT(ms, 1000.0);
 }
 
+// A monitor's loopback source and a boards' sink on the same directory.
+static void open_loopback(const std::string& dir, std::unique_ptr<LoopbackSource>& src,
+                          std::unique_ptr<LoopbackSink>& sink) {
+    std::string err;
+    src = LoopbackSource::open(dir, kBuses, err);
+    ASSERT_TRUE(src) << err;
+    sink = LoopbackSink::open(dir, kBuses, err);
+    ASSERT_TRUE(sink) << err;
+}
+
 TEST(Loopback, CarriesCanFrameBytesPerBusWithTimestamps) {
     const std::string dir = temp_dir();
-    std::string err;
-    auto src = LoopbackSource::open(dir, kBuses, err);
-    ASSERT_TRUE(src) << err;
-    auto sink = LoopbackSink::open(dir, kBuses, err);
-    ASSERT_TRUE(sink) << err;
+    std::unique_ptr<LoopbackSource> src;
+    std::unique_ptr<LoopbackSink> sink;
+    ASSERT_NO_FATAL_FAILURE(open_loopback(dir, src, sink));
     RxFrame f;
     EXPECT_EQ(src->read(f, 10), ReadStatus::kTimeout);
 
@@ -203,11 +211,9 @@ TEST(Loopback, FramesQueuedOnSeveralBusesComeOutInStampOrder) {
     // A monitor that fell behind finds a sample's frames queued on three buses: it must read them as they were
     // sent (the strain pair after the positions of the same sample), not bus by bus.
     const std::string dir = temp_dir();
-    std::string err;
-    auto src = LoopbackSource::open(dir, kBuses, err);
-    ASSERT_TRUE(src) << err;
-    auto sink = LoopbackSink::open(dir, kBuses, err);
-    ASSERT_TRUE(sink) << err;
+    std::unique_ptr<LoopbackSource> src;
+    std::unique_ptr<LoopbackSink> sink;
+    ASSERT_NO_FATAL_FAILURE(open_loopback(dir, src, sink));
     const int order[] = {2, 1, 0, 2, 0, 1, 1, 2, 0, 0, 2};
     for (size_t k = 0; k < sizeof order / sizeof order[0]; ++k) {
         can_frame f{};
