@@ -23,10 +23,11 @@ from dynid.contact_visibility import monitor_visibility
 from dynid.dataset import contact_episodes, load_data
 from dynid.export import read_coefficients
 from dynid.model import RobotModel
+from test_rt_core import raw_samples, stream
 
 ROOT = Path(__file__).resolve().parents[2]
 BUILD = ROOT / "build" / "rt_monitor"
-RT_MONITOR, RT_EVAL = BUILD / "rt_monitor", BUILD / "rt_eval"
+RT_MONITOR = BUILD / "rt_monitor"
 T0_US = 1_700_000_000_000_000  # write_candump's default start time
 
 
@@ -87,12 +88,7 @@ def test_replay_end_to_end(setup: dict, default_experiments: dict) -> None:
 
     # Independent path: the same core on the raw floating-point samples, no CAN in between.
     c = read_coefficients(setup["coef"])
-    raw = np.ascontiguousarray(np.hstack([data.q, data.ft["r_arm_ft"]] + [data.pwm[m][:, None] for m in c.motor_names]), "<f8")
-    (setup["root"] / "in.mx").write_bytes(b"DYMX" + struct.pack("<qq", *raw.shape) + raw.tobytes())
-    subprocess.run([str(RT_EVAL), "--coef", str(setup["coef"]), "--stream", str(setup["root"] / "in.mx"),
-                    str(setup["root"] / "out.mx")], check=True, capture_output=True)
-    b = (setup["root"] / "out.mx").read_bytes()
-    out = np.frombuffer(b, "<f8", offset=20).reshape(struct.unpack_from("<qq", b, 4))
+    out = stream(setup["coef"], raw_samples(data, c), setup["root"])
     ref = [(int(out[k, -2]), int(k)) for k in np.flatnonzero(out[:, -2])]
     assert events == ref
 

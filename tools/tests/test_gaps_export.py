@@ -16,7 +16,7 @@ from dynid.export import read_coefficients
 from dynid.identified import load_model
 from dynid.outputs import residuals
 from dynid.regressors.stack import Signals
-from test_rt_core import read_matrix, rel_err, rt_eval, vector_states, write_matrix
+from test_rt_core import raw_samples, read_matrix, rel_err, rt_eval, stream, vector_states, write_matrix
 
 EFFECTS = ["--effect", "stribeck:joint=r_elbow,excess=2,velocity=0.05",
            "--effect", "spring:joint=r_shoulder_yaw,stiffness=1.0"]
@@ -158,11 +158,7 @@ def _replay(coef: Path, run: Path, tmp_path: Path) -> tuple[np.ndarray, float]:
 
     c = read_coefficients(coef)
     ds = load_data(run, load_config("icub_right_arm"))
-    raw = np.hstack([ds.q, ds.ft["r_arm_ft"]] + [ds.pwm[m][:, None] for m in c.motor_names])
-    write_matrix(tmp_path / "in.mx", raw)
-    done = rt_eval("--coef", str(coef), "--stream", str(tmp_path / "in.mx"), str(tmp_path / "out.mx"))
-    assert done.returncode == 0, done.stderr
-    out = read_matrix(tmp_path / "out.mx")
+    out = stream(coef, raw_samples(ds, c), tmp_path)
     out = out[out[:, 0] == 1]
     nj, no = c.n_joints, c.n_outputs
     e = out[:, 1 + 3 * nj + 2 * no : 1 + 3 * nj + 3 * no]

@@ -53,6 +53,19 @@ def rt_eval(*args: str, exe: Path = RT_EVAL) -> subprocess.CompletedProcess:
     return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=600)
 
 
+def raw_samples(ds, c: coefficients_t) -> np.ndarray:
+    """(N, joints + 6 + motors): what the monitor receives per sample, in the coefficient file's order."""
+    return np.hstack([ds.q, ds.ft[c.sensor_name]] + [ds.pwm[m][:, None] for m in c.motor_names])
+
+
+def stream(coef: Path, raw: np.ndarray, work: Path) -> np.ndarray:
+    """The core's per-sample output rows (`rt_eval --stream`) for the raw samples `raw`."""
+    write_matrix(work / "in.mx", raw)
+    done = rt_eval("--coef", str(coef), "--stream", str(work / "in.mx"), str(work / "out.mx"))
+    assert done.returncode == 0, done.stderr
+    return read_matrix(work / "out.mx")
+
+
 def rel_err(a: np.ndarray, b: np.ndarray, scale: np.ndarray) -> float:
     return float(np.max(np.abs(a - b) / scale))
 
@@ -155,11 +168,7 @@ def test_stream_matches_the_python_mirror(exported: Path, default_model: Path, d
     det = Detector("calibrated", np.asarray(c.residual_variance), c.threshold, c.alpha, c.min_speed, c.n_outputs)
     t2 = det.t2(model, e, sig.dq)
 
-    raw = np.hstack([q, ft["r_arm_ft"]] + [inputs[m][:, None] for m in c.motor_names])
-    write_matrix(tmp_path / "in.mx", raw)
-    done = rt_eval("--coef", str(exported), "--stream", str(tmp_path / "in.mx"), str(tmp_path / "out.mx"))
-    assert done.returncode == 0, done.stderr
-    out = read_matrix(tmp_path / "out.mx")
+    out = stream(exported, np.hstack([q, ft["r_arm_ft"]] + [inputs[m][:, None] for m in c.motor_names]), tmp_path)
     nj, no = c.n_joints, c.n_outputs
     ready = out[:, 0] == 1
     assert not ready[: c.window - 1].any() and ready[c.window - 1 :].all()
@@ -180,11 +189,7 @@ def test_threshold_keeps_its_promise_online(exported: Path, default_experiments:
     config = load_config("icub_right_arm")
     ds = load_data(default_experiments["validation"], config)
     assert ds.contact is None or not ds.contact.any(), "the validation run must be contact-free"
-    raw = np.hstack([ds.q, ds.ft["r_arm_ft"]] + [ds.pwm[m][:, None] for m in c.motor_names])
-    write_matrix(tmp_path / "in.mx", raw)
-    done = rt_eval("--coef", str(exported), "--stream", str(tmp_path / "in.mx"), str(tmp_path / "out.mx"))
-    assert done.returncode == 0, done.stderr
-    out = read_matrix(tmp_path / "out.mx")
+    out = stream(exported, raw_samples(ds, c), tmp_path)
     out = out[out[:, 0] == 1]
     above = out[:, -4]
     fpr = float(above.mean())
@@ -316,11 +321,7 @@ def test_contact_run_side_and_detection(exported: Path, default_experiments: dic
     """The contact run through the core: distal contacts are detected, and the side named is the skin's."""
     c = read_coefficients(exported)
     ds = load_data(default_experiments["contact"], load_config("icub_right_arm"))
-    raw = np.hstack([ds.q, ds.ft["r_arm_ft"]] + [ds.pwm[m][:, None] for m in c.motor_names])
-    write_matrix(tmp_path / "in.mx", raw)
-    done = rt_eval("--coef", str(exported), "--stream", str(tmp_path / "in.mx"), str(tmp_path / "out.mx"))
-    assert done.returncode == 0, done.stderr
-    out = read_matrix(tmp_path / "out.mx")
+    out = stream(exported, raw_samples(ds, c), tmp_path)
     lag = c.lag  # output k is the estimate of sample k − lag
     truth, side = np.zeros(len(out), bool), np.zeros(len(out))
     truth[lag:], side[lag:] = ds.contact[:-lag] != 0, ds.extra["skin.side"][:-lag]
