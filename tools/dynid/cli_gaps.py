@@ -35,10 +35,15 @@ def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
     if args.out:
         from .gaps.refit import augmented_model
 
-        aug = augmented_model(model, ds, args.data, result, augmented["phi"], augmented["effects"], identified)
+        # a payload is already in Φ (its link's inertial parameters): the model file lists only effects it predicts with
+        effects = [e for e in augmented["effects"] if e.kind != "payload"]
+        folded = [e for e in augmented["effects"] if e.kind == "payload"]
+        aug = augmented_model(model, ds, args.data, result, augmented["phi"], effects, identified, folded=folded)
         aug.save(args.out)
         result["out"] = args.out
-        kinds = ", ".join(f"{e.kind} on {e.where}" for e in augmented["effects"]) or "no effect (the standard model refitted)"
+        kinds = ", ".join([f"{e.kind} on {e.where}" for e in effects]
+                          + [f"payload on {e.where} (in its inertial parameters)" for e in folded])
+        kinds = kinds or "no effect (the standard model refitted)"
         print(f"augmented model -> {args.out}: {kinds}")
     if args.figures:
         from .gaps.figures import write_figures
@@ -53,12 +58,14 @@ def add_commands(sub: argparse._SubParsersAction, robot_arg, json_arg) -> None:
         "gaps", help="where model and data disagree, which missing effect explains it, and the gap after the fix",
         description="Refit the standard model on DATA, measure the residual per channel on held-out time blocks, "
         "select missing effects from a library (Stribeck, spring, cogging, PWM dead-zone, F/T drift, armature, "
-        "load-dependent friction, PWM delay, coupling error, base tilt, F/T gain) by "
+        "load-dependent friction, PWM delay, coupling error, base tilt, F/T gain; a payload against a given "
+        "model) by "
         "cross-validated forward selection, refit with them and print the gap before and after per channel.")
     robot_arg(sp)
     sp.add_argument("--data", required=True, metavar="DATA", help="the measured experiment (.csv, candump or .npz)")
-    sp.add_argument("--model", metavar="MODEL", help="an identified model: its gap on DATA is shown too "
-                    "(its robot configuration is used)")
+    sp.add_argument("--model", metavar="MODEL", help="an identified model: its gap on DATA is shown too, "
+                    "its inertias are held (the rest is refitted), so a payload on a link can be named; its robot "
+                    "configuration is used")
     sp.add_argument("--out", metavar="AUGMENTED_MODEL", help="write the refitted model with the named effects "
                     "(a model file: validate, detect, report and export accept it; export carries Stribeck and spring)")
     sp.add_argument("--figures", metavar="DIR", help="write a figure per finding and the gap before/after (PNG + "

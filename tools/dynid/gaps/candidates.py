@@ -40,6 +40,9 @@ class Context:
     inputs_full: dict[str, np.ndarray] | None = None  # each filtered input at the full rate (before decimation)
     index_full: np.ndarray | None = None  # (N,) the kept samples' indices into the full rate
     rate: float = 0.0  # Hz of the full rate
+    # (N, r, n_inertial) the rigid-body columns of every link's inertial parameters, when the gap is measured
+    # against a given model whose inertias are held (`dynid gaps --model`): only then can a payload be named
+    inertial_columns: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -58,7 +61,7 @@ class Candidate:
     values: np.ndarray  # (N, r, K) columns in row units
     labels: tuple[str, ...]  # one per column
     interpret: Callable[[np.ndarray, np.ndarray], dict[str, float]]  # (θ, Φ of the refit) -> named parameters
-    positive: bool = False  # physical only with every θ > 0 (a fit of the other sign is not this effect)
+    positive: tuple[int, ...] = ()  # the θ that must be > 0 for the fit to be this effect (a Stribeck bump, a mass)
 
     @property
     def key(self) -> str:
@@ -108,7 +111,7 @@ def stribeck(ctx: Context, grid: Sequence[float] = STRIBECK_VELOCITIES) -> Itera
         for vs in grid:
             yield Candidate("stribeck", f"joint {j}", {"velocity": vs}, _on_rows(stribeck_shape(ctx.sig.dq[:, c], vs), share),
                             ("static_torque",), lambda th, phi, vs=vs: {"static_torque": float(th[0]), "velocity": vs},
-                            positive=True)
+                            positive=(0,))
 
 
 def spring(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
@@ -284,6 +287,28 @@ def base_tilt(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
     yield Candidate("base_tilt", "base", {}, values, tuple(f"tilt_{'xyz'[k]}" for k in axes), interpret)
 
 
+def payload(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
+    """A rigid payload on a link: its ten inertial parameters added to the link's (mass, first moment, inertia at
+    the link origin), columns = the link's own rigid-body columns. Only against a given model whose inertias
+    are held: a refit of the inertias absorbs any payload exactly. Named by its mass and centre of mass."""
+    if ctx.inertial_columns is None:
+        return
+    layout = ctx.model.layout
+    base = layout.span("inertial").start
+    for body in ctx.model.bodies:
+        block = layout.block("inertial", body.name)
+        cols = ctx.inertial_columns[:, :, block.start - base : block.stop - base]
+        if not np.any(cols):
+            continue
+
+        def interpret(th: np.ndarray, phi: np.ndarray) -> dict[str, float]:
+            mass = float(th[0])
+            c = th[1:4] / mass if mass != 0 else np.zeros(3)
+            return {"mass": mass, **{f"com_{a}": float(v) for a, v in zip("xyz", c)}}
+
+        yield Candidate("payload", f"link {body.name}", {}, cols, tuple(block.names), interpret, positive=(0,))
+
+
 def _trace_free_basis() -> np.ndarray:
     """(36, 35) basis of the 6×6 matrices with zero trace: a common scale of the whole sensor is the scale of every
     inertia and motor gain at once, which the data cannot see, so only the trace-free part of E is estimated."""
@@ -297,10 +322,12 @@ def _trace_free_basis() -> np.ndarray:
 
 def ft_gain(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
     """F/T gain and cross-talk: measured = (I + E) w + o, w the baseline's predicted wrench (not the measured one:
-    that is the right-hand side itself); row a gains Σ_b E_ab w_b, with E trace-free (see `_trace_free_basis`)."""
+    that is the right-hand side itself); row a gains Σ_b E_ab w_b. E is trace-free (see `_trace_free_basis`)
+    unless the inertias are held at a given model's, which fixes the scale: then all 36 entries."""
     if ctx.rigid is None:
         return
-    P = _trace_free_basis()
+    held = ctx.inertial_columns is not None
+    P = np.eye(36) if held else _trace_free_basis()
     for i, s in enumerate(ctx.model.config.ft_sensors):
         w = ctx.rigid[:, 6 * i : 6 * i + 6]
         full = np.zeros((ctx.n, ctx.r, 36))
@@ -309,11 +336,15 @@ def ft_gain(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
         values = full @ P
 
         def interpret(th: np.ndarray, phi: np.ndarray) -> dict[str, float | list]:
+            E = (P @ th).reshape(6, 6)
+            if held:  # the given model's inertias fix the wrench's scale: E is the sensor's own error
+                return {"matrix": E.tolist(), "gain_rms": float(np.sqrt(np.mean(np.diag(E) ** 2))),
+                        "crosstalk_rms": float(np.sqrt(np.mean(E[~np.eye(6, dtype=bool)] ** 2)))}
             # Not printed as gains: arm motion cannot separate E from the inertias beyond the sensor (README).
-            return {"matrix": (P @ th).reshape(6, 6).tolist(),
+            return {"matrix": E.tolist(),
                     "note": "E (trace-free, --json) corrects the wrench; its entries are not identifiable one by one"}
 
-        yield Candidate("ft_gain", f"sensor {s.name}", {}, values, tuple(f"E{k}" for k in range(35)), interpret)
+        yield Candidate("ft_gain", f"sensor {s.name}", {}, values, tuple(f"E{k}" for k in range(P.shape[1])), interpret)
 
 LIBRARY: dict[str, Callable[..., Iterable[Candidate]]] = {
     "stribeck": stribeck,
@@ -327,6 +358,7 @@ LIBRARY: dict[str, Callable[..., Iterable[Candidate]]] = {
     "coupling_error": coupling_error,
     "base_tilt": base_tilt,
     "ft_gain": ft_gain,
+    "payload": payload,
 }
 
 SEARCHED = {"stribeck": "velocity", "cogging": "period_deg", "ft_drift": "tau", "pwm_delay": "ms"}
@@ -341,6 +373,6 @@ def refined(ctx: Context, best: Candidate) -> list[Candidate]:
     return [c for c in LIBRARY[best.kind](ctx, tuple(float(v) for v in value * (1 + REFINE))) if c.where == best.where]
 
 
-# Effects of dynid's simulator this library cannot name: named in the report as not ruled out. A payload is a
-# change of one link's inertial parameters, which the standard model refitted on the run absorbs exactly.
-NOT_IN_LIBRARY = ("payload",)
+# Effects the library names only against a given model (`dynid gaps --model`): without one, reported as not
+# ruled out. A payload is a change of one link's inertial parameters, which a refit of the inertias absorbs.
+NEEDS_GIVEN_MODEL = ("payload",)

@@ -4,6 +4,7 @@ standard errors, and the model file `dynid gaps --out` writes (dynid.identified,
 from __future__ import annotations
 
 import copy
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -24,14 +25,25 @@ def reference_phi(model: RobotModel, given: np.ndarray | None) -> np.ndarray:
 
 def refit(current: Design, V: np.ndarray, accepted: list[Candidate], ctx: Context,
           phi_ref: np.ndarray) -> tuple[np.ndarray, list[Effect]]:
-    """(Φ, effects) of the final fit. Φ = Φ_ref outside the identifiable subspace V, the fit inside it.
+    """(Φ, effects) of the final fit. Φ = Φ_ref outside the identifiable subspace V, the fit inside it (V has no
+    component along held parameters, which keep Φ_ref's). A payload's ten parameters are added to its link's
+    inertial parameters in Φ: the augmented model is then a standard one for it (the monitor needs nothing new).
     Standard errors: block jackknife (the rows are correlated within a block, not across blocks)."""
     dof = V.shape[1]
     x = current.fit(None)[0]  # the selection's own solve (same column scaling, same cut)
     folds = current.fold_fits()
+    layout = ctx.model.layout
 
     def full(xx: np.ndarray) -> np.ndarray:
-        return phi_ref - V @ (V.T @ phi_ref) + V @ xx[:dof]
+        phi = phi_ref - V @ (V.T @ phi_ref) + V @ xx[:dof]
+        start = dof
+        for c in accepted:
+            k = c.values.shape[2]
+            if c.kind == "payload":
+                block = layout.block("inertial", c.where.partition(" ")[2])
+                phi[block.start : block.stop] += xx[start : start + k]
+            start += k
+        return phi
 
     phi = full(x)
     effects, start = [], dof
@@ -58,11 +70,11 @@ def refit(current: Design, V: np.ndarray, accepted: list[Candidate], ctx: Contex
 
 def augmented_model(model: RobotModel, ds: Dataset, data_path: str, result: dict, phi: np.ndarray,
                     effects: list[Effect], given: IdentifiedModel | None, alpha: float = 0.99,
-                    min_speed: float = 0.01) -> IdentifiedModel:
+                    min_speed: float = 0.01, folded: Sequence[Effect] = ()) -> IdentifiedModel:
     """The model file of the refit: the given model's sections (or a fresh record), the refitted Φ, the effects,
     Λ and the T² detector recalibrated on the run with the effects (so detect and export see the augmented
     residuals). Sections that describe the given model's own fit (base, estimators, cv) are dropped: they no
-    longer describe these parameters."""
+    longer describe these parameters. `folded`: payloads named and already added to Φ, recorded for the reader."""
     from ..detection import calibrate, calibration_residuals, detector_record
 
     record: dict[str, Any] = copy.deepcopy(given.record) if given is not None else {}
@@ -86,7 +98,8 @@ def augmented_model(model: RobotModel, ds: Dataset, data_path: str, result: dict
         "data": [data_record(data_path, ds.n_samples, ds.duration)],
         "effects": [eff.as_dict() for eff in effects],
         "gaps": {"given_model": result.get("given_model"), "gap": result["gap"], "thresholds": result["thresholds"],
-                 "rank": result["rank"], "blocks": result["blocks"]},
+                 "rank": result["rank"], "blocks": result["blocks"],
+                 "in_inertial_parameters": [e.as_dict() for e in folded]},  # payloads, added to their links' Φ
     })
     robot = given.robot if given is not None else robot_record(model.config)
     if "derivatives" not in record:

@@ -177,7 +177,7 @@ def evaluate(design: Design, cand: Candidate, weights: np.ndarray, base_cv: np.n
     before = base_cv[:, channels].sum(axis=1)
     if cand.positive:
         k = E.shape[2]
-        if not np.all(design.fit(E)[0][-k:] > 0):  # e.g. a "negative Stribeck bump": not the effect, never named
+        if not np.all(design.fit(E)[0][-k:][list(cand.positive)] > 0):  # a negative Stribeck bump or mass: never named
             return Trial(cand, channels, before, before, float("nan"))
     cv = design.cv_sse(E)
     return Trial(cand, channels, before, cv[:, channels].sum(axis=1), float("nan"))

@@ -3,6 +3,8 @@
 1. Signals of the run (the fit's own derivative filter), decimated to at most `max_samples` samples, split into
    contiguous time blocks; rows weighted by 1/σ, rows at rest dropped (as the fit does).
 2. Baseline: the standard model (inertia, F/T offsets, Coulomb + viscous friction, gains) refitted on the run.
+   Against a given model (`--model`) its inertias are held and the rest is refitted: offsets, friction and
+   gains drift from day to day, the bodies do not, and a payload shows only against known bodies.
    Per channel: held-out RMS against the noise floor, and where it grows (speed regime, time).
 3. Forward selection over the candidate library (dynid.gaps.candidates) by cross-validated reduction of the
    held-out error of the channels each candidate acts on; stop when the best one is not significant.
@@ -22,7 +24,7 @@ from ..identification import FitSettings, SignalSource
 from ..model import RobotModel
 from ..outputs import output_channels
 from ..regressors.stack import fill_rows, row_channels
-from .candidates import LIBRARY, NOT_IN_LIBRARY, Candidate, Context, refined
+from .candidates import LIBRARY, NEEDS_GIVEN_MODEL, Candidate, Context, refined
 from .profile import profile
 from .refit import reference_phi, refit
 from .selection import Design, Trial, evaluate, robust_p_value, weighted_columns
@@ -111,7 +113,15 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
     stride = max(1, int(np.ceil(ds.n_samples / settings.max_samples)))
     ctx, A, b, w = _collect(model, ds, stride)
     n, r, p = A.shape
-    Aw, y = A * w[:, :, None], b * w
+    inertial = model.layout.span("inertial")
+    held = np.zeros(p)  # Φ held at the given model's: its inertias (none without a given model)
+    if reference is not None:
+        held[inertial] = reference[1][inertial]
+        ctx = replace(ctx, inertial_columns=A[:, :, inertial].copy())
+    Aw, y = A * w[:, :, None], (b - A @ held) * w
+    given_y = b * w
+    if reference is not None:
+        Aw[:, :, inertial] = 0.0  # held columns: V gets no component along them
     # Identifiable subspace of the standard model on this run: Z = A V (columns the data cannot see dropped).
     G = np.einsum("nri,nrj->ij", Aw, Aw)
     s, V = np.linalg.eigh(G)
@@ -127,14 +137,13 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
     resid0 = y - design.D @ x0
     given = None
     if reference is not None:  # not fitted on this run: its error over all rows is already out of sample
-        e = y - Aw @ reference[1]
+        e = given_y - (A * w[:, :, None]) @ reference[1]
         given = _rms_per_channel((e**2).sum(axis=0), design.rows.sum(axis=0))
     log(f"gaps: {ds.n_samples} samples ({ds.duration:.0f} s), every {stride}th kept, {settings.n_blocks} held-out time blocks; "
-        f"standard model rank {dof}")
+        f"standard model rank {dof}" + (", inertias held at the given model's" if reference is not None else ""))
 
     # Bilinear candidates (gains, gravity, F/T gain) linearise about the baseline refit.
-    phi0 = V @ x0
-    inertial = model.layout.span("inertial")
+    phi0 = held + V @ x0
     ctx = replace(ctx, phi=phi0, rigid=A[:, :, inertial] @ phi0[inertial])
     candidates: list[Candidate] = [c for make in LIBRARY.values() for c in make(ctx)]
     named: list[dict] = []
@@ -211,7 +220,7 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
         "profile": profile(model, ctx, resid0, resid_after, w),  # binned, before/after: what the figures plot
         "ruled_out": ruled_out[:12],
         "not_significant": not_significant,
-        "not_in_library": list(NOT_IN_LIBRARY),
+        "not_in_library": [] if reference is not None else list(NEEDS_GIVEN_MODEL),  # not tried: no given model
         "seconds": elapsed,
         # the augmented model (`dynid gaps --out`): not part of the --json result (see cli_gaps)
         "_augmented": {"phi": phi, "effects": fitted},
@@ -242,8 +251,8 @@ def format_report(result: dict) -> str:
     high = sorted((g for g in result["gap"] if g["after_over_noise"] > 1.3), key=lambda g: -g["after_over_noise"])
     if high:
         listed = ", ".join(f"{g['channel']} {g['after_over_noise']:.2f}×" for g in high)
-        lines.append(f"unexplained: {listed} its noise floor after the fix; not in the library: "
-                     f"{', '.join(result['not_in_library'])}")
+        untried = f"; not tried without a given model (--model): {', '.join(result['not_in_library'])}" if result["not_in_library"] else ""
+        lines.append(f"unexplained: {listed} its noise floor after the fix{untried}")
     given = result.get("given_model")
     head = f"{'given':>10s} " if given else ""
     lines.append(f"{'channel':24s} {head}{'before':>10s} {'after':>10s}  {'(× noise)':>18s}")

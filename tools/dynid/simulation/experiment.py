@@ -196,6 +196,9 @@ def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
             wrenches[s.name], offset, gain, std, sensors.ft_full_scale(config, s.name), settings.noise, rng_noise
         )
         ft_offsets[s.name] = offset
+        for e, entry in zip(effects, effect_truth):
+            if e.kind == "ft_gain" and e.target == s.name:
+                entry["matrix"] = (gain - np.eye(6)).tolist()  # E of measured = (I + E) w, rows and columns fx … tz
     recorded_u = U.copy()
     delay = sum(int(round(float(e.params["ms"]) * 1e-3 * settings.rate_hz)) for e in effects if e.kind == "pwm_delay")
     if delay:
