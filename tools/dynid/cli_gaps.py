@@ -11,7 +11,8 @@ from .errors import InputError
 def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
     from .config import load_config
     from .evaluation import load_run
-    from .gaps.workflow import format_report, run
+    from .gaps.workflow import Settings, format_report, run
+    from .supply import SupplyTracking
     from .model import RobotModel
 
     reference, identified = None, None
@@ -28,7 +29,9 @@ def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
         config = load_config(args.robot)
     model = RobotModel(config)
     ds = load_run(args.data, model)
-    result = run(model, ds, reference=reference, log=print)
+    # Supply tracking as the given model has it (a model fitted with it off keeps constant gains here too)
+    supply = None if args.no_supply_tracking else (identified.supply_tracking if identified is not None else SupplyTracking())
+    result = run(model, ds, Settings(supply=supply), reference=reference, log=print)
     augmented = result.pop("_augmented")
     result["data"] = args.data
     print(format_report(result))
@@ -70,5 +73,8 @@ def add_commands(sub: argparse._SubParsersAction, robot_arg, json_arg) -> None:
                     "(a model file: validate, detect, report and export accept it; export carries Stribeck and spring)")
     sp.add_argument("--figures", metavar="DIR", help="write a figure per finding and the gap before/after (PNG + "
                     "gaps.json) to DIR; `dynid report --gaps DIR` shows them")
+    sp.add_argument("--no-supply-tracking", action="store_true", help="analyse with constant motor gains (one "
+                    "pass); by default a first pass's residual gives each motor's supply ratio and a second pass "
+                    "analyses the run with the inputs corrected by it, as `dynid fit` tracks the supply")
     json_arg(sp)
     sp.set_defaults(func=cmd_gaps)

@@ -132,15 +132,21 @@ def smoothed_residuals(model: RobotModel, settings: SupplyTracking | None, min_s
     what `validate`, `detect` and the fit's T² calibration use; the monitor runs the causal tracker."""
     if settings is None:
         return e
-    offline = SupplyTracking(settings.offline_time_constant_s, settings.gate, settings.prior_input,
-                             settings.offline_time_constant_s)
-    forward = SupplyTracker(model, offline, min_speed).apply(e, sig, t)[1]
-    back = slice(None, None, -1)
-    backward = SupplyTracker(model, offline, min_speed).apply(e[back], sig.slice(back), -t[back])[1][back]
-    ratio = 0.5 * (forward + backward)
+    ratio = smoothed_ratios(model, settings, min_speed, e, sig, t)
     out = np.array(e, dtype=float, copy=True)
     for o in output_channels(model):
         if o.kind == "input":
             y = sig.inputs[o.motor]
             out[:, o.row] = y - ratio[:, o.row] * (y - e[:, o.row])
     return out
+
+
+def smoothed_ratios(model: RobotModel, settings: SupplyTracking, min_speed: float, e: np.ndarray, sig: Signals,
+                    t: np.ndarray) -> np.ndarray:
+    """(N, n_out) the offline, two-sided ratio r of every input channel (1 on the others): `smoothed_residuals`'."""
+    offline = SupplyTracking(settings.offline_time_constant_s, settings.gate, settings.prior_input,
+                             settings.offline_time_constant_s)
+    forward = SupplyTracker(model, offline, min_speed).apply(e, sig, t)[1]
+    back = slice(None, None, -1)
+    backward = SupplyTracker(model, offline, min_speed).apply(e[back], sig.slice(back), -t[back])[1][back]
+    return 0.5 * (forward + backward)

@@ -101,15 +101,15 @@ def _stribeck_static(truth: dict) -> float:
 
 
 # (case, effect, where, estimated parameter, its truth key (None: computed), channels it acts on, bound after/floor)
-# The floor of a channel is max(its noise σ, its held-out RMS in the control run of the same arm): the shoulder's
-# pwm.m0/m1 sit at 1.8–2.2 σ with no hidden effect (the plant's supply-voltage variation and stiction, which the
-# standard model lacks), so there 1.3× is judged against what the standard model achieves without the effect.
-# The dead-zone's one-column form (sign u) leaves the filtered zero crossings unexplained: 1.4× noise measured.
+# The floor of a channel is max(its noise σ, its held-out RMS in the control run of the same arm): with supply
+# tracking that is σ everywhere but on pwm.m0 (the shoulder pitch, 1.37 σ with no hidden effect; without supply
+# tracking pwm.m0/m1 sat at 1.8–2.4 σ), so there 1.3× is judged against what the standard model achieves without
+# the effect. The dead-zone's one-column form (sign u) leaves the filtered zero crossings: pwm.m3 1.06× noise.
 EXPECTED = [
     ("cogging", "cogging", "motor m3", "amplitude", "amplitude", ["pwm.m3"], 1.3),
     ("spring", "spring", "joint r_elbow", "stiffness", "stiffness", ["pwm.m3"], 1.3),
     ("stribeck", "stribeck", "joint r_shoulder_pitch", "static_torque", None, ["pwm.m0"], 1.3),
-    ("pwm_deadzone", "pwm_deadzone", "motor m3", "width", "width", ["pwm.m3"], 1.5),
+    ("pwm_deadzone", "pwm_deadzone", "motor m3", "width", "width", ["pwm.m3"], 1.3),
     ("ft_drift", "ft_drift", "sensor r_arm_ft", "force", "force", FT, 1.3),
     ("base_tilt", "base_tilt", "base", "degrees", "degrees", FT + PWM, 1.3),
     ("load_friction", "load_friction", "motor m3", "coefficient", "coefficient", ["pwm.m3"], 1.3),
@@ -141,9 +141,9 @@ def test_hidden_effect_is_named_and_closed(gaps, case: str, effect: str, where: 
     # a little error between channels in the refit)
     assert sum(_gap(result, c)["after_over_noise"] ** 2 for c in channels) < sum(_gap(result, c)["before_over_noise"] ** 2 for c in channels)
     # the gap was real: on its most affected channel the effect added at least half a noise σ (in quadrature) to
-    # what the same arm leaves without it (measured: armature 0.03 kg m² adds 0.7 σ on pwm.m3, Stribeck on the
-    # shoulder 1.5 σ on pwm.m0, the others more)
-    excess = max((_gap(result, c)["before_over_noise"] ** 2 - floors[c] ** 2) for c in channels)
+    # what the same arm leaves without it (the control run; below σ where the filtered noise is: pwm.m3 0.42×).
+    # Measured: armature 0.03 kg m² adds 0.84 σ on pwm.m3, Stribeck on the shoulder 1.36 σ on pwm.m0, the others more
+    excess = max((_gap(result, c)["before_over_noise"] ** 2 - _gap(control, c)["after_over_noise"] ** 2) for c in channels)
     assert excess >= 0.25, excess
 
 
@@ -184,14 +184,18 @@ def test_elbow_stribeck_is_named_and_its_gap_shrinks(gaps) -> None:
     truth, and the refit that carries it shrinks pwm.m3 (before the columns were scaled to unit norm, a candidate
     this narrow could be kept by the selection and dropped by the refit: "after" showed no change)."""
     result, truth, stdout = gaps("stribeck_elbow")
-    assert _named(result) == [("stribeck", "joint r_elbow")], stdout
+    assert _named(result)[0] == ("stribeck", "joint r_elbow"), stdout
+    # With supply tracking the curve's small misfit near the stops shows, and an armature of 0.004 kg m² takes 0.7 %
+    # of what the Stribeck took there: reported tentative, as secondary to it, not named with confidence
+    assert [(e["name"], e["where"]) for e in result["effects"] if e["confident"]] == [("stribeck", "joint r_elbow")], stdout
+    assert all(e["secondary_to"] == "stribeck on joint r_elbow" for e in result["effects"][1:]), stdout
     p = _effect(result, "stribeck")["parameters"]
     true = _truth(truth, "stribeck")
     static = float(true["excess"]) * _coordinate_coulomb(truth, "r_elbow")
     assert abs(p["static_torque"] - static) <= 0.2 * static, (p, static)
     assert abs(p["velocity"] - float(true["velocity"])) <= 0.2 * float(true["velocity"]), p
     g = _gap(result, "pwm.m3")
-    assert g["after_over_noise"] < 0.5 * g["before_over_noise"], g  # measured 5.81 → 1.31
+    assert g["after_over_noise"] < 0.5 * g["before_over_noise"], g  # measured 5.84 → 0.86 (1.31 without supply tracking)
 
 
 def test_slow_stribeck_is_not_misnamed(gaps) -> None:
@@ -278,6 +282,24 @@ def test_ft_gain_matrix_against_the_given_model(gaps, default_model: Path) -> No
     control, _, _ = gaps("control", default_model)
     for c in FT:
         assert _gap(result, c)["after_over_noise"] <= 1.3 * max(1.0, _gap(control, c)["after_over_noise"])
+
+
+def test_supply_tracking_lowers_the_floor(gaps) -> None:
+    """The second pass, on inputs corrected by the first pass's supply estimate, takes the shoulder's PWM residual
+    of the control run down to where the standard model has nothing left to explain (measured pwm.m0 1.82 → 1.37,
+    pwm.m1 2.19 → 0.82× noise); the estimated supply ratios move (the plant's supply varies 3 %), and nothing is
+    named either way."""
+    tracked, _, _ = gaps("control")
+    constant, _, stdout = gaps("control", None, "--no-supply-tracking")
+    assert constant["supply"] is None and "two passes" not in stdout
+    assert tracked["effects"] == [] and constant["effects"] == []
+    for c in ("pwm.m0", "pwm.m1"):
+        assert _gap(tracked, c)["after_over_noise"] < 0.8 * _gap(constant, c)["after_over_noise"], c
+    for c in PWM:
+        assert _gap(tracked, c)["after_over_noise"] <= 1.3 * _gap(constant, c)["after_over_noise"], c
+    spans = [hi - lo for lo, hi in tracked["supply"]["ratio_range"].values()]
+    assert len(spans) == 4 and min(spans) > 0.01, tracked["supply"]
+    assert tracked["supply"]["first_pass"]["effects"] == []
 
 
 def test_coupling_error_of_this_shoulder_is_a_gain_change() -> None:
