@@ -1,9 +1,10 @@
 // Unit tests of the real-time core on the CAD coefficient file (tests/data/icub_cad.dcoef, made by
-// `dynid export --cad`): loader refusals on damaged bytes, zero heap allocations over 100 000 samples, the
-// detector's debounce, hysteresis and contact side. Cross-language equality is tested from Python
-// (tests/test_rt_core.py) against dynid's own residuals.
+// `dynid export --cad`): loader refusals on damaged bytes, zero heap allocations over 100 000 samples (core, sample
+// clock, and the status message's fill and encode), the detector's debounce, hysteresis and contact side.
+// Cross-language equality is tested from Python (tests/test_rt_core.py) against dynid's own residuals.
 #include "rt_monitor/core.hpp"
 #include "rt_monitor/sample_clock.hpp"
+#include "rt_monitor/status.hpp"
 
 #include <gtest/gtest.h>
 
@@ -154,11 +155,22 @@ TEST(Core, NoHeapAllocationOver100000Samples) {
     auto core = std::make_unique<Core>(*c);
     // Through the monitor's sample clock, with late stamps (held, then caught up) and lost samples (bridged).
     auto clock = std::make_unique<SampleClock>(1000.0);
+    // The status message as rt_monitor publishes it: supply array and encode buffer sized once, here.
+    auto status = std::make_unique<dynid::monitor_status_t>();
+    init_supply(*c, *status);
+    std::vector<uint8_t> wire(size_t(status->getEncodedSize()));
+    long encoded = 0;
+    auto publish = [&] {
+        status->late = clock->counters().late;
+        fill_supply(*c, *core, *status);
+        encoded += status->encode(wire.data(), 0, int(wire.size())) == int(wire.size());
+    };
     Sample s;
     long alarms = 0;
     g_allocations = 0;
     g_counting = true;
     for (int k = 0; k < 100000; ++k) {
+        if (k % 100 == 0) publish();  // a status at 10 Hz
         if (k % 997 == 500) continue;  // lost
         const double t = 1e-3 * k;
         // a sender woken 1.8 periods late now and then, catching up back to back (20 µs apart)
@@ -171,7 +183,13 @@ TEST(Core, NoHeapAllocationOver100000Samples) {
             alarms += core->step(st.sample.q.data(), st.sample.y.data()).above;
         }
     }
+    publish();  // the final one
     g_counting = false;
+    EXPECT_EQ(encoded, 1001);  // every status fitted the start-up buffer
+    EXPECT_EQ(status->n_supply, 4);
+    for (int i = 6, k = 0; i < c->n_outputs; ++i, ++k) EXPECT_EQ(status->supply_ratio[size_t(k)], core->supply_ratio(i));
+    EXPECT_NE(status->supply_ratio[0], 1.0);  // the tracker did run
+    EXPECT_EQ(status->late, clock->counters().late);
     EXPECT_GT(clock->counters().interpolated, 90);  // the clock did bridge and hold
     EXPECT_GT(clock->counters().late, 90);
     EXPECT_EQ(g_allocations.load(), 0) << "heap allocations in the loop";

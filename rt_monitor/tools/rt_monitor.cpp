@@ -32,6 +32,7 @@
 #include "rt_monitor/core.hpp"
 #include "rt_monitor/rt_settings.hpp"
 #include "rt_monitor/sample_clock.hpp"
+#include "rt_monitor/status.hpp"
 
 using namespace dynid::rt;
 
@@ -156,6 +157,7 @@ int main(int argc, char** argv) {
     res.threshold = coef->threshold;
     ev.threshold = coef->threshold;
     dynid::monitor_status_t st{};
+    init_supply(*coef, st);  // sized here: the status's encoded size is fixed from here on
     // Channel residuals are published in units of their σ; σ once here, not per message.
     std::vector<double> sigma(static_cast<size_t>(n_out));
     for (int i = 0; i < n_out; ++i) sigma[size_t(i)] = std::sqrt(coef->variance[size_t(i)]);
@@ -202,12 +204,14 @@ int main(int argc, char** argv) {
         st.board_restarts = c.board_restarts;
         st.source_bad = int64_t(sc.bad_lines + sc.unknown_bus + sc.bad_size);
         st.interpolated = clock.counters().interpolated;
+        st.late = clock.counters().late;
         st.filter_restarts = clock.counters().restarts;
         st.in_contact = core->output().in_contact;
         st.stale = s.stale;
         st.loop_us_mean = loop_n ? loop_sum / double(loop_n) : 0.0;
         st.loop_us_max = loop_max;
         st.overruns = overruns;
+        fill_supply(*coef, *core, st);
         send(kStatus, st);
         loop_sum = loop_max = 0;
         loop_n = 0;

@@ -21,9 +21,15 @@ from .errors import InputError
 CHANNELS = ("DYNID_CONTACT", "DYNID_STATUS", "DYNID_RESIDUAL")
 KIND = {1: "onset", 2: "end"}
 SIDE = {1: "distal", -1: "proximal", 0: "unknown side"}
-# Status counters that mean trouble: shown (and named in the summary) when not zero.
+# Status counters that mean trouble, or timing artefacts (interpolated, late): shown (and named in the summary)
+# when not zero.
 PROBLEMS = ("stale_samples", "unknown_id", "bad_length", "error_frames", "unpaired_strain", "saturated",
-            "board_faults", "board_restarts", "source_bad", "filter_restarts", "overruns")
+            "board_faults", "board_restarts", "source_bad", "interpolated", "late", "filter_restarts", "overruns")
+
+
+def supply_text(ratios: Any) -> str:
+    """The input channels' supply ratios, in the coefficient file's order: 'supply r 1.0123 0.9871 …' ('' if none)."""
+    return "supply r " + " ".join(f"{r:.4f}" for r in ratios) if len(ratios) else ""
 
 
 def open_lcm(url: str | None) -> Any:
@@ -91,6 +97,7 @@ class View:
         self.status_line = (f"{t:10.3f} s  {'IN CONTACT' if m.in_contact else 'no contact'}"
                             f"{'  STALE' if m.stale else ''}  frames {m.frames}  samples {m.samples_evaluated}/"
                             f"{m.samples}{rate}  loop {m.loop_us_mean:.1f}/{m.loop_us_max:.1f} µs"
+                            + (f"  {supply_text(m.supply_ratio)}" if m.n_supply else "")
                             + (f"  {problems}" if problems else ""))
         if self.tty:
             self.out.write("\r\x1b[K" + self.status_line)
@@ -177,6 +184,7 @@ def cmd_spy(args: argparse.Namespace) -> dict[str, Any]:
               f"{counts['DYNID_STATUS']} status, {counts['DYNID_RESIDUAL']} residual messages"
               + (f"; last status: frames {status['frames']}, samples {status['samples']}, evaluated "
                  f"{status['samples_evaluated']}" + (", " + ", ".join(problems) if problems else ", no problems counted")
+                 + (f", {supply_text(status['supply_ratio'])}" if status["n_supply"] else "")
                  if status else "; no status message"))
     else:
         sys.stdout.write(json.dumps({"summary": summary}) + "\n")

@@ -93,6 +93,18 @@ def summarize(contact: np.ndarray, events: list[tuple[int, int]], period_s: floa
     }
 
 
+# The last status's counters the summary keeps: the sample count and the timing artefacts of the run.
+MONITOR_COUNTERS = ("frames", "samples", "stale_samples", "interpolated", "late", "filter_restarts")
+
+
+def monitor_counters(status: Any) -> dict[str, Any]:
+    """The summary's "monitor" entry from the last DYNID_STATUS (a monitor_status_t): its counters and the input
+    channels' supply ratios (in the coefficient file's channel order)."""
+    out: dict[str, Any] = {k: int(getattr(status, k)) for k in MONITOR_COUNTERS}
+    out["supply_ratio"] = [float(r) for r in status.supply_ratio]
+    return out
+
+
 def format_summary(s: dict[str, Any]) -> str:
     return (f"contact summary: {s['episodes_found']} of {s['episodes']} contact episodes found, "
             f"{s['false_onsets']} false onsets"
@@ -106,7 +118,13 @@ def format_summary(s: dict[str, Any]) -> str:
             f"(from the skin's onset to the monitor's confirmed onset)"
             + (f"\n  T² > T²_α per sample (every 10th, no debounce): TPR {100 * s['t2_tpr']:.1f} %, "
                f"FPR {100 * s['t2_fpr']:.2f} %  <- the paper's definition: TPR 67 %, FPR 6 % (α = 0.99)"
-               if "t2_tpr" in s else ""))
+               if "t2_tpr" in s else "")
+            + (f"\n  {format_monitor(s['monitor'])}" if "monitor" in s else ""))
+
+
+def format_monitor(m: dict[str, Any]) -> str:
+    return ("monitor's last status: " + ", ".join(f"{k.replace('_', ' ')} {m[k]}" for k in MONITOR_COUNTERS)
+            + (f"; supply ratios {' '.join(f'{r:.4f}' for r in m['supply_ratio'])}" if m["supply_ratio"] else ""))
 
 
 def read_lcm_log(path: Path) -> dict[str, list]:
@@ -163,9 +181,7 @@ def main(argv: list[str] | None = None) -> int:
         s = summarize(data.contact, events, period, coef.lag + coef.debounce_on + 5, t2, data.extra.get("skin.side"),
                       visible)
         if msgs["DYNID_STATUS"]:
-            last = msgs["DYNID_STATUS"][-1]
-            s["monitor"] = {"frames": int(last.frames), "samples": int(last.samples),
-                            "stale_samples": int(last.stale_samples)}
+            s["monitor"] = monitor_counters(msgs["DYNID_STATUS"][-1])
     except (DataError, InputError) as e:
         print(f"dynid.contact_summary: error: {e}", file=sys.stderr)
         return 2

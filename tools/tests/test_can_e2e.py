@@ -247,6 +247,42 @@ def test_saturation_flags(setup: dict, clean: dict) -> None:
     assert status.stale_samples == n  # a saturated sample is never evaluated
 
 
+def _stamp(line: str, us: int) -> str:
+    return f"({us // 1_000_000}.{us % 1_000_000:06d})" + line[line.index(")") + 1:]
+
+
+def _final_count(stdout: str, name: str) -> int:
+    """A counter of the final line rt_monitor prints at exit ("..., late 12, ...")."""
+    return int(stdout.split(f", {name} ")[1].split(",")[0])
+
+
+def test_stalled_sender_late_samples(setup: dict, clean: dict) -> None:
+    # Every 97th sample the sender wakes 1.8 periods late, then catches up, sending the overdue frames back to back
+    # (20 µs apart, stamps never go backwards): samples are late, none is lost.
+    lines, last, stamp = [], 0, {}
+    for line in clean["lines"]:
+        k = _sample_of(line)
+        us = int(line[1:line.index(")")].replace(".", "")) + (1800 if k % 97 == 50 else 0)
+        last = last + 20 if us < last else us
+        lines.append(_stamp(line, last))
+        if " 3DB#" in line:  # the torque half completes a sample: its stamp is the sample's
+            stamp[k] = last
+    log = setup["root"] / "late.log"
+    log.write_text("\n".join(lines) + "\n")
+    done, msgs = run_monitor(setup, log, "late")
+    assert done.returncode == 0, done.stderr
+    status = msgs["DYNID_STATUS"][-1]
+    # A sample stamped 3/4 of a period or more after its tick reads as past a gap, until the catch-up shows it late.
+    late = sum(1 for k, us in stamp.items() if us - (T0_US + 1000 * k) >= 750)
+    print(f"{done.stdout.strip()}\nsamples stamped late: {late}")
+    assert late >= 2 * len(range(50, len(stamp), 97))
+    assert status.late == late == _final_count(done.stdout, "late")
+    # Nothing bridged, nothing restarted: the core saw the clean run's samples, so it raised the same events.
+    assert (status.interpolated, status.filter_restarts, status.samples_evaluated) == (0, 1, len(clean["part"].t))
+    assert [(m.kind, m.utime) for m in msgs["DYNID_CONTACT"]] == [(m.kind, m.utime) for m in clean["msgs"]["DYNID_CONTACT"]]
+    assert clean["msgs"]["DYNID_STATUS"][-1].late == 0  # the clean run's stamps hold no lateness
+
+
 def test_board_restart(setup: dict, clean: dict) -> None:
     # Board 1 restarts at sample 3000: a STATUS with the restarted flag and the counter from 0 again.
     lines, seq = [], -1
@@ -258,6 +294,48 @@ def test_board_restart(setup: dict, clean: dict) -> None:
     status, _ = _bad_run(setup, clean, lines, "restart")
     assert status.board_restarts == 1
     assert status.stale_samples <= 1
+
+
+# ---- the supply ratios in the status ---------------------------------------------------------------------
+
+
+def test_status_supply_ratios_are_the_python_trackers(setup: dict, clean: dict, default_model: Path) -> None:
+    """The last status's supply ratios: dynid.supply.SupplyTracker's after the same samples, through dynid's own
+    mirror of the online filter and residuals (independent of the C++ core), in the file's input-channel order."""
+    from dynid.export import unwrap, wrap
+    from dynid.identified import load_model
+    from dynid.lcm_coefficients import coefficients_t
+    from dynid.online import FixedLagSavitzkyGolay, online_signals, online_times, raw_signals
+    from dynid.outputs import residuals
+    from dynid.supply import SupplyTracker
+
+    identified = load_model(default_model)
+    model = identified.robot_model
+    c = read_coefficients(setup["coef"])
+    t, q, inputs, _, ft = raw_signals(model, clean["part"])
+    est = FixedLagSavitzkyGolay(c.window, c.order, c.lag, c.sample_period)
+    sig = online_signals(model, est, t, q, inputs, {}, ft)
+    tracker = SupplyTracker(model, identified.supply_tracking, c.min_speed)
+    tracker.apply(residuals(model, identified.phi, sig), sig, online_times(est, t))
+    inputs_rows = [i for i, k in enumerate(c.channel_kind) if k == 1]
+    want = np.array([tracker.states[i].ratio for i in inputs_rows])
+    last = clean["msgs"]["DYNID_STATUS"][-1]
+    assert last.n_supply == len(inputs_rows) == 4
+    got = np.array(last.supply_ratio)
+    print(f"supply ratios after the 6 s slice: {got}; Python tracker {want}; |Δ| max {np.abs(got - want).max():.2e}")
+    assert np.abs(got - want).max() <= 1e-9
+    assert np.abs(want - 1).max() > 1e-3  # the tracker moved: the check has teeth
+    # Every status carries them; the first, before the filter window fills, has the prior r = 1.
+    assert list(clean["msgs"]["DYNID_STATUS"][0].supply_ratio) == [1.0] * 4
+
+    # Tracking off in the coefficient file (τ = 0): constant gains, every ratio exactly 1.
+    off = coefficients_t.decode(unwrap(Path(setup["coef"]).read_bytes()))
+    off.supply_time_constant = 0.0
+    coef_off = setup["root"] / "supply_off.dcoef"
+    coef_off.write_bytes(wrap(off.encode()))
+    done, msgs = run_monitor({**setup, "coef": coef_off}, setup["root"] / "clean.log", "supply_off")
+    assert done.returncode == 0, done.stderr
+    assert all(list(m.supply_ratio) == [1.0] * 4 for m in msgs["DYNID_STATUS"])
 
 
 # ---- dynid import of candump logs -----------------------------------------------------------------------

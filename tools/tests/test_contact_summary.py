@@ -59,3 +59,19 @@ def test_visible_episodes_missed_are_named() -> None:
     s = summarize(contact, [(1, 7), (2, 12)], 0.001, 2, visible=[True, True, False])
     assert (s["episodes_found"], s["episodes_visible"], s["visible_missed_at"]) == (1, 2, [20])
     assert "visible to the monitor (plant truth): 2, 1 of them found" in format_summary(s)
+
+
+def test_monitor_counters_from_the_last_status() -> None:
+    from dynid.contact_summary import monitor_counters
+    from dynid.lcm_messages import monitor_status_t
+
+    m = monitor_status_t()
+    m.frames, m.samples, m.stale_samples, m.interpolated, m.late, m.filter_restarts = 1400, 100, 2, 3, 92, 1
+    m.n_supply, m.supply_ratio = 2, [1.01234, 0.98]
+    got = monitor_counters(monitor_status_t.decode(m.encode()))  # as read from a log
+    assert got == {"frames": 1400, "samples": 100, "stale_samples": 2, "interpolated": 3, "late": 92,
+                   "filter_restarts": 1, "supply_ratio": [1.01234, 0.98]}
+    s = summarize(np.zeros(10, int), [], 0.001, 3)
+    s["monitor"] = got
+    assert format_summary(s).endswith("\n  monitor's last status: frames 1400, samples 100, stale samples 2, "
+                                      "interpolated 3, late 92, filter restarts 1; supply ratios 1.0123 0.9800")

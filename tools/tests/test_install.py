@@ -1,6 +1,6 @@
 """`cmake --install build --prefix TMP` gives a runnable tree: the monitor finds its liblcm in the tree, runs the
 systemd unit's own command line, and behaves as the build tree's monitor on the same input; the unit verifies;
-the lcm-spy launcher finds the installed jar.
+the lcm-spy launcher finds the installed jar; the installed C++ headers of the LCM types compile on their own.
 """
 
 from __future__ import annotations
@@ -39,6 +39,7 @@ def test_tree_holds_the_monitor_types_config_and_unit(prefix: Path) -> None:
             "lib/systemd/system/dynid-rt-monitor.service"]
     want += [f"share/dynid/lcmtypes/{t}.lcm" for t in ("coefficients_t", "contact_event_t", "monitor_status_t", "residual_t")]
     want += [f"include/dynid/{t}.hpp" for t in ("contact_event_t", "monitor_status_t", "residual_t")]
+    want.append("include/lcm/lcm_coretypes.h")
     if (BUILD / "rt_monitor" / "dynid-lcmtypes.jar").is_file():
         want.append("share/java/dynid-lcmtypes.jar")
     assert [w for w in want if not (prefix / w).exists()] == []
@@ -116,3 +117,50 @@ def test_installed_launcher_finds_the_installed_jar(prefix: Path, tmp_path: Path
                           env={**BARE_ENV, "LCM_SPY": str(fake)})
     assert done.returncode == 0, done.stderr
     assert Path(done.stdout.strip()).resolve() == jar.resolve()
+
+
+# A consumer of the installed types: includes from the prefix only (and the system's), encodes a status message and
+# decodes it back, and prints the bytes for the Python type (lcm-gen's, checked in) to decode independently.
+CONSUMER = r"""
+#include <dynid/monitor_status_t.hpp>
+#include <cstdio>
+#include <vector>
+int main() {
+    dynid::monitor_status_t a{};
+    a.utime = 1700000000123456;
+    a.frames = 14000;
+    a.late = 92;
+    a.in_contact = 1;
+    a.loop_us_max = 3.25;
+    a.n_supply = 3;
+    a.supply_ratio = {1.0, 0.9875, 1.03125};
+    std::vector<uint8_t> wire(size_t(a.getEncodedSize()));
+    const int n = a.encode(wire.data(), 0, int(wire.size()));
+    dynid::monitor_status_t b;
+    const int m = b.decode(wire.data(), 0, n);
+    if (n != int(wire.size()) || m != n || b.late != a.late || b.supply_ratio != a.supply_ratio) return 1;
+    for (uint8_t x : wire) std::printf("%02x", x);
+    std::printf("\n");
+    return 0;
+}
+"""
+
+
+def test_installed_headers_compile_on_their_own(prefix: Path, tmp_path: Path) -> None:
+    compiler = shutil.which("g++") or shutil.which("c++")
+    assert compiler, "no C++ compiler (scripts/setup installs g++)"
+    src, exe, deps = tmp_path / "consumer.cpp", tmp_path / "consumer", tmp_path / "consumer.d"
+    src.write_text(CONSUMER)
+    done = subprocess.run([compiler, "-std=c++17", "-Wall", "-Werror", "-I", str(prefix / "include"), "-MD", "-MF",
+                           str(deps), str(src), "-o", str(exe)], capture_output=True, text=True, timeout=300,
+                          env=BARE_ENV)
+    assert done.returncode == 0, done.stderr
+    # The LCM core header came from the prefix, not from a system-wide LCM.
+    assert str(prefix / "include" / "lcm" / "lcm_coretypes.h") in deps.read_text().split()
+    run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=60, env=BARE_ENV)
+    assert run.returncode == 0, run.stderr
+    from dynid.lcm_messages import monitor_status_t
+
+    m = monitor_status_t.decode(bytes.fromhex(run.stdout.strip()))
+    assert (m.utime, m.frames, m.late, m.in_contact, m.loop_us_max) == (1700000000123456, 14000, 92, 1, 3.25)
+    assert (m.n_supply, list(m.supply_ratio)) == (3, [1.0, 0.9875, 1.03125])

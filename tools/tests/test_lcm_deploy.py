@@ -229,6 +229,11 @@ def test_spy_view_shows_events_status_and_rates(run: dict) -> None:
     # The counters that are not zero are named (the replay restarts the filter once, at its start).
     assert f"filter restarts {last.filter_restarts}" in out[-1] and last.filter_restarts == 1
     assert ("overruns" in out[-1]) == (last.overruns > 0) and "unknown id" not in out[-1]
+    assert (", late " in out[-1]) == (last.late > 0)
+    # The input channels' supply ratios, on every status line and in the summary (the last status's).
+    assert last.n_supply == 4 and list(last.supply_ratio) != [1.0] * 4
+    assert out[-1].endswith(", supply r " + " ".join(f"{r:.4f}" for r in last.supply_ratio))
+    assert all("  supply r " in l for l in status)
 
 
 def test_spy_count_stops_after_n_events(run: dict) -> None:
