@@ -40,6 +40,7 @@ CASES = {
     # against the session's fitted model (`--model`, its inertias held): 0.3 kg 5 cm into the hand, off the wrist
     # centre (at the hand's origin a mass does not move with the wrist: hand, wrist and forearm would be one)
     "payload": ["payload:link=r_hand,mass=0.3,x=0.05"],
+    "coupling": ["coupling_error:joint=r_shoulder_yaw,error=0.1"],  # a joint-side pulley 10 % off
 }
 FT = [f"ft.r_arm_ft.{c}" for c in ("fx", "fy", "fz", "tx", "ty", "tz")]
 PWM = [f"pwm.m{i}" for i in range(4)]
@@ -300,6 +301,39 @@ def test_supply_tracking_lowers_the_floor(gaps) -> None:
     spans = [hi - lo for lo, hi in tracked["supply"]["ratio_range"].values()]
     assert len(spans) == 4 and min(spans) > 0.01, tracked["supply"]
     assert tracked["supply"]["first_pass"]["effects"] == []
+
+
+def test_coupling_column_candidate_has_the_effect_shape(gaps) -> None:
+    """A joint-side pulley error (the yaw column of the shoulder's T, +10 %): the candidate for it, fitted by least
+    squares beside the standard model with constant gains, recovers the error within 20 % (measured 0.098). It is
+    not named: it changes the shoulder rows' held-out error by less than the 20 % bar (their residual is the
+    shoulder's stiction and supply, README), and supply tracking takes up part of it; nothing wrong is named with
+    confidence either."""
+    from dataclasses import replace as dc_replace
+
+    from dynid.config import load_config
+    from dynid.evaluation import load_run
+    from dynid.gaps import workflow
+    from dynid.gaps.candidates import coupling_error
+    from dynid.gaps.selection import Design, weighted_columns
+    from dynid.model import RobotModel
+
+    result, truth, stdout = gaps("coupling")
+    assert not [e for e in result["effects"] if e["confident"] and e["name"] != "coupling_error"], stdout
+    model = RobotModel(load_config("icub_right_arm"))
+    ctx, A, b, w = workflow._collect(model, load_run(result["data"], model), 8)
+    phi = workflow._analyse(model, ctx, A, b, w, workflow.Settings(supply=None), None)["_augmented"]["phi"]
+    inertial = model.layout.span("inertial")
+    ctx = dc_replace(ctx, phi=phi, rigid=A[:, :, inertial] @ phi[inertial])
+    Aw = A * w[:, :, None]
+    s, V = np.linalg.eigh(np.einsum("nri,nrj->ij", Aw, Aw))
+    design = Design(Aw @ V[:, s > 1e-10 * s.max()], b * w, np.linspace(0, len(b), 6).astype(int))
+    column = next(c for c in coupling_error(ctx) if c.where == "joint r_shoulder_yaw")
+    error = design.fit(weighted_columns(column.values, w))[0][-1]
+    true = float(_truth(truth, "coupling_error")["error"])
+    assert abs(error - true) <= 0.2 * true, (error, true)
+    whole = next(c for c in coupling_error(ctx) if c.where == "group shoulder")  # a gain change: spanned, θ = 0
+    assert design.fit(weighted_columns(whole.values, w))[0][-1] == 0.0
 
 
 def test_coupling_error_of_this_shoulder_is_a_gain_change() -> None:

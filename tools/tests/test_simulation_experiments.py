@@ -122,6 +122,8 @@ def test_noise_none_is_deterministic_physics(tmp_path: Path) -> None:
         (["--effect", "cogging:amplitude"], "expected key=value"),
         (["--effect", "ft_drift:shape=square"], "shape must be one of thermal, linear"),
         (["--effect", "spring:joint=r_wrist_yaw"], "not a joint it can act on"),
+        (["--effect", "coupling_error:joint=r_elbow"], "joint 'r_elbow' is not in group shoulder"),
+        (["--effect", "spring:rest=middle"], "rest must be a number"),
         (["--duration", "-1"], "must be a positive number"),
         (["--duration", "nan"], "must be a positive number"),
         (["--seed", "-3"], "must be 0 or more"),

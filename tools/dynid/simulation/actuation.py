@@ -70,7 +70,7 @@ class Actuators:
         self.motors = tuple(motors)
         T = np.zeros((nm, nj))
         direct = np.ones(nj, dtype=bool)
-        coupling_scale = {e.target: 1.0 + float(e.params["error"]) for e in effects if e.kind == "coupling_error"}
+        coupling_errors = {e.target: e for e in effects if e.kind == "coupling_error"}
         friction = np.array([truth.joint_friction[j] for j in joints])  # (J, 4) joint coordinates first
         coordinates = [f"joint.{j}" for j in joints]
         rows = [np.eye(nj)[i] for i in range(nj)]
@@ -82,9 +82,12 @@ class Actuators:
                 continue
             direct[cols] = False
             true_T = g.coupling.copy()
-            if g.name in coupling_scale:  # every ratio entry (not 0, not ±1) is off by the same factor
+            if g.name in coupling_errors:  # the ratio entries (not 0, not ±1), of one joint's column or all, are off
+                error = coupling_errors[g.name]
                 ratio = ~np.isclose(np.abs(true_T), 1.0) & (true_T != 0)
-                true_T[ratio] *= coupling_scale[g.name]
+                if error.params.get("joint", "all") != "all":
+                    ratio &= (np.array(g.joints) == error.params["joint"])[None, :]
+                true_T[ratio] *= 1.0 + float(error.params["error"])
             for mi, m in enumerate(g.motors):
                 T[motors.index(m), cols] = true_T[mi]
                 law = truth.motor_friction[m] + truth.back_emf[m] * emf

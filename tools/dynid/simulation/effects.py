@@ -54,7 +54,9 @@ CATALOG: dict[str, EffectKind] = {
         EffectKind("pwm_deadzone", "motor", "actuator", "a PWM dead-zone: |duty| below the width drives nothing",
                    {"width": 0.02}, {"width": "duty fraction"}),
         EffectKind("coupling_error", "group", "actuator", "the true coupling ratio differs from the configured one",
-                   {"error": 0.03}, {"error": "relative error of every coupling entry other than 0 and ±1"}),
+                   {"error": 0.03, "joint": "all"},
+                   {"error": "relative error of the coupling entries other than 0 and ±1",
+                    "joint": "only the entries of this joint's column (a joint-side pulley), or 'all'"}),
         EffectKind("load_friction", "motor", "actuator", "Coulomb friction that grows with the transmitted torque",
                    {"coefficient": 0.05}, {"coefficient": "Nm of Coulomb friction per Nm of motor torque"}),
         EffectKind("cogging", "motor", "actuator", "cogging: a position-periodic motor torque",
@@ -70,6 +72,7 @@ CATALOG: dict[str, EffectKind] = {
 }
 
 _CHOICES = {"shape": ("thermal", "linear"), "axis": ("x", "y", "z")}
+_NAMES = ("joint",)  # parameters that name a part of the arm (coupling_error's column), checked in parse_effect
 
 
 @dataclass(frozen=True)
@@ -127,6 +130,9 @@ def parse_effect(text: str, config: RobotConfig, bodies: tuple[str, ...]) -> Eff
             allowed = ([target_key] if target_key else []) + list(spec.defaults)
             raise InputError(f"effect '{name}' has no parameter '{key}' (known: {', '.join(allowed)})")
         default = spec.defaults[key]
+        if key in _NAMES:  # a name, checked against the target below
+            params[key] = value
+            continue
         if isinstance(default, str) and key in _CHOICES:
             if value not in _CHOICES[key]:
                 raise InputError(f"effect '{name}': {key} must be one of {', '.join(_CHOICES[key])}, got '{value}'")
@@ -140,6 +146,11 @@ def parse_effect(text: str, config: RobotConfig, bodies: tuple[str, ...]) -> Eff
             raise InputError(f"effect '{name}': {key} must be finite, got '{value}'")
         params[key] = number
     _check_target(name, spec.target, target, config, bodies)
+    if name == "coupling_error" and params["joint"] != "all":
+        joints = next(g.joints for g in config.actuation if g.name == target)
+        if params["joint"] not in joints:
+            raise InputError(f"effect 'coupling_error': joint '{params['joint']}' is not in group {target} "
+                             f"(its joints: {', '.join(joints)}, or all)")
     return Effect(name, target, params)
 
 
