@@ -9,6 +9,8 @@
 3. Forward selection over the candidate library (dynid.gaps.candidates) by cross-validated reduction of the
    held-out error of the channels each candidate acts on; stop when the best one is not significant.
 4. Refit with the named effects; held-out RMS per channel after.
+With supply tracking (the default) steps 2–4 run twice; the second pass sees the inputs corrected by the supply
+ratio estimated from the first pass's residual (`run`).
 """
 
 from __future__ import annotations
@@ -126,7 +128,8 @@ def _supply_corrected(model: RobotModel, ctx: Context, resid: np.ndarray, w: np.
 
 
 def _rows(model: RobotModel, sig: Signals) -> tuple[np.ndarray, np.ndarray]:
-    A, b = np.zeros((sig.q.shape[0], len(row_channels(model)), len(model.layout))), np.zeros((sig.q.shape[0], len(row_channels(model))))
+    n, r = sig.q.shape[0], len(row_channels(model))
+    A, b = np.zeros((n, r, len(model.layout))), np.zeros((n, r))
     fill_rows(model, sig, A, b)
     return A, b
 
@@ -247,7 +250,8 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
     for f, c, item in zip(fitted, accepted, named):
         tr: Trial = item["trial"]
         took = tr.cv_before - tr.cv_after
-        primary = next((name for chans, r0, name in removed if chans & set(tr.channels.tolist()) and took < SECONDARY * r0), None)
+        primary = next((name for chans, r0, name in removed
+                        if chans & set(tr.channels.tolist()) and took < SECONDARY * r0), None)
         removed.append((set(tr.channels.tolist()), took, f"{f.kind} on {f.where}"))
         # An effect of the wrong shape also lowers a large residual by a fair share (a Stribeck curve on a quadratic
         # drag): it is trusted only when it removes most of its channels' excess over FLOOR.
@@ -282,7 +286,7 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
         "profile": profile(model, ctx, resid0, resid_after, w),  # binned, before/after: what the figures plot
         "ruled_out": ruled_out[:12],
         "not_significant": not_significant,
-        "not_in_library": [] if reference is not None else list(NEEDS_GIVEN_MODEL),  # not tried: no given model
+        "not_tried": [] if reference is not None else list(NEEDS_GIVEN_MODEL),  # effects that need a given model
         "_residual": resid_after,  # weighted rows after the named effects: the supply estimate of a second pass
         # the augmented model (`dynid gaps --out`): not part of the --json result (see cli_gaps)
         "_augmented": {"phi": phi, "effects": fitted},
@@ -299,10 +303,11 @@ def format_report(result: dict) -> str:
             lines.append(f"{lead}: {e['name']} on {e['where']}: {params} "
                          f"(held-out error on its channels −{100 * e['cv_gain']:.1f} %, robust p={e['p_value']:.1e})")
             if e.get("secondary_to"):
-                lines.append(f"  it removes under {100 * SECONDARY:.0f} % of what {e['secondary_to']} removed on the same channels: "
-                             "likely that effect's shape not fitting exactly, not an effect of its own")
+                lines.append(f"  it removes under {100 * SECONDARY:.0f} % of what {e['secondary_to']} removed on the same "
+                             "channels: likely that effect's shape not fitting exactly, not an effect of its own")
             elif not e["confident"]:
-                lines.append(f"  it removes only {100 * e['explained']:.0f} % of its channels' excess over {result['thresholds']['explained_floor']:g}× noise: "
+                floor = result["thresholds"]["explained_floor"]
+                lines.append(f"  it removes only {100 * e['explained']:.0f} % of its channels' excess over {floor:g}× noise: "
                              "the residual's shape is not this effect's; likely an effect outside the library")
     else:
         best = result["ruled_out"][0] if result["ruled_out"] else None
@@ -316,8 +321,8 @@ def format_report(result: dict) -> str:
     high = sorted((g for g in result["gap"] if g["after_over_noise"] > 1.3), key=lambda g: -g["after_over_noise"])
     if high:
         listed = ", ".join(f"{g['channel']} {g['after_over_noise']:.2f}×" for g in high)
-        untried = f"; not tried without a given model (--model): {', '.join(result['not_in_library'])}" if result["not_in_library"] else ""
-        lines.append(f"unexplained: {listed} its noise floor after the fix{untried}")
+        untried = result["not_tried"] and f"; not tried without a given model (--model): {', '.join(result['not_tried'])}"
+        lines.append(f"unexplained: {listed} its noise floor after the fix{untried or ''}")
     given = result.get("given_model")
     head = f"{'given':>10s} " if given else ""
     lines.append(f"{'channel':24s} {head}{'before':>10s} {'after':>10s}  {'(× noise)':>18s}")
