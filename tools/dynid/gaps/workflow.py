@@ -146,6 +146,8 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
     if ds.n_samples < 2000:
         raise DataError(f"the run has {ds.n_samples} samples; the gap analysis needs at least 2000 (2 s at 1 kHz)")
     stride = max(1, int(np.ceil(ds.n_samples / settings.max_samples)))
+    if not any(o.kind == "input" for o in output_channels(model)):  # torque-sensed joints only: no supply to track
+        settings = replace(settings, supply=None)
     ctx, A, b, w = _collect(model, ds, stride)
     log(f"gaps: {ds.n_samples} samples ({ds.duration:.0f} s), every {stride}th kept, {settings.n_blocks} held-out time blocks"
         + (", inertias held at the given model's" if reference is not None else "")
