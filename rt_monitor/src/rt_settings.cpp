@@ -4,9 +4,11 @@
 #include <sys/mman.h>
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <string>
+#include <vector>
 
 namespace dynid::rt {
 
@@ -18,32 +20,71 @@ std::string limit_text(int resource) {
     return r.rlim_cur == RLIM_INFINITY ? "unlimited" : std::to_string(static_cast<unsigned long long>(r.rlim_cur));
 }
 
+// Ascending CPU numbers as "0-1,3".
+std::string cpu_list_text(const std::vector<int>& cpus) {
+    std::string out;
+    for (size_t i = 0; i < cpus.size(); ++i) {
+        size_t e = i;
+        while (e + 1 < cpus.size() && cpus[e + 1] == cpus[e] + 1) ++e;
+        out += (out.empty() ? "" : ",") + std::to_string(cpus[i]) + (e > i ? "-" + std::to_string(cpus[e]) : "");
+        i = e;
+    }
+    return out;
+}
+
 // The CPUs this process may run on, as "0-1,3".
 std::string allowed_cpus() {
     cpu_set_t set;
     CPU_ZERO(&set);
     if (sched_getaffinity(0, sizeof set, &set) != 0) return "?";
-    std::string out;
-    for (int c = 0; c < CPU_SETSIZE; ++c) {
-        if (!CPU_ISSET(c, &set)) continue;
-        int e = c;
-        while (e + 1 < CPU_SETSIZE && CPU_ISSET(e + 1, &set)) ++e;
-        out += (out.empty() ? "" : ",") + std::to_string(c) + (e > c ? "-" + std::to_string(e) : "");
-        c = e;
-    }
-    return out;
+    std::vector<int> cpus;
+    for (int c = 0; c < CPU_SETSIZE; ++c)
+        if (CPU_ISSET(c, &set)) cpus.push_back(c);
+    return cpu_list_text(cpus);
+}
+
+constexpr int kMaxCpu = 1000000;
+
+// A CPU number: digits only, at most kMaxCpu.
+bool parse_cpu(const std::string& s, int& cpu) {
+    if (s.empty() || s.size() > 7 || s.find_first_not_of("0123456789") != std::string::npos) return false;
+    cpu = std::stoi(s);
+    return cpu <= kMaxCpu;
 }
 
 }  // namespace
 
+bool parse_cpu_list(const std::string& text, std::vector<int>& cpus) {
+    cpus.clear();
+    size_t start = 0;
+    while (start <= text.size()) {
+        const size_t comma = std::min(text.find(',', start), text.size());
+        const std::string item = text.substr(start, comma - start);
+        const size_t dash = item.find('-');
+        int lo = 0, hi = 0;
+        if (!parse_cpu(item.substr(0, dash), lo)) return false;
+        hi = lo;
+        if (dash != std::string::npos && (!parse_cpu(item.substr(dash + 1), hi) || hi < lo)) return false;
+        if (!cpus.empty() && lo <= cpus.back()) return false;  // ascending, no repeats
+        if (hi - lo >= CPU_SETSIZE) return false;
+        for (int c = lo; c <= hi; ++c) cpus.push_back(c);
+        start = comma + 1;
+    }
+    return !cpus.empty();
+}
+
 int apply_rt_settings(const RtSettings& s, std::string& err) {
-    if (s.cpu >= 0) {
+    if (!s.cpus.empty()) {
         cpu_set_t set;
         CPU_ZERO(&set);
-        if (s.cpu < CPU_SETSIZE) CPU_SET(s.cpu, &set);
-        if (s.cpu >= CPU_SETSIZE || sched_setaffinity(0, sizeof set, &set) != 0) {
-            const int e = s.cpu >= CPU_SETSIZE ? EINVAL : errno;
-            err = "--cpu " + std::to_string(s.cpu) + ": the system refused the CPU affinity (" + std::strerror(e) +
+        bool representable = true;
+        for (int c : s.cpus) {
+            if (c < CPU_SETSIZE) CPU_SET(c, &set);
+            else representable = false;
+        }
+        if (!representable || sched_setaffinity(0, sizeof set, &set) != 0) {
+            const int e = representable ? errno : EINVAL;
+            err = "--cpu " + cpu_list_text(s.cpus) + ": the system refused the CPU affinity (" + std::strerror(e) +
                   "): this process may run on CPUs " + allowed_cpus();
             return kExitCpuRefused;
         }
@@ -75,7 +116,8 @@ int apply_rt_settings(const RtSettings& s, std::string& err) {
 std::string describe_rt_settings(const RtSettings& s) {
     return std::string("mlockall ") + (s.mlockall ? "on" : "off") + ", " +
            (s.fifo ? "SCHED_FIFO priority " + std::to_string(s.priority) : std::string("default scheduling")) +
-           ", " + (s.cpu >= 0 ? "CPU " + std::to_string(s.cpu) : "CPUs " + allowed_cpus());
+           ", " + (s.cpus.size() == 1 ? "CPU " + std::to_string(s.cpus[0])
+                                       : "CPUs " + (s.cpus.empty() ? allowed_cpus() : cpu_list_text(s.cpus)));
 }
 
 }  // namespace dynid::rt

@@ -1,10 +1,10 @@
 // rt_monitor --model COEF --config CONFIG [--replay CANDUMP.log [--realtime]] [--loopback DIR] [--lcm-url URL]
-//            [--mlockall] [--priority N] [--cpu K] [--latency-out FILE]
+//            [--mlockall] [--priority N] [--cpu LIST] [--latency-out FILE]
 //
 // Frames in (SocketCAN on the configured buses, a candump -L replay, or the loopback transport), samples
 // assembled, the core stepped, contact events / status (10 Hz) / decimated residuals out on LCM.
 // SIGINT and SIGTERM end the run cleanly; the final counters are printed on stdout either way.
-// --mlockall, --priority N (SCHED_FIFO) and --cpu K (affinity) are applied once before the loop; the start-up line
+// --mlockall, --priority N (SCHED_FIFO) and --cpu LIST (affinity) are applied once before the loop; the start-up line
 // on stderr says what the process runs with.
 // --latency-out (benchmarks): per contact onset, CLOCK_MONOTONIC µs from the return of the read of the frame
 // that completed the onset sample to the return of its LCM publish, one per line, written at exit.
@@ -43,7 +43,7 @@ void on_signal(int) { g_stop = 1; }
 
 int usage(const std::string& why) {
     std::fprintf(stderr, "rt_monitor: error: %s\nusage: rt_monitor --model COEF --config CONFIG [--replay CANDUMP.log "
-                         "[--realtime]] [--loopback DIR] [--lcm-url URL] [--mlockall] [--priority N] [--cpu K] "
+                         "[--realtime]] [--loopback DIR] [--lcm-url URL] [--mlockall] [--priority N] [--cpu LIST] "
                          "[--latency-out FILE]\n", why.c_str());
     return 2;
 }
@@ -69,7 +69,7 @@ double mono_us() {
 int main(int argc, char** argv) {
     std::string model, config, replay, loopback, url, latency_out;
     std::string priority, cpu;
-    bool have_url = false, realtime = false;
+    bool have_url = false, have_cpu = false, realtime = false;
     RtSettings rts;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
@@ -88,7 +88,7 @@ int main(int argc, char** argv) {
         else if (a == "--realtime") realtime = true;
         else if (a == "--mlockall") rts.mlockall = true;
         else if (a == "--priority") ok = rts.fifo = value(priority);
-        else if (a == "--cpu") ok = value(cpu);
+        else if (a == "--cpu") ok = have_cpu = value(cpu);
         else return usage("unknown argument '" + a + "'");
         if (!ok) return usage("'" + a + "' needs a value");
     }
@@ -97,8 +97,8 @@ int main(int argc, char** argv) {
     // Range checks are the system's (SCHED_FIFO's priorities, the allowed CPUs): a refusal has its own exit code.
     if (rts.fifo && !parse_int(priority, -1000000, 1000000, rts.priority))
         return usage("--priority needs an integer, got '" + priority + "'");
-    if (!cpu.empty() && !parse_int(cpu, 0, 1000000, rts.cpu))
-        return usage("--cpu needs a CPU number (0 or more), got '" + cpu + "'");
+    if (have_cpu && !parse_cpu_list(cpu, rts.cpus))
+        return usage("--cpu needs a CPU list as taskset -c takes it (1, 0,2 or 0-3), got '" + cpu + "'");
 
     std::string err;
     MonitorConfig cfg;
@@ -133,16 +133,16 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "rt_monitor: error: %s\n", err.c_str());
         return refused;
     }
+    // Before the start-up line: a SIGTERM sent once it is read always ends in a clean stop with counters.
+    struct sigaction sa {};
+    sa.sa_handler = on_signal;  // no SA_RESTART: poll() returns, the loop sees the flag
+    sigaction(SIGINT, &sa, nullptr);
+    sigaction(SIGTERM, &sa, nullptr);
     std::fprintf(stderr, "rt_monitor: running: %s; LCM %s; %s\n",
                  !replay.empty() ? ("replay of " + replay + (realtime ? " in real time" : "")).c_str()
                  : !loopback.empty() ? ("loopback transport in " + loopback).c_str() : "SocketCAN",
                  (url.empty() ? std::string("default URL") : url).c_str(),
                  describe_rt_settings(rts).c_str());
-
-    struct sigaction sa {};
-    sa.sa_handler = on_signal;  // no SA_RESTART: poll() returns, the loop sees the flag
-    sigaction(SIGINT, &sa, nullptr);
-    sigaction(SIGTERM, &sa, nullptr);
 
     auto core = std::make_unique<Core>(*coef);
     core->set_detector({coef->debounce_on, coef->debounce_off, coef->hysteresis});

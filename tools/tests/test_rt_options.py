@@ -1,4 +1,4 @@
-"""rt_monitor's real-time options: --mlockall, --priority N (SCHED_FIFO), --cpu K, as the kernel sees the running
+"""rt_monitor's real-time options: --mlockall, --priority N (SCHED_FIFO), --cpu LIST, as the kernel sees the running
 process (/proc, sched_getscheduler, sched_getaffinity), and each refusal: one line, its own exit code.
 
 LCM goes to memq:// (in-process) in every run here.
@@ -87,6 +87,38 @@ def test_cpu_not_allowed_is_refused(tmp_path: Path) -> None:
     _refused(monitor("--cpu", "100000", tmp=tmp_path), EXIT_CPU, "--cpu 100000")
 
 
+def test_cpu_list_pins_to_every_cpu_of_it(tmp_path: Path) -> None:
+    """--cpu takes a list as taskset -c does; the running process's affinity is that set, and the start-up line
+    names it."""
+    allowed = sorted(os.sched_getaffinity(0))
+    if len(allowed) < 2:
+        pytest.skip("a list needs two CPUs this process may use")
+    chosen = allowed[:2]
+    text = f"{chosen[0]}-{chosen[1]}" if chosen[1] == chosen[0] + 1 else f"{chosen[0]},{chosen[1]}"
+    proc = subprocess.Popen([str(RT_MONITOR), "--model", str(COEF), "--config", str(CONF), "--loopback", str(tmp_path),
+                             "--lcm-url", "memq://", "--cpu", text], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        line = proc.stderr.readline()
+        assert line.endswith(f"default scheduling, CPUs {text}\n"), line
+        assert os.sched_getaffinity(proc.pid) == set(chosen)
+        proc.send_signal(signal.SIGTERM)
+        proc.communicate(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0  # the SIGTERM handler is in place before the start-up line
+
+
+@pytest.mark.parametrize("text", ["", "a", "-1", "1-0", "0,0", "1,0", "0,", "0-", "0--1", "1 ", "99999999"])
+def test_bad_cpu_list_is_a_usage_error(text: str, tmp_path: Path) -> None:
+    done = monitor("--cpu", text, tmp=tmp_path)
+    assert done.returncode == 2, done.stderr
+    first = done.stderr.splitlines()[0]  # then the usage line
+    assert first == f"rt_monitor: error: --cpu needs a CPU list as taskset -c takes it (1, 0,2 or 0-3), got '{text}'"
+
+
 def _unprivileged(limit: str) -> tuple[str, ...]:
     """A prefix that runs the monitor with the resource limit at 0 and, as root, without the capability that
     overrides it (the bounding set drops it across exec)."""
@@ -112,7 +144,7 @@ def test_mlockall_refused_without_memlock(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("args, why", [
     (["--priority", "high"], "--priority needs an integer, got 'high'"),
-    (["--cpu", "-1"], "--cpu needs a CPU number (0 or more), got '-1'"),
+    (["--cpu", "-1"], "--cpu needs a CPU list as taskset -c takes it (1, 0,2 or 0-3), got '-1'"),
     (["--cpu"], "'--cpu' needs a value"),
 ])
 def test_malformed_values_are_usage_errors(args: list[str], why: str, tmp_path: Path) -> None:
