@@ -228,10 +228,10 @@ def pwm_delay(ctx: Context, grid: Sequence[float] = DELAYS_MS) -> Iterable[Candi
 def coupling_error(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
     """The ratio entries of a coupled group's T (not 0, not ±1) off by a factor (1 + e), all of them or those of
     one joint's column (a joint-side pulley): the joint torques gain e·T_rᵀ τ_m, τ_m = gain ∘ u − motor friction,
-    and the rows (b − AΦ) e·L T_rᵀ τ_m; one column with θ = e (gains and motor friction of the baseline refit).
+    and the rows (b − AΦ) −e·L T_rᵀ τ_m; one column with θ = e (gains and motor friction of the baseline refit).
     Scaling a motor's whole row of T is a change of its gain, which the standard model fits, so on the iCub
-    shoulder the all-entries error is invisible; a column's is not, but is small against the shoulder's
-    residual (README "Model gaps", known limits)."""
+    shoulder the all-entries error is invisible; a column's is not (the pitch's is named at 10 %; README "Model
+    gaps", known limits)."""
     if ctx.phi is None:
         return
     cfg = ctx.model.config
@@ -253,7 +253,7 @@ def coupling_error(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candida
                                               for k, j in enumerate(g.joints) if Tr[:, k].any()]
         for where, Tw in places:
             values = np.zeros((ctx.n, ctx.r, 1))
-            values[:, rows, 0] = drive @ (L @ Tw.T).T
+            values[:, rows, 0] = -drive @ (L @ Tw.T).T
             yield Candidate("coupling_error", where, {}, values, ("error",), lambda th, phi: {"error": float(th[0])})
 
 
