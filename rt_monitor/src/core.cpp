@@ -28,9 +28,7 @@ Core::Core(const Coefficients& c) noexcept : c_(c) {
     det_.hysteresis = c.hysteresis;
     width_ = c.n_joints + c.n_outputs;
     if (c.supply_time_constant > 0) lambda_ = std::exp(-c.sample_period / c.supply_time_constant);
-    num_.fill(0.0);
-    den_.fill(0.0);
-    ratio_.fill(1.0);
+    ratio_.fill(1.0);  // stays 1 on every channel but the tracked motor inputs
     reset();
 }
 
@@ -145,7 +143,7 @@ void Core::predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y
                 s += friction(vm, mf);
             }
             out.y_model[i] = s / c_.divisor[i];
-            out.y_hat[i] = c_.channel_kind[i] == ChannelKind::kInput ? ratio_[i] * out.y_model[i] : out.y_model[i];
+            out.y_hat[i] = ratio_[i] * out.y_model[i];
             // Gate: a channel whose joints or motors rest carries static friction the model lacks.
             for (int j = 0; j < nj; ++j)
                 if ((c_.gate_joints[i] >> j & 1u) && std::abs(dq[j]) < c_.min_speed) out.active[i] = false;
@@ -199,7 +197,7 @@ void Core::track_supply() noexcept {
     // dynid.supply.SupplyTracker, term for term: only moving rows (in T²) whose residual is inside the gate.
     if (c_.supply_time_constant <= 0) return;
     const double a = 1.0 - lambda_;
-    for (int i = 6; i < c_.n_outputs; ++i) {
+    for (int i = 0; i < c_.n_outputs; ++i) {
         if (c_.channel_kind[i] != ChannelKind::kInput || !out_.p.active[i]) continue;
         if (!(std::abs(out_.p.e[i]) <= c_.supply_gate[i])) continue;  // outside the gate, or not a number
         const double p = out_.p.y_model[i], y = out_.y[i];

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -45,14 +46,16 @@ std::string allowed_cpus() {
 
 constexpr int kMaxCpu = 1000000;
 
-// A CPU number: digits only, at most kMaxCpu.
-bool parse_cpu(const std::string& s, int& cpu) {
-    if (s.empty() || s.size() > 7 || s.find_first_not_of("0123456789") != std::string::npos) return false;
-    cpu = std::stoi(s);
-    return cpu <= kMaxCpu;
-}
-
 }  // namespace
+
+bool parse_int(const std::string& text, long lo, long hi, int& out) {
+    char* end = nullptr;
+    errno = 0;
+    const long v = std::strtol(text.c_str(), &end, 10);
+    if (text.empty() || *end != '\0' || errno != 0 || v < lo || v > hi) return false;
+    out = int(v);
+    return true;
+}
 
 bool parse_cpu_list(const std::string& text, std::vector<int>& cpus) {
     cpus.clear();
@@ -62,9 +65,9 @@ bool parse_cpu_list(const std::string& text, std::vector<int>& cpus) {
         const std::string item = text.substr(start, comma - start);
         const size_t dash = item.find('-');
         int lo = 0, hi = 0;
-        if (!parse_cpu(item.substr(0, dash), lo)) return false;
+        if (!parse_int(item.substr(0, dash), 0, kMaxCpu, lo)) return false;
         hi = lo;
-        if (dash != std::string::npos && (!parse_cpu(item.substr(dash + 1), hi) || hi < lo)) return false;
+        if (dash != std::string::npos && (!parse_int(item.substr(dash + 1), 0, kMaxCpu, hi) || hi < lo)) return false;
         if (!cpus.empty() && lo <= cpus.back()) return false;  // ascending, no repeats
         if (hi - lo >= CPU_SETSIZE) return false;
         for (int c = lo; c <= hi; ++c) cpus.push_back(c);

@@ -189,7 +189,6 @@ TEST(Core, NoHeapAllocationOver100000Samples) {
     EXPECT_EQ(status->n_supply, 4);
     for (int i = 6, k = 0; i < c->n_outputs; ++i, ++k) EXPECT_EQ(status->supply_ratio[size_t(k)], core->supply_ratio(i));
     EXPECT_NE(status->supply_ratio[0], 1.0);  // the tracker did run
-    EXPECT_EQ(status->late, clock->counters().late);
     EXPECT_GT(clock->counters().interpolated, 90);  // the clock did bridge and hold
     EXPECT_GT(clock->counters().late, 90);
     EXPECT_EQ(g_allocations.load(), 0) << "heap allocations in the loop";

@@ -48,16 +48,6 @@ int usage(const std::string& why) {
     return 2;
 }
 
-// A whole decimal integer in [lo, hi], or false.
-bool parse_int(const std::string& text, long lo, long hi, int& out) {
-    char* end = nullptr;
-    errno = 0;
-    const long v = std::strtol(text.c_str(), &end, 10);
-    if (text.empty() || *end != '\0' || errno != 0 || v < lo || v > hi) return false;
-    out = int(v);
-    return true;
-}
-
 double mono_us() {
     timespec ts{};
     clock_gettime(CLOCK_MONOTONIC, &ts);

@@ -27,9 +27,14 @@ PROBLEMS = ("stale_samples", "unknown_id", "bad_length", "error_frames", "unpair
             "board_faults", "board_restarts", "source_bad", "interpolated", "late", "filter_restarts", "overruns")
 
 
+def ratios_text(ratios: Any) -> str:
+    """The input channels' supply ratios, in the coefficient file's order: '1.0123 0.9871 …'."""
+    return " ".join(f"{r:.4f}" for r in ratios)
+
+
 def supply_text(ratios: Any) -> str:
-    """The input channels' supply ratios, in the coefficient file's order: 'supply r 1.0123 0.9871 …' ('' if none)."""
-    return "supply r " + " ".join(f"{r:.4f}" for r in ratios) if len(ratios) else ""
+    """'supply r 1.0123 0.9871 …' ('' if none): the status line's field."""
+    return "supply r " + ratios_text(ratios) if len(ratios) else ""
 
 
 def open_lcm(url: str | None) -> Any:

@@ -23,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from .cli_spy import ratios_text
+from .dataset import beside_run
 from .dataset import contact_episodes as episodes
 from .errors import DataError, InputError
 
@@ -124,7 +126,7 @@ def format_summary(s: dict[str, Any]) -> str:
 
 def format_monitor(m: dict[str, Any]) -> str:
     return ("monitor's last status: " + ", ".join(f"{k.replace('_', ' ')} {m[k]}" for k in MONITOR_COUNTERS)
-            + (f"; supply ratios {' '.join(f'{r:.4f}' for r in m['supply_ratio'])}" if m["supply_ratio"] else ""))
+            + (f"; supply ratios {ratios_text(m['supply_ratio'])}" if m["supply_ratio"] else ""))
 
 
 def read_lcm_log(path: Path) -> dict[str, list]:
@@ -161,7 +163,8 @@ def main(argv: list[str] | None = None) -> int:
         from .dataset import load_data
         from .export import read_coefficients
 
-        data = load_data(a.data, load_config(a.robot))
+        config = load_config(a.robot)
+        data = load_data(a.data, config)
         if data.contact is None:
             raise DataError(f"{a.data}: no 'contact' ground truth")
         coef = read_coefficients(a.model)
@@ -172,12 +175,12 @@ def main(argv: list[str] | None = None) -> int:
         t2 = [(round((m.utime - t0_us) / (period * 1e6)), float(m.t2), float(m.threshold))
               for m in msgs["DYNID_RESIDUAL"]]
         visible = None
-        truth = (a.data if a.data.is_dir() else a.data.parent) / "truth.npz"
+        truth = beside_run(a.data, "truth.npz")
         if truth.is_file():
             from .contact_visibility import monitor_visibility
             from .model import RobotModel
 
-            visible = [v.visible for v in monitor_visibility(RobotModel(load_config(a.robot)), coef, np.load(truth))]
+            visible = [v.visible for v in monitor_visibility(RobotModel(config), coef, np.load(truth))]
         s = summarize(data.contact, events, period, coef.lag + coef.debounce_on + 5, t2, data.extra.get("skin.side"),
                       visible)
         if msgs["DYNID_STATUS"]:

@@ -22,8 +22,8 @@ import numpy as np
 from .dataset import contact_episodes
 from .errors import DataError
 from .model import RobotModel
-from .outputs import output_channels
-from .regressors.stack import group_row_maps
+from .augmented import joint_row_shares
+from .regressors.stack import row_channels, rows_at_rest
 
 FT_FIELDS = ("fx", "fy", "fz", "tx", "ty", "tz")
 
@@ -31,23 +31,19 @@ FT_FIELDS = ("fx", "fy", "fz", "tx", "ty", "tz")
 def contact_residuals(model: RobotModel, divisors: np.ndarray, truth: Mapping[str, np.ndarray]) -> np.ndarray:
     """(N, n_out) what the recorded contact adds to e, channel by channel; `divisors`: each channel's gain."""
     cfg = model.config
-    outs = output_channels(model)
     try:
         tau = np.column_stack([np.asarray(truth[f"extra/contact.tau.{j}"], float) for j in cfg.joints])
         ft = {s.name: np.column_stack([np.asarray(truth[f"extra/contact.{s.name}.{c}"], float) for c in FT_FIELDS])
               for s in cfg.ft_sensors}
     except KeyError as e:
         raise DataError(f"the ground truth has no contact record {e} (not a simulated contact run?)") from None
-    out = np.zeros((tau.shape[0], len(outs)))
+    out = np.zeros((tau.shape[0], len(row_channels(model))))
+    for c, share in joint_row_shares(model).values():  # joint torques reach the rows through L
+        out -= np.outer(tau[:, c], share)  # torque the motors need not give
+    n_ft = 6 * len(cfg.ft_sensors)
+    out[:, n_ft:] /= np.asarray(divisors, float)[n_ft:]
     for i, s in enumerate(cfg.ft_sensors):
         out[:, 6 * i : 6 * i + 6] = ft[s.name]
-    start = 6 * len(cfg.ft_sensors)
-    for g in cfg.actuation:  # the rows of a group are L times its joint equations (dynid.regressors.stack)
-        L, _ = group_row_maps(g)
-        cols = [cfg.joints.index(j) for j in g.joints]
-        rows = slice(start, start + len(g.joints))
-        out[:, rows] = -(tau[:, cols] @ L.T) / np.asarray(divisors, float)[rows]  # torque the motors need not give
-        start += len(g.joints)
     return out
 
 
@@ -71,11 +67,7 @@ def episode_visibility(contact: np.ndarray, signal: np.ndarray, active: np.ndarr
     t2 = np.sum(np.where(active, signal**2 / np.asarray(variance, float), 0.0), axis=1)
     out = []
     for a, b in contact_episodes(contact):
-        above = t2[a:b] > threshold
-        run = best = 0
-        for x in above.tolist():
-            run = run + 1 if x else 0
-            best = max(best, run)
+        best = max((e - s for s, e in contact_episodes(t2[a:b] > threshold)), default=0)
         out.append(EpisodeVisibility(int(a), int(b), float(t2[a:b].max()), best, best >= debounce))
     return out
 
@@ -83,8 +75,6 @@ def episode_visibility(contact: np.ndarray, signal: np.ndarray, active: np.ndarr
 def monitor_visibility(model: RobotModel, coef, truth: Mapping[str, np.ndarray]) -> list[EpisodeVisibility]:
     """The episodes of a simulated contact run that the monitor's detector (a coefficient file: Λ, T²_α through
     its online filter, the debounce, the gates) can see, with the channels in use decided on the true q̇."""
-    from .regressors.stack import rows_at_rest
-
     if "contact" not in truth or "dq" not in truth:
         raise DataError("the ground truth has no contact or q̇ record (not a simulated contact run?)")
     signal = contact_residuals(model, np.asarray(coef.divisor, float), truth)

@@ -340,6 +340,13 @@ class Dataset:
 # Helpers shared by the readers and writers
 
 
+def beside_run(data: str | Path, name: str) -> Path:
+    """The file `name` that `dynid simulate` writes next to a run's data (truth.json, truth.npz), for DATA given
+    as the run's directory or one of its files."""
+    p = Path(data)
+    return (p if p.is_dir() else p.parent) / name
+
+
 def contact_episodes(contact: np.ndarray) -> list[tuple[int, int]]:
     """[start, stop) sample ranges where the skin's ground truth (or any mask) is non-zero."""
     edges = np.flatnonzero(np.diff(np.r_[0, (np.asarray(contact) != 0).astype(np.int8), 0]))

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .config import RobotConfig
-from .dataset import Dataset, load_data
+from .dataset import Dataset, beside_run, load_data
 from .errors import DataError, InputError
 from .identified import IdentifiedModel, load_model
 from .model import RobotModel
@@ -184,8 +184,7 @@ def detection(ev: Evaluated, model_label: str, data_label: str, alpha: float, n_
         e = ev.e_constant if variant == "paper" else ev.e  # the paper's model has constant gains
         t2s[variant] = d.t2(ev.model, e, ev.signals.dq, ev.identified.phi)
         result["variants"][variant] = score(ev.dataset.t, t2s[variant], d.threshold, ev.dataset.contact, side)
-    run = Path(data_label)
-    truth = (run if run.is_dir() else run.parent) / "truth.npz"  # beside the data of a `dynid simulate` run
+    truth = beside_run(data_label, "truth.npz")
     if ev.dataset.contact is not None and ev.dataset.contact.any() and truth.is_file():
         result["visibility"] = visibility(ev, dets["calibrated"], t2s["calibrated"], np.load(truth))
     return Detection(result, dets, t2s, side)

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from .dataset import beside_run
 from .errors import DataError
 from .identified import IdentifiedModel
 
@@ -82,8 +83,7 @@ def find_truth(identified: IdentifiedModel, data_paths: list[str], explicit: str
         return read_truth(path, robot)
     candidates = [d.get("path", "") for d in identified.record.get("data", []) if isinstance(d, dict)] + data_paths
     for c in candidates:
-        p = Path(c)
-        path = p / TRUTH_FILE if p.is_dir() else p.parent / TRUTH_FILE
+        path = beside_run(c, TRUTH_FILE)
         if path.is_file():
             try:
                 return read_truth(path, robot)

@@ -25,7 +25,7 @@ calibration) the estimate is two-sided, as the offline derivatives are: `smoothe
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -144,8 +144,7 @@ def smoothed_residuals(model: RobotModel, settings: SupplyTracking | None, min_s
 def smoothed_ratios(model: RobotModel, settings: SupplyTracking, min_speed: float, e: np.ndarray, sig: Signals,
                     t: np.ndarray) -> np.ndarray:
     """(N, n_out) the offline, two-sided ratio r of every input channel (1 on the others): `smoothed_residuals`'."""
-    offline = SupplyTracking(settings.offline_time_constant_s, settings.gate, settings.prior_input,
-                             settings.offline_time_constant_s)
+    offline = replace(settings, time_constant_s=settings.offline_time_constant_s)
     forward = SupplyTracker(model, offline, min_speed).apply(e, sig, t)[1]
     back = slice(None, None, -1)
     backward = SupplyTracker(model, offline, min_speed).apply(e[back], sig.slice(back), -t[back])[1][back]

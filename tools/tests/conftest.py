@@ -51,3 +51,8 @@ def exported(default_model: Path, tmp_path_factory: pytest.TempPathFactory) -> P
     done = dynid("export", "--model", str(default_model), "--out", str(out))
     assert done.returncode == 0, done.stderr
     return out
+
+
+def exit_counter(stdout: str, name: str) -> int:
+    """A counter of the final line rt_monitor prints at exit ("..., late 12, ...")."""
+    return int(stdout.split(f", {name} ")[1].split(",")[0])

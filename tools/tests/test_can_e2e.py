@@ -23,7 +23,8 @@ from dynid.contact_visibility import monitor_visibility
 from dynid.dataset import contact_episodes, load_data
 from dynid.export import read_coefficients
 from dynid.model import RobotModel
-from test_rt_core import raw_samples, stream
+from conftest import exit_counter
+from test_rt_core import python_mirror, raw_samples, stream
 
 ROOT = Path(__file__).resolve().parents[2]
 BUILD = ROOT / "build" / "rt_monitor"
@@ -104,6 +105,7 @@ def test_replay_end_to_end(setup: dict, default_experiments: dict) -> None:
     hidden = [f"{v.start / 1000:.1f} s (peak {v.peak_t2:.3g})" for i, v in enumerate(vis) if not v.visible and i not in found]
     print(f"episodes {len(eps)}, found {len(found)}, visible {sum(v.visible for v in vis)}, onsets {len(onsets)}; "
           f"missed, below T²_α: {', '.join(hidden)}")
+    assert sum(v.visible for v in vis) >= 15  # measured 18 of the 28: the check below has something to check
     assert all(i in found for i, v in enumerate(vis) if v.visible), "a visible contact missed"
     assert len(found) >= 0.6 * len(eps)
 
@@ -251,11 +253,6 @@ def _stamp(line: str, us: int) -> str:
     return f"({us // 1_000_000}.{us % 1_000_000:06d})" + line[line.index(")") + 1:]
 
 
-def _final_count(stdout: str, name: str) -> int:
-    """A counter of the final line rt_monitor prints at exit ("..., late 12, ...")."""
-    return int(stdout.split(f", {name} ")[1].split(",")[0])
-
-
 def test_stalled_sender_late_samples(setup: dict, clean: dict) -> None:
     # Every 97th sample the sender wakes 1.8 periods late, then catches up, sending the overdue frames back to back
     # (20 µs apart, stamps never go backwards): samples are late, none is lost.
@@ -276,7 +273,7 @@ def test_stalled_sender_late_samples(setup: dict, clean: dict) -> None:
     late = sum(1 for k, us in stamp.items() if us - (T0_US + 1000 * k) >= 750)
     print(f"{done.stdout.strip()}\nsamples stamped late: {late}")
     assert late >= 2 * len(range(50, len(stamp), 97))
-    assert status.late == late == _final_count(done.stdout, "late")
+    assert status.late == late == exit_counter(done.stdout, "late")
     # Nothing bridged, nothing restarted: the core saw the clean run's samples, so it raised the same events.
     assert (status.interpolated, status.filter_restarts, status.samples_evaluated) == (0, 1, len(clean["part"].t))
     assert [(m.kind, m.utime) for m in msgs["DYNID_CONTACT"]] == [(m.kind, m.utime) for m in clean["msgs"]["DYNID_CONTACT"]]
@@ -305,18 +302,12 @@ def test_status_supply_ratios_are_the_python_trackers(setup: dict, clean: dict, 
     from dynid.export import unwrap, wrap
     from dynid.identified import load_model
     from dynid.lcm_coefficients import coefficients_t
-    from dynid.online import FixedLagSavitzkyGolay, online_signals, online_times, raw_signals
-    from dynid.outputs import residuals
-    from dynid.supply import SupplyTracker
+    from dynid.online import raw_signals
 
     identified = load_model(default_model)
-    model = identified.robot_model
     c = read_coefficients(setup["coef"])
-    t, q, inputs, _, ft = raw_signals(model, clean["part"])
-    est = FixedLagSavitzkyGolay(c.window, c.order, c.lag, c.sample_period)
-    sig = online_signals(model, est, t, q, inputs, {}, ft)
-    tracker = SupplyTracker(model, identified.supply_tracking, c.min_speed)
-    tracker.apply(residuals(model, identified.phi, sig), sig, online_times(est, t))
+    t, q, inputs, _, ft = raw_signals(identified.robot_model, clean["part"])
+    _, tracker, _, _ = python_mirror(identified, c, t, q, inputs, ft)
     inputs_rows = [i for i, k in enumerate(c.channel_kind) if k == 1]
     want = np.array([tracker.states[i].ratio for i in inputs_rows])
     last = clean["msgs"]["DYNID_STATUS"][-1]
@@ -335,7 +326,7 @@ def test_status_supply_ratios_are_the_python_trackers(setup: dict, clean: dict, 
     coef_off.write_bytes(wrap(off.encode()))
     done, msgs = run_monitor({**setup, "coef": coef_off}, setup["root"] / "clean.log", "supply_off")
     assert done.returncode == 0, done.stderr
-    assert all(list(m.supply_ratio) == [1.0] * 4 for m in msgs["DYNID_STATUS"])
+    assert msgs["DYNID_STATUS"] and all(list(m.supply_ratio) == [1.0] * 4 for m in msgs["DYNID_STATUS"])
 
 
 # ---- dynid import of candump logs -----------------------------------------------------------------------

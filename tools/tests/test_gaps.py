@@ -212,6 +212,7 @@ def test_elbow_stribeck_is_named_and_its_gap_shrinks(gaps) -> None:
     # With supply tracking the curve's small misfit near the stops shows, and an armature of 0.004 kg m² takes 0.7 %
     # of what the Stribeck took there: reported tentative, as secondary to it, not named with confidence
     assert [(e["name"], e["where"]) for e in result["effects"] if e["confident"]] == [("stribeck", "joint r_elbow")], stdout
+    assert len(result["effects"]) == 2, stdout  # the armature beside it (measured 0.0041 kg m²)
     assert all(e["secondary_to"] == "stribeck on joint r_elbow" for e in result["effects"][1:]), stdout
     p = _effect(result, "stribeck")["parameters"]
     true = _truth(truth, "stribeck")
@@ -313,8 +314,9 @@ def test_supply_tracking_lowers_the_floor(gaps) -> None:
     of the control run down to where the standard model has nothing left to explain (measured pwm.m0 1.82 → 1.37,
     pwm.m1 2.19 → 0.82× noise); the estimated supply ratios move (the plant's supply varies 3 %), and nothing is
     named either way."""
-    tracked, _, _ = gaps("control")
+    tracked, _, tracked_stdout = gaps("control")
     constant, _, stdout = gaps("control", None, "--no-supply-tracking")
+    assert "two passes" in tracked_stdout and tracked["supply"] is not None
     assert constant["supply"] is None and "two passes" not in stdout
     assert tracked["effects"] == [] and constant["effects"] == []
     for c in ("pwm.m0", "pwm.m1"):

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import exit_counter
 from dynid.config import load_config
 from dynid.contact_summary import episodes, read_lcm_log, summarize
 from dynid.contact_visibility import monitor_visibility
@@ -75,7 +76,7 @@ def test_all_frames_arrive_and_every_sample_is_assembled(live: dict) -> None:
     assert (last.frames, last.samples) == (frames, n)
     assert last.unknown_id == last.bad_length == last.error_frames == last.unpaired_strain == 0
     # The sample clock's late samples (this machine's scheduling jitter): the last status says what the exit line says.
-    assert last.late == int(live["r"]["monitor"].split(", late ")[1].split(",")[0])
+    assert last.late == exit_counter(live["r"]["monitor"], "late")
     # A late wake-up of the paced sender can still bunch samples; they are counted, and must stay rare.
     assert last.filter_restarts <= (0.01 if live["fifo"] else 0.2) * n, last.filter_restarts
 

@@ -66,6 +66,17 @@ def stream(coef: Path, raw: np.ndarray, work: Path) -> np.ndarray:
     return read_matrix(work / "out.mx")
 
 
+def python_mirror(identified, c: coefficients_t, t: np.ndarray, q: np.ndarray, inputs: dict, ft: dict):
+    """dynid's own mirror of the core on raw samples, independent of the C++: the online filter, the residuals with
+    constant gains, then the supply tracker over them. (signals, tracker, tracked residuals, ratios)."""
+    model = identified.robot_model
+    est = FixedLagSavitzkyGolay(c.window, c.order, c.lag, c.sample_period)
+    sig = online_signals(model, est, t, q, inputs, {}, ft)
+    tracker = SupplyTracker(model, identified.supply_tracking, c.min_speed)
+    e, ratio = tracker.apply(residuals(model, identified.phi, sig), sig, online_times(est, t))
+    return sig, tracker, e, ratio
+
+
 def rel_err(a: np.ndarray, b: np.ndarray, scale: np.ndarray) -> float:
     return float(np.max(np.abs(a - b) / scale))
 
@@ -156,13 +167,10 @@ def test_stream_matches_the_python_mirror(exported: Path, default_model: Path, d
     t, q, inputs, tau, ft = raw_signals(model, full)
     k = slice(0, 4000)
     t, q, inputs, ft = t[k], q[k], {m: v[k] for m, v in inputs.items()}, {s: v[k] for s, v in ft.items()}
-    est = FixedLagSavitzkyGolay(c.window, c.order, c.lag, c.sample_period)
-    assert np.array_equal(est.weights(), np.asarray(c.filter))
-    sig = online_signals(model, est, t, q, inputs, {}, ft)
-    constant = residuals(model, identified.phi, sig)
+    assert np.array_equal(FixedLagSavitzkyGolay(c.window, c.order, c.lag, c.sample_period).weights(), np.asarray(c.filter))
     tracking = identified.supply_tracking
     assert tracking is not None and c.supply_time_constant == tracking.time_constant_s
-    e, ratio = SupplyTracker(model, tracking, c.min_speed).apply(constant, sig, online_times(est, t))
+    sig, _, e, ratio = python_mirror(identified, c, t, q, inputs, ft)
     pwm = [i for i, k in enumerate(c.channel_kind) if k == 1]
     assert np.ptp(ratio[:, pwm], axis=0).min() > 1e-3  # the tracker moves within these 4 s: the check has teeth
     det = Detector("calibrated", np.asarray(c.residual_variance), c.threshold, c.alpha, c.min_speed, c.n_outputs)

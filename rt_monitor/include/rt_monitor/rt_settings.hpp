@@ -19,6 +19,9 @@ constexpr int kExitMlockallRefused = 3;
 constexpr int kExitPriorityRefused = 4;
 constexpr int kExitCpuRefused = 5;
 
+// A whole decimal integer in [lo, hi], or false (the options' values).
+bool parse_int(const std::string& text, long lo, long hi, int& out);
+
 // Parses a CPU list as taskset -c takes it ("1", "0,2", "0-3,6"): ascending, no repeats. False on anything else.
 bool parse_cpu_list(const std::string& text, std::vector<int>& cpus);
 

@@ -65,15 +65,13 @@ class Settings:
 def _collect(model: RobotModel, ds: Dataset, stride: int) -> tuple[Context, np.ndarray, np.ndarray, np.ndarray]:
     """(context, A (N, r, p) unweighted, b (N, r), weights (N, r)) of every `stride`-th sample."""
     source = SignalSource(model, ds, FitSettings(), instruments=False)
-    r, p = len(row_channels(model)), len(model.layout)
     sigs, As, bs, ws, ts, dus = [], [], [], [], [], []
     for lo in range(0, ds.n_samples, CHUNK):
         sig, _, w = source(lo, min(lo + CHUNK, ds.n_samples))
         keep = slice((-lo) % stride, None, stride)  # global sample indices that are multiples of stride
         dus.append(sig.inputs)  # the filtered inputs at the full rate: a delay candidate shifts them by whole samples
         sig, w = sig.slice(keep), w[keep]
-        A, b = np.zeros((sig.q.shape[0], r, p)), np.zeros((sig.q.shape[0], r))
-        fill_rows(model, sig, A, b)
+        A, b = _rows(model, sig)
         sigs.append(sig), As.append(A), bs.append(b), ws.append(w), ts.append(ds.t[lo:min(lo + CHUNK, ds.n_samples)][keep])
     sig = Signals(
         np.vstack([s.q for s in sigs]), np.vstack([s.dq for s in sigs]), np.vstack([s.ddq for s in sigs]),
@@ -113,18 +111,21 @@ def _where(model: RobotModel, ctx: Context, resid: np.ndarray, weights: np.ndarr
 
 
 def _supply_corrected(model: RobotModel, ctx: Context, resid: np.ndarray, w: np.ndarray, phi: np.ndarray,
-                      tracking: SupplyTracking) -> tuple[Signals, np.ndarray]:
-    """(the decimated signals with each motor's input u replaced by u / r, r its two-sided supply ratio estimated
-    from `resid` (weighted rows, what a first pass left), (N, n_out) r). The drive torque is gain·s(t)·u and
-    r = 1/s (dynid.supply), so u / r is the input a constant-gain model should see."""
+                      tracking: SupplyTracking) -> tuple[Context, np.ndarray]:
+    """(the context with each motor's input u replaced by u / r, at the decimated and the full rate alike, r its
+    two-sided supply ratio estimated from `resid` (weighted rows, what a first pass left); (N, n_out) r). The drive
+    torque is gain·s(t)·u and r = 1/s (dynid.supply), so u / r is the input a constant-gain model should see."""
     e_rows = np.divide(resid, w, out=np.zeros_like(resid), where=w > 0)
     e_out = e_rows / divisors(model, phi)
     ratio = smoothed_ratios(model, tracking, FitSettings().min_speed, e_out, ctx.sig, ctx.t)
-    inputs = dict(ctx.sig.inputs)
+    inputs, full = dict(ctx.sig.inputs), dict(ctx.inputs_full or {})
     for o in output_channels(model):
         if o.kind == "input":
             inputs[o.motor] = inputs[o.motor] / ratio[:, o.row]
-    return replace(ctx.sig, inputs=inputs), ratio
+            if o.motor in full and ctx.index_full is not None:  # the delay candidate's full-rate inputs
+                at = np.arange(len(full[o.motor]))
+                full[o.motor] = full[o.motor] / np.interp(at, ctx.index_full, ratio[:, o.row])
+    return replace(ctx, sig=replace(ctx.sig, inputs=inputs), inputs_full=full or None), ratio
 
 
 def _rows(model: RobotModel, sig: Signals) -> tuple[np.ndarray, np.ndarray]:
@@ -155,8 +156,8 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
     result = _analyse(model, ctx, A, b, w, settings, reference)
     if settings.supply is not None:
         first = result
-        sig, ratio = _supply_corrected(model, ctx, first.pop("_residual"), w, first["_augmented"]["phi"], settings.supply)
-        result = _analyse(model, replace(ctx, sig=sig), *_rows(model, sig), w, settings, reference)
+        ctx, ratio = _supply_corrected(model, ctx, first.pop("_residual"), w, first["_augmented"]["phi"], settings.supply)
+        result = _analyse(model, ctx, *_rows(model, ctx.sig), w, settings, reference)
         inputs = [o for o in output_channels(model) if o.kind == "input"]
         result["supply"] = {
             **settings.supply.as_dict(),
@@ -180,9 +181,8 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
     held = np.zeros(p)  # Φ held at the given model's: its inertias (none without a given model)
     if reference is not None:
         held[inertial] = reference[1][inertial]
-        ctx = replace(ctx, inertial_columns=A[:, :, inertial].copy())
+        ctx = replace(ctx, inertial_columns=A[:, :, inertial])
     Aw, y = A * w[:, :, None], (b - A @ held) * w
-    given_y = b * w
     if reference is not None:
         Aw[:, :, inertial] = 0.0  # held columns: V gets no component along them
     # Identifiable subspace of the standard model on this run: Z = A V (columns the data cannot see dropped).
@@ -200,7 +200,7 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
     resid0 = y - design.D @ x0
     given = None
     if reference is not None:  # not fitted on this run: its error over all rows is already out of sample
-        e = given_y - (A * w[:, :, None]) @ reference[1]
+        e = y - Aw @ reference[1]  # = (b − AΦ_ref)·w: the held part of Φ_ref is already in y
         given = _rms_per_channel((e**2).sum(axis=0), design.rows.sum(axis=0))
 
     # Bilinear candidates (gains, gravity, F/T gain) linearise about the baseline refit.
