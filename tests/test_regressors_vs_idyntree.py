@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dynid.config import load_config
-from dynid.model import RobotModel
-from dynid.regressors import Signals, build_stacked, rigid_body_regressors
+from dynid.config.robot_config import load_config
+from dynid.robot.model import RobotModel
+from dynid.robot.regressors import Signals, build_stacked, rigid_body_regressors
 
 from .reference.idyntree_ft import gravity_in_link, idyntree_expected_ft_and_torques
 

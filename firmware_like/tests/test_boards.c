@@ -1,6 +1,6 @@
 /*
  * test_boards.c - plain C99 checks of the board emulators against hand-computed frames
- * (bytes written out from the protocol of DESIGN.md section 5, not from the codec under test).
+ * (bytes written out from the protocol of docs/design.md §5, not from the codec under test).
  */
 #include "board_mc.h"
 #include "board_skin.h"

@@ -7,7 +7,7 @@
  *
  * The configuration is rt_monitor's (rt_monitor/README.md, "Configuration"; `dynid` writes it from the robot
  * configuration): buses, the strain board, the motor-control boards' axes and PWMs, the skin boards. Per sample
- * k at time t_k, on each board's bus, the frames go out in this order (the same as dynid.can_log):
+ * k at time t_k, on each board's bus, the frames go out in this order (the same as dynid.io.candump):
  *   t_k - 300 us  POSITION and PID_VAL of every motor-control board;
  *   t_k - 250 us  STATUS of every motor-control board, every 10th sample;
  *   t_k - 200 us  TAXELS of every skin board (group 0 = the run's contact on that board's patch);
@@ -204,7 +204,7 @@ int main(int argc, char **argv)
     if (strcmp(sat, "auto") && strcmp(sat, "on") && strcmp(sat, "off")) return usage("--strain-sat auto|on|off");
 
     if ((rc = boards_read_conf(conf, &g_conf, g_err)) != 0) return fail(rc);
-    /* A run directory (DESIGN.md section 4) holds data.csv. */
+    /* A run directory (docs/design.md §4) holds data.csv. */
     snprintf(csv_path, sizeof csv_path, "%s%s", data,
              (stat(data, &st) == 0 && S_ISDIR(st.st_mode)) ? "/data.csv" : "");
     if ((rc = boards_csv_open(&g_csv, csv_path, &g_conf, sensor, &g_cols, g_err)) != 0) return fail(rc);
@@ -273,7 +273,7 @@ int main(int argc, char **argv)
         const double shift = (double)r * (n > 1 ? (t_prev - t_first) * (double)n / (double)(n - 1) : 1e-3);
         if (r > 0 && (rc = boards_csv_rewind(&g_csv, g_err)) != 0) break;
         while ((rc = boards_csv_row(&g_csv, &g_cols, g_err)) == 1) {
-            /* µs timestamps as dynid.can_log computes them (rint: numpy's round, half to even) */
+            /* µs timestamps as dynid.io.candump computes them (rint: numpy's round, half to even) */
             const int64_t t_us = (int64_t)rint((g_csv.v[g_cols.t] - t_first + t0 + shift) * 1e6);
             if (k == 0) {
                 struct timespec rt;

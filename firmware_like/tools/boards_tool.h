@@ -63,7 +63,7 @@ typedef struct {
 /* Read the rt_monitor configuration (rt_monitor/README.md, "Configuration"); 0 or an exit code, err set. */
 int boards_read_conf(const char *path, boards_conf_t *c, char err[BOARDS_ERR_LEN]);
 
-/* The CSV: header, then rows of numbers (DESIGN.md section 4). */
+/* The CSV: header, then rows of numbers (docs/design.md §4). */
 typedef struct {
     FILE *f;
     const char *path;

@@ -7,7 +7,7 @@ namespace {
 
 // Spatial vectors are (linear, angular), as Pinocchio's, split into two 3-vectors.
 inline double friction(double v, const double* c) noexcept {
-    // τ_f = fc⁺·[v>0] − fc⁻·[v<0] + fv⁺·max(v,0) + fv⁻·min(v,0)  (dynid.regressors.friction)
+    // τ_f = fc⁺·[v>0] − fc⁻·[v<0] + fv⁺·max(v,0) + fv⁻·min(v,0)  (dynid.robot.regressors.friction)
     return (v > 0 ? c[0] + c[2] * v : 0.0) + (v < 0 ? -c[1] + c[3] * v : 0.0);
 }
 
@@ -116,7 +116,7 @@ void Core::predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y
                               c_.joint_friction(j, 3)};
         load[j] += friction(dq[j], jf);
     }
-    // Effects of an augmented model (dynid.augmented.joint_torques): extra joint torques.
+    // Effects of an augmented model (dynid.robot.effects.joint_torques): extra joint torques.
     for (int k = 0; k < c_.n_effects; ++k) {
         const int j = c_.effect_joint[k];
         const auto& p = c_.effect_param[k];
@@ -174,7 +174,7 @@ const Output& Core::step(const double* q, const double* y) noexcept {
         out_.ready = false;
         return out_;
     }
-    // The window, oldest first, is columns slot_ … slot_ + W − 1: the same summation order as dynid.online.
+    // The window, oldest first, is columns slot_ … slot_ + W − 1: the same summation order as dynid.detect.online.
     out_.q.setZero(); out_.dq.setZero(); out_.ddq.setZero(); out_.y.setZero();
     for (int s = 0; s < W; ++s) {
         const double w0 = c_.filter(0, s), w1 = c_.filter(1, s), w2 = c_.filter(2, s);
@@ -194,7 +194,7 @@ const Output& Core::step(const double* q, const double* y) noexcept {
 }
 
 void Core::track_supply() noexcept {
-    // dynid.supply.SupplyTracker, term for term: only moving rows (in T²) whose residual is inside the gate.
+    // dynid.identify.supply.SupplyTracker, term for term: only moving rows (in T²) whose residual is inside the gate.
     if (c_.supply_time_constant <= 0) return;
     const double a = 1.0 - lambda_;
     for (int i = 0; i < c_.n_outputs; ++i) {

@@ -282,7 +282,7 @@ TEST(Detector, MotorChannelsAloneMeanProximal) {
 }
 
 TEST(Core, SupplyTrackingFollowsASagAndIgnoresAPush) {
-    // The motors' measured inputs are ŷ/0.95 (a 5 % supply sag): r must reach 1/0.95 (dynid.supply), its first
+    // The motors' measured inputs are ŷ/0.95 (a 5 % supply sag): r must reach 1/0.95 (dynid.identify.supply), its first
     // update must be the recurrence's, and a push beyond the gate must leave it where it was.
     auto c = load_fixture();
     c->supply_time_constant = 0.5;

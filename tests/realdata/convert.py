@@ -1,4 +1,4 @@
-"""Convert the real-robot recordings of shared/realdata to the project CSV (DESIGN.md section 4).
+"""Convert the real-robot recordings of shared/realdata to the project CSV (docs/design.md §4).
 
 Usage::
 
@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dynid.csv_io import write_csv
-from dynid.dataset import Dataset
+from dynid.io.csv_format import write_csv
+from dynid.io.dataset import Dataset
 
 # CI clones the repository with shared/ beside it: <parent>/main/tests/realdata/convert.py, <parent>/shared.
 REALDATA = Path(__file__).resolve().parents[2].parent / "shared" / "realdata"

@@ -1,4 +1,4 @@
-"""Real robot runs (shared/realdata) convert to the project CSV and import through dynid.csv_io."""
+"""Real robot runs (shared/realdata) convert to the project CSV and import through dynid.io.csv_format."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dynid.config import RobotConfig, load_config
-from dynid.csv_io import read_csv
+from dynid.config.robot_config import RobotConfig, load_config
+from dynid.io.csv_format import read_csv
 
 from . import convert
 

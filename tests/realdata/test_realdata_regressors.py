@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dynid.config import load_config
-from dynid.dataset import load_data
-from dynid.model import RobotModel
-from dynid.regressors import build_stacked, signals_from_dataset
-from dynid.regressors.base import data_base_parameters, structural_base_parameters
+from dynid.config.robot_config import load_config
+from dynid.io.load import load_data
+from dynid.robot.model import RobotModel
+from dynid.robot.regressors import build_stacked, signals_from_dataset
+from dynid.robot.regressors.base import data_base_parameters, structural_base_parameters
 
 from . import convert
 

@@ -33,7 +33,7 @@ Conventions (read this before comparing anything against it)
   Physical sanity check (tested in ``test_idyntree_ft_selfcheck.py``): at rest, the force part equals
   ``m_distal * g`` (the distal part's weight pulls the proximal part along gravity) and the torque part equals
   ``c_distal x (m_distal * g)``, everything in the sensor frame.
-  This is the ``w_s`` of DESIGN.md section 3, and equals minus Pinocchio's ``data.f`` at a joint placed at the
+  This is the ``w_s`` of docs/design.md §3, and equals minus Pinocchio's ``data.f`` at a joint placed at the
   sensor (if that joint's frame is the sensor frame).
 
 * Joint torques ``tau`` are the inverse-dynamics torques (no friction, no motor model, no external wrench but
@@ -56,8 +56,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import Sequence
 
-import numpy as np
 import idyntree.swig as idt
+import numpy as np
 
 __all__ = [
     "idyntree_expected_ft_and_torques",

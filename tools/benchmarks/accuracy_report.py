@@ -17,12 +17,13 @@ import pinocchio as pin
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
-from dynid.config import load_config  # noqa: E402
-from dynid.dataset import load_data  # noqa: E402
-from dynid.model import RobotModel  # noqa: E402
-from dynid.regressors import build_stacked, rigid_body_regressors, signals_from_dataset  # noqa: E402
 from tests.realdata import convert  # noqa: E402
 from tests.reference.idyntree_ft import gravity_in_link, idyntree_expected_ft_and_torques  # noqa: E402
+
+from dynid.config.robot_config import load_config
+from dynid.io.load import load_data
+from dynid.robot.model import RobotModel
+from dynid.robot.regressors import build_stacked, rigid_body_regressors, signals_from_dataset
 
 
 def regressor_errors(n: int = 200, seed: int = 11) -> None:

@@ -22,19 +22,19 @@ import textwrap
 import time
 from pathlib import Path
 
-from dynid.config import load_config
-from dynid.dataset import load_data
-from dynid.model import RobotModel
+from dynid.config.robot_config import load_config
+from dynid.io.load import load_data
+from dynid.robot.model import RobotModel
 
 # Runs in a fresh interpreter so that its peak memory is its own.
 REFERENCE = textwrap.dedent("""
     import json, resource, sys, time
     from pathlib import Path
     from sklearn.cross_decomposition import PLSRegression
-    from dynid.config import load_config
-    from dynid.dataset import load_data
-    from dynid.model import RobotModel
-    from dynid.regressors.stack import build_stacked, row_weights, signals_from_dataset
+    from dynid.config.robot_config import load_config
+    from dynid.io.dataset import load_data
+    from dynid.robot.model import RobotModel
+    from dynid.robot.regressors.stack import build_stacked, row_weights, signals_from_dataset
 
     data, nu = Path(sys.argv[1]), int(sys.argv[2])
     config = load_config("icub_right_arm")

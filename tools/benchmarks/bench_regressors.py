@@ -17,9 +17,9 @@ import time
 import numpy as np
 import pinocchio as pin
 
-from dynid.config import load_config
-from dynid.model import RobotModel
-from dynid.regressors import Signals, build_stacked
+from dynid.config.robot_config import load_config
+from dynid.robot.model import RobotModel
+from dynid.robot.regressors import Signals, build_stacked
 
 
 def sinusoidal_experiment(model: RobotModel, seconds: float, rate: float, seed: int = 0) -> Signals:

@@ -19,8 +19,8 @@ import time
 import numpy as np
 import pinocchio as pin
 
-from dynid.config import load_config
-from dynid.model import RobotModel
+from dynid.config.robot_config import load_config
+from dynid.robot.model import RobotModel
 from dynid.simulation import SimulationSettings, simulate
 from dynid.simulation.output import write_simulation
 from dynid.simulation.plant import RigidBodyPlant

@@ -26,9 +26,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tools"))
 
-from dynid.can_log import monitor_config_text  # noqa: E402
-from dynid.config import load_config  # noqa: E402
-from dynid.live_mission import BOARDS, RT_MONITOR, fifo_allowed, fifo_args, play  # noqa: E402
+from dynid.config.robot_config import load_config
+from dynid.export.mission import BOARDS, RT_MONITOR, fifo_allowed, fifo_args, play
+from dynid.export.monitor_config import monitor_config_text
 
 
 def dynid(*args: str) -> None:

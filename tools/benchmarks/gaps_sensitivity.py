@@ -25,9 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from dynid.config import load_config
+from dynid.config.robot_config import load_config
 from dynid.gaps.workflow import run
-from dynid.model import RobotModel
+from dynid.robot.model import RobotModel
 from dynid.simulation import SimulationSettings, parse_effect, simulate
 
 # effect -> (spec template with {m}, the ladder of m, the unit of m, the parameter the ladder scales)

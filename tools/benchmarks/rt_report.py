@@ -36,9 +36,9 @@ def replay(coef: Path, raw: np.ndarray, work: Path) -> np.ndarray:
 
 
 def main() -> None:
-    from dynid.config import load_config
-    from dynid.dataset import load_data
-    from dynid.export import read_coefficients
+    from dynid.config.robot_config import load_config
+    from dynid.export.coefficients import read_coefficients
+    from dynid.io.load import load_data
 
     work = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(tempfile.mkdtemp(prefix="rt_report"))
     for kind in ("identification", "validation", "contact"):
@@ -62,7 +62,7 @@ def main() -> None:
             side[c.lag :] = ds.extra["skin.side"][: -c.lag]
         line = f"  {kind}: FPR {100 * above[ready & ~truth].mean():.2f} %, {int(onsets.sum())} onset events"
         if truth.any():
-            from dynid.dataset import contact_episodes as episodes
+            from dynid.io.dataset import contact_episodes as episodes
 
             delays, missed = [], 0
             for a, b in episodes(truth.astype(int)):

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from dynid.config import load_config
-from dynid.model import RobotModel
-from dynid.parameters import WRENCH_FIELDS
+from dynid.config.robot_config import load_config
+from dynid.robot.model import RobotModel
+from dynid.robot.parameters import WRENCH_FIELDS
 from dynid.simulation import CATALOG, SimulationSettings, parse_effect, simulate
 from dynid.simulation.consistency import model_residuals, worst
 

@@ -5,10 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dynid.config import load_config
-from dynid.model import RobotModel
-from dynid.regressors import build_stacked
-from dynid.regressors.base import base_parameters, data_base_parameters, exciting_signals, structural_base_parameters
+from dynid.config.robot_config import load_config
+from dynid.robot.model import RobotModel
+from dynid.robot.regressors import build_stacked
+from dynid.robot.regressors.base import (
+    base_parameters,
+    data_base_parameters,
+    exciting_signals,
+    structural_base_parameters,
+)
 
 PENDULUM_URDF = """\
 <robot name="pendulum">

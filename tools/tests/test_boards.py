@@ -1,7 +1,7 @@
 """The C board emulators (firmware_like/, the `boards` program) against the Python side.
 
 - Cross-language: the frames `boards` writes for a slice of the default contact run are the frames
-  dynid.can_log writes for the same data, byte for byte, and they decode with the DBC (cantools) to the CSV's
+  dynid.io.candump writes for the same data, byte for byte, and they decode with the DBC (cantools) to the CSV's
   values within the protocol's quantisation.
 - The bus load it prints is the one recomputed here from the log (worst-case bit stuffing) and is < 70 %.
 - Saturation (7-byte strain frames), a board restart, and bad input (one line, a distinct exit code each).
@@ -16,10 +16,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dynid.can_log import monitor_config_text, write_candump
-from dynid.can_protocol import Protocol
-from dynid.config import load_config
-from dynid.dataset import load_data
+from dynid.config.robot_config import load_config
+from dynid.export.monitor_config import monitor_config_text
+from dynid.io.can_protocol import Protocol
+from dynid.io.candump import write_candump
+from dynid.io.load import load_data
 
 ROOT = Path(__file__).resolve().parents[2]
 BOARDS = ROOT / "build" / "firmware_like" / "boards"

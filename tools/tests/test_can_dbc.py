@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from dynid.can_protocol import FrameError, FrameProblem, Protocol, make_id, split_id
 from dynid.errors import DataError
+from dynid.io.can_protocol import FrameError, FrameProblem, Protocol, make_id, split_id
 
 ROOT = Path(__file__).resolve().parents[2]
 VECTORS = ROOT / "build" / "firmware_like" / "icub_can_vectors"
@@ -117,7 +117,7 @@ def test_every_c_frame_decodes_and_reencodes_with_the_dbc(proto: Protocol, c_sid
 
 
 def test_offset_binary_reference_values(proto: Protocol) -> None:
-    # DESIGN.md §5, by hand: raw 0x8000 is 0, 0x0000 is -32768, 0xFFFF is 32767, little-endian.
+    # docs/design.md §5, by hand: raw 0x8000 is 0, 0x0000 is -32768, 0xFFFF is 32767, little-endian.
     f = proto.decode(0x3DA, bytes([0x00, 0x80, 0x00, 0x00, 0xFF, 0xFF, 0b101]))
     assert f.signals | {} == {"Fx": 0, "Fy": -32768, "Fz": 32767, "SatFx": 1, "SatFy": 0, "SatFz": 1, "SatReserved": 0}
     f = proto.decode(make_id(1, 2, 1), (-2).to_bytes(4, "little", signed=True) + (70000).to_bytes(4, "little"))
@@ -161,8 +161,8 @@ def test_a_foreign_dbc_is_refused(tmp_path: Path) -> None:
 
 def test_example_monitor_config_is_current() -> None:
     """rt_monitor/config/icub_right_arm.conf is what dynid writes for the bundled arm (regenerate it if not)."""
-    from dynid.can_log import monitor_config_text
-    from dynid.config import load_config
+    from dynid.config.robot_config import load_config
+    from dynid.export.monitor_config import monitor_config_text
 
     text = (ROOT / "rt_monitor" / "config" / "icub_right_arm.conf").read_text()
     assert text == monitor_config_text(load_config("icub_right_arm"))

@@ -14,17 +14,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from dynid.can_log import monitor_config_text, write_candump
-from dynid.can_protocol import Protocol
-from dynid.config import load_config
-from dynid.contact_summary import read_lcm_log
-from dynid.contact_visibility import monitor_visibility
-from dynid.dataset import contact_episodes, load_data
-from dynid.export import read_coefficients
-from dynid.model import RobotModel
 from conftest import exit_counter
 from test_rt_core import python_mirror, raw_samples, stream
+
+from dynid.config.robot_config import load_config
+from dynid.detect.visibility import monitor_visibility
+from dynid.export.coefficients import read_coefficients
+from dynid.export.monitor_config import monitor_config_text
+from dynid.export.monitor_log import read_lcm_log
+from dynid.io.can_protocol import Protocol
+from dynid.io.candump import write_candump
+from dynid.io.dataset import contact_episodes
+from dynid.io.load import load_data
+from dynid.robot.model import RobotModel
 
 ROOT = Path(__file__).resolve().parents[2]
 BUILD = ROOT / "build" / "rt_monitor"
@@ -100,7 +102,7 @@ def test_replay_end_to_end(setup: dict, default_experiments: dict) -> None:
     found = {i for k in onsets for i, (a, e) in enumerate(eps) if a <= k <= e + slack}
     assert all(any(a <= k <= e + slack for a, e in eps) for k in onsets), "an onset in a contact-free stretch"
     # Every episode the monitor can see at all (the contact alone reaches its T²_α for the debounce, from the
-    # plant's truth: dynid.contact_visibility) is found; the rest are printed with their peak T².
+    # plant's truth: dynid.detect.visibility) is found; the rest are printed with their peak T².
     vis = monitor_visibility(RobotModel(setup["config"]), c, np.load(Path(default_experiments["contact"]) / "truth.npz"))
     hidden = [f"{v.start / 1000:.1f} s (peak {v.peak_t2:.3g})" for i, v in enumerate(vis) if not v.visible and i not in found]
     print(f"episodes {len(eps)}, found {len(found)}, visible {sum(v.visible for v in vis)}, onsets {len(onsets)}; "
@@ -297,12 +299,12 @@ def test_board_restart(setup: dict, clean: dict) -> None:
 
 
 def test_status_supply_ratios_are_the_python_trackers(setup: dict, clean: dict, default_model: Path) -> None:
-    """The last status's supply ratios: dynid.supply.SupplyTracker's after the same samples, through dynid's own
+    """The last status's supply ratios: dynid.identify.supply.SupplyTracker's after the same samples, through dynid's own
     mirror of the online filter and residuals (independent of the C++ core), in the file's input-channel order."""
-    from dynid.export import unwrap, wrap
-    from dynid.identified import load_model
-    from dynid.lcm_coefficients import coefficients_t
-    from dynid.online import raw_signals
+    from dynid.detect.online import raw_signals
+    from dynid.export.coefficients import unwrap, wrap
+    from dynid.export.lcm_coefficients import coefficients_t
+    from dynid.identify.model_file import load_model
 
     identified = load_model(default_model)
     c = read_coefficients(setup["coef"])
@@ -334,7 +336,7 @@ def test_status_supply_ratios_are_the_python_trackers(setup: dict, clean: dict, 
 
 def test_import_candump_round_trip(setup: dict, clean: dict, tmp_path: Path) -> None:
     """The writer's log imports back to the data (the simulation is quantised as the boards are: exact)."""
-    from dynid.dataset import Dataset
+    from dynid.io.dataset import Dataset
 
     log = setup["root"] / "clean.log"
     done = subprocess.run([sys.executable, "-m", "dynid.cli", "import", "--data", str(log), "--out", str(tmp_path / "d.npz")],

@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dynid.config import load_config
-from dynid.model import RobotModel
+from dynid.config.robot_config import load_config
+from dynid.robot.model import RobotModel
 
 ICUB = load_config("icub_right_arm")
 LIMITS = RobotModel(ICUB).joint_limits

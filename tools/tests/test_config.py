@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import yaml
 
-from dynid.config import load_config
+from dynid.config.robot_config import load_config
 from dynid.errors import ConfigError
-from dynid.model import RobotModel
+from dynid.robot.model import RobotModel
 
 ICUB = load_config("icub_right_arm")
 
@@ -22,7 +22,7 @@ def test_bundled_icub_right_arm() -> None:
     assert [s.joint for s in c.ft_sensors] == ["r_arm_ft_sensor"]
     shoulder, elbow = c.actuation
     r = 65 / 40
-    assert np.allclose(shoulder.coupling.T, [[1, -r, -r], [0, r, r], [0, 0, r]])  # Tᵀ of DESIGN.md §3
+    assert np.allclose(shoulder.coupling.T, [[1, -r, -r], [0, r, r], [0, 0, r]])  # Tᵀ of docs/design.md §3
     assert shoulder.coupled and not elbow.coupled
     assert c.motors_with_input("pwm") == ("m0", "m1", "m2", "m3")
     assert c.urdf.name == "model.urdf" and "iCubGenova04" in str(c.urdf)

@@ -1,10 +1,10 @@
-"""dynid.contact_summary on tiny hand-made cases: the figures scripts/main prints at the end of the mission."""
+"""dynid.export.monitor_log on tiny hand-made cases: the figures scripts/main prints at the end of the mission."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from dynid.contact_summary import episodes, format_summary, summarize
+from dynid.export.monitor_log import episodes, format_summary, summarize
 
 
 def test_episodes_are_the_nonzero_runs() -> None:
@@ -62,8 +62,8 @@ def test_visible_episodes_missed_are_named() -> None:
 
 
 def test_monitor_counters_from_the_last_status() -> None:
-    from dynid.contact_summary import monitor_counters
-    from dynid.lcm_messages import monitor_status_t
+    from dynid.export.lcm_messages import monitor_status_t
+    from dynid.export.monitor_log import monitor_counters
 
     m = monitor_status_t()
     m.frames, m.samples, m.stale_samples, m.interpolated, m.late, m.filter_restarts = 1400, 100, 2, 3, 92, 1

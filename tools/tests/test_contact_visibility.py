@@ -1,4 +1,4 @@
-"""dynid.contact_visibility: the contact's own residual against the residual the plant actually produced, and the
+"""dynid.detect.visibility: the contact's own residual against the residual the plant actually produced, and the
 visibility rule on hand-made episodes."""
 
 from __future__ import annotations
@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dynid.config import load_config
-from dynid.contact_visibility import contact_residuals, episode_visibility
+from dynid.config.robot_config import load_config
+from dynid.detect.visibility import contact_residuals, episode_visibility
 from dynid.errors import DataError
-from dynid.model import RobotModel
-from dynid.outputs import output_channels
+from dynid.robot.model import RobotModel
+from dynid.robot.outputs import output_channels
 
 
 @pytest.fixture(scope="module")
@@ -23,8 +23,8 @@ def arm() -> RobotModel:
 def test_the_contact_is_the_residual_the_plant_produced(default_model: Path, default_experiments) -> None:
     """On the default contact run, regressing the model's residual on the contact's own residual from the truth
     gives slope ≈ 1 on every channel the contact moves (measured: F/T 1.00, motors 0.94–0.98)."""
-    from dynid.evaluation import evaluate
-    from dynid.outputs import divisors
+    from dynid.identify.validation import evaluate
+    from dynid.robot.outputs import divisors
 
     run = default_experiments["contact"]
     ev = evaluate(str(default_model), str(run))

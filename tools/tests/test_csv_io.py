@@ -1,4 +1,4 @@
-"""CSV import/export (DESIGN.md §4): exact round trips, and one clear line for every bad input."""
+"""CSV import/export (docs/design.md §4): exact round trips, and one clear line for every bad input."""
 
 from __future__ import annotations
 
@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 import yaml
 
-from dynid.config import load_config
-from dynid.csv_io import read_csv, required_columns, write_csv
-from dynid.dataset import Dataset, load_data
+from dynid.config.robot_config import load_config
 from dynid.errors import DataError
+from dynid.io.csv_format import read_csv, required_columns, write_csv
+from dynid.io.dataset import Dataset
+from dynid.io.load import load_data
 
 CFG = load_config("icub_right_arm")
 JOINTS = CFG.joints

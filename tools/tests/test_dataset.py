@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import sys
 import types
 import zipfile
 from pathlib import Path
@@ -12,10 +11,12 @@ from typing import Any
 import numpy as np
 import pytest
 
-from dynid.config import load_config
-from dynid.csv_io import write_csv
-from dynid.dataset import FORMAT_VERSION, Dataset, load_data
+from dynid.config.robot_config import load_config
 from dynid.errors import DataError
+from dynid.io.csv_format import write_csv
+from dynid.io import dataset as dataset_module
+from dynid.io.dataset import FORMAT_VERSION, Dataset
+from dynid.io.load import load_data
 
 CFG = load_config("icub_right_arm")
 JOINTS = CFG.joints
@@ -134,9 +135,7 @@ def test_with_derivatives_defaults_to_dynid_derivatives(monkeypatch: pytest.Monk
         seen.update(method=method, **options)
         return types.SimpleNamespace(q=q, dq=np.zeros_like(q), ddq=np.ones_like(q))
 
-    fake = types.ModuleType("dynid.derivatives")
-    fake.estimate_derivatives = estimate_derivatives  # type: ignore[attr-defined]
-    monkeypatch.setitem(sys.modules, "dynid.derivatives", fake)
+    monkeypatch.setattr(dataset_module, "estimate_derivatives", estimate_derivatives)
     out = make(20).with_derivatives(window=0.05)
     assert seen == {"method": "savgol", "window": 0.05}
     assert out.meta["derivatives"] == {"dq": "savgol", "ddq": "savgol", "options": {"window": 0.05}}
@@ -144,7 +143,6 @@ def test_with_derivatives_defaults_to_dynid_derivatives(monkeypatch: pytest.Monk
 
 
 def test_with_derivatives_real_estimator() -> None:
-    pytest.importorskip("dynid.derivatives")
     t = np.arange(2000) * 1e-3
     q = np.sin(2 * np.pi * t)[:, None] * np.ones((1, 7))
     out = make(2000, t=t, q=q).with_derivatives()

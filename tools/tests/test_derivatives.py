@@ -1,4 +1,4 @@
-"""Tests of dynid.derivatives: accuracy on analytic signals (uniform and jittered stamps), real Panda data, edges,
+"""Tests of dynid.io.derivatives: accuracy on analytic signals (uniform and jittered stamps), real Panda data, edges,
 exactness against scipy and brute force, and the ValueError contract.
 
 Bounds are the figures measured when these tests were written, times a modest margin (~1.5-2); the measured
@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from scipy.signal import savgol_filter
 
-import dynid.derivatives as deriv
-from dynid.derivatives import AdaptiveWindow, Derivatives, SavitzkyGolay, estimate_derivatives
+import dynid.io.derivatives as deriv
+from dynid.io.derivatives import AdaptiveWindow, Derivatives, SavitzkyGolay, estimate_derivatives
 
 STEP = 2 * np.pi / 65536  # 16-bit encoder, rad
 DT = 1e-3

@@ -9,11 +9,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dynid.config import load_config
-from dynid.detection import static_band_residuals
-from dynid.model import RobotModel
-from dynid.outputs import divisors, output_channels, residuals
-from dynid.regressors.stack import Signals, group_row_maps, motor_velocities
+from dynid.config.robot_config import load_config
+from dynid.detect.t2 import static_band_residuals
+from dynid.robot.model import RobotModel
+from dynid.robot.outputs import divisors, output_channels, residuals
+from dynid.robot.regressors.stack import Signals, group_row_maps, motor_velocities
 
 CONFIG = load_config()
 MODEL = RobotModel(CONFIG)

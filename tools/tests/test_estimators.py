@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 from sklearn.cross_decomposition import PLSRegression
 
-from dynid.config import load_config
-from dynid.dataset import Dataset
-from dynid.estimators import NipalsPLS, nipals_pls1, pls_path
-from dynid.identification import FitSettings, fit
-from dynid.model import RobotModel
-from dynid.outputs import output_channels, residuals
-from dynid.regressors.stack import Signals
+from dynid.config.robot_config import load_config
+from dynid.identify.fit import FitSettings, fit
+from dynid.identify.regression import NipalsPLS, nipals_pls1, pls_path
+from dynid.io.dataset import Dataset
+from dynid.robot.model import RobotModel
+from dynid.robot.outputs import output_channels, residuals
+from dynid.robot.regressors.stack import Signals
 from dynid.simulation import SimulationSettings, simulate
 
 ICUB = load_config("icub_right_arm")
@@ -75,7 +75,7 @@ def test_noise_free_plant_runs_validate_at_the_integration_error_level() -> None
     stick): the fit generalises to a validation run as well as the true parameters do. Measured: validation PWM
     residual 1.17–1.56× the truth's (1e-6…5e-6 duty; noise std 2e-3), F/T 3e-7 N, 3e-6 Nm; gains within 5e-5,
     combinations median 6e-5 (max 2.7e-3, a weakly excited one): 1e-6 needs the model-consistent inputs below."""
-    from dynid.regressors.stack import rows_at_rest
+    from dynid.robot.regressors.stack import rows_at_rest
 
     data, _, phi_true = _noise_free_run("identification", 40.0, seed=4)
     _, validation, _ = _noise_free_run("validation", 20.0, seed=5)

@@ -11,9 +11,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy import stats as sps
-
 from conftest import dynid
+from scipy import stats as sps
 
 DURATION = "45"  # s: each case costs ~10 s of simulation and ~5-10 s of analysis (idle machine)
 
@@ -193,7 +192,7 @@ def test_two_effects_on_different_joints_are_both_named(gaps) -> None:
 def _coordinate_coulomb(truth: dict, joint: str) -> float:
     """Mean Coulomb level of a joint's friction coordinate: a directly driven joint's motor turns with it, so its
     motor friction adds (dynid.simulation.actuation), and the simulator's Stribeck excess scales the sum."""
-    from dynid.config import load_config
+    from dynid.config.robot_config import load_config
 
     config = load_config("icub_right_arm")
     group = next(g for g in config.actuation if joint in g.joints)
@@ -336,12 +335,12 @@ def test_coupling_column_candidate_has_the_effect_shape(gaps) -> None:
     all-entries candidate, a gain change, is spanned (θ = 0)."""
     from dataclasses import replace as dc_replace
 
-    from dynid.config import load_config
-    from dynid.evaluation import load_run
+    from dynid.config.robot_config import load_config
     from dynid.gaps import workflow
-    from dynid.gaps.candidates import coupling_error
     from dynid.gaps.selection import Design, weighted_columns
-    from dynid.model import RobotModel
+    from dynid.identify.validation import load_run
+    from dynid.robot.effect_library import coupling_error
+    from dynid.robot.model import RobotModel
 
     result, _, stdout = gaps("coupling_yaw")
     assert not [e for e in result["effects"] if e["confident"] and e["name"] != "coupling_error"], stdout
@@ -367,7 +366,7 @@ def test_coupling_error_of_this_shoulder_is_a_gain_change() -> None:
     shoulder T = [[1,0,0],[-r,r,0],[-r,r,r]] that is T' = (1+e)T − e·E₀₀, and T'ᵀτ = Tᵀ diag(1, 1+e, 1+e) τ:
     exactly a gain change of m1 and m2, which the standard model fits. So the all-entries candidate (kept for robots
     with known gains) cannot be named here; one joint's column (a joint-side pulley) can (EXPECTED above)."""
-    from dynid.config import load_config
+    from dynid.config.robot_config import load_config
 
     g = next(g for g in load_config("icub_right_arm").actuation if g.name == "shoulder")
     e = 0.07
@@ -489,9 +488,9 @@ def test_control_runs_of_other_arms_name_nothing() -> None:
     """30 s control runs, experiment and arm seeds 1–5 (no hidden effect): nothing named, though the shoulder's
     residual (supply variation, stiction) gives some candidate ≥ 20 % held-out gain on at least one of them, which
     the robust test then rejects."""
-    from dynid.config import load_config
+    from dynid.config.robot_config import load_config
     from dynid.gaps.workflow import MIN_GAIN, run
-    from dynid.model import RobotModel
+    from dynid.robot.model import RobotModel
     from dynid.simulation import SimulationSettings, simulate
 
     config = load_config("icub_right_arm")
@@ -511,11 +510,12 @@ def test_control_runs_of_other_arms_name_nothing() -> None:
 def test_stribeck_shape_and_joint_shares_against_independent_references() -> None:
     """The one Stribeck curve (fit, augmented model, monitor) against its formula's values, and the one joint →
     row share map against the regressor stack: a joint's Coulomb column in A is its share times the regressor."""
-    from dynid.augmented import joint_row_shares, stribeck_shape
-    from dynid.config import load_config
-    from dynid.model import RobotModel
-    from dynid.regressors.friction import friction_regressor
-    from dynid.regressors.stack import Signals, fill_rows, row_channels
+    from dynid.config.robot_config import load_config
+    from dynid.robot.regressors.friction import stribeck_shape
+    from dynid.robot.regressors.stack import joint_row_shares
+    from dynid.robot.model import RobotModel
+    from dynid.robot.regressors.friction import friction_regressor
+    from dynid.robot.regressors.stack import Signals, fill_rows, row_channels
 
     v = np.array([-0.08, -0.04, 0.0, 0.02, 0.04])
     assert np.allclose(stribeck_shape(v, 0.04), [-np.exp(-4.0), -np.exp(-1.0), 0.0, np.exp(-0.25), np.exp(-1.0)])

@@ -9,14 +9,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import dynid
-from dynid.augmented import Effect, augmented_residuals, effect_rows
-from dynid.export import read_coefficients
-from dynid.identified import load_model
-from dynid.outputs import residuals
-from dynid.regressors.stack import Signals
 from test_rt_core import raw_samples, read_matrix, rel_err, rt_eval, stream, vector_states, write_matrix
+
+from dynid.export.coefficients import read_coefficients
+from dynid.identify.model_file import load_model
+from dynid.robot.effects import Effect, augmented_residuals, effect_rows
+from dynid.robot.outputs import residuals
+from dynid.robot.regressors.stack import Signals
 
 EFFECTS = ["--effect", "stribeck:joint=r_elbow,excess=2,velocity=0.05",
            "--effect", "spring:joint=r_shoulder_yaw,stiffness=1.0"]
@@ -79,8 +79,8 @@ def test_augmented_model_round_trip(augmented: dict, default_model: Path) -> Non
     # On the unseen replay run, with rows at rest left out (where static friction holds what no model says, as
     # the fit and the detector leave them out): the elbow's motor (m3) carries the Stribeck torque, and the
     # augmented model predicts it.
-    from dynid.evaluation import evaluate
-    from dynid.regressors.stack import rows_at_rest
+    from dynid.identify.validation import evaluate
+    from dynid.robot.regressors.stack import rows_at_rest
 
     rms = {}
     for name, path in (("augmented", augmented["model"]), ("standard", default_model)):
@@ -97,10 +97,10 @@ def test_augmented_model_round_trip(augmented: dict, default_model: Path) -> Non
 
 
 def test_effect_rows_are_the_candidate_columns() -> None:
-    """dynid.augmented's closed forms (the monitor's) against the gap library's own columns times θ."""
-    from dynid.config import load_config
-    from dynid.gaps.candidates import Context, spring, stribeck
-    from dynid.model import RobotModel
+    """dynid.robot.effects's closed forms (the monitor's) against the gap library's own columns times θ."""
+    from dynid.config.robot_config import load_config
+    from dynid.robot.effect_library import Context, spring, stribeck
+    from dynid.robot.model import RobotModel
 
     model = RobotModel(load_config("icub_right_arm"))
     q, dq, ddq = vector_states(model, n=400, seed=11)
@@ -153,8 +153,8 @@ def test_core_predicts_the_augmented_model(augmented: dict, tmp_path: Path) -> N
 
 
 def _replay(coef: Path, run: Path, tmp_path: Path) -> tuple[np.ndarray, float]:
-    from dynid.config import load_config
-    from dynid.dataset import load_data
+    from dynid.config.robot_config import load_config
+    from dynid.io.load import load_data
 
     c = read_coefficients(coef)
     ds = load_data(run, load_config("icub_right_arm"))
@@ -201,7 +201,7 @@ def test_export_refuses_an_effect_the_monitor_lacks(augmented: dict, tmp_path: P
 
 def test_figures_plot_the_results_numbers(augmented: dict) -> None:
     """Every figure's plotted data are the result's numbers: the gap bars, and each finding's profile."""
-    from dynid.gaps.figures import build, findings
+    from dynid.report.gaps_figures import build, findings
 
     figs = augmented["figures"]
     result = json.loads((figs / "gaps.json").read_text())
@@ -241,7 +241,7 @@ def test_report_shows_the_gaps_figures(augmented: dict, tmp_path: Path) -> None:
     that is not a gaps result is refused at once, in one line."""
     import base64
 
-    from dynid.gaps.figures import report_section
+    from dynid.report.gaps_figures import report_section
 
     figs = augmented["figures"]
     html, result = report_section(str(figs))

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import dynid
-from dynid.identified import load_model
+
+from dynid.identify.model_file import load_model
 
 
 def truth_of(run: Path) -> dict:
@@ -98,7 +98,7 @@ def test_calibrated_threshold_keeps_its_promise(default_model: Path, default_exp
     assert cal["tpr_by_side"]["distal"] >= 0.99
     assert cal["fpr"] <= 0.02 and cal["auc"] > 0.85
     assert cal["delay_s"]["median"] is not None and cal["delay_s"]["median"] < 0.1
-    # Every episode whose contact alone reaches T²_α (plant truth, dynid.contact_visibility) is found; the
+    # Every episode whose contact alone reaches T²_α (plant truth, dynid.detect.visibility) is found; the
     # others (a push through a joint axis, a resting joint) are below what any T² at this α sees (measured:
     # 22 of 28 visible, 22 found; the six below peak at 0–32 against T²_α 34.9).
     vis = contact["visibility"]

@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from dynid.can_log import write_candump
-from dynid.config import load_config
-from dynid.dataset import load_data
+from dynid.config.robot_config import load_config
+from dynid.io.candump import write_candump
+from dynid.io.load import load_data
 
 ROOT = Path(__file__).resolve().parents[2]
 BUILD = ROOT / "build"
@@ -159,7 +159,7 @@ def test_installed_headers_compile_on_their_own(prefix: Path, tmp_path: Path) ->
     assert str(prefix / "include" / "lcm" / "lcm_coretypes.h") in deps.read_text().split()
     run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=60, env=BARE_ENV)
     assert run.returncode == 0, run.stderr
-    from dynid.lcm_messages import monitor_status_t
+    from dynid.export.lcm_messages import monitor_status_t
 
     m = monitor_status_t.decode(bytes.fromhex(run.stdout.strip()))
     assert (m.utime, m.frames, m.late, m.in_contact, m.loop_us_max) == (1700000000123456, 14000, 92, 1, 3.25)

@@ -17,10 +17,11 @@ from pathlib import Path
 
 import pytest
 
-from dynid.can_log import monitor_config_text, write_candump
-from dynid.config import load_config
-from dynid.contact_summary import read_lcm_log
-from dynid.dataset import load_data
+from dynid.config.robot_config import load_config
+from dynid.export.monitor_config import monitor_config_text
+from dynid.export.monitor_log import read_lcm_log
+from dynid.io.candump import write_candump
+from dynid.io.load import load_data
 
 ROOT = Path(__file__).resolve().parents[2]
 BUILD = ROOT / "build" / "rt_monitor"
@@ -54,7 +55,7 @@ def run(default_experiments: dict, exported: Path, tmp_path_factory: pytest.Temp
 
 
 def test_checked_in_python_types_are_lcm_gens_output(tmp_path: Path) -> None:
-    """tools/dynid/lcm_messages is lcm-gen's output for rt_monitor/lcmtypes, byte for byte (regenerate on drift)."""
+    """tools/dynid/export/lcm_messages is lcm-gen's output for rt_monitor/lcmtypes, byte for byte (regenerate on drift)."""
     names = ("contact_event_t", "monitor_status_t", "residual_t")
     subprocess.run([str(VENV_BIN / "lcm-gen"), "--python", "--ppath", str(tmp_path)]
                    + [str(ROOT / "rt_monitor" / "lcmtypes" / f"{n}.lcm") for n in names], check=True)

@@ -8,7 +8,7 @@ plus the debounce after its end): asserted exactly on the same boards' frames th
 `rt_monitor --replay` (CAN time stamps) and live, where the frames' stamps are their send times and this loaded
 2-core machine delays the sender now and then (the monitor's sample clock tells that jitter from loss). Every
 episode the monitor can see at all is found: those whose own residual (from the plant's truth) reaches its T²_α
-for the debounce (dynid.contact_visibility); a proximal push through a shoulder joint's axis gives the motors
+for the debounce (dynid.detect.visibility); a proximal push through a shoulder joint's axis gives the motors
 nothing to see, and is reported, not asserted (README, "CAN and LCM").
 """
 
@@ -19,14 +19,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import exit_counter
-from dynid.config import load_config
-from dynid.contact_summary import episodes, read_lcm_log, summarize
-from dynid.contact_visibility import monitor_visibility
-from dynid.export import read_coefficients
-from dynid.model import RobotModel
-from dynid.live_mission import BOARDS, RT_MONITOR, fifo_allowed, fifo_args, play, sample0_us
+
+from dynid.config.robot_config import load_config
+from dynid.detect.visibility import monitor_visibility
+from dynid.export.coefficients import read_coefficients
+from dynid.export.mission import BOARDS, RT_MONITOR, fifo_allowed, fifo_args, play, sample0_us
+from dynid.export.monitor_log import episodes, read_lcm_log, summarize
+from dynid.robot.model import RobotModel
 
 WINDOW_S = 25.0
 
@@ -59,7 +59,7 @@ def live(default_experiments: dict, exported: Path, tmp_path_factory: pytest.Tem
                    capture_output=True)
     replay = read_lcm_log(root / "replay.lcmlog")["DYNID_CONTACT"]
     # Which of the stretch's episodes the monitor can see at all: the contact's own residual from the plant's
-    # truth reaches its T²_α for the debounce (dynid.contact_visibility).
+    # truth reaches its T²_α for the debounce (dynid.detect.visibility).
     truth = np.load(Path(default_experiments["contact"]) / "truth.npz")
     stop = start + len(rows)
     stretch = {k: truth[k][start:stop] for k in truth.files if k in ("contact", "dq") or k.startswith("extra/contact.")}

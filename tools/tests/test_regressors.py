@@ -7,10 +7,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from dynid.config import load_config
-from dynid.model import RobotModel
-from dynid.regressors import Signals, build_stacked, friction_regressor, friction_torque, rigid_body_regressors
-from dynid.regressors.stack import row_channels
+from dynid.config.robot_config import load_config
+from dynid.robot.model import RobotModel
+from dynid.robot.regressors import Signals, build_stacked, friction_regressor, friction_torque, rigid_body_regressors
+from dynid.robot.regressors.stack import row_channels
 
 N_STATES = 200
 
@@ -212,7 +212,7 @@ def test_shoulder_rows_are_motor_torque_equations(icub: RobotModel) -> None:
 
 def test_rows_at_rest_follow_the_coupling() -> None:
     """A motor-space row holds the joint frictions its T⁻ᵀ row touches and its own motor's friction."""
-    from dynid.regressors.stack import row_channels, rows_at_rest
+    from dynid.robot.regressors.stack import row_channels, rows_at_rest
 
     model = RobotModel(load_config("icub_right_arm"))
     names = [c.name for c in row_channels(model)]

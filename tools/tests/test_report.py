@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 from conftest import dynid
 
-from dynid.report import representative_window
-from dynid.report_figures import envelope
+from dynid.report.figures import envelope
+from dynid.report.page import representative_window
 
 FIGURES = ("fig-t2-validation", "fig-t2-contact", "fig-roc", "fig-traces")
 

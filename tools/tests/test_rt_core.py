@@ -13,17 +13,16 @@ import numpy as np
 import pytest
 from scipy.signal import savgol_coeffs
 
-from dynid.config import load_config
-from dynid.dataset import load_data
-from dynid.detection import Detector
-from dynid.export import read_coefficients, unwrap, wrap
-from dynid.identified import load_model
-from dynid.lcm_coefficients import coefficients_t
-from dynid.online import FixedLagSavitzkyGolay, online_signals, online_times, raw_signals
-from dynid.outputs import residuals
-from dynid.regressors.stack import Signals
-from dynid.supply import SupplyTracker
-
+from dynid.config.robot_config import load_config
+from dynid.detect.online import FixedLagSavitzkyGolay, online_signals, online_times, raw_signals
+from dynid.detect.t2 import Detector
+from dynid.export.coefficients import read_coefficients, unwrap, wrap
+from dynid.export.lcm_coefficients import coefficients_t
+from dynid.identify.model_file import load_model
+from dynid.identify.supply import SupplyTracker
+from dynid.io.load import load_data
+from dynid.robot.outputs import residuals
+from dynid.robot.regressors.stack import Signals
 
 ROOT = Path(__file__).resolve().parents[2]
 BUILDS = [b for b in (ROOT / "build", ROOT / "build-asan") if (b / "rt_monitor" / "rt_eval").is_file()]

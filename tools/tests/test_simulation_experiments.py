@@ -10,12 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dynid.config import load_config
-from dynid.csv_io import read_csv
-from dynid.dataset import Dataset, load_data
-from dynid.model import RobotModel
-from dynid.regressors.base import data_base_parameters, structural_base_parameters
-from dynid.regressors.stack import Signals, signals_from_dataset
+from dynid.config.robot_config import load_config
+from dynid.io.csv_format import read_csv
+from dynid.io.dataset import Dataset
+from dynid.io.load import load_data
+from dynid.robot.model import RobotModel
+from dynid.robot.regressors.base import data_base_parameters, structural_base_parameters
+from dynid.robot.regressors.stack import Signals, signals_from_dataset
 from dynid.simulation import KINDS, SimulationSettings, simulate
 
 ICUB = load_config("icub_right_arm")

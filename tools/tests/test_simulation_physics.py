@@ -2,7 +2,7 @@
 
 The plant shares no code path with the regressors (its own Pinocchio model with the sensor welded on, CRBA
 dynamics with implicit friction, F/T by Newton–Euler on the distal side), so agreement here is evidence, not
-construction. Residuals are those of the stacked model A Φ − b (DESIGN.md §3) with the true Φ, on the true q̇,
+construction. Residuals are those of the stacked model A Φ − b (docs/design.md §3) with the true Φ, on the true q̇,
 q̈ from the integrator, per row channel.
 """
 
@@ -13,9 +13,9 @@ from functools import cache
 import numpy as np
 import pytest
 
-from dynid.config import load_config
-from dynid.model import RobotModel
-from dynid.parameters import WRENCH_FIELDS
+from dynid.config.robot_config import load_config
+from dynid.robot.model import RobotModel
+from dynid.robot.parameters import WRENCH_FIELDS
 from dynid.simulation import Simulation, SimulationSettings, parse_effect, simulate
 from dynid.simulation.consistency import model_residuals, true_parameters, worst
 from dynid.simulation.sensors import FT_COUNTS, encoder_steps, ft_full_scale, pwm_full_scale

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from dynid.config import load_config
-from dynid.identification import FitSettings, SignalSource, instrument_signals
-from dynid.model import RobotModel
-from dynid.regressors.stack import row_weights, signals_from_dataset
+from dynid.config.robot_config import load_config
+from dynid.identify.fit import FitSettings, SignalSource, instrument_signals
+from dynid.identify.statistics import InMemory, accumulate
+from dynid.robot.model import RobotModel
+from dynid.robot.regressors.stack import row_weights, signals_from_dataset
 from dynid.simulation import SimulationSettings, simulate
-from dynid.statistics import InMemory, accumulate
 
 ICUB = load_config("icub_right_arm")
 MODEL = RobotModel(ICUB)

@@ -1,4 +1,4 @@
-"""Supply tracking (dynid.supply): the recurrence on synthetic inputs with a known supply, its two update rules,
+"""Supply tracking (dynid.identify.supply): the recurrence on synthetic inputs with a known supply, its two update rules,
 continuation across chunks, and on the default simulated runs against the plant's recorded supply."""
 
 from __future__ import annotations
@@ -8,16 +8,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from dynid.config import load_config
-from dynid.errors import InputError
-from dynid.model import RobotModel
-from dynid.outputs import output_channels
-from dynid.regressors.stack import Signals
-from dynid.supply import SupplyTracker, SupplyTracking, smoothed_residuals
-
 from conftest import dynid
 from test_identification import run_json
+
+from dynid.config.robot_config import load_config
+from dynid.errors import InputError
+from dynid.identify.supply import SupplyTracker, SupplyTracking, smoothed_residuals
+from dynid.robot.model import RobotModel
+from dynid.robot.outputs import output_channels
+from dynid.robot.regressors.stack import Signals
 
 
 @pytest.fixture(scope="module")
@@ -134,7 +133,7 @@ def test_on_the_default_runs_the_tracker_follows_the_plant_supply(default_model:
     """The plant records the supply it applied (truth): on the 300 s identification run, 1/r must follow it and
     take out most of its variation (measured: correlation 0.89–0.93, what is left 0.38–0.48× the supply's std;
     on the 120 s validation run 0.74–0.87 and 0.50–0.67×)."""
-    from dynid.evaluation import evaluate
+    from dynid.identify.validation import evaluate
 
     # (run, least correlation, most left): the shorter validation run has less motion per supply excursion
     for kind, min_corr, max_left in (("identification", 0.85, 0.55), ("validation", 0.7, 0.75)):
@@ -182,8 +181,8 @@ def test_a_model_without_tracking_predicts_with_constant_gains(default_model: Pa
                                                                tmp_path: Path) -> None:
     """`dynid fit --supply-time-constant 0` writes `supply_tracking: null`: validate then reports the constant-gain
     residuals, and export writes a coefficient file with tracking off."""
-    from dynid.evaluation import evaluate
-    from dynid.export import read_coefficients
+    from dynid.export.coefficients import read_coefficients
+    from dynid.identify.validation import evaluate
 
     record = json.loads(Path(default_model).read_text())
     record["supply_tracking"] = None

@@ -2,7 +2,7 @@
 //
 // - The strain board's force half (type 0xA) and torque half (0xB) are paired only when the torque half
 //   follows the force half within `pair_us` with no other strain frame between: a half is never paired with
-//   a half of another sample (DESIGN.md §5). The pair's time is the sample's time.
+//   a half of another sample (docs/design.md §5). The pair's time is the sample's time.
 // - Encoder positions and PWMs are held at their latest values; a sample with any of them not renewed for
 //   more than `stale_us` (or never received) is stale, and so is one with a saturated strain channel. A sample with an
 //   encoder value that did not come after the previous sample is `held`: the monitor bridges it like a lost

@@ -69,7 +69,7 @@ struct Coefficients {
     std::array<int, kMaxEffects> effect_joint{};
     std::array<std::array<double, 3>, kMaxEffects> effect_param{};
 
-    // Supply tracking of the input channels (dynid.supply): time constant (s, 0 = off), prior weight, gates.
+    // Supply tracking of the input channels (dynid.identify.supply): time constant (s, 0 = off), prior weight, gates.
     double supply_time_constant = 0, supply_prior = 0;
     std::array<double, kMaxOutputs> supply_gate{};
 

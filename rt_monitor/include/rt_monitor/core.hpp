@@ -53,7 +53,7 @@ public:
     // Restart the filter and the detector (after a gap in the frames). The supply estimate survives: a gap in
     // the data does not change the boards' supply, and starting it over would put its drift back into e.
     void reset() noexcept;
-    // The supply ratio r of output channel i (1 on untracked channels; dynid.supply).
+    // The supply ratio r of output channel i (1 on untracked channels; dynid.identify.supply).
     double supply_ratio(int i) const noexcept { return ratio_[i]; }
     void set_detector(const DetectorSettings& s) noexcept { det_ = s; }
     const DetectorSettings& detector() const noexcept { return det_; }

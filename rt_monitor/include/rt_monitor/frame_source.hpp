@@ -1,4 +1,4 @@
-// Frame sources: where the monitor's CAN frames come from (DESIGN.md §5). One interface, three transports:
+// Frame sources: where the monitor's CAN frames come from (docs/design.md §5). One interface, three transports:
 // - SocketCAN raw sockets on one or more interfaces, with kernel filters and kernel timestamps (production);
 // - candump -L log replay, as fast as possible or paced in real time (offline);
 // - a loopback transport carrying the same `struct can_frame` bytes between processes as AF_UNIX datagrams,

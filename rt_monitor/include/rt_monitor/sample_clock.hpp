@@ -1,5 +1,5 @@
 // The monitor's sample clock: which tick of the boards' 1 kHz each assembled sample belongs to, read from its
-// stamp alone (the iCub frames carry no sample counter, DESIGN.md §5), and so what the derivative filter is fed.
+// stamp alone (the iCub frames carry no sample counter, docs/design.md §5), and so what the derivative filter is fed.
 //
 // Samples sit on a nominal grid t = origin + k·P. The origin follows the earliest stamps (a stamp is never early:
 // the boards send on a timer, the bus and the kernel only delay) and leaks slowly later, so that a board clock a

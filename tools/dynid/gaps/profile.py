@@ -1,14 +1,14 @@
 """Where a channel's residual grows, binned: by the speed of each joint it depends on (near zero … fast), at that
 joint's direction reversals, by its position, and over time; before and after the fix, in noise units (1.0 is
-the channel's noise floor). The figures (dynid.gaps.figures) plot exactly these numbers from the JSON."""
+the channel's noise floor). The figures (dynid.report.gaps_figures) plot exactly these numbers from the JSON."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..model import RobotModel
-from ..outputs import output_channels
-from .candidates import Context
+from ..robot.effect_library import Context
+from ..robot.model import RobotModel
+from ..robot.outputs import output_channels
 
 SPEED_EDGES = (0.0, 0.01, 0.03, 0.1, 0.3, 1.0, np.inf)  # rad/s: near zero … high speed
 POSITION_BINS = 8

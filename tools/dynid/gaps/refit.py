@@ -1,5 +1,5 @@
 """The refit with the named effects, as an augmented model: full Φ, each effect's parameters with block-jackknife
-standard errors, and the model file `dynid gaps --out` writes (dynid.identified, dynid.augmented)."""
+standard errors, and the model file `dynid gaps --out` writes (dynid.identify.model_file, dynid.robot.effects)."""
 
 from __future__ import annotations
 
@@ -9,14 +9,15 @@ from typing import Any
 
 import numpy as np
 
-from ..augmented import Effect, augmented_residuals
-from ..dataset import Dataset
-from ..identification import FitSettings
-from ..identified import IdentifiedModel, data_record, robot_record
-from ..model import RobotModel
-from ..outputs import output_channels
-from .candidates import Candidate, Context
+from ..identify.fit import FitSettings
+from ..identify.model_file import IdentifiedModel
+from ..io.dataset import Dataset
+from ..pipeline import DetectorSettings, build_model
+from ..robot.effect_library import Candidate, Context
+from ..robot.effects import Effect
+from ..robot.model import RobotModel
 from .selection import Design
+
 
 def reference_phi(model: RobotModel, given: np.ndarray | None) -> np.ndarray:
     """What fills the directions the run cannot see: the given model's Φ, else CAD inertia and zeros."""
@@ -73,10 +74,9 @@ def augmented_model(model: RobotModel, ds: Dataset, data_path: str, result: dict
                     min_speed: float = 0.01, folded: Sequence[Effect] = ()) -> IdentifiedModel:
     """The model file of the refit: the given model's sections (or a fresh record), the refitted Φ, the effects,
     Λ and the T² detector recalibrated on the run with the effects (so detect and export see the augmented
-    residuals). Sections that describe the given model's own fit (base, estimators, cv) are dropped: they no
-    longer describe these parameters. `folded`: payloads named and already added to Φ, recorded for the reader."""
-    from ..detection import calibrate, calibration_residuals, detector_record
-
+    residuals), through dynid.pipeline.build_model as `dynid fit` does. Sections that describe the given model's
+    own fit (base, estimators, cv) are dropped: they no longer describe these parameters. `folded`: payloads
+    named and already added to Φ, recorded for the reader."""
     record: dict[str, Any] = copy.deepcopy(given.record) if given is not None else {}
     for stale in ("base", "estimators", "cv", "n_components", "fit_time_s"):
         record.pop(stale, None)
@@ -84,25 +84,14 @@ def augmented_model(model: RobotModel, ds: Dataset, data_path: str, result: dict
         det = record.get("detector", {}).get("calibrated", {})
         alpha, min_speed = float(det.get("alpha", alpha)), float(det.get("min_speed", min_speed))
     tracking = given.supply_tracking if given is not None else None  # `record` keeps it: detect will track too
-    e, dq, e_constant = calibration_residuals(model, [ds], FitSettings(min_speed=min_speed),
-                                              lambda sig, t: augmented_residuals(model, phi, effects, sig, t), tracking)
-    detectors = calibrate(model, phi, e, dq, alpha, min_speed, e_constant=e_constant)
-    outs = output_channels(model)
     record.update({
         "estimator": "gaps",
         "settings": {**record.get("settings", {}), "estimator": "gaps", "alpha": alpha, "min_speed": min_speed},
-        "outputs": {"channels": [o.name for o in outs], "units": [o.unit for o in outs],
-                    "noise_std": [o.sigma for o in outs],
-                    "residual_variance": detectors["calibrated"].variance.tolist()},
-        "detector": detector_record(model, detectors, e, dq),
-        "data": [data_record(data_path, ds.n_samples, ds.duration)],
         "effects": [eff.as_dict() for eff in effects],
         "gaps": {"given_model": result.get("given_model"), "gap": result["gap"], "thresholds": result["thresholds"],
                  "rank": result["rank"], "blocks": result["blocks"],
                  "in_inertial_parameters": [e.as_dict() for e in folded]},  # payloads, added to their links' Φ
     })
-    robot = given.robot if given is not None else robot_record(model.config)
-    if "derivatives" not in record:
-        cfg = model.config
-        record["derivatives"] = {"method": "savgol", **cfg.derivatives} if cfg.derivatives else {"method": "savgol"}
-    return IdentifiedModel(robot, dict(zip(model.layout.names, phi.tolist())), record)
+    return build_model(model, phi, [ds], [data_path], record, FitSettings(min_speed=min_speed),
+                       detector=DetectorSettings(alpha), tracking=tracking, effects=effects,
+                       robot=given.robot if given is not None else None).model

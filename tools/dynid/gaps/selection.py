@@ -19,8 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats as sps
 
-from .candidates import Candidate
-
+from ..robot.effect_library import Candidate
 
 MIN_DOF = 10  # batches beyond the number of columns tested, at least (the F reference's denominator dof)
 SPAN_TOL = 1e-9  # a candidate direction whose residual after the design is below this share of its size: spanned

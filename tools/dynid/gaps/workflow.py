@@ -6,7 +6,7 @@
    Against a given model (`--model`) its inertias are held and the rest is refitted: offsets, friction and
    gains drift from day to day, the bodies do not, and a payload shows only against known bodies.
    Per channel: held-out RMS against the noise floor, and where it grows (speed regime, time).
-3. Forward selection over the candidate library (dynid.gaps.candidates) by cross-validated reduction of the
+3. Forward selection over the candidate library (dynid.robot.effect_library) by cross-validated reduction of the
    held-out error of the channels each candidate acts on; stop when the best one is not significant.
 4. Refit with the named effects; held-out RMS per channel after.
 With supply tracking (the default) steps 2–4 run twice; the second pass sees the inputs corrected by the supply
@@ -20,14 +20,14 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..dataset import Dataset
 from ..errors import DataError
-from ..identification import FitSettings, SignalSource
-from ..model import RobotModel
-from ..outputs import divisors, output_channels
-from ..regressors.stack import Signals, fill_rows, row_channels
-from ..supply import SupplyTracking, smoothed_ratios
-from .candidates import LIBRARY, NEEDS_GIVEN_MODEL, Candidate, Context, refined
+from ..identify.fit import FitSettings, SignalSource
+from ..identify.supply import SupplyTracking, smoothed_ratios
+from ..io.dataset import Dataset
+from ..robot.effect_library import LIBRARY, NEEDS_GIVEN_MODEL, Candidate, Context, refined
+from ..robot.model import RobotModel
+from ..robot.outputs import divisors, output_channels
+from ..robot.regressors.stack import Signals, fill_rows, row_channels
 from .profile import profile
 from .refit import reference_phi, refit
 from .selection import Design, Trial, evaluate, robust_p_value, weighted_columns
@@ -114,7 +114,7 @@ def _supply_corrected(model: RobotModel, ctx: Context, resid: np.ndarray, w: np.
                       tracking: SupplyTracking) -> tuple[Context, np.ndarray]:
     """(the context with each motor's input u replaced by u / r, at the decimated and the full rate alike, r its
     two-sided supply ratio estimated from `resid` (weighted rows, what a first pass left); (N, n_out) r). The drive
-    torque is gain·s(t)·u and r = 1/s (dynid.supply), so u / r is the input a constant-gain model should see."""
+    torque is gain·s(t)·u and r = 1/s (dynid.identify.supply), so u / r is the input a constant-gain model should see."""
     e_rows = np.divide(resid, w, out=np.zeros_like(resid), where=w > 0)
     e_out = e_rows / divisors(model, phi)
     ratio = smoothed_ratios(model, tracking, FitSettings().min_speed, e_out, ctx.sig, ctx.t)
@@ -140,7 +140,7 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
     """The whole workflow on one run; `reference` = (label, Φ) of a given model, whose gap on the run is shown too.
 
     With supply tracking (the default, as `dynid fit` has it), it runs twice: the first pass's residual, after its
-    named effects, gives each motor's supply ratio (dynid.supply, two-sided), and the second pass (whose result
+    named effects, gives each motor's supply ratio (dynid.identify.supply, two-sided), and the second pass (whose result
     this is) analyses the run with the inputs corrected by it. The ratio is estimated after the effects, so a
     named effect is not learned as supply variation; a sample whose residual is past the gate never updates it."""
     started = time.perf_counter()

@@ -2,6 +2,7 @@
 
 Data path: true_robot (the arm) → plant (rigid bodies) + actuation (motors, friction) → controller (reaching
 under joint impedance) → experiment (the closed loop) → sensors (what the boards record) → output (files).
+Layer: beside robot; imports config, io and robot, and nothing above them imports it but the cli and api.
 """
 
 from .effects import CATALOG, Effect, parse_effect

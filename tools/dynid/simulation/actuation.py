@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..config import RobotConfig
+from ..config.robot_config import RobotConfig
 from .effects import Effect
 from .true_robot import TrueRobot
 

@@ -1,7 +1,7 @@
 """How well a simulated experiment meets the identification model: A Φ − b per row channel, on the truth.
 
 The check behind the plant's honesty: the recorded signals with the true q̇, q̈ from the integrator and the
-true Φ must satisfy the stacked model (DESIGN.md §3) wherever the model's physics holds, and break it exactly
+true Φ must satisfy the stacked model (docs/design.md §3) wherever the model's physics holds, and break it exactly
 where a hidden effect, a contact or static friction acts.
 """
 
@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model import RobotModel
-from ..parameters import WRENCH_FIELDS
-from ..regressors.stack import Signals, build_stacked, motor_space
+from ..robot.model import RobotModel
+from ..robot.parameters import WRENCH_FIELDS
+from ..robot.regressors.stack import Signals, build_stacked, motor_space
 from .experiment import Simulation
 
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from ..config import RobotConfig
+from ..config.robot_config import RobotConfig
 from ..errors import ConfigError
 from .plant import BodySite, RigidBodyPlant
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from ..config import RobotConfig
+from ..config.robot_config import RobotConfig
 from .plant import RigidBodyPlant
 
 LIMIT_MARGIN = 0.10  # fraction of each joint's range kept free at both ends

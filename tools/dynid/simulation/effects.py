@@ -17,7 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
-from ..config import RobotConfig
+from ..config.robot_config import RobotConfig
 from ..errors import InputError
 
 Target = Literal["joint", "motor", "link", "sensor", "group", "none"]

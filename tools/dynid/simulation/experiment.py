@@ -19,12 +19,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from ..config import RobotConfig
-from ..dataset import Dataset
+from ..config.robot_config import RobotConfig
 from ..errors import InputError
-from ..model import RobotModel
-from ..parameters import WRENCH_FIELDS
+from ..io.dataset import Dataset
 from ..progress import track
+from ..robot.model import RobotModel
+from ..robot.parameters import WRENCH_FIELDS
 from . import contacts as contact_model
 from . import sensors
 from .actuation import Actuators

@@ -1,7 +1,7 @@
 """The files of a simulated experiment, in one directory (`dynid simulate --out DIR`).
 
     dataset.npz   what the boards recorded, as a dynid dataset (the input of fit, validate, detect, gaps)
-    data.csv      the same signals as a CSV of DESIGN.md §4 (plus skin.side/skin.patch in the contact kind)
+    data.csv      the same signals as a CSV of docs/design.md §4 (plus skin.side/skin.patch in the contact kind)
     truth.json    the true parameters by name (Φ of the identification model), the plant's own values, the
                   hidden effects with every parameter, the contact episodes and the realism counters
     truth.npz     the true signals sample by sample, as a dynid dataset: q, q̇, q̈ from the integrator, the
@@ -19,9 +19,9 @@ import json
 from pathlib import Path
 from typing import BinaryIO
 
-from ..csv_io import write_csv
-from ..dataset import SIMULATION_DATASET, atomic_write
 from ..errors import DataError
+from ..io.csv_format import write_csv
+from ..io.dataset import SIMULATION_DATASET, atomic_write
 from .experiment import Simulation
 
 FILES = {"dataset": SIMULATION_DATASET, "csv": "data.csv", "truth": "truth.json", "truth_signals": "truth.npz"}

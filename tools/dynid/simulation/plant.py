@@ -23,7 +23,7 @@ import pinocchio as pin
 from scipy.linalg.lapack import dposv
 
 from ..errors import ConfigError
-from ..model import RobotModel
+from ..robot.model import RobotModel
 from .actuation import FrictionStep
 
 MAX_ACTIVE_SET_ITERATIONS = 12

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from ..config import RobotConfig
+from ..config.robot_config import RobotConfig
 from .effects import Effect
 
 FT_COUNTS = 32768  # 16-bit offset binary: s = raw − 0x8000, value = s · FS / 32768

@@ -12,7 +12,7 @@ What differs from the CAD model and the configuration's nominal values, and by h
 - motor friction, in joint-scale motor coordinates: Coulomb 0.4–1 % and viscous 0.3–0.8 % per rad/s of the
   motor's nominal gain; back-EMF damping 0.4–0.8 % per rad/s of the nominal gain.
 
-The model's true Φ (`parameters`) folds these as DESIGN.md §3 does: cables into the bodies, back-EMF into the
+The model's true Φ (`parameters`) folds these as docs/design.md §3 does: cables into the bodies, back-EMF into the
 viscous terms, and the motor friction of a directly driven joint into the joint's friction.
 """
 
@@ -23,9 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from ..config import RobotConfig
-from ..model import RobotModel
-from ..parameters import WRENCH_FIELDS
+from ..config.robot_config import RobotConfig
+from ..robot.model import RobotModel
+from ..robot.parameters import WRENCH_FIELDS
 
 ROBOT_STREAM = 0x7255  # SeedSequence spawn key of the true-robot draws (independent of experiment draws)
 
@@ -51,7 +51,7 @@ class TrueRobot:
     load_scale: dict[str, float]  # joint -> Nm, what the friction ranges scale with
 
     def parameters(self, model: RobotModel) -> dict[str, float]:
-        """Φ of the identification model, by name (DESIGN.md §3)."""
+        """Φ of the identification model, by name (docs/design.md §3)."""
         cfg, layout = model.config, model.layout
         phi = np.full(len(layout), np.nan)
         phi[layout.span("inertial")] = np.concatenate([i.toDynamicParameters() for i in self.inertias])

@@ -1,0 +1,342 @@
+"""dynid's public Python API, in scikit-learn's manner: estimators with `fit`, `predict` and `score`, whose
+parameters are checked at fit time, and a few functions for what is not an estimator.
+
+    >>> import dynid
+    >>> model = dynid.DynamicsModel(robot="icub_right_arm").fit("out/identification")
+    >>> model.validate("out/validation")["table_ii"]
+    >>> dynid.ContactDetector(model).evaluate("out/contact")
+
+DATA arguments take what the command line takes: a dataset, CSV or candump file, a `dynid simulate` directory, or
+a `Dataset` already loaded (dynid.io). The results are the command line's `--json` results (docs/formats.md).
+Layer: above everything but the cli.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, Union
+
+import numpy as np
+from sklearn.base import BaseEstimator
+from sklearn.metrics import r2_score
+from sklearn.utils.validation import check_is_fitted
+
+from .config import RobotConfig, load_config
+from .detect.evaluation import detectors
+from .detect.t2 import ALPHA, VARIANTS, Detector, calibrate, calibration_residuals
+from .detect.t2 import score as score_t2
+from .errors import InputError
+from .export.model_export import Exported, ExportSettings, export_model
+from .gaps.find import Gaps
+from .gaps.find import find_gaps as analyse_gaps
+from .identify.fit import ESTIMATORS, FitSettings
+from .identify.model_file import IdentifiedModel
+from .identify.model_file import load_model as load_model_file
+from .identify.supply import SupplyTracking
+from .identify.validation import Evaluated, evaluate, load_run, validation
+from .io.dataset import Dataset
+from .io.load import load_data
+from .pipeline import DetectorSettings, IdentifySettings, identify
+from .robot.effects import augmented_residuals
+from .robot.model import RobotModel
+from .robot.outputs import measured_outputs, residuals
+
+Data = Union[str, Path, Dataset]
+
+
+def load_robot(robot: str | Path | RobotConfig = "icub_right_arm") -> RobotModel:
+    """The robot model of a configuration: a bundled name, a YAML file, or a loaded `RobotConfig`."""
+    return RobotModel(robot if isinstance(robot, RobotConfig) else load_config(robot))
+
+
+def read_data(data: Data, robot: str | Path | RobotConfig | RobotModel = "icub_right_arm") -> Dataset:
+    """A run of data as a `Dataset`, checked against the robot (what `dynid import` reads)."""
+    if isinstance(data, Dataset):
+        return data
+    model = robot if isinstance(robot, RobotModel) else load_robot(robot)
+    return load_data(Path(data), model.config, joint_limits=model.joint_limits)
+
+
+def _runs(data: Data | Sequence[Data], model: RobotModel) -> tuple[list[Dataset], list[str]]:
+    items = [data] if isinstance(data, (str, Path, Dataset)) else list(data)
+    if not items:
+        raise InputError("no data given")
+    runs = [d if isinstance(d, Dataset) else load_run(str(d), model) for d in items]
+    labels = [d.meta.get("source", "dataset") if isinstance(d, Dataset) else str(d) for d in items]
+    return runs, labels
+
+
+class DynamicsModel(BaseEstimator):
+    """The identified dynamics of a robot: inertia, F/T offsets, friction and motor gains in one regression, with
+    the T² detector calibrated on the same data (`dynid fit`).
+
+    Parameters
+    ----------
+    robot : str or Path
+        A bundled configuration's name or a configuration file.
+    estimator : {"iv", "pls", "ols"}
+        Whose parameters the model keeps; all three are fitted and reported.
+    n_components : int or None
+        PLS latent variables; None chooses them by block cross-validation.
+    blocks : int
+        Time blocks for cross-validation and the jackknife.
+    min_speed : float
+        Rows whose joint or motor is slower than this (rad/s) are left out: static friction holds them.
+    alpha : float
+        Confidence level of the T² threshold, in [0.5, 1).
+    n_mode : {"dim", "nu"}
+        n of the paper's F threshold: dim(e), or ν as the paper writes.
+    supply_time_constant : float
+        Time constant (s) of each motor's supply tracking; 0 keeps the gains constant.
+
+    Attributes
+    ----------
+    model_ : IdentifiedModel
+        The model file's content (`save` writes it).
+    parameters_ : dict[str, float]
+        The full parameter vector Φ by name.
+    rank_ : int
+        The number of base parameters the data excite.
+    undetermined_ : list[str]
+        Base combinations whose standard error is above 10 %: the run does not determine them.
+    """
+
+    def __init__(self, robot: str | Path = "icub_right_arm", estimator: str = "iv", n_components: int | None = None,
+                 blocks: int = 10, min_speed: float = 0.01, alpha: float = ALPHA, n_mode: str = "dim",
+                 supply_time_constant: float = SupplyTracking.time_constant_s) -> None:
+        self.robot = robot
+        self.estimator = estimator
+        self.n_components = n_components
+        self.blocks = blocks
+        self.min_speed = min_speed
+        self.alpha = alpha
+        self.n_mode = n_mode
+        self.supply_time_constant = supply_time_constant
+
+    def _check_params(self) -> None:
+        if self.estimator not in ESTIMATORS:
+            raise InputError(f"estimator must be one of {', '.join(ESTIMATORS)}, got {self.estimator!r}")
+        if self.n_components is not None and not (isinstance(self.n_components, int) and self.n_components > 0):
+            raise InputError(f"n_components must be a positive integer or None, got {self.n_components!r}")
+        if not (isinstance(self.blocks, int) and self.blocks > 1):
+            raise InputError(f"blocks must be an integer of 2 or more, got {self.blocks!r}")
+        if not (np.isfinite(self.min_speed) and self.min_speed >= 0):
+            raise InputError(f"min_speed must be 0 or more, got {self.min_speed!r}")
+        if not 0.5 <= self.alpha < 1:
+            raise InputError(f"alpha must be in [0.5, 1), got {self.alpha!r}")
+        if self.n_mode not in ("dim", "nu"):
+            raise InputError(f"n_mode must be 'dim' or 'nu', got {self.n_mode!r}")
+        if not (np.isfinite(self.supply_time_constant) and self.supply_time_constant >= 0):
+            raise InputError(f"supply_time_constant must be 0 or more, got {self.supply_time_constant!r}")
+
+    def fit(self, X: Data | Sequence[Data], y: None = None) -> DynamicsModel:
+        """Identify the model on one or more contact-free runs (stacked into one regression).
+
+        Parameters
+        ----------
+        X : DATA or a list of DATA
+            The identification run(s).
+        y : None
+            Unused: the outputs are in the data.
+        """
+        self._check_params()
+        robot = load_robot(self.robot)
+        runs, labels = _runs(X, robot)
+        fit = FitSettings(estimator=self.estimator, n_components=self.n_components, min_speed=self.min_speed,
+                          blocks=self.blocks)
+        done = identify(robot, runs, labels, IdentifySettings(fit, DetectorSettings(self.alpha, self.n_mode),
+                                                              self.supply_time_constant))
+        self._set_fitted(done.model)
+        return self
+
+    def _set_fitted(self, identified: IdentifiedModel) -> None:
+        self.model_ = identified
+        self.parameters_ = dict(identified.parameters)
+        base = identified.record.get("base") or {}
+        self.rank_ = base.get("rank")
+        self.undetermined_ = [c for c, ok in zip(base.get("combinations", []), base.get("identified", [])) if not ok]
+
+    def _evaluated(self, X: Data) -> Evaluated:
+        check_is_fitted(self, "model_")
+        robot = self.model_.robot_model
+        ds = X if isinstance(X, Dataset) else load_run(str(X), robot)
+        return evaluate(self.model_.path or "model", str(X) if not isinstance(X, Dataset) else "dataset", self.model_, ds)
+
+    @property
+    def output_channels_(self) -> list[str]:
+        """The output channels y: each F/T sensor's six, then the motor inputs (or the measured torques)."""
+        check_is_fitted(self, "model_")
+        return self.model_.output_channels
+
+    def predict(self, X: Data) -> np.ndarray:
+        """ŷ (N, n_outputs): the F/T wrenches through the regressor and the inputs from the motor equations, on the
+        run's filtered signals, with the offline supply estimate where the model tracks it."""
+        ev = self._evaluated(X)
+        return measured_outputs(ev.model, ev.signals) - ev.e
+
+    def residuals(self, X: Data) -> np.ndarray:
+        """e = y − ŷ (N, n_outputs) on the run."""
+        return self._evaluated(X).e
+
+    def score(self, X: Data, y: None = None) -> float:
+        """R² of the predicted outputs on the run, averaged over the channels (scikit-learn's `r2_score`)."""
+        ev = self._evaluated(X)
+        y_true = measured_outputs(ev.model, ev.signals)
+        return float(r2_score(y_true, y_true - ev.e, multioutput="uniform_average"))
+
+    def validate(self, X: Data) -> dict[str, Any]:
+        """The paper's Table II (F/T error norms, identified against CAD) and the per-channel RMS against the noise:
+        `dynid validate --json`."""
+        ev = self._evaluated(X)
+        return validation(ev, self.model_.path or "model", str(X) if not isinstance(X, Dataset) else "dataset")
+
+    def save(self, path: str | Path) -> DynamicsModel:
+        """Write the model file (JSON, atomically); `dynid validate`, `detect`, `export` and `gaps` read it."""
+        check_is_fitted(self, "model_")
+        self.model_.save(path)
+        return self
+
+    @classmethod
+    def load(cls, path: str | Path) -> DynamicsModel:
+        """A fitted model from a model file of `dynid fit` (or `dynid gaps --out`)."""
+        identified = load_model_file(path)
+        settings = identified.record.get("settings", {})
+        tracking = identified.supply_tracking
+        est = cls(robot=identified.config.source, estimator=str(settings.get("estimator", "iv")),
+                  n_components=settings.get("n_components"), blocks=int(settings.get("blocks", 10)),
+                  min_speed=float(settings.get("min_speed", 0.01)), alpha=float(settings.get("alpha", ALPHA)),
+                  n_mode=str(settings.get("n_mode", "dim")),
+                  supply_time_constant=tracking.time_constant_s if tracking is not None else 0.0)
+        est._set_fitted(identified)
+        return est
+
+
+class ContactDetector(BaseEstimator):
+    """Hotelling T² contact detection on a fitted model's residuals (`dynid detect`).
+
+    Unfitted, it uses the calibration the model was fitted with; `fit` recalibrates Λ and T²_α on other
+    contact-free runs.
+
+    Parameters
+    ----------
+    model : DynamicsModel
+        A fitted model.
+    variant : {"calibrated", "paper"}
+        "calibrated" (the default: Λ and T²_α from contact-free data, so α keeps its promise) or "paper"
+        (diagonal Λ and the F threshold, as published).
+    alpha : float or None
+        Confidence level; None takes the model's.
+    """
+
+    def __init__(self, model: DynamicsModel, variant: str = "calibrated", alpha: float | None = None) -> None:
+        self.model = model
+        self.variant = variant
+        self.alpha = alpha
+
+    def _check(self) -> None:
+        check_is_fitted(self.model, "model_")
+        if self.variant not in VARIANTS:
+            raise InputError(f"variant must be one of {', '.join(VARIANTS)}, got {self.variant!r}")
+        if self.alpha is not None and not 0.5 <= self.alpha < 1:
+            raise InputError(f"alpha must be in [0.5, 1), got {self.alpha!r}")
+
+    def _alpha(self) -> float:
+        stored = self.model.model_.record.get("detector", {}).get("calibrated", {}).get("alpha", ALPHA)
+        return float(stored if self.alpha is None else self.alpha)
+
+    def _detector(self) -> Detector:
+        self._check()
+        if hasattr(self, "detector_"):
+            return self.detector_
+        n_mode = str(self.model.model_.record.get("settings", {}).get("n_mode", "dim"))
+        return detectors(self.model.model_, self._alpha(), n_mode)[self.variant]
+
+    def fit(self, X: Data | Sequence[Data], y: None = None) -> ContactDetector:
+        """Recalibrate Λ and T²_α on contact-free runs, with the offline derivatives and supply estimate."""
+        self._check()
+        identified = self.model.model_
+        robot = identified.robot_model
+        runs, _ = _runs(X, robot)
+        phi, effects = identified.phi, identified.effects
+        settings = FitSettings(min_speed=identified.min_speed)
+
+        def residual_of(sig, t):  # noqa: ANN001, ANN202
+            return augmented_residuals(robot, phi, effects, sig, t) if effects else residuals(robot, phi, sig)
+
+        e, dq, e_constant = calibration_residuals(robot, runs, settings, residual_of, identified.supply_tracking)
+        found = calibrate(robot, phi, e, dq, self._alpha(), identified.min_speed, variants=(self.variant,),
+                          e_constant=e_constant)
+        self.detector_ = found[self.variant]
+        return self
+
+    def decision_function(self, X: Data) -> np.ndarray:
+        """T² per sample (NaN where the detector is gated off)."""
+        ev = self.model._evaluated(X)
+        e = ev.e_constant if self.variant == "paper" else ev.e  # the paper's model has constant gains
+        return self._detector().t2(ev.model, e, ev.signals.dq, ev.identified.phi)
+
+    def predict(self, X: Data) -> np.ndarray:
+        """Contact (True) where T² exceeds T²_α."""
+        return np.nan_to_num(self.decision_function(X), nan=0.0) > self._detector().threshold
+
+    def score(self, X: Data, y: np.ndarray | None = None) -> float:
+        """Balanced accuracy, (TPR + 1 − FPR) / 2, against `y` or the run's own contact ground truth."""
+        truth = np.asarray(y if y is not None else self._contact(X), bool)
+        hit = self.predict(X)
+        tpr = hit[truth].mean() if truth.any() else 0.0
+        fpr = hit[~truth].mean() if (~truth).any() else 0.0
+        return float((tpr + 1.0 - fpr) / 2.0)
+
+    def _contact(self, X: Data) -> np.ndarray:
+        ds = X if isinstance(X, Dataset) else load_run(str(X), self.model.model_.robot_model)
+        if ds.contact is None:
+            raise InputError("the run has no 'contact' ground truth: pass y")
+        return ds.contact != 0
+
+    def evaluate(self, X: Data) -> dict[str, Any]:
+        """TPR, FPR, ROC/AUC, episodes found and onset delays against the run's ground truth: this variant's
+        part of `dynid detect --json`."""
+        ev = self.model._evaluated(X)
+        e = ev.e_constant if self.variant == "paper" else ev.e
+        det = self._detector()
+        t2 = det.t2(ev.model, e, ev.signals.dq, ev.identified.phi)
+        return score_t2(ev.dataset.t, t2, det.threshold, ev.dataset.contact, ev.dataset.extra.get("skin.side"))
+
+
+def export_coefficients(model: DynamicsModel, path: str | Path, settings: ExportSettings = ExportSettings()) -> Exported:
+    """Write the coefficient file rt_monitor loads, T² calibrated through the monitor's own filter on the model's
+    identification data (or `settings.data`): `dynid export`."""
+    check_is_fitted(model, "model_")
+    return export_model(model.model_, path, settings)
+
+
+def find_gaps(X: Data, robot: str | Path = "icub_right_arm", model: DynamicsModel | None = None,
+              supply_tracking: bool = True, verbose: bool = False) -> Gaps:
+    """Where the model and the run disagree, the missing effects that explain it and the gap after the fix
+    (`dynid gaps`): `.result` is its `--json`, `.augmented_model()` the model with the effects. With `model`, its
+    inertias are held (a payload, a changed gain or friction is then named against it)."""
+    given = None
+    if model is not None:
+        check_is_fitted(model, "model_")
+        given = model.model_
+    robot_model = given.robot_model if given is not None else load_robot(robot)
+    ds = X if isinstance(X, Dataset) else load_run(str(X), robot_model)
+    label = str(X) if not isinstance(X, Dataset) else "dataset"
+    return analyse_gaps(robot_model, ds, label, given, supply_tracking, log=print if verbose else (lambda _: None))
+
+
+load_model = DynamicsModel.load
+
+__all__ = [
+    "ContactDetector",
+    "Data",
+    "DynamicsModel",
+    "ExportSettings",
+    "Gaps",
+    "export_coefficients",
+    "find_gaps",
+    "load_model",
+    "load_robot",
+    "read_data",
+]

@@ -1,0 +1,76 @@
+"""The `dynid` command line (docs/design.md §7): one thin module per command group (parse, call the library,
+print), and `main`, the entry point.
+
+Every command takes `--robot` (a configuration file or a bundled name; default icub_right_arm). Bad input of any
+kind ends with exit code 2 and one line on stderr naming the problem. `--json FILE` writes the command's result
+for machines ('-' for stdout); its fields are documented in docs/formats.md. The cli may import every layer
+below it; nothing imports the cli.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import importlib
+import sys
+import xml.etree.ElementTree as ET
+
+from ..config.robot_config import bundled_configs
+from ..errors import EXIT_BAD_INPUT, InputError
+from ..version import __version__
+from .commands import COMMANDS
+from .common import Parser, write_json
+
+__all__ = ["build_parser", "main"]
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The `dynid` parser. With `command`, only its group's parsers are built (and their modules loaded); the other
+    commands stand in by name and help, which is all `dynid --help` shows."""
+    p = Parser(
+        prog="dynid",
+        description="Identify a robot arm's inertia, F/T offsets, friction and motor gains in one regression "
+        "(Traversaro et al., Humanoids 2013), and monitor contacts.",
+        epilog=f"bundled robots: {', '.join(bundled_configs())}. Bad input exits with code 2.",
+    )
+    p.add_argument("--version", action="version", version=f"dynid {__version__}")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=Parser)
+    chosen = COMMANDS[command].group if command in COMMANDS else None
+    built = False
+    for name, c in COMMANDS.items():
+        if c.group != chosen:
+            sub.add_parser(name, help=c.help)
+        elif not built:
+            importlib.import_module(f"{__name__}.{c.group}").add_commands(sub)
+            built = True
+    return p
+
+
+def _command(argv: list[str]) -> str | None:
+    """The command word of argv (the first argument that is not an option), if any."""
+    return next((a for a in argv if not a.startswith("-")), None)
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser(_command(argv)).parse_args(argv)
+    json_target = getattr(args, "json", None)
+    # With --json -, stdout carries the JSON alone: the human report goes to stderr.
+    human = contextlib.redirect_stdout(sys.stderr) if json_target == "-" else contextlib.nullcontext()
+    try:
+        with human:
+            result = args.func(args)
+        write_json(result, json_target)
+    except InputError as e:
+        sys.stderr.write(f"dynid {args.command}: error: {e}\n")
+        return e.exit_code
+    except (OSError, ET.ParseError) as e:
+        # A file the readers did not anticipate (unreadable, not XML, a device): still one line, exit 2.
+        where = f"{e.filename}: " if getattr(e, "filename", None) else ""
+        sys.stderr.write(f"dynid {args.command}: error: {where}{getattr(e, 'strerror', None) or e}\n")
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        sys.stderr.write(f"dynid {args.command}: interrupted\n")
+        return 130
+    return 0
+

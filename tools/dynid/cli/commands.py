@@ -1,0 +1,30 @@
+"""Every `dynid` command: the module of dynid.cli.main that implements it, and its one-line help.
+
+The entry point builds only the parser of the command it runs, so `dynid fit` does not load what `dynid spy`
+needs (and the reverse); `dynid --help` lists them all from this table.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+
+class Command(NamedTuple):
+    group: str  # dynid.cli.main.<group> implements it (its add_commands adds the parser)
+    help: str
+
+
+COMMANDS: dict[str, Command] = {
+    "import": Command("data", "CSV (or dataset) -> dataset file, validated against the robot configuration"),
+    "structure": Command("data", "parameter layout, numerical rank and identifiable combinations"),
+    "simulate": Command("data", "simulate an experiment of the arm, with known truth"),
+    "fit": Command("identify", "identify inertia, F/T offsets, friction and motor gains in one regression"),
+    "validate": Command("identify", "the paper's Table II on a validation experiment"),
+    "detect": Command("identify", "offline T² contact detection against the skin's ground truth"),
+    "report": Command("report", "the identification report: one HTML page with figures and tables"),
+    "export": Command("export", "write the real-time monitor's coefficient file (or --print one)"),
+    "gaps": Command(
+        "gaps", "where model and data disagree, which missing effect explains it, and the gap after the fix"
+    ),
+    "spy": Command("spy", "live view of rt_monitor's LCM output: contact events, status counters, rates"),
+}

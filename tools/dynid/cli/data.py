@@ -1,0 +1,187 @@
+"""`dynid import`, `dynid structure`, `dynid simulate`: data in, the structure it excites, simulated runs."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Any
+
+from ..config.robot_config import load_config
+from ..errors import InputError
+from ..io.load import load_data
+from ..robot.model import RobotModel
+from ..robot.regressors.base import data_base_parameters, exciting_signals
+from ..robot.regressors.stack import row_channels, rows_at_rest, signals_from_dataset
+from ..simulation import SimulationSettings, parse_effect, simulate
+from ..simulation.effects import CATALOG, catalog_text
+from ..simulation.output import write_simulation
+from .commands import COMMANDS
+from .common import json_arg, min_speed_arg, positive_float, positive_int, robot_arg, seed
+
+
+def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
+    config = load_config(args.robot)
+    model = RobotModel(config)
+    dataset = load_data(Path(args.data), config, joint_limits=model.joint_limits)
+    dataset.meta.setdefault("robot", config.name)
+    dataset.meta.setdefault("config_digest", config.digest)
+    dataset.save(Path(args.out))
+    channels = (
+        [f"q.{j}" for j in dataset.joints]
+        + [f"pwm.{m}" for m in dataset.pwm]
+        + [f"current.{m}" for m in dataset.current]
+        + [f"tau.{j}" for j in dataset.tau]
+        + [f"ft.{s}" for s in dataset.ft]
+    )
+    print(
+        f"imported {dataset.n_samples} samples ({dataset.duration:.3f} s) of {config.name} from {args.data} -> {args.out}\n"
+        f"  channels: {', '.join(channels)}"
+        + ("" if dataset.dq is not None else "\n  no dq/ddq columns: derivatives will be estimated from q when needed")
+    )
+    return {
+        "robot": config.name,
+        "samples": dataset.n_samples,
+        "duration_s": dataset.duration,
+        "channels": channels,
+        "has_derivatives": dataset.dq is not None,
+        "contact": dataset.contact is not None,
+        "out": args.out,
+    }
+
+
+def cmd_structure(args: argparse.Namespace) -> dict[str, Any]:
+    config = load_config(args.robot)
+    model = RobotModel(config)
+    if args.data:
+        sig = signals_from_dataset(model, load_data(Path(args.data), config, joint_limits=model.joint_limits))
+        source = args.data
+    else:
+        sig = exciting_signals(model, args.samples, args.seed)
+        source = f"{args.samples} random states within the joint limits (seed {args.seed})"
+    bp = data_base_parameters(model, sig, min_speed=args.min_speed)
+    layout = model.layout
+    print(f"robot {config.name}: {model.n_joints} joints, {len(model.bodies)} bodies, {len(layout)} parameters")
+    print(f"  bodies: {', '.join(b.name for b in model.bodies)}")
+    for kind in ("ft_offset", "joint_friction", "motor_friction", "motor_gain"):
+        owners = layout.owners(kind)  # type: ignore[arg-type]
+        if owners:
+            print(f"  {kind.replace('_', ' ')}: {', '.join(owners)}")
+    print(f"  rows per sample: {', '.join(c.name for c in row_channels(model))}")
+    print(f"excitation: {source}")
+    rest = rows_at_rest(model, sig.dq, args.min_speed)
+    if rest.any():
+        print(f"  rows left out where a friction coordinate is slower than {args.min_speed:g} rad/s (static friction): "
+              f"{100 * rest.mean():.1f} % of all rows")
+    print(f"numerical rank {bp.rank} of {len(layout)}; condition number of the normalised base regressor {bp.condition_number:.4g}")
+    if bp.unidentifiable:
+        print(f"  act on no row (unidentifiable): {', '.join(bp.unidentifiable)}")
+    if args.combinations:
+        print("base parameters (identifiable combinations):")
+        for c in bp.combinations():
+            print(f"  {c}")
+    return {
+        "robot": config.name,
+        "parameters": list(layout.names),
+        "bodies": [b.name for b in model.bodies],
+        "rows_per_sample": [c.name for c in row_channels(model)],
+        "excitation": source,
+        "rank": bp.rank,
+        "condition_number": bp.condition_number,
+        "unidentifiable": list(bp.unidentifiable),
+        "base_parameters": bp.combinations(),
+        "singular_values": bp.singular_values,
+    }
+
+
+def cmd_simulate(args: argparse.Namespace) -> dict[str, Any]:
+
+    if args.list_effects:
+        print(catalog_text())
+
+        return {"effects": {k: {"target": e.target, "stage": e.stage, "summary": e.summary, "defaults": e.defaults,
+                                "units": e.units} for k, e in CATALOG.items()}}
+    if not args.out:
+        raise InputError("--out DIR is required (the directory to write the experiment to)")
+    config = load_config(args.robot)
+    bodies = tuple(b.name for b in RobotModel(config).bodies)
+    effects = tuple(parse_effect(text, config, bodies) for text in args.effect)
+    settings = SimulationSettings(
+        kind=args.kind, duration=args.duration, seed=args.seed, robot_seed=args.robot_seed,
+        noise=args.noise == "realistic", disturbance=args.disturbance == "realistic", effects=effects,
+        rate_hz=args.rate,
+    )
+    started = time.perf_counter()
+    sim = simulate(config, settings)
+    elapsed = time.perf_counter() - started
+    files = write_simulation(sim, args.out)
+    truth, realism = sim.truth, sim.truth["realism"]
+    print(
+        f"simulated {args.kind} of {config.name}: {settings.seconds:g} s at {args.rate:g} Hz "
+        f"({truth['samples']} samples) in {elapsed:.1f} s -> {args.out}"
+    )
+    print(f"  true robot: seed {args.robot_seed}; experiment seed {args.seed}; noise {args.noise}; "
+          f"motor disturbance {'on' if truth['disturbance'] else 'off'}")
+    if effects:
+        print(f"  hidden effects: {', '.join(e.kind + (f' on {e.target}' if e.target else '') for e in effects)}")
+    if truth["contacts"]:
+        sides = [c["side"] for c in truth["contacts"]]
+        print(f"  contacts: {len(sides)} ({sides.count('distal')} distal, {sides.count('proximal')} proximal of the F/T sensor)")
+    print(
+        f"  PWM within ±1: {100 * realism['pwm_within_limits']:.3f} % of samples; joint limits respected: "
+        f"{100 * realism['joint_limits_respected']:.2f} %; {realism['reaching_targets']} reaching targets"
+    )
+    return {
+        "robot": config.name, "kind": args.kind, "duration_s": settings.seconds, "rate_hz": args.rate,
+        "samples": truth["samples"], "seed": args.seed, "robot_seed": args.robot_seed, "noise": args.noise,
+        "disturbance": truth["disturbance"], "effects": truth["effects"], "contacts": len(truth["contacts"]),
+        "realism": realism, "wall_time_s": elapsed, "files": files,
+    }
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    sp = sub.add_parser("import", help=COMMANDS["import"].help,
+                        description="Read an experiment (CSV as in docs/design.md §4, or a dataset file), check every "
+                        "column against the robot configuration, and write the dataset file (.npz).")
+    robot_arg(sp)
+    sp.add_argument("--data", required=True, metavar="DATA", help="the experiment: a .csv or a .npz dataset")
+    sp.add_argument("--out", required=True, metavar="DATASET", help="the dataset file to write (.npz, atomically)")
+    json_arg(sp)
+    sp.set_defaults(func=cmd_import)
+
+    sp = sub.add_parser("structure", help=COMMANDS["structure"].help,
+                        description="Print the parameter vector's layout and the base-parameter structure: the "
+                        "numerical rank of the weighted stacked A and the identifiable combinations, on random "
+                        "exciting states (the structural rank) or on a recorded experiment (--data).")
+    robot_arg(sp)
+    sp.add_argument("--data", metavar="DATA", help="measure the rank on this experiment instead of random states")
+    sp.add_argument("--samples", type=positive_int, default=2000, help="random states for the structural rank (default 2000)")
+    sp.add_argument("--seed", type=int, default=0, help="seed of the random states (default 0)")
+    sp.add_argument("--combinations", action="store_true", help="print every base-parameter combination")
+    min_speed_arg(sp)
+    json_arg(sp)
+    sp.set_defaults(func=cmd_structure)
+
+    sp = sub.add_parser("simulate", help=COMMANDS["simulate"].help,
+                        description="Run the simulated plant: a true robot that is not the CAD model (perturbed "
+                        "inertia, cables, friction, gains, F/T offsets) reaching random points under joint impedance, "
+                        "PWM through the motor model and the coupling, with the boards' sensors. Writes dataset.npz, "
+                        "data.csv, truth.json and truth.npz to DIR (tools/dynid/simulation/output.py). The same "
+                        "--robot-seed is the same arm in every kind.")
+    robot_arg(sp)
+    sp.add_argument("--kind", default="identification", choices=["identification", "validation", "contact"],
+                    help="identification (default 300 s), validation (120 s) or contact (120 s, with skin ground truth)")
+    sp.add_argument("--duration", type=positive_float, metavar="S", help="seconds to simulate (default: per kind)")
+    sp.add_argument("--seed", type=seed, default=0, metavar="N", help="experiment seed: reference, contacts, noise (default 0)")
+    sp.add_argument("--robot-seed", type=seed, default=0, metavar="N", help="which true arm (default 0)")
+    sp.add_argument("--noise", choices=["realistic", "none"], default="realistic",
+                    help="'none' turns off sensor noise, quantisation and the motor disturbance")
+    sp.add_argument("--disturbance", choices=["realistic", "none"], default="realistic",
+                    help="supply-voltage variation and torque ripple of the motors (default realistic)")
+    sp.add_argument("--effect", action="append", default=[], metavar="NAME[:k=v,...]",
+                    help="switch on a hidden effect (repeatable); --list-effects shows them")
+    sp.add_argument("--list-effects", action="store_true", help="list the hidden effects and their parameters")
+    sp.add_argument("--rate", type=positive_float, default=1000.0, metavar="HZ", help="sample rate (default 1000)")
+    sp.add_argument("--out", metavar="DIR", help="the directory to write")
+    json_arg(sp)
+    sp.set_defaults(func=cmd_simulate)

@@ -1,0 +1,107 @@
+"""`dynid export`: the identified model -> the coefficient file of the real-time monitor; `--print` dumps one."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+import numpy as np
+
+from ..config.robot_config import load_config
+from ..errors import InputError
+from ..export.coefficients import (
+    DEFAULT_DEBOUNCE_OFF,
+    DEFAULT_DEBOUNCE_ON,
+    DEFAULT_HYSTERESIS,
+    EventSettings,
+    describe,
+    read_coefficients,
+)
+from ..export.model_export import ExportSettings, export_cad, export_model
+from ..identify.model_file import load_model
+from .commands import COMMANDS
+from .common import confidence as alpha
+from .common import json_arg, positive_int
+from .common import non_negative_int as lag
+
+
+def _settings(args: argparse.Namespace) -> ExportSettings:
+    return ExportSettings(args.data or (), args.lag, args.window, args.alpha,
+                          EventSettings(args.debounce_on, args.debounce_off, args.hysteresis))
+
+
+def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
+    if args.print:
+        c = read_coefficients(args.print)
+        print(describe(c))
+        return {"file": args.print, "robot": c.robot_name, "n_joints": c.n_joints, "n_outputs": c.n_outputs,
+                "channels": list(c.channel_names), "threshold": c.threshold, "alpha": c.alpha,
+                "window": c.window, "lag": c.lag}
+    if args.cad:
+        if not args.out:
+            raise InputError("export --cad needs --out COEF_FILE")
+        config = load_config(args.robot)
+        size = export_cad(config, args.out, _settings(args))
+        print(f"exported the CAD model of {config.name} (uncalibrated: for tests and benchmarks) -> {args.out} "
+              f"({size} bytes)")
+        return {"out": args.out, "bytes": size, "robot": config.name, "cad": True}
+    if not args.model or not args.out:
+        raise InputError("export needs --model MODEL and --out COEF_FILE (or --print COEF_FILE)")
+
+    identified = load_model(args.model)
+    done = export_model(identified, args.out, _settings(args))
+    est, cal, tracking, alpha = done.filter, done.calibration, done.tracking, done.alpha
+    det = identified.record.get("detector", {}).get("calibrated", {})
+    offline = np.asarray(det.get("variance", cal.variance), float)
+    print(f"exported {identified.config.name} -> {args.out} ({done.size} bytes)")
+    for e in done.effects:
+        print(f"  effect {e.kind} on {e.where}: " + ", ".join(f"{k} {v:.4g}" for k, v in e.parameters.items()))
+    print(f"  online filter: fixed-lag Savitzky-Golay, window {est.window}, order {est.order}, lag {est.lag} "
+          f"({1e3 * est.lag * est.sample_period:.3g} ms) at {1 / est.sample_period:.6g} Hz")
+    if tracking is not None:
+        print(f"  supply tracking: time constant {tracking.time_constant_s:g} s, gate {tracking.gate:g} noise stds")
+    print(f"  T²_α (α = {alpha}) through the online filter: {cal.threshold:.4g} (offline "
+          f"{det.get('threshold', float('nan')):.4g}); F/T-side threshold {cal.ft_threshold:.4g}; {cal.samples} "
+          "calibration samples")
+    print("  Λ online / offline: " + ", ".join(f"{n} {a / b:.2f}" for n, a, b in zip(done.channels, cal.variance, offline)))
+    return {"model": args.model, "out": args.out, "bytes": done.size, "threshold": cal.threshold,
+            "ft_threshold": cal.ft_threshold, "alpha": alpha,
+            "residual_variance": dict(zip(done.channels, cal.variance.tolist())),
+            "filter": est.as_dict(), "calibration_samples": cal.samples,
+            "effects": [{"kind": e.kind, "where": e.where, "parameters": e.parameters} for e in done.effects]}
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    def fraction(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+        if not 0 < value <= 1:
+            raise argparse.ArgumentTypeError(f"must be in (0, 1], got {text}")
+        return value
+
+    sp = sub.add_parser("export", help=COMMANDS["export"].help,
+                        description="Write the coefficient file rt_monitor loads (rt_monitor/README.md): the chain, "
+                        "the identified parameters, the channels, Λ and T²_α computed through the monitor's own "
+                        "fixed-lag derivative filter on the contact-free identification data, and the filter.")
+    sp.add_argument("--model", metavar="MODEL", help="the model file of `dynid fit`")
+    sp.add_argument("--out", metavar="COEF_FILE", help="the coefficient file to write (atomically)")
+    sp.add_argument("--print", metavar="COEF_FILE", help="print a coefficient file readably instead")
+    sp.add_argument("--cad", action="store_true", help="export the CAD model of --robot, uncalibrated (for tests "
+                    "and benchmarks: nominal gains, no friction, Λ = the noise σ², the F threshold, 1 kHz)")
+    sp.add_argument("--robot", default="icub_right_arm", metavar="CFG", help="robot of --cad (default icub_right_arm)")
+    sp.add_argument("--data", action="append", metavar="DATA",
+                    help="contact-free data for Λ and T²_α (default: the model's identification data); repeatable")
+    sp.add_argument("--lag", type=lag, metavar="N", help="filter lag in samples, 0 = causal (default: window // 4)")
+    sp.add_argument("--window", type=positive_int, metavar="N", help="filter window in samples (default: the "
+                    "configuration's offline window)")
+    sp.add_argument("--alpha", type=alpha, help="confidence level (default: the model's)")
+    sp.add_argument("--debounce-on", type=positive_int, default=DEFAULT_DEBOUNCE_ON, metavar="N",
+                    help=f"samples above T²_α for an onset (default {DEFAULT_DEBOUNCE_ON})")
+    sp.add_argument("--debounce-off", type=positive_int, default=DEFAULT_DEBOUNCE_OFF, metavar="N",
+                    help=f"samples below the hysteresis level for an end (default {DEFAULT_DEBOUNCE_OFF})")
+    sp.add_argument("--hysteresis", type=fraction, default=DEFAULT_HYSTERESIS,
+                    help=f"end level as a fraction of T²_α (default {DEFAULT_HYSTERESIS})")
+    json_arg(sp)
+    sp.set_defaults(func=cmd_export)

@@ -1,0 +1,65 @@
+"""`dynid gaps`: the model-gap workflow (dynid.gaps) on the command line."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from ..config.robot_config import load_config
+from ..errors import InputError
+from ..gaps.find import find_gaps
+from ..gaps.workflow import format_report
+from ..identify.model_file import load_model
+from ..identify.validation import load_run
+from ..robot.model import RobotModel
+from .commands import COMMANDS
+from .common import json_arg, robot_arg
+
+
+def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
+    identified = load_model(args.model) if args.model else None
+    config = identified.config if identified is not None else load_config(args.robot)
+    model = RobotModel(config)
+    ds = load_run(args.data, model)
+    if identified is not None and identified.effects:  # before minutes of work
+        raise InputError(f"{args.model} is already an augmented model (it names effects); give the standard "
+                         "model it came from")
+    found = find_gaps(model, ds, args.data, identified, supply_tracking=not args.no_supply_tracking, log=print)
+    result = found.result
+    print(format_report(result))
+    if args.out:
+        found.augmented_model().save(args.out)
+        result["out"] = args.out
+        kinds = ", ".join([f"{e.kind} on {e.where}" for e in found.effects]
+                          + [f"payload on {e.where} (in its inertial parameters)" for e in found.folded])
+        kinds = kinds or "no effect (the standard model refitted)"
+        print(f"augmented model -> {args.out}: {kinds}")
+    if args.figures:
+        from ..report.gaps_figures import write_figures  # matplotlib: loaded only to draw
+
+        result["figures"] = write_figures(result, args.figures)
+        print(f"figures -> {args.figures}: {len(result['figures'])} files")
+    return result
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    sp = sub.add_parser("gaps", help=COMMANDS["gaps"].help,
+        description="Refit the standard model on DATA, measure the residual per channel on held-out time blocks, "
+        "select missing effects from a library (Stribeck, spring, cogging, PWM dead-zone, F/T drift, armature, "
+        "load-dependent friction, PWM delay, coupling error, base tilt, F/T gain; a payload against a given "
+        "model) by "
+        "cross-validated forward selection, refit with them and print the gap before and after per channel.")
+    robot_arg(sp)
+    sp.add_argument("--data", required=True, metavar="DATA", help="the measured experiment (.csv, candump or .npz)")
+    sp.add_argument("--model", metavar="MODEL", help="an identified model: its gap on DATA is shown too, "
+                    "its inertias are held (the rest is refitted), so a payload on a link can be named; its robot "
+                    "configuration is used")
+    sp.add_argument("--out", metavar="AUGMENTED_MODEL", help="write the refitted model with the named effects "
+                    "(a model file: validate, detect, report and export accept it; export carries Stribeck and spring)")
+    sp.add_argument("--figures", metavar="DIR", help="write a figure per finding and the gap before/after (PNG + "
+                    "gaps.json) to DIR; `dynid report --gaps DIR` shows them")
+    sp.add_argument("--no-supply-tracking", action="store_true", help="analyse with constant motor gains (one "
+                    "pass); by default a first pass's residual gives each motor's supply ratio and a second pass "
+                    "analyses the run with the inputs corrected by it, as `dynid fit` tracks the supply")
+    json_arg(sp)
+    sp.set_defaults(func=cmd_gaps)

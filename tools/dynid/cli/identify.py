@@ -1,0 +1,171 @@
+"""`dynid fit`, `dynid validate`, `dynid detect`: identification, Table II, T² contact detection."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+import numpy as np
+
+from ..config.robot_config import load_config
+from ..detect.evaluation import detection
+from ..detect.t2 import ALPHA
+from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, FitSettings
+from ..identify.supply import SupplyTracking
+from ..identify.validation import evaluate, load_run, validation
+from ..paper import PAPER
+from ..pipeline import DetectorSettings, IdentifySettings, identify
+from ..robot.model import RobotModel
+from ..robot.outputs import output_channels
+from .commands import COMMANDS
+from .common import confidence as alpha
+from .common import json_arg, min_speed_arg, non_negative_float, positive_int, robot_arg
+
+SHOW_COMBINATIONS = 30  # print every base combination when there are at most this many (else see --json)
+
+
+def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
+    config = load_config(args.robot)
+    model = RobotModel(config)
+    datasets = [load_run(p, model) for p in args.data]
+    settings = FitSettings(estimator=args.estimator, n_components=args.n_components, min_speed=args.min_speed,
+                           blocks=args.blocks)
+    detector = DetectorSettings(args.alpha, args.n_mode)
+    done = identify(model, datasets, args.data, IdentifySettings(settings, detector, args.supply_time_constant))
+    done.model.save(args.out)
+    result, record, detectors = done.fit, done.model.record, done.detectors
+    elapsed, elapsed_fit = done.total_time_s, done.fit_time_s
+    outs = output_channels(model)
+    base = result.base
+    names = list(base.combinations())
+
+    print(f"fitted {config.name} on {result.samples} samples in {elapsed:.1f} s ({elapsed_fit:.1f} s the regression) "
+          f"-> {args.out}")
+    print(f"  base parameters: rank {base.rank} of {len(model.layout)}; {int(result.identified.sum())} determined to "
+          f"10 % or better; PLS ν = {result.cv['n_components']} (cross-validated on {result.statistics.n_blocks} time "
+          "blocks)")
+    gains = [i for i, n in enumerate(record["base"]["independent"]) if n.endswith(".phi_m")]
+    print("  motor gains (Nm per unit input) by estimator:" if gains else "  no unknown motor gains in this set-up")
+    for name, est in result.estimates.items() if gains else ():
+        mark = "*" if name == result.chosen else " "
+        values = ", ".join(f"{record['base']['independent'][i].split('.')[0]} {est.beta[i]:.3f}±{est.se[i]:.3f}"
+                           for i in gains)
+        print(f"   {mark}{name:4s} {values}")
+    chosen = result.estimates[result.chosen]
+    determined = {c: (float(v), float(e)) for c, v, e, ok in zip(names, chosen.beta, chosen.se, result.identified) if ok}
+    undetermined = [c for c, ok in zip(names, result.identified) if not ok]
+    if base.rank <= SHOW_COMBINATIONS:
+        print("  determined by this run (value ± standard error):")
+        for c, (v, e) in determined.items():
+            print(f"    {c:60s} {v:12.5g} ± {e:.2g}")
+        if undetermined:
+            print("  not determined by this run (standard error above 10 %; no value given): " + ", ".join(undetermined))
+    rms = np.sqrt(result.residual_variance[result.chosen])
+    print("  residual RMS on the identification data (rows at rest left out) / channel noise:")
+    print("   " + ", ".join(f"{o.name} {r:.3g} ({r / o.sigma:.2f}×)" for o, r in zip(outs, rms)))
+    return {"robot": config.name, "out": args.out, "samples": result.samples, "rank": base.rank,
+            "n_components": result.cv["n_components"], "estimator": result.chosen,
+            "identified": int(result.identified.sum()), "determined": {c: {"value": v, "standard_error": e}
+                                                                     for c, (v, e) in determined.items()},
+            "undetermined": undetermined, "estimators": record["estimators"],
+            "base": record["base"], "residual_rms": dict(zip(record["outputs"]["channels"], rms.tolist())),
+            "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed}
+
+
+def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
+    ev = evaluate(args.model, args.data)
+    result = validation(ev, args.model, args.data)
+    print(f"validation of {args.model} on {args.data} ({result['samples']} samples)")
+    if "table_ii" in result:
+        table = result["table_ii"]
+        print("  F/T prediction error (norm), mean ± std:    identified            CAD (offsets fitted)      paper (id / CAD)")
+        for what, unit, key in (("force", "N", "force_error"), ("torque", "Nm", "torque_error")):
+            i, c = table["identified"][what], table["cad"][what]
+            print(f"    {what:6s} {i['mean']:8.3f} ± {i['std']:.3f} {unit:2s}   {c['mean']:8.3f} ± {c['std']:.3f} {unit:2s}"
+                  f"        {PAPER[key][0]} ± {PAPER[key][1]} / {PAPER[key + '_cad'][0]} ± {PAPER[key + '_cad'][1]}")
+    print("  per channel: RMS of e = y − ŷ, and against the channel's noise std")
+    for o in ev.outputs:
+        entry = result["channels"][o.name]
+        line = f"    {o.name:18s} {entry['rms']:10.4g} {o.unit:4s} {entry['ratio_to_noise']:6.2f}× noise"
+        if "ratio_to_noise_moving" in entry:
+            line += (f"; moving rows {entry['ratio_to_noise_moving']:.2f}× "
+                     f"(constant gains {entry['ratio_to_noise_moving_constant_gains']:.2f}×)")
+        print(line)
+    if "relative_torque_error" in result:
+        print(f"  relative torque error ‖τ − τ̂‖ / ‖τ‖: {100 * result['relative_torque_error']:.2f} %")
+    if any(o.kind == "input" for o in ev.outputs):
+        print("  CAD input (PWM) prediction: undefined; a CAD model has no friction and no motor gains")
+    return result
+
+
+def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
+    ev = evaluate(args.model, args.data)
+    found = detection(ev, args.model, args.data, args.alpha, args.n_mode)
+    print(f"T² contact detection with {args.model} on {args.data} ({ev.dataset.n_samples} samples), α = {args.alpha}")
+    if ev.dataset.contact is None:
+        print("  no contact ground truth in the data: FPR assumes the run is contact-free")
+    for variant, s in found.result["variants"].items():
+        tpr = "n/a" if s.get("tpr") is None else f"{100 * s['tpr']:.1f} %"
+        line = f"  {variant:10s} threshold {s['threshold']:9.3g}: TPR {tpr}, FPR {100 * s['fpr']:.2f} %"
+        if "auc" in s:
+            line += f", AUC {s['auc']:.3f}"
+        if s.get("episodes"):
+            delay = s["delay_s"]
+            line += (f", episodes {s['episodes_detected']}/{s['episodes']}, delay median "
+                     f"{1e3 * delay['median']:.0f} ms p90 {1e3 * delay['p90']:.0f} ms") if delay["median"] is not None else ""
+        print(line)
+        if s.get("tpr_by_side"):
+            print("             TPR by side of the F/T sensor: " + ", ".join(
+                f"{k} {100 * v:.1f} %" for k, v in s["tpr_by_side"].items() if v is not None))
+    vis = found.result.get("visibility")
+    if vis:
+        hidden = [v for v in vis["episodes"] if not v["visible"]]
+        print(f"  calibrated: the contact alone reaches T²_α in {vis['visible']} of {len(vis['episodes'])} episodes "
+              f"(plant truth), {vis['visible_found']} of them found"
+              + ("; below it: " + ", ".join(f"{v['start_s']:.1f} s (peak {v['peak_t2']:.3g})" for v in hidden) if hidden else ""))
+    print(f"  paper (real iCub arm, α = 0.99): TPR {100 * PAPER['tpr']:.0f} %, FPR {100 * PAPER['fpr']:.0f} %")
+    return found.result
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    sp = sub.add_parser("fit", help=COMMANDS["fit"].help,
+                        description="Fit the model of docs/design.md §3 to one or more experiments (stacked): OLS on the "
+                        "base parameters, PLS by NIPALS (ν cross-validated on time blocks) and instrumental variables "
+                        "(IDIM-IV, the default: closed-loop data bias OLS and PLS), with jackknife standard errors; "
+                        "then calibrate the T² contact detector on the same data. Writes MODEL (JSON).")
+    robot_arg(sp)
+    sp.add_argument("--data", action="append", required=True, metavar="DATA",
+                    help="an experiment (dataset, CSV, candump log or a `dynid simulate` directory); repeatable")
+    sp.add_argument("--out", required=True, metavar="MODEL", help="the model file to write")
+    sp.add_argument("--estimator", choices=ESTIMATORS, default=DEFAULT_ESTIMATOR,
+                    help=f"whose parameters the model keeps (default {DEFAULT_ESTIMATOR}); all three are reported")
+    sp.add_argument("--n-components", type=positive_int, metavar="NU", help="PLS latent variables (default: by CV)")
+    sp.add_argument("--blocks", type=positive_int, default=10, help="time blocks for CV and jackknife (default 10)")
+    sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"T² confidence level (default {ALPHA})")
+    sp.add_argument("--n-mode", choices=["dim", "nu"], default="dim",
+                    help="n of the paper's F threshold: dim(e) (default) or ν as the paper writes")
+    sp.add_argument("--supply-time-constant", type=non_negative_float, default=SupplyTracking.time_constant_s,
+                    metavar="S", help="track each motor's supply (its torque per unit duty) with this time constant "
+                    f"when predicting inputs (dynid.identify.supply; default {SupplyTracking.time_constant_s:g} s, 0 = constant gains)")
+    min_speed_arg(sp)
+    json_arg(sp)
+    sp.set_defaults(func=cmd_fit)
+
+    sp = sub.add_parser("validate", help=COMMANDS["validate"].help,
+                        description="F/T prediction error (force and torque norms, mean ± std) of the identified and "
+                        "the CAD parameters, and per-channel residual RMS against the noise.")
+    sp.add_argument("--model", required=True, metavar="MODEL")
+    sp.add_argument("--data", required=True, metavar="DATA")
+    json_arg(sp)
+    sp.set_defaults(func=cmd_validate)
+
+    sp = sub.add_parser("detect", help=COMMANDS["detect"].help,
+                        description="T² per sample, both variants (calibrated: dynid's default; paper: diagonal Λ and "
+                        "the F threshold); TPR, FPR, ROC/AUC, detection delay, TPR per side of the F/T sensor.")
+    sp.add_argument("--model", required=True, metavar="MODEL")
+    sp.add_argument("--data", required=True, metavar="DATA")
+    sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"confidence level (default {ALPHA})")
+    sp.add_argument("--n-mode", choices=["dim", "nu"], default="dim", help="n of the paper's F threshold")
+    json_arg(sp)
+    sp.set_defaults(func=cmd_detect)
+

@@ -1,0 +1,53 @@
+"""`dynid report`: the identification report as one self-contained HTML page (dynid.report.page.page)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from ..detect.t2 import ALPHA
+from ..paper import PAPER
+from ..report.page import DEFAULT_WINDOW_S, ReportSettings, rates_text, write_report
+from .commands import COMMANDS
+from .common import confidence as alpha
+from .common import json_arg, positive_float
+
+
+def cmd_report(args: argparse.Namespace) -> dict[str, Any]:
+    result = write_report(ReportSettings(args.model, args.validation, args.contact, args.out, args.truth, args.alpha,
+                                         args.n_mode, args.window, args.gaps))
+    v, params = result["validation"], result["parameters"]
+    dv, dc = result["detection"]["validation"], result["detection"]["contact"]
+
+    print(f"report of {args.model} ({result['robot']}) -> {result['out']}")
+    if "table_ii" in v:
+        t = v["table_ii"]
+        print(f"  force error {t['identified']['force']['mean']:.3f} N identified, {t['cad']['force']['mean']:.3f} N CAD "
+              f"(paper {PAPER['force_error'][0]} / {PAPER['force_error_cad'][0]} N)")
+    for variant, s in dc["variants"].items():
+        print(f"  {variant:10s} contact run: {rates_text(s)}; validation FPR {100 * dv['variants'][variant]['fpr']:.2f} %")
+    determined = sum(r["determined"] for r in params)
+    print(f"  {len(result['figures'])} figures, {len(params)} base parameters ({determined} determined)"
+          + (f", truth from {result['truth']}" if result['truth'] else ", no truth found"))
+    return result
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    sp = sub.add_parser("report", help=COMMANDS["report"].help,
+                        description="Table II and the detection numbers beside the paper's, T² on the validation "
+                        "and the contact runs, the ROC, predicted against measured outputs, and every base parameter "
+                        "identified against CAD against true, as one self-contained HTML file.")
+    sp.add_argument("--model", required=True, metavar="MODEL", help="a model file of `dynid fit`")
+    sp.add_argument("--validation", required=True, metavar="DATA", help="a contact-free validation run")
+    sp.add_argument("--contact", required=True, metavar="DATA", help="a run with the skin's 'contact' ground truth")
+    sp.add_argument("--out", required=True, metavar="REPORT.html", help="the page to write (atomically)")
+    sp.add_argument("--truth", metavar="TRUTH.json", help="true parameters (default: the truth.json of `dynid "
+                    "simulate` beside the identification data, else beside --validation or --contact)")
+    sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"T² confidence level (default {ALPHA})")
+    sp.add_argument("--n-mode", choices=["dim", "nu"], default="dim", help="n of the paper's F threshold")
+    sp.add_argument("--window", type=positive_float, default=DEFAULT_WINDOW_S, metavar="S",
+                    help=f"length of the predicted-against-measured window (default {DEFAULT_WINDOW_S:g} s)")
+    sp.add_argument("--gaps", metavar="DIR", help="add the model-gap section: the figures and numbers of "
+                    "`dynid gaps --figures DIR`")
+    json_arg(sp)
+    sp.set_defaults(func=cmd_report)

@@ -1,0 +1,208 @@
+"""`dynid spy`: a live terminal view of rt_monitor's LCM output (contact events, the latest status, rates).
+
+Decodes with the generated Python types (dynid.export.lcm_messages, lcm-gen's output for rt_monitor/lcmtypes). Rates are
+per second of the monitor's CAN time (the status messages' utime), so a log replayed faster than real time shows
+the rates the boards had. `--json` prints one JSON object per message instead (NDJSON: {"channel": ..., "message": {field: value}}), then
+{"summary": ...}.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from typing import Any, Callable
+
+from ..errors import InputError
+from ..export.monitor_log import ratios_text
+from .commands import COMMANDS
+from .common import positive_float, positive_int
+
+CHANNELS = ("DYNID_CONTACT", "DYNID_STATUS", "DYNID_RESIDUAL")
+KIND = {1: "onset", 2: "end"}
+SIDE = {1: "distal", -1: "proximal", 0: "unknown side"}
+# Status counters that mean trouble, or timing artefacts (interpolated, late): shown (and named in the summary)
+# when not zero.
+PROBLEMS = ("stale_samples", "unknown_id", "bad_length", "error_frames", "unpaired_strain", "saturated",
+            "board_faults", "board_restarts", "source_bad", "interpolated", "late", "filter_restarts", "overruns")
+
+
+def supply_text(ratios: Any) -> str:
+    """'supply r 1.0123 0.9871 …' ('' if none): the status line's field."""
+    return "supply r " + ratios_text(ratios) if len(ratios) else ""
+
+
+def open_lcm(url: str | None) -> Any:
+    """lcm.LCM(url), or an InputError with liblcm's own complaint (it writes it to fd 2) on the same line."""
+    import lcm
+
+    with tempfile.TemporaryFile() as err:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        os.dup2(err.fileno(), 2)
+        try:
+            return lcm.LCM(url) if url else lcm.LCM()
+        except RuntimeError:
+            os.dup2(saved, 2)
+            err.seek(0)
+            why = err.read().decode(errors="replace").strip() or "liblcm refused it"
+            raise InputError(f"cannot open LCM at '{url or 'the default URL'}': {why}") from None
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+
+
+def message_dict(msg: Any) -> dict[str, Any]:
+    return {k: (list(v) if isinstance(v, (list, tuple)) else v) for k, v in ((k, getattr(msg, k)) for k in msg.__slots__)}
+
+
+class View:
+    """The human view: one line per contact event; the status line redrawn in place on a terminal, or printed once a
+    second of CAN time otherwise."""
+
+    def __init__(self, out: Any, tty: bool) -> None:
+        self.out, self.tty = out, tty
+        self.t0: int | None = None
+        self.prev: Any = None
+        self.printed_at = -(10**18)
+        self.status_line = ""
+
+    def _t(self, utime: int) -> float:
+        if self.t0 is None:
+            self.t0 = utime
+        return (utime - self.t0) * 1e-6
+
+    def _write(self, line: str) -> None:
+        if self.tty:  # clear the status line, write, redraw it below
+            self.out.write("\r\x1b[K" + line + "\n" + self.status_line)
+        else:
+            self.out.write(line + "\n")
+        self.out.flush()
+
+    def event(self, m: Any) -> None:
+        w = list(m.wrench)
+        self._write(f"{self._t(m.utime):10.3f} s  contact {KIND.get(m.kind, m.kind):5}  {SIDE.get(m.side, m.side):8}  "
+                    f"T² {m.t2:9.1f} (threshold {m.threshold:.1f})  "
+                    f"F [{w[0]:7.2f} {w[1]:7.2f} {w[2]:7.2f}] N  τ [{w[3]:6.3f} {w[4]:6.3f} {w[5]:6.3f}] Nm")
+
+    def status(self, m: Any) -> None:
+        t = self._t(m.utime)
+        rate = ""
+        if self.prev is not None and m.utime > self.prev.utime:
+            dt = (m.utime - self.prev.utime) * 1e-6
+            rate = (f"  {(m.frames - self.prev.frames) / dt:7.0f} frames/s  "
+                    f"{(m.samples_evaluated - self.prev.samples_evaluated) / dt:5.0f} samples/s")
+        self.prev = m
+        problems = "  ".join(f"{k.replace('_', ' ')} {getattr(m, k)}" for k in PROBLEMS if getattr(m, k))
+        self.status_line = (f"{t:10.3f} s  {'IN CONTACT' if m.in_contact else 'no contact'}"
+                            f"{'  STALE' if m.stale else ''}  frames {m.frames}  samples {m.samples_evaluated}/"
+                            f"{m.samples}{rate}  loop {m.loop_us_mean:.1f}/{m.loop_us_max:.1f} µs"
+                            + (f"  {supply_text(m.supply_ratio)}" if m.n_supply else "")
+                            + (f"  {problems}" if problems else ""))
+        if self.tty:
+            self.out.write("\r\x1b[K" + self.status_line)
+            self.out.flush()
+        elif m.utime - self.printed_at >= 1_000_000:
+            self.printed_at = m.utime
+            self._write(self.status_line)
+
+    def close(self) -> None:
+        if self.tty and self.status_line:
+            self.out.write("\n")
+
+
+def spy(lc: Any, count: int | None, duration: float | None, on_message: Callable[[str, Any], None],
+        end_of_log_ok: bool) -> str:
+    """Handle messages until `count` contact events, `duration` seconds, the end of a file:// log, or Ctrl-C."""
+    from ..export.lcm_messages import contact_event_t, monitor_status_t, residual_t
+
+    types = {"DYNID_CONTACT": contact_event_t, "DYNID_STATUS": monitor_status_t, "DYNID_RESIDUAL": residual_t}
+    events = 0
+
+    def handler(channel: str, data: bytes) -> None:
+        nonlocal events
+        try:
+            msg = types[channel].decode(data)
+        except ValueError:  # another type on our channel name (a fingerprint mismatch): say so, carry on
+            sys.stderr.write(f"dynid spy: {channel}: a message that is not a {types[channel].__name__}, skipped\n")
+            return
+        events += channel == "DYNID_CONTACT"
+        on_message(channel, msg)
+
+    for ch in CHANNELS:
+        lc.subscribe(ch, handler)
+    deadline = None if duration is None else time.monotonic() + duration
+    try:
+        while True:
+            if count is not None and events >= count:
+                return f"{count} contact event{'s' * (count != 1)}"
+            wait = 200 if deadline is None else int(min(200, max(0.0, deadline - time.monotonic()) * 1000))
+            if deadline is not None and wait <= 0:
+                return f"{duration:g} s"
+            try:
+                lc.handle_timeout(wait)
+            except OSError:
+                if end_of_log_ok:
+                    return "end of the log"
+                raise InputError("LCM stopped delivering (liblcm returned an error)") from None
+    except KeyboardInterrupt:
+        return "interrupted"
+
+
+def cmd_spy(args: argparse.Namespace) -> dict[str, Any]:
+    if args.count is not None and args.duration is not None:
+        raise InputError("--count and --duration exclude each other")
+    lc = open_lcm(args.lcm_url)
+    counts = {ch: 0 for ch in CHANNELS}
+    onsets = ends = 0
+    last: dict[str, Any] = {}
+    view = None if args.json_lines else View(sys.stdout, sys.stdout.isatty())
+
+    def on_message(channel: str, msg: Any) -> None:
+        nonlocal onsets, ends
+        counts[channel] += 1
+        if channel == "DYNID_CONTACT":
+            onsets += msg.kind == 1
+            ends += msg.kind == 2
+        if channel == "DYNID_STATUS":
+            last["status"] = msg
+        if view is None:
+            sys.stdout.write(json.dumps({"channel": channel, "message": message_dict(msg)}) + "\n")
+        elif channel == "DYNID_CONTACT":
+            view.event(msg)
+        elif channel == "DYNID_STATUS":
+            view.status(msg)
+
+    url = args.lcm_url or ""
+    why = spy(lc, args.count, args.duration, on_message, end_of_log_ok=url.startswith("file://"))
+    status = message_dict(last["status"]) if "status" in last else None
+    summary = {"stopped": why, "messages": counts, "onsets": onsets, "ends": ends, "last_status": status}
+    if view is not None:
+        view.close()
+        problems = [f"{k.replace('_', ' ')} {status[k]}" for k in PROBLEMS if status and status[k]]
+        print(f"dynid spy: stopped ({why}): {counts['DYNID_CONTACT']} contact events ({onsets} onsets, {ends} ends), "
+              f"{counts['DYNID_STATUS']} status, {counts['DYNID_RESIDUAL']} residual messages"
+              + (f"; last status: frames {status['frames']}, samples {status['samples']}, evaluated "
+                 f"{status['samples_evaluated']}" + (", " + ", ".join(problems) if problems else ", no problems counted")
+                 + (f", {supply_text(status['supply_ratio'])}" if status["n_supply"] else "")
+                 if status else "; no status message"))
+    else:
+        sys.stdout.write(json.dumps({"summary": summary}) + "\n")
+    return summary
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    sp = sub.add_parser("spy", help=COMMANDS["spy"].help,
+        description="Subscribe to DYNID_CONTACT, DYNID_STATUS and DYNID_RESIDUAL and show each contact event and the "
+        "latest status (counters, frame and sample rates per second of CAN time, loop time). Runs until --count "
+        "contact events, --duration seconds, the end of a file:// log, or Ctrl-C.")
+    sp.add_argument("--lcm-url", metavar="URL", help="LCM URL (default: LCM's, UDP multicast with ttl=0, or "
+                    "$LCM_DEFAULT_URL); file://LOG?speed=0 reads a log as fast as possible")
+    sp.add_argument("--count", type=positive_int, metavar="N", help="stop after N contact events")
+    sp.add_argument("--duration", type=positive_float, metavar="S", help="stop after S seconds")
+    sp.add_argument("--json", dest="json_lines", action="store_true",
+                    help="one JSON object per message on stdout (NDJSON), then {\"summary\": ...}")
+    sp.set_defaults(func=cmd_spy)

@@ -1,0 +1,456 @@
+"""Robot configuration: everything robot-specific, so that another arm needs a file, never code.
+
+A configuration is a YAML file (format in `robots/README.md`), or the name of one bundled in `dynid/config/robots`
+(`icub_right_arm` is the default). `load_config` validates every field and refuses a wrong or incomplete file
+with a `ConfigError` whose message names the field, e.g. ``icub_right_arm: actuation[0].coupling: ...``.
+"""
+
+from __future__ import annotations
+
+import difflib
+import hashlib
+import importlib.metadata
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import yaml
+
+from ..errors import ConfigError
+
+DEFAULT_ROBOT = "icub_right_arm"
+BUNDLED_DIR = Path(__file__).parent / "robots"
+
+InputKind = Literal["pwm", "current", "torque"]
+INPUT_KINDS: tuple[str, ...] = ("pwm", "current", "torque")
+
+
+@dataclass(frozen=True)
+class FTSensorConfig:
+    """A 6-axis F/T sensor at a fixed joint of the URDF; its frame is the joint's child link frame."""
+
+    name: str
+    joint: str
+    force_noise: float  # std of one force channel, N
+    torque_noise: float  # std of one torque channel, Nm
+
+
+@dataclass(frozen=True)
+class MotorConfig:
+    name: str
+    nominal_gain: float  # Nm per unit input (duty or A), a prior for weighting and for the plant
+    known_gain: float | None = None  # set when the gain is known (e.g. a datasheet torque constant)
+
+
+@dataclass(frozen=True)
+class ActuationGroup:
+    """Joints driven together: motor velocities are `coupling @ joint velocities`.
+
+    `input` says what drives them: `pwm` or `current` (gains unknown unless every motor has `known_gain`),
+    or `torque` (a joint torque sensor per joint, no motors).
+    """
+
+    name: str
+    input: InputKind
+    joints: tuple[str, ...]
+    motors: tuple[str, ...]
+    coupling: np.ndarray  # (n_motors, n_joints); identity when directly driven
+
+    @property
+    def coupled(self) -> bool:
+        """Motor friction is a separate parameter only when motors and joints are not one-to-one."""
+        n = len(self.joints)
+        return self.coupling.shape != (n, n) or not np.allclose(self.coupling, np.eye(n))
+
+
+@dataclass(frozen=True)
+class NoiseConfig:
+    """Channel noise levels (standard deviations) used to weight rows of mixed units."""
+
+    pwm: float  # duty fraction
+    current: float  # A
+    torque: float  # Nm, joint torque sensors
+    encoder_step: float  # rad (or m), encoder quantum
+
+
+@dataclass(frozen=True)
+class RobotConfig:
+    name: str
+    source: str  # where it was loaded from
+    digest: str  # sha256 of the file's bytes: models and datasets record it
+    urdf: Path
+    base_link: str
+    gravity: np.ndarray  # (3,) in the URDF root frame
+    joints: tuple[str, ...]
+    ft_sensors: tuple[FTSensorConfig, ...]
+    actuation: tuple[ActuationGroup, ...]
+    motors: tuple[MotorConfig, ...]
+    noise: NoiseConfig
+    can: dict[str, Any] = field(default_factory=dict)
+    # Offline derivative estimator for q̇, q̈ when the data lack them: `method` and its options, passed to
+    # dynid.io.derivatives.estimate_derivatives (the window depends on the robot's sampling rate and encoders).
+    derivatives: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def motor_names(self) -> tuple[str, ...]:
+        return tuple(m.name for m in self.motors)
+
+    def motor(self, name: str) -> MotorConfig:
+        return next(m for m in self.motors if m.name == name)
+
+    def motors_with_input(self, kind: InputKind) -> tuple[str, ...]:
+        return tuple(m for g in self.actuation if g.input == kind for m in g.motors)
+
+    def joints_with_input(self, kind: InputKind) -> tuple[str, ...]:
+        return tuple(j for g in self.actuation if g.input == kind for j in g.joints)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Loading and validation
+
+
+class _Fields:
+    """Typed access to a YAML mapping that names the offending field in every error."""
+
+    def __init__(self, robot: str, path: str, data: Any) -> None:
+        if not isinstance(data, dict):
+            raise ConfigError(f"{robot}: {path or 'the file'} must be a mapping, got {type(data).__name__}")
+        self.robot, self.path, self.data = robot, path, data
+
+    def _where(self, key: str) -> str:
+        return f"{self.path}.{key}" if self.path else key
+
+    def fail(self, key: str, problem: str) -> ConfigError:
+        return ConfigError(f"{self.robot}: field '{self._where(key)}' {problem}")
+
+    def only(self, *allowed: str) -> _Fields:
+        """Refuse keys this mapping does not define: a typo must not silently drop a setting."""
+        for key in self.data:
+            if key not in allowed:
+                near = difflib.get_close_matches(str(key), allowed, n=1)
+                hint = f" (did you mean '{near[0]}'?)" if near else f" (known: {', '.join(allowed)})"
+                raise self.fail(str(key), f"is not a known setting{hint}")
+        return self
+
+    def has(self, key: str) -> bool:
+        return key in self.data
+
+    def raw(self, key: str, default: Any = ...) -> Any:
+        if key not in self.data:
+            if default is ...:
+                raise self.fail(key, "is missing")
+            return default
+        return self.data[key]
+
+    def sub(self, key: str, default: Any = ...) -> _Fields:
+        return _Fields(self.robot, self._where(key), self.raw(key, default))
+
+    def items(self, key: str, default: Any = ...) -> list[_Fields]:
+        value = self.raw(key, default)
+        if not isinstance(value, list):
+            raise self.fail(key, "must be a list")
+        return [_Fields(self.robot, f"{self._where(key)}[{i}]", v) for i, v in enumerate(value)]
+
+    def string(self, key: str, default: Any = ...) -> str:
+        value = self.raw(key, default)
+        if not isinstance(value, str) or not value:
+            raise self.fail(key, f"must be a non-empty string, got {value!r}")
+        return value
+
+    def strings(self, key: str, default: Any = ...) -> tuple[str, ...]:
+        value = self.raw(key, default)
+        if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
+            raise self.fail(key, f"must be a list of names, got {value!r}")
+        if len(set(value)) != len(value):
+            raise self.fail(key, f"lists a name twice: {value!r}")
+        return tuple(value)
+
+    def number(self, key: str, default: Any = ..., positive: bool = False) -> float:
+        value = self.raw(key, default)
+        if value is None and default is None:
+            return None  # type: ignore[return-value]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise self.fail(key, f"must be a finite number, got {value!r}")
+        if positive and value <= 0:
+            raise self.fail(key, f"must be positive, got {value!r}")
+        return float(value)
+
+    def matrix(self, key: str, shape: tuple[int, int]) -> np.ndarray:
+        value = self.raw(key)
+        try:
+            m = np.array(value, dtype=float)
+        except (TypeError, ValueError):
+            raise self.fail(key, f"must be a numeric matrix, got {value!r}") from None
+        if m.shape != shape or not np.all(np.isfinite(m)):
+            raise self.fail(key, f"must be a finite {shape[0]}x{shape[1]} matrix, got shape {m.shape}")
+        return m
+
+
+def resolve_config_path(robot: str | Path) -> Path:
+    """A path to a YAML file, or the name of a bundled configuration."""
+    path = Path(robot)
+    if path.suffix in (".yaml", ".yml") or path.exists():
+        if not path.is_file():
+            raise ConfigError(f"robot configuration file not found: {path}")
+        return path
+    bundled = BUNDLED_DIR / f"{robot}.yaml"
+    if not bundled.is_file():
+        names = ", ".join(sorted(p.stem for p in BUNDLED_DIR.glob("*.yaml")))
+        raise ConfigError(f"unknown robot configuration '{robot}': not a file, and not one of the bundled ({names})")
+    return bundled
+
+
+def bundled_configs() -> list[str]:
+    return sorted(p.stem for p in BUNDLED_DIR.glob("*.yaml"))
+
+
+def _resolve_urdf(f: _Fields, config_dir: Path) -> Path:
+    spec = f.sub("urdf").only("path", "icub_models", "package", "file")
+    if spec.has("path"):
+        path = Path(spec.string("path"))
+        path = path if path.is_absolute() else config_dir / path
+    elif spec.has("icub_models"):
+        name = spec.string("icub_models")
+        try:
+            import icub_models
+        except ImportError:
+            raise spec.fail("icub_models", "needs the icub-models package, which is not installed") from None
+        try:
+            path = Path(icub_models.get_model_file(name))
+        except FileNotFoundError:
+            known = ", ".join(sorted(icub_models.get_robot_names()))
+            raise spec.fail("icub_models", f"names no model of icub-models: '{name}' (known: {known})") from None
+    elif spec.has("package"):
+        # A URDF shipped as data inside a pip distribution (e.g. example-robot-data).
+        dist, suffix = spec.string("package"), spec.string("file")
+        try:
+            files = importlib.metadata.files(dist) or []
+        except importlib.metadata.PackageNotFoundError:
+            raise spec.fail("package", f"names a distribution that is not installed: '{dist}'") from None
+        hits = [p for p in files if str(p).replace("\\", "/").endswith(suffix)]
+        if not hits:
+            raise spec.fail("file", f"matches no file of the distribution '{dist}': '{suffix}'")
+        path = Path(str(hits[0].locate()))
+    else:
+        raise f.fail("urdf", "must give one of 'path', 'icub_models' or 'package'")
+    if not path.is_file():
+        raise f.fail("urdf", f"points to a missing file: {path}")
+    return path
+
+
+def _noise(f: _Fields) -> NoiseConfig:
+    n = f.sub("noise", {}).only("pwm", "current", "torque", "encoder_step")
+    return NoiseConfig(
+        pwm=n.number("pwm", 0.002, positive=True),
+        current=n.number("current", 0.01, positive=True),
+        torque=n.number("torque", 0.05, positive=True),
+        encoder_step=n.number("encoder_step", 2 * math.pi / 65536, positive=True),
+    )
+
+
+def load_config(robot: str | Path = DEFAULT_ROBOT) -> RobotConfig:
+    """Load and validate a robot configuration (a path or a bundled name)."""
+    path = resolve_config_path(robot)
+    text = path.read_bytes()
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark else ""
+        raise ConfigError(f"{path}: not valid YAML{where}") from None
+    root = _Fields(path.stem, "", data)
+    name = root.string("name")
+    f = _Fields(name, "", data).only(
+        "name", "urdf", "base_link", "gravity", "joints", "ft_sensors", "motors", "actuation", "noise", "can",
+        "derivatives",
+    )
+
+    joints = f.strings("joints")
+    if not joints:
+        raise f.fail("joints", "must list at least one moving joint")
+
+    sensors = []
+    for s in f.items("ft_sensors", []):
+        s.only("name", "joint", "noise")
+        noise = s.sub("noise", {}).only("force", "torque")
+        sensors.append(
+            FTSensorConfig(
+                name=s.string("name"),
+                joint=s.string("joint"),
+                force_noise=noise.number("force", 0.1, positive=True),
+                torque_noise=noise.number("torque", 0.005, positive=True),
+            )
+        )
+    if len({s.name for s in sensors}) != len(sensors):
+        raise f.fail("ft_sensors", "lists a sensor name twice")
+
+    motors = []
+    motor_fields = f.sub("motors", {})
+    for mname, _ in motor_fields.data.items():
+        m = motor_fields.sub(str(mname)).only("nominal_gain", "known_gain")
+        known = m.number("known_gain", positive=True) if m.has("known_gain") else None
+        motors.append(
+            MotorConfig(
+                name=str(mname),
+                nominal_gain=m.number("nominal_gain", positive=True),
+                known_gain=known,
+            )
+        )
+    motor_names = [m.name for m in motors]
+
+    groups: list[ActuationGroup] = []
+    seen_joints: set[str] = set()
+    seen_motors: set[str] = set()
+    for g in f.items("actuation", []):
+        g.only("name", "input", "joints", "motors", "coupling")
+        kind = g.string("input")
+        if kind not in INPUT_KINDS:
+            raise g.fail("input", f"must be one of {', '.join(INPUT_KINDS)}, got '{kind}'")
+        gj = g.strings("joints")
+        for j in gj:
+            if j not in joints:
+                raise g.fail("joints", f"names '{j}', which is not in 'joints'")
+            if j in seen_joints:
+                raise g.fail("joints", f"names '{j}', which another actuation group already drives")
+        seen_joints.update(gj)
+        if kind == "torque":
+            if g.has("motors"):
+                raise g.fail("motors", "must be absent for input 'torque' (joint torque sensors have no motors)")
+            gm: tuple[str, ...] = ()
+            coupling = np.eye(len(gj))
+        else:
+            gm = g.strings("motors")
+            for m in gm:
+                if m not in motor_names:
+                    raise g.fail("motors", f"names '{m}', which is not under 'motors'")
+                if m in seen_motors:
+                    raise g.fail("motors", f"names '{m}', which another actuation group already uses")
+            seen_motors.update(gm)
+            if g.has("coupling"):
+                coupling = g.matrix("coupling", (len(gm), len(gj)))
+            elif len(gm) == len(gj):
+                coupling = np.eye(len(gj))
+            else:
+                raise g.fail("coupling", f"is missing, and {len(gm)} motors cannot drive {len(gj)} joints one-to-one")
+            if np.linalg.matrix_rank(coupling) < len(gj):
+                raise g.fail("coupling", "must have full column rank (every joint driven)")
+        groups.append(ActuationGroup(g.string("name"), kind, gj, gm, coupling))  # type: ignore[arg-type]
+    unused = [m for m in motor_names if m not in seen_motors]
+    if unused:
+        raise f.fail("motors", f"defines {unused[0]}, which no actuation group uses")
+
+    gravity = f.raw("gravity", [0.0, 0.0, -9.81])
+    try:
+        g_arr = np.array(gravity, dtype=float)
+    except (TypeError, ValueError):
+        raise f.fail("gravity", f"must be three numbers, got {gravity!r}") from None
+    if g_arr.shape != (3,) or not np.all(np.isfinite(g_arr)):
+        raise f.fail("gravity", f"must be three finite numbers, got {gravity!r}")
+
+    can = f.raw("can", {})
+    if not isinstance(can, dict):
+        raise f.fail("can", "must be a mapping")
+
+    return RobotConfig(
+        name=name,
+        source=str(path),
+        digest=hashlib.sha256(text).hexdigest(),
+        urdf=_resolve_urdf(f, path.parent),
+        base_link=f.string("base_link"),
+        gravity=g_arr,
+        joints=joints,
+        ft_sensors=tuple(sensors),
+        actuation=tuple(groups),
+        motors=tuple(motors),
+        noise=_noise(f),
+        can=_validate_can(f, joints, tuple(motor_names), tuple(s.name for s in sensors)),
+        derivatives=_derivatives(f),
+    )
+
+
+_DERIVATIVE_OPTIONS: dict[str, type] = {
+    "method": str, "window_s": float, "polyorder": int, "d": float, "max_window": int, "causal": bool,
+}
+
+
+def _derivatives(f: _Fields) -> dict[str, Any]:
+    """Options of dynid.io.derivatives.estimate_derivatives, each checked for its type."""
+    d = f.sub("derivatives", {}).only(*_DERIVATIVE_OPTIONS)
+    out: dict[str, Any] = {}
+    for key, value in d.data.items():
+        kind = _DERIVATIVE_OPTIONS[key]
+        if kind is float:
+            out[key] = d.number(key, positive=True)
+            continue
+        if kind is int and (isinstance(value, bool) or not isinstance(value, int) or value <= 0):
+            raise d.fail(key, f"must be a positive integer, got {value!r}")
+        if not isinstance(value, kind):
+            raise d.fail(key, f"must be a {kind.__name__}, got {value!r}")
+        out[key] = value
+    return out
+
+
+def _validate_can(f: _Fields, joints: tuple[str, ...], motors: tuple[str, ...], sensors: tuple[str, ...]) -> dict:
+    """The CAN mapping: buses, and which board (bus, address) carries which joint, motor or sensor."""
+    if not f.has("can"):
+        return {}
+    can = f.sub("can").only("buses", "strain", "motor_control", "skin")
+    buses = can.strings("buses")
+    used_addresses: set[tuple[str, int, int]] = set()
+
+    def address(b: _Fields, cls: int) -> int:
+        bus = b.string("bus")
+        if bus not in buses:
+            raise b.fail("bus", f"names '{bus}', which is not in can.buses")
+        a = b.raw("address")
+        if isinstance(a, bool) or not isinstance(a, int) or not 0 < a < 16:
+            raise b.fail("address", f"must be an integer board address in 1..15, got {a!r}")
+        if (bus, cls, a) in used_addresses:
+            raise b.fail("address", f"is used twice on bus {bus}")
+        used_addresses.add((bus, cls, a))
+        return a
+
+    strain = []
+    for b in can.items("strain", []):
+        b.only("sensor", "bus", "address", "full_scale")
+        address(b, 3)
+        sensor = b.string("sensor")
+        if sensor not in sensors:
+            raise b.fail("sensor", f"names '{sensor}', which is not in ft_sensors")
+        fs = b.raw("full_scale")
+        if not (isinstance(fs, list) and len(fs) == 6 and all(isinstance(x, (int, float)) and x > 0 for x in fs)):
+            raise b.fail("full_scale", f"must be six positive numbers (N, N, N, Nm, Nm, Nm), got {fs!r}")
+        strain.append(b.data)
+    mc = []
+    for b in can.items("motor_control", []):
+        b.only("bus", "address", "pwm_full_scale", "axes")
+        address(b, 1)
+        axes = b.items("axes")
+        if not 1 <= len(axes) <= 2:
+            raise b.fail("axes", f"must list 1 or 2 axes (a board serves two), got {len(axes)}")
+        for ax in axes:
+            ax.only("joint", "motor", "ticks_per_degree", "zero_deg")
+            j = ax.string("joint")
+            if j not in joints:
+                raise ax.fail("joint", f"names '{j}', which is not in 'joints'")
+            m = ax.raw("motor", None)
+            if m is not None and m not in motors:
+                raise ax.fail("motor", f"names '{m}', which is not under 'motors'")
+            ax.number("ticks_per_degree", positive=True)
+            ax.number("zero_deg", 0.0)
+        b.number("pwm_full_scale", positive=True)
+        mc.append(b.data)
+    skin = []
+    for b in can.items("skin", []):
+        b.only("bus", "address", "patch", "links", "side")
+        address(b, 4)
+        side = b.string("side")
+        if side not in ("distal", "proximal"):
+            raise b.fail("side", f"must be 'distal' or 'proximal' of the F/T sensor, got '{side}'")
+        b.string("patch")
+        if b.has("links") and not b.strings("links"):
+            raise b.fail("links", "must list at least one link the patch covers")
+        skin.append(b.data)
+    return {"buses": list(buses), "strain": strain, "motor_control": mc, "skin": skin}

@@ -1,0 +1,79 @@
+"""T² contact detection on a model's residuals over a run, scored against ground truth (`dynid detect`).
+
+Takes the residuals of dynid.identify.validation.evaluate and the model file's T² calibration; hands on
+`dynid detect --json`, field for field, and the T² series the report plots.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import DataError, InputError
+from ..identify.model_file import IdentifiedModel
+from ..identify.validation import Evaluated
+from ..io.dataset import beside_run
+from ..robot.outputs import divisors
+from .t2 import VARIANTS, Detector, f_threshold, score
+from .visibility import contact_residuals, episode_visibility
+
+
+def detectors(identified: IdentifiedModel, alpha: float, n_mode: str) -> dict[str, Detector]:
+    """Both variants at confidence `alpha`, from the model file's calibration."""
+    det = identified.record.get("detector")
+    if not det:
+        raise DataError(f"{identified.path} has no T² calibration (refit it with this dynid)")
+    out = {}
+    for variant in VARIANTS:
+        d = Detector.from_dict(det[variant])
+        if variant == "paper":
+            n = d.n if n_mode == "dim" else int(identified.record.get("n_components", d.n))
+            d = Detector("paper", d.variance, f_threshold(n, det["calibration_samples"], alpha), alpha, d.min_speed, n)
+        elif alpha != d.alpha:
+            # The stored quantiles of the calibration T² (model files of an earlier dynid hold them descending).
+            q = det["calibrated_t2_quantiles"]
+            order = np.argsort(q["levels"])
+            levels, values = np.asarray(q["levels"], float)[order], np.asarray(q["values"], float)[order]
+            if not levels[0] <= alpha <= levels[-1]:
+                raise InputError(f"--alpha {alpha} is outside the calibrated range {levels[0]:.4g}..{levels[-1]:.4g}")
+            d = Detector("calibrated", d.variance, float(np.interp(alpha, levels, values)), alpha, d.min_speed, d.n)
+        out[variant] = d
+    return out
+
+
+@dataclass(frozen=True)
+class Detection:
+    result: dict[str, Any]  # `dynid detect --json`
+    detectors: dict[str, Detector]
+    t2: dict[str, np.ndarray]  # variant -> (N,) T²
+    side: np.ndarray | None  # the skin's side per sample: +1 distal, −1 proximal, 0 none
+
+
+def detection(ev: Evaluated, model_label: str, data_label: str, alpha: float, n_mode: str) -> Detection:
+    dets = detectors(ev.identified, alpha, n_mode)
+    side = ev.dataset.extra.get("skin.side")
+    result: dict[str, Any] = {"model": model_label, "data": data_label, "alpha": alpha, "variants": {}}
+    t2s = {}
+    for variant, d in dets.items():
+        e = ev.e_constant if variant == "paper" else ev.e  # the paper's model has constant gains
+        t2s[variant] = d.t2(ev.model, e, ev.signals.dq, ev.identified.phi)
+        result["variants"][variant] = score(ev.dataset.t, t2s[variant], d.threshold, ev.dataset.contact, side)
+    truth = beside_run(data_label, "truth.npz")
+    if ev.dataset.contact is not None and ev.dataset.contact.any() and truth.is_file():
+        result["visibility"] = visibility(ev, dets["calibrated"], t2s["calibrated"], np.load(truth))
+    return Detection(result, dets, t2s, side)
+
+
+def visibility(ev: Evaluated, det: Detector, t2: np.ndarray, truth) -> dict[str, Any]:
+    """For a simulated run: which contact episodes the calibrated detector can see at all (the contact's own
+    residual, from the plant's truth: dynid.detect.visibility; no debounce offline) and how many of those it found."""
+    signal = contact_residuals(ev.model, divisors(ev.model, ev.identified.phi), truth)
+    episodes = episode_visibility(ev.dataset.contact, signal, det.active(ev.model, ev.signals.dq), det.variance,
+                                  det.threshold, debounce=1)
+    found = [bool(np.any(t2[v.start : v.end] > det.threshold)) for v in episodes]
+    t = ev.dataset.t - ev.dataset.t[0]
+    return {"visible": sum(v.visible for v in episodes),
+            "visible_found": sum(f for v, f in zip(episodes, found) if v.visible),
+            "episodes": [{**v.as_dict(), "start_s": float(t[v.start]), "found": f} for v, f in zip(episodes, found)]}

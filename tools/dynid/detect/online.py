@@ -1,0 +1,164 @@
+"""The monitor's own derivative estimator, mirrored: a fixed-lag Savitzky-Golay filter on uniform samples.
+
+At sample k the monitor fits a polynomial of degree `order` by least squares to the last `window` samples and
+evaluates it, and its first two derivatives, at sample k − `lag` (lag 0: purely causal, at the newest sample;
+lag (window − 1)/2: the centred, offline filter). The fit is linear in the samples, so each estimate is a fixed
+set of weights, oldest sample first; the coefficient file carries the weights and rt_monitor applies them in
+the same order as `FixedLagSavitzkyGolay.apply`, so the two agree to rounding.
+
+Like `dynid.io.derivatives`' offline filter, the same value weights also smooth the measured outputs (F/T, PWM),
+so the regressor and the measurement see the same band and the same delay (Gautier's parallel filtering).
+Λ and the T² thresholds of the coefficient file are computed on signals made here (docs/design.md §3): the monitor
+then meets the false-positive rate its threshold promises.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import DataError
+from ..identify.supply import SupplyTracking, tracked_residuals
+from ..io.derivatives import SavitzkyGolay
+from ..robot.effects import augmented_residuals
+from ..robot.model import RobotModel
+from ..robot.outputs import output_channels
+from ..robot.regressors.stack import Signals
+from .t2 import calibrate
+
+# Sample steps count as uniform within this fraction of the median step; the monitor's filter assumes them.
+UNIFORM_RTOL = 0.05
+
+
+@dataclass(frozen=True)
+class FixedLagSavitzkyGolay:
+    window: int  # samples
+    order: int  # polynomial degree (≥ 2 for q̈)
+    lag: int  # samples behind the newest (0 = causal)
+    sample_period: float  # s
+
+    def __post_init__(self) -> None:
+        if self.window < 3 or self.order < 2 or self.order >= self.window:
+            raise DataError(f"fixed-lag filter: need 2 ≤ order < window and window ≥ 3 (window {self.window}, "
+                            f"order {self.order})")
+        if not 0 <= self.lag < self.window:
+            raise DataError(f"fixed-lag filter: lag must be in [0, {self.window - 1}], got {self.lag}")
+        if not (np.isfinite(self.sample_period) and self.sample_period > 0):
+            raise DataError(f"fixed-lag filter: sample period must be positive, got {self.sample_period}")
+
+    def weights(self) -> np.ndarray:
+        """(3, window): value, first and second derivative at sample k − lag from samples k − window + 1 … k."""
+        # Fit in units of samples (well conditioned), then scale by the period.
+        s = np.arange(self.window, dtype=float) - (self.window - 1 - self.lag)
+        V = np.vander(s, self.order + 1, increasing=True)  # columns 1, s, s², …
+        P = np.linalg.pinv(V)  # rows: polynomial coefficients as weights on the samples
+        dt = self.sample_period
+        return np.vstack([P[0], P[1] / dt, 2.0 * P[2] / dt**2])
+
+    def apply(self, x: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+        """(3, N − window + 1, c) estimates for samples window − 1 − lag … N − 1 − lag of x (N, c)."""
+        w = self.weights() if weights is None else weights
+        x = np.asarray(x, dtype=float)
+        n = x.shape[0] - self.window + 1
+        if n <= 0:
+            raise DataError(f"{x.shape[0]} samples are fewer than the monitor's filter window ({self.window})")
+        out = np.zeros((3, n) + x.shape[1:])
+        for i in range(self.window):  # the monitor's summation order: oldest sample first
+            out += w[:, i, None, None] * x[None, i : i + n] if x.ndim == 2 else w[:, i, None] * x[None, i : i + n]
+        return out
+
+    def as_dict(self) -> dict:
+        return {"method": "fixed-lag savgol", "window": self.window, "order": self.order, "lag": self.lag,
+                "sample_period": self.sample_period, "delay_s": self.lag * self.sample_period}
+
+
+def estimator_for(model: RobotModel, t: np.ndarray, lag: int | None, window: int | None = None) -> FixedLagSavitzkyGolay:
+    """The online filter for data sampled at times t: window and order of the configuration's offline smoother."""
+    steps = np.diff(np.asarray(t, float))
+    if steps.size == 0:
+        raise DataError("the data have a single sample: no sample period")
+    dt = float(np.median(steps))
+    if np.max(np.abs(steps - dt)) > UNIFORM_RTOL * dt:
+        k = int(np.argmax(np.abs(steps - dt))) + 1
+        raise DataError(f"the monitor's filter needs uniform samples; step {k} is {steps[k - 1]:.6g} s against a "
+                        f"median of {dt:.6g} s")
+    options = {k: v for k, v in model.config.derivatives.items() if k in ("window_s", "polyorder")}
+    sg = SavitzkyGolay(**options)
+    w = window or sg.window_samples(dt)
+    return FixedLagSavitzkyGolay(int(w), int(sg.polyorder), int((w - 1) // 4 if lag is None else lag), dt)
+
+
+def online_signals(model: RobotModel, est: FixedLagSavitzkyGolay, t: np.ndarray, q: np.ndarray,
+                   inputs: dict[str, np.ndarray], tau: dict[str, np.ndarray],
+                   ft: dict[str, np.ndarray]) -> Signals:
+    """What the monitor sees: every channel through the fixed-lag filter (estimates at k − lag, k ≥ window − 1)."""
+    columns = [q] + [v[:, None] for v in inputs.values()] + [v[:, None] for v in tau.values()] + list(ft.values())
+    x = np.hstack(columns)
+    value, d1, d2 = est.apply(x)
+    nj = q.shape[1]
+    cut = np.cumsum([c.shape[1] for c in columns])[:-1]
+    parts = iter(np.split(value, cut, axis=1))
+    qf = next(parts)
+    return Signals(qf, d1[:, :nj], d2[:, :nj], {k: next(parts)[:, 0] for k in inputs},
+                   {k: next(parts)[:, 0] for k in tau}, {k: next(parts) for k in ft})
+
+
+def raw_signals(model: RobotModel, dataset) -> tuple[np.ndarray, np.ndarray, dict, dict, dict]:  # dataset: Dataset
+    """(t, q, inputs, tau, ft) as the monitor receives them, unfiltered, picked as the configuration names them."""
+    cfg = model.config
+    if tuple(dataset.joints) != cfg.joints:
+        raise DataError(f"the dataset's joints {list(dataset.joints)} differ from the configuration's {list(cfg.joints)}")
+    inputs, tau = {}, {}
+    for g in cfg.actuation:
+        if g.input == "torque":
+            for j in g.joints:
+                if j not in dataset.tau:
+                    raise DataError(f"the data have no tau.{j}, which actuation group '{g.name}' needs")
+                tau[j] = dataset.tau[j]
+            continue
+        source = dataset.pwm if g.input == "pwm" else dataset.current
+        for m in g.motors:
+            if m not in source:
+                raise DataError(f"the data have no {g.input}.{m}, which actuation group '{g.name}' needs")
+            inputs[m] = source[m]
+    ft = {}
+    for s in cfg.ft_sensors:
+        if s.name not in dataset.ft:
+            raise DataError(f"the data have no ft.{s.name}.* columns, which the configuration's F/T sensor needs")
+        ft[s.name] = dataset.ft[s.name]
+    return dataset.t, dataset.q, inputs, tau, ft
+
+
+@dataclass(frozen=True)
+class OnlineCalibration:
+    variance: np.ndarray  # Λ (n_out,), through the online filter
+    threshold: float  # T²_α of the calibrated detector (dynid.detect.t2), through the online filter
+    ft_threshold: float  # α-quantile of the F/T channels' share of T²
+    samples: int
+
+
+def online_times(est: FixedLagSavitzkyGolay, t: np.ndarray) -> np.ndarray:
+    """The time stamps of the samples `online_signals` estimates (k − lag for k = window − 1 … N − 1)."""
+    return np.asarray(t, float)[est.window - 1 - est.lag : len(t) - est.lag]
+
+
+def calibrate_online(model: RobotModel, phi: np.ndarray, datasets: list, est: FixedLagSavitzkyGolay, alpha: float,
+                     min_speed: float, stride: int = 2, effects: list | None = None,
+                     tracking: SupplyTracking | None = None) -> OnlineCalibration:
+    """Λ and the thresholds of dynid's calibrated detector, on contact-free data seen through the online filter
+    (with the augmented model's `effects`, dynid.robot.effects, and the supply `tracking`, as the monitor evaluates
+    them; the tracker sees every `stride`-th sample, with the same time constant in seconds)."""
+    es, dqs = [], []
+    for ds in datasets:
+        raw = raw_signals(model, ds)
+        keep = slice(None, None, stride)
+        sig = online_signals(model, est, *raw).slice(keep)
+        e = augmented_residuals(model, phi, effects or [], sig)
+        es.append(tracked_residuals(model, tracking, min_speed, e, sig, online_times(est, raw[0])[keep]))
+        dqs.append(sig.dq)
+    e, dq = np.vstack(es), np.vstack(dqs)
+    det = calibrate(model, phi, e, dq, alpha, min_speed, variants=("calibrated",))["calibrated"]
+    ft = [o.row for o in output_channels(model) if o.kind == "ft"]
+    t2_ft = np.sum(e[:, ft] ** 2 / det.variance[ft], axis=1)
+    return OnlineCalibration(det.variance, det.threshold, float(np.quantile(t2_ft, alpha)), int(e.shape[0]))

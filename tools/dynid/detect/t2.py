@@ -1,0 +1,211 @@
+"""Hotelling T² contact detection on the model's residuals (docs/design.md §3), two variants.
+
+- ``paper`` (Traversaro et al. 2013): T² = eᵀ Λ⁻¹ e over every output, Λ = diag of the residual variances on
+  the identification data, threshold T²_α = n(N−1)/(N−n)·F(n, N−n; α), n = dim(e) by default (the paper writes
+  n = ν; `n_mode="nu"`). That F threshold assumes independent Gaussian residuals; the PWM residuals are neither:
+  at velocity reversals and while a joint rests, Coulomb friction flips or static friction holds what the
+  model cannot say, so they are heavy-tailed and autocorrelated, and the threshold does not keep its promise.
+  While a friction coordinate rests its Coulomb law is set-valued (any torque in [−fc_neg, fc_pos] holds it), so
+  the residual of a row at rest is its distance to that band (`static_band_residuals`), not its distance to
+  the sign an encoder-derived q̇ happens to give; the band uses only the model's own Coulomb coefficients.
+- ``calibrated`` (dynid's default): a motor channel whose row is at rest (a joint or motor of it slower than
+  `min_speed`, `dynid.robot.regressors.stack.rows_at_rest`) is left out of the sum for that sample, Λ of the motor
+  channels comes from moving samples only, and the threshold is the empirical α-quantile of this T² on the
+  contact-free identification data: a false-positive rate of 1 − α by construction, whatever the residuals'
+  distribution, as long as new contact-free data look like the identification data.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..identify.fit import SignalSource
+from ..identify.supply import SupplyTracking, smoothed_residuals
+from ..io.dataset import contact_episodes
+from ..robot.model import RobotModel
+from ..robot.outputs import divisors, output_channels
+from ..robot.regressors.stack import Signals, friction_coordinates, rows_at_rest
+
+ALPHA = 0.99
+VARIANTS: tuple[str, ...] = ("calibrated", "paper")
+CALIBRATION_CHUNK = 30_000  # samples (even, so the stride stays aligned across chunks)
+CALIBRATION_STRIDE = 2  # every other sample of the identification run calibrates T² (quantiles need no more)
+QUANTILE_LEVELS = np.sort(1.0 - np.logspace(-4, np.log10(0.5), 240))  # α in 0.5 … 0.9999, ascending
+
+
+def f_threshold(n: int, N: int, alpha: float) -> float:
+    """T²_α = n(N−1)/(N−n) · F(n, N−n; α)."""
+    from scipy import stats  # ~0.5 s to import: only where a threshold is computed
+
+    return float(n * (N - 1) / (N - n) * stats.f.ppf(alpha, n, N - n))
+
+
+@dataclass(frozen=True)
+class Detector:
+    variant: str
+    variance: np.ndarray  # Λ (n_out,)
+    threshold: float
+    alpha: float
+    min_speed: float
+    n: int  # the n of the F threshold (paper) or dim(e)
+
+    def active(self, model: RobotModel, dq: np.ndarray) -> np.ndarray:
+        """(N, n_out) bool: the channels that enter T² at each sample."""
+        if self.variant == "paper":
+            return np.ones((dq.shape[0], len(self.variance)), dtype=bool)
+        return ~rows_at_rest(model, dq, self.min_speed)
+
+    def t2(self, model: RobotModel, e: np.ndarray, dq: np.ndarray, phi: np.ndarray | None = None) -> np.ndarray:
+        """T² per sample; the paper's variant needs the model's Φ for the static-friction band."""
+        if self.variant == "paper":
+            if phi is None:
+                raise ValueError("the paper's T² needs Φ (the static-friction band of resting rows)")
+            e = static_band_residuals(model, phi, dq, e, self.min_speed)
+        return np.sum(np.where(self.active(model, dq), e**2 / self.variance, 0.0), axis=1)
+
+    def as_dict(self) -> dict:
+        return {"variant": self.variant, "variance": self.variance.tolist(), "threshold": self.threshold,
+                "alpha": self.alpha, "min_speed": self.min_speed, "n": self.n}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Detector:
+        return cls(d["variant"], np.asarray(d["variance"], float), float(d["threshold"]), float(d["alpha"]),
+                   float(d["min_speed"]), int(d["n"]))
+
+
+def static_band_residuals(model: RobotModel, phi: np.ndarray, dq: np.ndarray, e: np.ndarray,
+                          min_speed: float) -> np.ndarray:
+    """e with every row at rest replaced by its distance to the static-friction band of its resting coordinates.
+
+    A coordinate (joint, or coupled motor at q̇_m = T q̇) slower than `min_speed` contributes L·[−fc_neg, fc_pos]
+    (C· for a motor) to its rows instead of the Coulomb term its derived q̇'s sign chose. Rows with no resting
+    coordinate, and the F/T rows, are returned unchanged.
+    """
+    g = divisors(model, phi)
+    out = e.copy()
+    for rows, coordinates in friction_coordinates(model, dq):
+        applied = np.zeros((dq.shape[0], rows.stop - rows.start))  # the Coulomb torque the sign chose, on resting ones
+        lo, hi = np.zeros_like(applied), np.zeros_like(applied)
+        for c in coordinates:
+            fc_pos, fc_neg = phi[model.layout.block(*c.block).slice][:2]
+            slow = (np.abs(c.velocity) < min_speed)[:, None]
+            coulomb = fc_pos * (c.velocity > 0) - fc_neg * (c.velocity < 0)
+            applied += np.where(slow, coulomb[:, None] * c.share, 0.0)
+            ends = np.stack([c.share * fc_pos, -c.share * fc_neg])
+            lo += np.where(slow, ends.min(axis=0), 0.0)
+            hi += np.where(slow, ends.max(axis=0), 0.0)
+        gain = g[rows]
+        free = e[:, rows] + applied / gain  # e = (b − AΦ)/g: the residual without the resting Coulomb terms
+        band_lo, band_hi = np.minimum(lo / gain, hi / gain), np.maximum(lo / gain, hi / gain)
+        out[:, rows] = free - np.clip(free, band_lo, band_hi)
+    return out
+
+
+def calibration_residuals(model: RobotModel, datasets: Sequence, settings,
+                          residual_of: Callable[[Signals, np.ndarray], np.ndarray],
+                          tracking: SupplyTracking | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(e, q̇, e with constant gains) on every CALIBRATION_STRIDE-th sample of the contact-free runs, a chunk at
+    a time (bounded memory), with offline derivatives; residual_of(signals, t since the run's start) gives e of a
+    chunk. With `tracking`, e's input channels are those of the offline, two-sided supply estimate
+    (dynid.identify.supply.smoothed_residuals) of each run; without, the two residual arrays are the same."""
+    es, dqs, constant = [], [], []
+    keep = slice(None, None, CALIBRATION_STRIDE)
+    for ds in datasets:
+        source = SignalSource(model, ds, settings, instruments=False)
+        run_e, run_dq, run_inputs = [], [], []
+        for lo in range(0, ds.n_samples, CALIBRATION_CHUNK):
+            hi = min(lo + CALIBRATION_CHUNK, ds.n_samples)
+            sig = source(lo, hi)[0].slice(keep)
+            run_e.append(residual_of(sig, ds.t[lo:hi][keep] - ds.t[0]))
+            run_dq.append(sig.dq)
+            run_inputs.append(sig.inputs)
+        e, dq = np.vstack(run_e), np.vstack(run_dq)
+        constant.append(e)
+        dqs.append(dq)
+        if tracking is not None:  # two-sided over the whole run (the strided samples: the same seconds)
+            inputs = {m: np.concatenate([part[m] for part in run_inputs]) for m in run_inputs[0]}
+            whole = Signals(dq, dq, dq, inputs, {}, {})  # the tracker reads q̇ and the inputs only
+            e = smoothed_residuals(model, tracking, settings.min_speed, e, whole, ds.t[keep])
+        es.append(e)
+    e = np.vstack(es)
+    return e, np.vstack(dqs), (e if tracking is None else np.vstack(constant))
+
+
+def detector_record(model: RobotModel, detectors: dict[str, Detector], e: np.ndarray, dq: np.ndarray) -> dict:
+    """The model file's `detector` section: both variants, N, and the calibrated T²'s quantiles (`--alpha`)."""
+    t2 = detectors["calibrated"].t2(model, e, dq)
+    return {**{k: d.as_dict() for k, d in detectors.items()}, "calibration_samples": int(e.shape[0]),
+            "calibrated_t2_quantiles": {"levels": QUANTILE_LEVELS.tolist(),
+                                        "values": np.quantile(t2, QUANTILE_LEVELS).tolist()}}
+
+
+def calibrate(model: RobotModel, phi: np.ndarray, e: np.ndarray, dq: np.ndarray, alpha: float = ALPHA, min_speed: float = 0.01,
+              n_mode: str = "dim", nu: int | None = None, variants: Sequence[str] = VARIANTS,
+              e_constant: np.ndarray | None = None) -> dict[str, Detector]:
+    """The detectors (both by default) from contact-free residuals e (N, n_out) of the identification data, fitted Φ;
+    the paper's variant, as published, on the residuals with constant gains `e_constant` (default e)."""
+    N, n_out = e.shape
+    out: dict[str, Detector] = {}
+    if "paper" in variants:
+        n = n_out if n_mode == "dim" else int(nu or n_out)
+        banded = static_band_residuals(model, phi, dq, e if e_constant is None else e_constant, min_speed)
+        out["paper"] = Detector("paper", banded.var(axis=0), f_threshold(n, N, alpha), alpha, min_speed, n)
+    if "calibrated" not in variants:
+        return out
+    rest = rows_at_rest(model, dq, min_speed)
+    moving = np.where(rest, np.nan, e)
+    variance = np.nanmean(moving**2, axis=0)
+    variance = np.where(np.isfinite(variance) & (variance > 0), variance, e.var(axis=0))
+    draft = Detector("calibrated", variance, np.inf, alpha, min_speed, n_out)
+    threshold = float(np.quantile(draft.t2(model, e, dq), alpha))
+    out["calibrated"] = Detector("calibrated", variance, threshold, alpha, min_speed, n_out)
+    return out
+
+
+# ------------------------------------------------------------------------------------------------------------
+# Scoring against the skin's ground truth
+
+
+def score(t: np.ndarray, t2: np.ndarray, threshold: float, contact: np.ndarray | None,
+          side: np.ndarray | None = None) -> dict:
+    """TPR, FPR (per sample), ROC and AUC, detection delays per episode, TPR per side of the F/T sensor."""
+    from sklearn.metrics import roc_auc_score, roc_curve
+
+    alarm = t2 > threshold
+    out: dict = {"threshold": threshold, "alarm_rate": float(alarm.mean()), "samples": int(t2.size)}
+    if contact is None:
+        out["fpr"] = out["alarm_rate"]
+        return out
+    truth = contact != 0
+    out["contact_fraction"] = float(truth.mean())
+    out["tpr"] = float(alarm[truth].mean()) if truth.any() else None
+    out["fpr"] = float(alarm[~truth].mean()) if (~truth).any() else None
+    if truth.any() and (~truth).any():
+        fpr, tpr, _ = roc_curve(truth, t2)
+        keep = np.unique(np.linspace(0, fpr.size - 1, min(fpr.size, 400)).round().astype(int))
+        out["auc"] = float(roc_auc_score(truth, t2))
+        out["roc"] = {"fpr": fpr[keep].tolist(), "tpr": tpr[keep].tolist()}
+    delays, missed = [], 0
+    for a, b in contact_episodes(contact):
+        hits = np.flatnonzero(alarm[a:b])
+        if hits.size:
+            delays.append(float(t[a + hits[0]] - t[a]))
+        else:
+            missed += 1
+    out["episodes"] = len(delays) + missed
+    out["episodes_detected"] = len(delays)
+    out["delay_s"] = {"median": float(np.median(delays)) if delays else None,
+                      "p90": float(np.percentile(delays, 90)) if delays else None}
+    if side is not None:
+        out["tpr_by_side"] = {}
+        for name, code in (("distal", 1.0), ("proximal", -1.0)):
+            sel = truth & (side == code)
+            out["tpr_by_side"][name] = float(alarm[sel].mean()) if sel.any() else None
+    return out
+
+
+def channel_names(model: RobotModel) -> list[str]:
+    return [o.name for o in output_channels(model)]

@@ -1,0 +1,82 @@
+"""Which contacts the sensors can see: the T² a contact alone adds, from the simulated plant's ground truth.
+
+The model's residual e = y − ŷ(q, q̇, q̈) of a contact is the contact itself, whatever the controller does
+with it: on the F/T channels the contact wrench (distal contacts), on the motor inputs minus its joint torques
+(torque the motors need not give) through the row maps, divided by the gains. The plant records both (truth.npz: ``extra/contact.<sensor>.<c>``
+and ``extra/contact.tau.<joint>``). A contact whose own T², over the channels the detector uses at that sample
+(moving rows), never stays above T²_α for the detector's debounce cannot be told from the noise at that
+threshold by this model: a push through a joint's axis gives no torque at all, and while a joint rests its
+static friction takes any torque inside its band.
+
+`scripts/main`'s summary and the end-to-end tests use it to split the episodes the monitor missed into those it
+could see and those nothing in these sensors shows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import DataError
+from ..io.dataset import contact_episodes
+from ..robot.model import RobotModel
+from ..robot.regressors.stack import joint_row_shares, row_channels, rows_at_rest
+
+FT_FIELDS = ("fx", "fy", "fz", "tx", "ty", "tz")
+
+
+def contact_residuals(model: RobotModel, divisors: np.ndarray, truth: Mapping[str, np.ndarray]) -> np.ndarray:
+    """(N, n_out) what the recorded contact adds to e, channel by channel; `divisors`: each channel's gain."""
+    cfg = model.config
+    try:
+        tau = np.column_stack([np.asarray(truth[f"extra/contact.tau.{j}"], float) for j in cfg.joints])
+        ft = {s.name: np.column_stack([np.asarray(truth[f"extra/contact.{s.name}.{c}"], float) for c in FT_FIELDS])
+              for s in cfg.ft_sensors}
+    except KeyError as e:
+        raise DataError(f"the ground truth has no contact record {e} (not a simulated contact run?)") from None
+    out = np.zeros((tau.shape[0], len(row_channels(model))))
+    for c, share in joint_row_shares(model).values():  # joint torques reach the rows through L
+        out -= np.outer(tau[:, c], share)  # torque the motors need not give
+    n_ft = 6 * len(cfg.ft_sensors)
+    out[:, n_ft:] /= np.asarray(divisors, float)[n_ft:]
+    for i, s in enumerate(cfg.ft_sensors):
+        out[:, 6 * i : 6 * i + 6] = ft[s.name]
+    return out
+
+
+@dataclass(frozen=True)
+class EpisodeVisibility:
+    start: int  # samples
+    end: int
+    peak_t2: float  # the largest T² the contact alone adds, over the channels in use at each sample
+    longest_run: int  # samples in a row with that T² above T²_α
+    visible: bool  # longest_run ≥ the debounce
+
+    def as_dict(self) -> dict:
+        return {"start": self.start, "end": self.end, "peak_t2": self.peak_t2, "longest_run": self.longest_run,
+                "visible": self.visible}
+
+
+def episode_visibility(contact: np.ndarray, signal: np.ndarray, active: np.ndarray, variance: np.ndarray,
+                       threshold: float, debounce: int) -> list[EpisodeVisibility]:
+    """Per contact episode: can the detector (Λ = `variance`, T²_α = `threshold`, `debounce` samples) see the
+    contact's own residual `signal` (N, n_out) on the channels `active` (N, n_out) at each sample?"""
+    t2 = np.sum(np.where(active, signal**2 / np.asarray(variance, float), 0.0), axis=1)
+    out = []
+    for a, b in contact_episodes(contact):
+        best = max((e - s for s, e in contact_episodes(t2[a:b] > threshold)), default=0)
+        out.append(EpisodeVisibility(int(a), int(b), float(t2[a:b].max()), best, best >= debounce))
+    return out
+
+
+def monitor_visibility(model: RobotModel, coef, truth: Mapping[str, np.ndarray]) -> list[EpisodeVisibility]:
+    """The episodes of a simulated contact run that the monitor's detector (a coefficient file: Λ, T²_α through
+    its online filter, the debounce, the gates) can see, with the channels in use decided on the true q̇."""
+    if "contact" not in truth or "dq" not in truth:
+        raise DataError("the ground truth has no contact or q̇ record (not a simulated contact run?)")
+    signal = contact_residuals(model, np.asarray(coef.divisor, float), truth)
+    active = ~rows_at_rest(model, np.asarray(truth["dq"], float), float(coef.min_speed))
+    return episode_visibility(np.asarray(truth["contact"]), signal, active, np.asarray(coef.residual_variance, float),
+                              float(coef.threshold), int(coef.debounce_on))

@@ -1,0 +1,295 @@
+"""The coefficient file: what `dynid export` hands to the real-time monitor (rt_monitor/README.md).
+
+Layout (all integers little-endian):
+
+    0    8 bytes   magic "DYNIDCOF"
+    8    uint32    format version (FILE_VERSION)
+    12   uint32    payload length L
+    16   L bytes   payload: an LCM-encoded dynid.coefficients_t (rt_monitor/lcmtypes/coefficients_t.lcm; it starts
+                   with the type's 8-byte fingerprint)
+    16+L uint32    CRC-32 (IEEE 802.3, zlib's) of bytes 0 … 16+L−1
+
+`build_coefficients` fills the payload from an identified model and the online calibration
+(`dynid.detect.online`); `read_coefficients` checks a file as the C++ loader does; `describe` prints one readably.
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..detect.online import FixedLagSavitzkyGolay
+from ..errors import DataError
+from ..identify.supply import SupplyTracking
+from ..io.dataset import atomic_write
+from ..robot.effects import EXPORTABLE, Effect
+from ..robot.model import RobotModel
+from ..robot.outputs import output_channels
+from ..robot.regressors.stack import group_row_maps
+from ..version import __version__
+from .lcm_coefficients import coefficients_t
+
+MAGIC = b"DYNIDCOF"
+FILE_VERSION = 3  # 2: the effects of an augmented model (Stribeck, spring); 3: supply tracking; older files are refused
+HEADER = struct.Struct("<8sII")
+KIND = {"ft": 0, "input": 1, "torque": 2}
+JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
+# Events, not samples: the filtered residuals are autocorrelated over the filter window, so single samples above
+# T²_α come in bursts. On the default simulated runs, 5 samples gave an onset every 3 s on contact-free data;
+# 10 gave none there and caught 21 of the contact run's 28 episodes (rt_monitor/README.md).
+DEFAULT_DEBOUNCE_ON, DEFAULT_DEBOUNCE_OFF, DEFAULT_HYSTERESIS = 10, 100, 0.5
+
+
+def wrap(payload: bytes, version: int = FILE_VERSION) -> bytes:
+    head = HEADER.pack(MAGIC, version, len(payload)) + payload
+    return head + struct.pack("<I", zlib.crc32(head) & 0xFFFFFFFF)
+
+
+def unwrap(data: bytes, where: str = "coefficient file") -> bytes:
+    """The payload of a wrapped file; DataError on a bad magic, version, length or CRC."""
+    if len(data) < HEADER.size + 4:
+        raise DataError(f"{where}: truncated ({len(data)} bytes, shorter than the header)")
+    magic, version, length = HEADER.unpack_from(data)
+    if magic != MAGIC:
+        raise DataError(f"{where}: not a dynid coefficient file (bad magic)")
+    if version != FILE_VERSION:
+        raise DataError(f"{where}: format version {version}, this dynid reads {FILE_VERSION}")
+    if len(data) != HEADER.size + length + 4:
+        raise DataError(f"{where}: truncated or padded ({len(data)} bytes, the header says {HEADER.size + length + 4})")
+    (crc,) = struct.unpack_from("<I", data, HEADER.size + length)
+    if zlib.crc32(data[: HEADER.size + length]) & 0xFFFFFFFF != crc:
+        raise DataError(f"{where}: CRC mismatch (the file is corrupt)")
+    return data[HEADER.size : HEADER.size + length]
+
+
+def read_coefficients(path: str | Path) -> coefficients_t:
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(f"coefficient file not found: {path}")
+    payload = unwrap(path.read_bytes(), str(path))
+    try:
+        return coefficients_t.decode(payload)
+    except (ValueError, struct.error) as e:
+        raise DataError(f"{path}: payload is not a dynid.coefficients_t ({e})") from None
+
+
+def write_coefficients(c: coefficients_t, path: str | Path) -> int:
+    data = wrap(c.encode())
+    atomic_write(Path(path), lambda f: f.write(data))
+    return len(data)
+
+
+# ------------------------------------------------------------------------------------------------------------
+
+
+def _joint(model: RobotModel, jid: int) -> tuple[int, np.ndarray]:
+    """(type, axis) of a Pinocchio joint of the split model, as the monitor knows joints."""
+    jm = model.pin_model.joints[jid]
+    name = jm.shortname()
+    if name == "JointModelFreeFlyer" and model.pin_model.names[jid] in {s.joint for s in model.config.ft_sensors}:
+        return JOINT_FIXED, np.zeros(3)
+    unit = {"X": [1.0, 0, 0], "Y": [0, 1.0, 0], "Z": [0, 0, 1.0]}
+    for prefix, kind in (("JointModelR", JOINT_REVOLUTE), ("JointModelP", JOINT_PRISMATIC)):
+        if name in (prefix + "X", prefix + "Y", prefix + "Z"):
+            return kind, np.array(unit[name[-1]])
+        if name in (prefix + "UBX", prefix + "UBY", prefix + "UBZ") and kind == JOINT_REVOLUTE:
+            return kind, np.array(unit[name[-1]])
+    if name in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
+        axis = np.asarray(jm.extract().axis, float)
+        return (JOINT_REVOLUTE if "Revolute" in name else JOINT_PRISMATIC), axis / np.linalg.norm(axis)
+    raise DataError(f"the monitor does not support joint '{model.pin_model.names[jid]}' ({name})")
+
+
+@dataclass(frozen=True)
+class EventSettings:
+    """How the monitor turns T² samples into contact events."""
+
+    debounce_on: int = DEFAULT_DEBOUNCE_ON  # samples above T²_α for an onset
+    debounce_off: int = DEFAULT_DEBOUNCE_OFF  # samples below the hysteresis level for an end
+    hysteresis: float = DEFAULT_HYSTERESIS  # the end level as a fraction of T²_α
+
+
+@dataclass(frozen=True)
+class MonitorDetector:
+    """The monitor's T²: Λ and the thresholds, calibrated through its own filter (dynid.detect.online)."""
+
+    variance: np.ndarray  # Λ (n_out,)
+    threshold: float  # T²_α
+    ft_threshold: float  # the F/T channels' share of T² at α
+    alpha: float
+    min_speed: float
+    samples: int  # calibration samples
+    events: EventSettings = EventSettings()
+
+
+@dataclass(frozen=True)
+class Provenance:
+    """Where the coefficients come from, written into the file for the monitor's start-up line."""
+
+    model_sha256: str = ""
+    data_sha256: str = ""
+    estimator: str = ""
+
+
+def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDetector, est: FixedLagSavitzkyGolay,
+                       provenance: Provenance = Provenance(), effects: Sequence[Effect] = (),
+                       tracking: SupplyTracking | None = None) -> coefficients_t:
+    """The payload of the coefficient file for Φ (with Stribeck and spring effects), the detector and the filter."""
+    cfg, layout, pm = model.config, model.layout, model.pin_model
+    exportable_effects(effects)
+    if len(cfg.ft_sensors) != 1:
+        raise DataError(f"the monitor needs exactly one F/T sensor; {cfg.name} has {len(cfg.ft_sensors)}")
+    c = coefficients_t()
+    c.robot_name, c.config_digest, c.dynid_version = cfg.name, cfg.digest, __version__
+    c.model_sha256, c.data_sha256, c.estimator = provenance.model_sha256, provenance.data_sha256, provenance.estimator
+
+    joints = list(cfg.joints)
+    c.n_joints, c.joint_names = len(joints), joints
+    c.n_bodies = len(model.bodies)
+    c.body_names = [b.name for b in model.bodies]
+    c.parent, c.joint_type, c.joint_index, c.axis, c.rotation, c.translation, c.inertial = [], [], [], [], [], [], []
+    inertial = phi[layout.span("inertial")]
+    for k, b in enumerate(model.bodies):
+        if b.joint_id != k + 1:
+            raise DataError("the model's bodies are not in joint order")
+        kind, axis = _joint(model, b.joint_id)
+        c.parent.append(int(pm.parents[b.joint_id]) - 1)
+        c.joint_type.append(kind)
+        c.joint_index.append(model.joint_ids.index(b.joint_id) if kind != JOINT_FIXED else -1)
+        c.axis.append(axis.tolist())
+        M = pm.jointPlacements[b.joint_id]
+        c.rotation.append(np.asarray(M.rotation).ravel().tolist())
+        c.translation.append(np.asarray(M.translation).tolist())
+        c.inertial.append(inertial[10 * k : 10 * k + 10].tolist())
+    c.gravity = np.asarray(pm.gravity.linear).tolist()
+    sensor = cfg.ft_sensors[0]
+    c.sensor_body = [b.name for b in model.bodies].index(model.sensor_bodies[sensor.name].name)
+    c.sensor_name = sensor.name
+
+    col = {j: i for i, j in enumerate(joints)}
+    motors = [m for g in cfg.actuation if g.input != "torque" for m in g.motors]
+    c.n_motors, c.motor_names = len(motors), motors
+    c.motor_velocity = [[0.0] * len(joints) for _ in motors]
+    c.motor_friction_on, c.motor_friction = [0] * len(motors), [[0.0] * 4 for _ in motors]
+    c.joint_friction = [[0.0] * 4 for _ in joints]
+    gates: dict[str, tuple[int, int]] = {}  # row channel of a group -> (joint bits, motor bits)
+    rows: dict[str, tuple[np.ndarray, int]] = {}  # output channel -> (row map over all joints, motor index)
+    for g in cfg.actuation:
+        for j in g.joints:
+            c.joint_friction[col[j]] = phi[layout.block("joint_friction", j).slice].tolist()
+        L, C = group_row_maps(g)
+        touches, touches_motor = np.abs(L) > 1e-9 * np.abs(L).max(), np.abs(C) > 1e-9 * np.abs(C).max()
+        if g.input != "torque":
+            for mi, m in enumerate(g.motors):
+                k = motors.index(m)
+                for li, j in enumerate(g.joints):
+                    c.motor_velocity[k][col[j]] = float(g.coupling[mi, li])
+                if g.coupled:
+                    c.motor_friction_on[k] = 1
+                    c.motor_friction[k] = phi[layout.block("motor_friction", m).slice].tolist()
+        names = [f"tau.{j}" for j in g.joints] if g.input == "torque" else [f"{g.input}.{m}" for m in g.motors]
+        for r, name in enumerate(names):
+            full = np.zeros(len(joints))
+            full[[col[j] for j in g.joints]] = L[r]
+            jbits = sum(1 << col[j] for li, j in enumerate(g.joints) if touches[r, li])
+            mbits = 0
+            if g.input != "torque" and g.coupled:
+                mbits = sum(1 << motors.index(m) for mi, m in enumerate(g.motors) if touches_motor[r, mi])
+            motor = motors.index(g.motors[r]) if g.input != "torque" else -1
+            if g.input != "torque" and not np.allclose(C[:, r], np.eye(len(g.motors))[:, r]):
+                raise DataError(f"actuation group '{g.name}': a motor row mixes several motors' inputs")
+            rows[name], gates[name] = (full, motor), (jbits, mbits)
+
+    outs = output_channels(model)
+    c.n_outputs = len(outs)
+    c.channel_names = [o.name for o in outs]
+    c.channel_kind = [KIND[o.kind] for o in outs]
+    c.ft_offset = phi[layout.block("ft_offset", sensor.name).slice].tolist()
+    c.row_map, c.channel_motor, c.divisor, c.gate_joints, c.gate_motors = [], [], [], [], []
+    for o in outs:
+        full, motor = rows.get(o.name, (np.zeros(len(joints)), -1))
+        c.row_map.append(full.tolist())
+        c.channel_motor.append(motor)
+        c.divisor.append(float(phi[o.gain_index]) if o.gain_index is not None else float(o.known_gain))
+        jb, mb = gates.get(o.name, (0, 0))
+        c.gate_joints.append(jb)
+        c.gate_motors.append(mb)
+    d, ev = detector, detector.events
+    c.residual_variance = np.asarray(d.variance, float).tolist()
+    c.min_speed, c.alpha, c.threshold, c.ft_threshold = float(d.min_speed), float(d.alpha), float(d.threshold), float(d.ft_threshold)
+    c.calibration_samples = int(d.samples)
+    c.debounce_on, c.debounce_off, c.hysteresis = int(ev.debounce_on), int(ev.debounce_off), float(ev.hysteresis)
+    c.sample_period, c.window, c.order, c.lag = est.sample_period, est.window, est.order, est.lag
+    c.filter = est.weights().tolist()
+    c.n_effects, c.effect_kind, c.effect_joint, c.effect_param = 0, [], [], []
+    for e in effects:
+        p = e.parameters
+        c.effect_kind.append(EXPORTABLE[e.kind])
+        c.effect_joint.append(col[e.target[1]])
+        c.effect_param.append([p["static_torque"], p["velocity"], 0.0] if e.kind == "stribeck"
+                              else [p["stiffness"], p["rest"], 0.0])
+    c.n_effects = len(c.effect_kind)
+    # Supply tracking (dynid.identify.supply): off is a zero time constant; gates only on the motor inputs.
+    c.supply_time_constant = tracking.time_constant_s if tracking is not None else 0.0
+    c.supply_prior = tracking.prior_input ** 2 if tracking is not None else 0.0
+    c.supply_gate = [tracking.gate_of(o.sigma) if tracking is not None and o.kind == "input" else 0.0 for o in outs]
+    return c
+
+
+def exportable_effects(effects: Sequence[Effect]) -> None:
+    """The monitor implements Stribeck friction and the spring torque; any other effect is refused, named."""
+    for e in effects:
+        if e.kind not in EXPORTABLE:
+            raise DataError(f"the monitor does not implement effect '{e.kind}' (on {e.where}); it exports only "
+                            f"{' and '.join(EXPORTABLE)}: refit without it (dynid gaps) or drop it from the model file")
+        if e.kind == "stribeck" and not e.parameters["velocity"] > 0:
+            raise DataError(f"stribeck on {e.where}: the Stribeck velocity must be positive")
+
+
+def describe(c: coefficients_t) -> str:
+    """A readable dump of every section."""
+    f = lambda v: " ".join(f"{x:.6g}" for x in v)  # noqa: E731
+    kinds = {0: "fixed (F/T split)", 1: "revolute", 2: "prismatic"}
+    lines = [f"robot {c.robot_name} (config sha256 {c.config_digest[:16]}…), exported by dynid {c.dynid_version}",
+             f"  model sha256 {c.model_sha256 or '-'}; data sha256 {c.data_sha256 or '-'}; estimator {c.estimator}",
+             f"chain: {c.n_bodies} bodies, {c.n_joints} joints; gravity [{f(c.gravity)}] m/s²; "
+             f"F/T sensor {c.sensor_name} at body {c.body_names[c.sensor_body]}"]
+    for i in range(c.n_bodies):
+        j = c.joint_names[c.joint_index[i]] if c.joint_index[i] >= 0 else "-"
+        parent = c.body_names[c.parent[i]] if c.parent[i] >= 0 else "base"
+        lines.append(f"  {c.body_names[i]:14s} parent {parent:14s} joint {j:18s} {kinds.get(c.joint_type[i], '?'):18s}"
+                     f" axis [{f(c.axis[i])}] p [{f(c.translation[i])}]")
+        lines.append(f"    φ = [{f(c.inertial[i])}]")
+    lines.append(f"motors: {', '.join(c.motor_names)}")
+    for k in range(c.n_motors):
+        fr = f"friction [{f(c.motor_friction[k])}]" if c.motor_friction_on[k] else "no motor friction"
+        lines.append(f"  {c.motor_names[k]}: q̇_m = [{f(c.motor_velocity[k])}]·q̇; {fr}")
+    for j in range(c.n_joints):
+        lines.append(f"  {c.joint_names[j]:18s} friction fc+ fc- fv+ fv- [{f(c.joint_friction[j])}]")
+    lines.append(f"outputs ({c.n_outputs}); F/T offset [{f(c.ft_offset)}]")
+    for i in range(c.n_outputs):
+        lines.append(f"  {c.channel_names[i]:18s} Λ {c.residual_variance[i]:.4g}  divisor {c.divisor[i]:.6g}"
+                     f"  gates joints 0x{c.gate_joints[i]:x} motors 0x{c.gate_motors[i]:x}")
+    lines.append(f"T²: α {c.alpha}, threshold {c.threshold:.6g}, F/T-side threshold {c.ft_threshold:.6g}, "
+                 f"min speed {c.min_speed} rad/s, from {c.calibration_samples} samples; debounce on {c.debounce_on} "
+                 f"off {c.debounce_off}, hysteresis {c.hysteresis}")
+    lines.append(f"derivatives: fixed-lag Savitzky-Golay, window {c.window}, order {c.order}, lag {c.lag} "
+                 f"({1e3 * c.lag * c.sample_period:.3g} ms), period {c.sample_period:.6g} s")
+    if c.supply_time_constant > 0:
+        gates = ", ".join(f"{n} {g:.4g}" for n, g in zip(c.channel_names, c.supply_gate) if g > 0)
+        lines.append(f"supply tracking: time constant {c.supply_time_constant:g} s, prior weight {c.supply_prior:.4g}; "
+                     f"gates {gates}")
+    else:
+        lines.append("supply tracking: off (constant motor gains)")
+    names = {1: "stribeck", 2: "spring"}
+    for k in range(c.n_effects):
+        j, p = c.joint_names[c.effect_joint[k]], c.effect_param[k]
+        what = (f"extra static torque {p[0]:.6g} Nm, Stribeck velocity {p[1]:.6g} rad/s" if c.effect_kind[k] == 1
+                else f"stiffness {p[0]:.6g} Nm/rad, rest {p[1]:.6g} rad")
+        lines.append(f"effect {names.get(c.effect_kind[k], '?')} on joint {j}: {what}")
+    return "\n".join(lines)

@@ -1,0 +1,119 @@
+"""An identified model → the coefficient file: calibrate T² through the monitor's own filter, build, write.
+
+`export_model` is what `dynid export --model` and `dynid.export_coefficients` run; `export_cad` writes the CAD
+model uncalibrated (for tests and benchmarks that need a coefficient file without a fit).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..config.robot_config import RobotConfig
+from ..detect.online import FixedLagSavitzkyGolay, OnlineCalibration, calibrate_online, estimator_for
+from ..detect.t2 import f_threshold
+from ..errors import DataError
+from ..identify.model_file import IdentifiedModel, data_file, file_digest
+from ..identify.supply import SupplyTracking
+from ..identify.validation import load_run
+from ..io.dataset import Dataset
+from ..robot.effects import Effect
+from ..robot.model import RobotModel
+from ..robot.outputs import output_channels
+from .coefficients import (
+    EventSettings,
+    MonitorDetector,
+    Provenance,
+    build_coefficients,
+    exportable_effects,
+    write_coefficients,
+)
+
+CAD_SAMPLES = 100_000  # the N of the F threshold of an uncalibrated (CAD) export
+
+
+@dataclass(frozen=True)
+class ExportSettings:
+    """The monitor's filter and event logic, and what Λ and T²_α are calibrated on."""
+
+    data: Sequence[str] = ()  # contact-free runs; default: the model's identification data (checked by sha256)
+    lag: int | None = None  # filter lag in samples, 0 = causal; default window // 4
+    window: int | None = None  # filter window in samples; default the configuration's offline window
+    alpha: float | None = None  # default: the model's
+    events: EventSettings = field(default_factory=EventSettings)
+
+
+@dataclass(frozen=True)
+class Exported:
+    path: str
+    size: int  # bytes
+    alpha: float
+    filter: FixedLagSavitzkyGolay
+    calibration: OnlineCalibration
+    channels: list[str]
+    effects: list[Effect]
+    tracking: SupplyTracking | None
+
+
+def calibration_data(identified: IdentifiedModel, model: RobotModel, data: Sequence[str]) -> tuple[list[Dataset], str]:
+    """The contact-free data Λ and T²_α come from: `data`, else what the model was fitted on (checked by sha256)."""
+    if data:
+        paths = list(data)
+    else:
+        record = identified.record.get("data") or []
+        if not record:
+            raise DataError(f"{identified.path} names no identification data; pass --data")
+        paths = []
+        for entry in record:
+            p = data_file(entry["path"])
+            if not p.is_file():
+                raise DataError(f"the identification data {entry['path']} are gone; pass the contact-free data with --data")
+            if file_digest(p) != entry["sha256"]:
+                raise DataError(f"the identification data {entry['path']} changed since the fit (sha256); pass --data")
+            paths.append(entry["path"])
+    digests = ",".join(file_digest(data_file(p)) for p in paths)
+    return [load_run(p, model) for p in paths], digests
+
+
+def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportSettings = ExportSettings()) -> Exported:
+    """Calibrate the monitor's T² on contact-free data through its fixed-lag filter and write the coefficient file
+    atomically."""
+    model = identified.robot_model
+    effects = identified.effects
+    exportable_effects(effects)  # before the (slow) calibration: an effect the monitor lacks is refused at once
+    datasets, data_digest = calibration_data(identified, model, settings.data)
+    est = estimator_for(model, datasets[0].t, settings.lag, settings.window)
+    for ds in datasets[1:]:
+        if abs(estimator_for(model, ds.t, settings.lag, settings.window).sample_period - est.sample_period) > 1e-9:
+            raise DataError("the calibration data have different sample rates")
+    det = identified.record.get("detector", {}).get("calibrated", {})
+    alpha = float(det.get("alpha", 0.99)) if settings.alpha is None else settings.alpha
+    min_speed = float(det.get("min_speed", 0.01))
+    tracking = identified.supply_tracking
+    cal = calibrate_online(model, identified.phi, datasets, est, alpha, min_speed, effects=effects, tracking=tracking)
+    detector = MonitorDetector(cal.variance, cal.threshold, cal.ft_threshold, alpha, min_speed, cal.samples,
+                               settings.events)
+    provenance = Provenance(file_digest(identified.path) if identified.path else "", data_digest,
+                            str(identified.record.get("estimator", "")))
+    c = build_coefficients(model, identified.phi, detector, est, provenance, effects, tracking)
+    size = write_coefficients(c, out)
+    return Exported(str(out), size, alpha, est, cal, list(c.channel_names), effects, tracking)
+
+
+def export_cad(config: RobotConfig, out: str | Path, settings: ExportSettings = ExportSettings()) -> int:
+    """The CAD model with nominal gains and no friction or offsets, Λ = the channels' noise σ², the F threshold,
+    1 kHz; returns the file's size."""
+    model = RobotModel(config)
+    phi = np.nan_to_num(model.cad_parameters(), nan=0.0)
+    for m in model.layout.owners("motor_gain"):
+        phi[model.layout.block("motor_gain", m).start] = config.motor(m).nominal_gain
+    outs = output_channels(model)
+    variance = np.array([o.sigma for o in outs]) ** 2
+    alpha = 0.99 if settings.alpha is None else settings.alpha
+    est = estimator_for(model, np.arange(3) * 1e-3, settings.lag, settings.window)
+    detector = MonitorDetector(variance, f_threshold(len(outs), CAD_SAMPLES, alpha), f_threshold(6, CAD_SAMPLES, alpha),
+                               alpha, 0.01, CAD_SAMPLES, settings.events)
+    return write_coefficients(build_coefficients(model, phi, detector, est, Provenance(estimator="cad")), out)

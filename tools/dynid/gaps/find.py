@@ -1,0 +1,58 @@
+"""The gap workflow as one call: a run (and optionally the model it should match) → the gaps found, the effects
+named, and the augmented model that carries them (what `dynid gaps` and `dynid.find_gaps` run)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..identify.model_file import IdentifiedModel
+from ..identify.supply import SupplyTracking
+from ..io.dataset import Dataset
+from ..robot.effects import Effect
+from ..robot.model import RobotModel
+from .refit import augmented_model
+from .workflow import Settings, run
+
+
+@dataclass(frozen=True)
+class Gaps:
+    result: dict[str, Any]  # `dynid gaps --json` (docs/formats.md)
+    effects: list[Effect]  # named effects the augmented model predicts with
+    folded: list[Effect]  # payloads named, already added to their links' inertial parameters
+    _model: RobotModel
+    _ds: Dataset
+    _phi: np.ndarray
+    _given: IdentifiedModel | None
+
+    def augmented_model(self) -> IdentifiedModel:
+        """The refit Φ with its effects, and T² recalibrated with them on the run (a few seconds: built on demand)."""
+        return augmented_model(self._model, self._ds, self.result["data"], self.result, self._phi, self.effects,
+                               self._given, folded=self.folded)
+
+
+def find_gaps(model: RobotModel, ds: Dataset, data_label: str, given: IdentifiedModel | None = None,
+              supply_tracking: bool = True, log: Callable[[str], None] = print) -> Gaps:
+    """Refit the standard model on the run (holding `given`'s inertias when there is one), name the missing
+    effects that explain the gap on held-out blocks, and build the augmented model. Supply tracking follows the
+    given model's (a model fitted with it off keeps constant gains here too)."""
+    reference = None
+    if given is not None:
+        if given.effects:
+            raise InputError(f"{given.path} is already an augmented model (it names effects); give the standard "
+                             "model it came from")
+        reference = (given.path or "model", given.phi)
+    supply = None
+    if supply_tracking:
+        supply = given.supply_tracking if given is not None else SupplyTracking()
+    result = run(model, ds, Settings(supply=supply), reference=reference, log=log)
+    augmented = result.pop("_augmented")
+    result["data"] = data_label
+    # a payload is already in Φ (its link's inertial parameters): the model file lists only effects it predicts with
+    effects = [e for e in augmented["effects"] if e.kind != "payload"]
+    folded = [e for e in augmented["effects"] if e.kind == "payload"]
+    return Gaps(result, effects, folded, model, ds, augmented["phi"], given)

@@ -1,0 +1,191 @@
+"""The model file that `dynid fit` writes and validate, detect, export and gaps read.
+
+JSON (``format: dynid-model``, ``format_version: 1``), written atomically:
+
+    robot             {name, config_digest, config_source, config_text}: the configuration it was fitted for,
+                      embedded, so the file stands alone
+    parameters        {name: value}: a full Φ (layout order) that reproduces the identified base parameters;
+                      combinations the data do not determine take the CAD value (inertia) or 0
+    base              {rank, combinations, independent, dependent, K, values, standard_errors, identified}: the
+                      base parameters β = Φ[independent] + K Φ[dependent] of the run, with jackknife standard
+                      errors; `identified` is false where the run cannot determine the combination
+    estimators        {ols|pls|iv: {base values, standard errors, detail}}: all three, side by side
+    estimator         the one `parameters` comes from; `settings` the fit's settings
+    n_components      PLS ν (cross-validated unless given); `cv` the held-out error for every ν
+    outputs           {channels, units, noise_std, residual_variance}: Λ, per output channel, on the
+                      identification data (rows at rest left out)
+    derivatives       the offline derivative estimator (the configuration's)
+    data              [{path, sha256, samples, duration_s}]: what it was fitted on
+    detector          calibration for T² (added by the fit; see dynid.detect.t2)
+    effects           (format_version 2, written by `dynid gaps --out`) the named missing effects, refitted with
+                      the standard parts (dynid.robot.effects); `gaps` what the refit was made on and its gap
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..config.robot_config import RobotConfig, load_config
+from ..errors import DataError, InputError
+from ..io.dataset import SIMULATION_DATASET, atomic_write
+from ..robot.effects import parse_effects
+from ..robot.model import RobotModel
+from .supply import SupplyTracking
+
+FORMAT_NAME = "dynid-model"
+FORMAT_VERSION = 2  # 2: an `effects` section; files without one are still written as 1
+
+
+@dataclass
+class IdentifiedModel:
+    robot: dict[str, str]
+    parameters: dict[str, float]
+    record: dict[str, Any] = field(default_factory=dict)  # every other section, as in the file
+    path: str | None = None
+    _config: RobotConfig | None = None
+    _model: RobotModel | None = None
+
+    @property
+    def config(self) -> RobotConfig:
+        if self._config is None:
+            self._config = _config_from(self.robot)
+        return self._config
+
+    @property
+    def robot_model(self) -> RobotModel:
+        if self._model is None:
+            self._model = RobotModel(self.config)
+        return self._model
+
+    @property
+    def phi(self) -> np.ndarray:
+        names = self.robot_model.layout.names
+        missing = [n for n in names if n not in self.parameters]
+        if missing:
+            raise DataError(f"model file lacks parameter '{missing[0]}' of {self.robot['name']}")
+        return np.array([self.parameters[n] for n in names], dtype=float)
+
+    @property
+    def effects(self) -> list:  # list[dynid.robot.effects.Effect]
+
+        return parse_effects(self.record.get("effects"), self.robot_model, self.path or "model file")
+
+    @property
+    def supply_tracking(self):  # dynid.identify.supply.SupplyTracking | None
+        """The input channels' supply tracking, None for a model fitted without it (or by an earlier dynid)."""
+        d = self.record.get("supply_tracking")
+        if d is None:
+            return None
+        try:
+            return SupplyTracking.from_dict(d)
+        except (KeyError, TypeError, ValueError, InputError) as e:
+            raise DataError(f"{self.path or 'model file'}: bad supply_tracking section: {e}") from None
+
+    @property
+    def min_speed(self) -> float:
+        return float(self.record.get("settings", {}).get("min_speed", 0.01))
+
+    @property
+    def output_channels(self) -> list[str]:
+        return list(self.record["outputs"]["channels"])
+
+    @property
+    def residual_variance(self) -> np.ndarray:
+        return np.asarray(self.record["outputs"]["residual_variance"], dtype=float)
+
+    def base_values(self, parameters: dict[str, float]) -> np.ndarray:
+        """β of any full parameter set (CAD, truth) in this fit's base combinations."""
+        b = self.record["base"]
+        ind = np.array([parameters[n] for n in b["independent"]], dtype=float)
+        dep = np.array([parameters[n] for n in b["dependent"]], dtype=float)
+        return ind + (np.asarray(b["K"], dtype=float).reshape(len(ind), len(dep)) @ dep if len(dep) else 0.0)
+
+    def to_json(self) -> dict[str, Any]:
+        version = FORMAT_VERSION if self.record.get("effects") else 1
+        return {"format": FORMAT_NAME, "format_version": version, "robot": self.robot,
+                "parameters": self.parameters, **self.record}
+
+    def save(self, path: str | Path) -> None:
+        text = json.dumps(self.to_json(), indent=1, allow_nan=False) + "\n"
+        atomic_write(Path(path), lambda f: f.write(text.encode()))
+        self.path = str(path)
+
+
+def _config_from(robot: dict[str, str]) -> RobotConfig:
+    """The configuration the model was fitted for: its source if unchanged, else the embedded text."""
+    source = robot.get("config_source", "")
+    try:
+        config = load_config(source)
+        if config.digest == robot["config_digest"]:
+            return config
+    except Exception:  # noqa: BLE001 - a moved or edited source falls back to the embedded copy below
+        pass
+    text = robot.get("config_text")
+    if not text or hashlib.sha256(text.encode()).hexdigest() != robot["config_digest"]:
+        raise DataError(f"the model's robot configuration '{source}' changed or is gone, and no intact copy is embedded")
+    directory = Path(source).parent if Path(source).is_file() else None
+    with tempfile.NamedTemporaryFile("w", suffix=".yaml", dir=directory, delete=False, encoding="utf-8") as f:
+        f.write(text)
+    try:
+        return load_config(f.name)
+    finally:
+        Path(f.name).unlink(missing_ok=True)
+
+
+def robot_record(config: RobotConfig) -> dict[str, str]:
+    return {"name": config.name, "config_digest": config.digest, "config_source": config.source,
+            "config_text": Path(config.source).read_text(encoding="utf-8")}
+
+
+def load_model(path: str | Path) -> IdentifiedModel:
+    """Read and check a model file; any problem is a `DataError` naming it."""
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(f"model file not found: {path}")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise DataError(f"{path}: not a dynid model file (not JSON: {e.__class__.__name__})") from None
+    if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
+        raise DataError(f"{path}: not a dynid model file (no 'format: {FORMAT_NAME}')")
+    version = data.get("format_version")
+    if not isinstance(version, int) or version > FORMAT_VERSION:
+        raise DataError(f"{path}: model format version {version!r} is newer than this dynid reads ({FORMAT_VERSION})")
+    for key in ("robot", "parameters", "outputs"):
+        if key not in data:
+            raise DataError(f"{path}: model file lacks its '{key}' section")
+    params = data["parameters"]
+    if not isinstance(params, dict) or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in params.values()):
+        raise DataError(f"{path}: every parameter must be a finite number")
+    record = {k: v for k, v in data.items() if k not in ("format", "format_version", "robot", "parameters")}
+    return IdentifiedModel(data["robot"], {k: float(v) for k, v in params.items()}, record, str(path))
+
+
+def data_file(path: str | Path) -> Path:
+    """The file behind a DATA argument: a `dynid simulate` directory's dataset, else the path itself."""
+    p = Path(path)
+    return p / SIMULATION_DATASET if p.is_dir() else p
+
+
+def data_record(path: str | Path, samples: int, duration_s: float) -> dict[str, Any]:
+    """What a model file says of the data it was fitted on (export checks the sha256 before reusing them). Data
+    that never was a file (a `Dataset` built in Python) has no path to resolve and no sha256."""
+    if not data_file(path).is_file():
+        return {"path": str(path), "sha256": None, "samples": samples, "duration_s": duration_s}
+    return {"path": str(Path(path).resolve()), "sha256": file_digest(data_file(path)), "samples": samples,
+            "duration_s": duration_s}
+
+
+def file_digest(path: str | Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()

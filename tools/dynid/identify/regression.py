@@ -1,0 +1,209 @@
+"""Estimators of the stacked system A Φ = b (rows already weighted by 1/σ): PLS, base least squares, IV.
+
+Two ways in, one algebra:
+
+- scikit-learn style, on a stacked (X, y): `NipalsPLS` is Partial Least Squares by NIPALS, without an
+  intercept (the stacked system has none), Φ̂ = W (PᵀW)⁻¹ C.
+- on sufficient statistics accumulated a chunk at a time (`dynid.identify.statistics`), so that an hour of 1 kHz data
+  never needs A in memory: `pls_path` is the kernel form of the same NIPALS (Dayal & MacGregor 1997: the
+  weights, loadings and coefficients follow from XᵀX and Xᵀy alone), `base_least_squares` the baseline, and
+  `instrumental_variables` the closed-loop remedy (IDIM-IV, Janot & Gautier).
+
+scikit-learn's `PLSRegression` always centres X and y; here nothing is centred because the F/T offsets are
+the model's only constant columns and must stay parameters. Where the two problems coincide (X and y already
+centred), `NipalsPLS` equals scikit-learn's estimator (tools/tests/test_estimators.py).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+from sklearn.base import BaseEstimator, RegressorMixin
+from sklearn.utils.validation import check_is_fitted, check_X_y, validate_data
+
+# ------------------------------------------------------------------------------------------------------------
+# PLS
+
+
+@dataclass(frozen=True)
+class PLSComponents:
+    """W (p, ν) weights, P (p, ν) loadings, C (ν,) y-loadings, in the (column-scaled) space they were fitted in."""
+
+    W: np.ndarray
+    P: np.ndarray
+    C: np.ndarray
+
+    def coefficients(self, n_components: int) -> np.ndarray:
+        """Φ̂ = W (PᵀW)⁻¹ C with the first `n_components` latent variables."""
+        W, P, C = self.W[:, :n_components], self.P[:, :n_components], self.C[:n_components]
+        return W @ np.linalg.solve(P.T @ W, C)
+
+
+def nipals_pls1(X: np.ndarray, y: np.ndarray, n_components: int) -> PLSComponents:
+    """NIPALS for one response, deflating X and y after each latent variable (no centring)."""
+    X, y = np.array(X, dtype=float), np.array(y, dtype=float)
+    p = X.shape[1]
+    W, P, C = np.zeros((p, n_components)), np.zeros((p, n_components)), np.zeros(n_components)
+    for a in range(n_components):
+        w = X.T @ y
+        norm = np.linalg.norm(w)
+        if norm == 0.0:  # y is fully explained: no further latent variable exists
+            return PLSComponents(W[:, :a], P[:, :a], C[:a])
+        w /= norm
+        t = X @ w
+        tt = t @ t
+        P[:, a], C[a], W[:, a] = X.T @ t / tt, y @ t / tt, w
+        X -= np.outer(t, P[:, a])
+        y -= C[a] * t
+    return PLSComponents(W, P, C)
+
+
+def kernel_pls1(XtX: np.ndarray, Xty: np.ndarray, n_components: int) -> PLSComponents:
+    """The same components as `nipals_pls1`, from XᵀX and Xᵀy (Dayal & MacGregor's improved kernel PLS).
+
+    With R = W (PᵀW)⁻¹ built column by column (r_a = w_a − Σ (p_jᵀ w_a) r_j), the scores are t_a = X r_a, so
+    tᵀt = r_aᵀ XᵀX r_a and p_a = XᵀX r_a / tᵀt; only Xᵀy is deflated.
+    """
+    p = XtX.shape[0]
+    xy = np.array(Xty, dtype=float)
+    W, P, R = np.zeros((p, n_components)), np.zeros((p, n_components)), np.zeros((p, n_components))
+    C = np.zeros(n_components)
+    for a in range(n_components):
+        norm = np.linalg.norm(xy)
+        if norm <= 1e-14 * np.linalg.norm(Xty):
+            return PLSComponents(W[:, :a], P[:, :a], C[:a])
+        w = xy / norm
+        for _ in range(2):  # NIPALS weights are orthonormal; re-orthogonalise what rounding lost (many ν)
+            w -= W[:, :a] @ (W[:, :a].T @ w)
+        w /= np.linalg.norm(w)
+        r = w - R[:, :a] @ (P[:, :a].T @ w)
+        tt = r @ XtX @ r
+        P[:, a], C[a], W[:, a], R[:, a] = XtX @ r / tt, r @ xy / tt, w, r
+        xy = xy - P[:, a] * (C[a] * tt)
+    return PLSComponents(W, P, C)
+
+
+def column_scale(XtX: np.ndarray) -> np.ndarray:
+    """Column norms (from the Gram diagonal); zero columns keep scale 1 so they stay zero."""
+    d = np.sqrt(np.clip(np.diag(XtX), 0.0, None))
+    return np.where(d > 0, d, 1.0)
+
+
+class NipalsPLS(RegressorMixin, BaseEstimator):
+    """Partial Least Squares regression by NIPALS, one response, no intercept.
+
+    Parameters
+    ----------
+    n_components : int
+        Number of latent variables ν.
+    scale : bool
+        Scale X's columns to unit norm before the fit (the parameters of Φ have mixed units; without it PLS
+        favours whichever columns are numerically large). Coefficients are returned in the original units.
+    center : bool
+        Centre X and y first, as scikit-learn's PLSRegression always does (then an intercept is fitted).
+        False for the stacked system, which has no intercept.
+    """
+
+    def __init__(self, n_components: int = 2, scale: bool = True, center: bool = False) -> None:
+        self.n_components = n_components
+        self.scale = scale
+        self.center = center
+
+    def fit(self, X: np.ndarray, y: np.ndarray) -> NipalsPLS:
+        X, y = check_X_y(X, y, y_numeric=True)
+        self.n_features_in_ = X.shape[1]
+        x_mean = X.mean(axis=0) if self.center else np.zeros(X.shape[1])
+        y_mean = float(y.mean()) if self.center else 0.0
+        Xc, yc = X - x_mean, y - y_mean
+        s = np.where(np.linalg.norm(Xc, axis=0) > 0, np.linalg.norm(Xc, axis=0), 1.0) if self.scale else np.ones(X.shape[1])
+        self.components_ = nipals_pls1(Xc / s, yc, self.n_components)
+        self.coef_ = self.components_.coefficients(self.components_.C.size) / s
+        self.intercept_ = y_mean - x_mean @ self.coef_
+        return self
+
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        check_is_fitted(self)
+        X = validate_data(self, X, reset=False)
+        return X @ self.coef_ + self.intercept_
+
+
+def pls_path(XtX: np.ndarray, Xty: np.ndarray, max_components: int) -> np.ndarray:
+    """Coefficients (ν, p) for ν = 1 … max_components, kernel PLS on unit-norm columns, original units."""
+    s = column_scale(XtX)
+    comps = kernel_pls1(XtX / np.outer(s, s), Xty / s, max_components)
+    return np.array([comps.coefficients(k) / s for k in range(1, comps.C.size + 1)])
+
+
+# ------------------------------------------------------------------------------------------------------------
+# Least squares and instrumental variables on the base parameters
+
+
+def solve_normal(G: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """Solve G x = g for a symmetric positive definite G, scaled to unit diagonal first (Gram of mixed units)."""
+    s = column_scale(G)
+    return scipy.linalg.solve(G / np.outer(s, s), g / s, assume_a="pos") / s
+
+
+def base_least_squares(gram: np.ndarray, base: np.ndarray) -> np.ndarray:
+    """β̂ minimising |A_b β − b|² from the augmented Gram [A b]ᵀ[A b] (p+1, p+1); `base`: columns of A_b."""
+    p = gram.shape[0] - 1
+    return solve_normal(gram[np.ix_(base, base)], gram[base, p])
+
+
+@dataclass(frozen=True)
+class InputColumns:
+    """For each row channel whose equation holds one motor's input with an unknown gain: the Φ index of that
+    gain. The instrument of that column is the model's own predicted input, −û = (row without it)·Φ̂ / φ̂_m."""
+
+    gain_index: dict[int, int]  # row channel -> Φ index of the gain multiplying that row's input
+
+
+def instrument_map(p: int, gain: int, phi: np.ndarray) -> np.ndarray:
+    """G with z = a_s G: the instrument row a_s with its gain entry replaced by −(a_s without it)·Φ̂ / φ̂_g."""
+    keep = np.eye(p)
+    keep[gain, gain] = 0.0
+    return keep @ (np.eye(p) - np.outer(phi, np.eye(p)[gain]) / phi[gain])
+
+
+def instrumental_variables(
+    cross: np.ndarray,
+    cross_b: np.ndarray,
+    base: np.ndarray,
+    beta0: np.ndarray,
+    inputs: InputColumns,
+    iterations: int = 20,
+    tol: float = 1e-10,
+) -> tuple[np.ndarray, int]:
+    """Iterated IV on the base parameters: β = (Zᵀ A_b)⁻¹ Zᵀ b, Z from the instrument regressors.
+
+    `cross[c]` = Σ Z₀ᵀ A over the rows of channel c (Z₀: the regressor along the instrument trajectory, A: the
+    measured one), `cross_b[c]` = Σ Z₀ᵀ b. The instruments' input columns hold the model's predicted inputs,
+    which depend on Φ̂, so the estimate is iterated to a fixed point from `beta0`. Returns (β̂, iterations).
+    """
+    r, p, _ = cross.shape
+    beta = beta0.copy()
+    for it in range(1, iterations + 1):
+        phi = np.zeros(p)
+        phi[base] = beta
+        ZA, Zb = np.zeros((p, p)), np.zeros(p)
+        for c in range(r):
+            g = inputs.gain_index.get(c)
+            if g is None:
+                ZA += cross[c]
+                Zb += cross_b[c]
+                continue
+            if phi[g] == 0.0:
+                raise np.linalg.LinAlgError(f"the gain at index {g} is not a base parameter of this run")
+            G = instrument_map(p, g, phi)
+            ZA += G.T @ cross[c]
+            Zb += G.T @ cross_b[c]
+        M = ZA[np.ix_(base, base)]
+        s = column_scale(M.T @ M)
+        new = np.linalg.solve(M / s[None, :], Zb[base]) / s
+        done = np.max(np.abs(new - beta) / np.maximum(np.abs(new), 1e-12)) < tol
+        beta = new
+        if done:
+            return beta, it
+    return beta, iterations

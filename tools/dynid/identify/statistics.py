@@ -1,0 +1,186 @@
+"""Sufficient statistics of the weighted stacked system, accumulated a chunk at a time, per time block.
+
+Every estimator of `dynid.identify.regression` works from these, so memory is bounded by p² per block whatever the
+length of the experiment (an hour at 1 kHz is 36 million rows of A; it is never stacked):
+
+- ``gram[k, c]`` = [A b]ᵀ W² [A b] over the rows of channel c in time block k, (p+1, p+1): summed over
+  channels it is the whole system's; per channel it gives each output's residual variance for any Φ;
+- ``cross[k, c]`` = Zᵀ W² A and ``cross_b[k, c]`` = Zᵀ W² b over the rows of channel c in block k, where Z is the
+  regressor along an instrument trajectory (the IV estimator's raw instruments);
+- ``rows[k, c]``: how many rows of channel c block k kept (rows at rest have weight 0 and count for nothing).
+
+Blocks are contiguous stretches of time: cross-validation holds one out, the jackknife drops one at a time.
+The work is spread over processes (fork) a block range each; the statistics add up exactly.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from ..progress import track
+from ..robot.model import RobotModel
+from ..robot.regressors.stack import DEFAULT_CHUNK, RowChannel, Signals, iter_stacked, row_channels
+
+MIN_BLOCK_SAMPLES = 200
+
+
+@dataclass
+class Statistics:
+    parameter_names: tuple[str, ...]
+    channels: tuple[RowChannel, ...]
+    block_samples: np.ndarray  # (B + 1,) sample index where each block starts, then the end
+    gram: np.ndarray  # (B, r, p+1, p+1)
+    rows: np.ndarray  # (B, r)
+    cross: np.ndarray | None = None  # (B, r, p, p)
+    cross_b: np.ndarray | None = None  # (B, r, p)
+
+    @property
+    def n_blocks(self) -> int:
+        return self.gram.shape[0]
+
+    @property
+    def p(self) -> int:
+        return self.gram.shape[-1] - 1
+
+    def system(self, keep: np.ndarray | slice | None = None) -> np.ndarray:
+        """[A b]ᵀW²[A b] of the whole system over the blocks `keep` (all by default)."""
+        return self.gram[slice(None) if keep is None else keep].sum(axis=(0, 1))
+
+    def total(self, keep: np.ndarray | None = None) -> Statistics:
+        """The statistics summed over the blocks `keep` (bool or indices; all by default), as one block."""
+        k = slice(None) if keep is None else keep
+        return Statistics(
+            self.parameter_names, self.channels, self.block_samples[[0, -1]],
+            self.gram[k].sum(axis=0)[None], self.rows[k].sum(axis=0)[None],
+            None if self.cross is None else self.cross[k].sum(axis=0)[None],
+            None if self.cross_b is None else self.cross_b[k].sum(axis=0)[None],
+        )
+
+    def __add__(self, other: Statistics) -> Statistics:
+        """Statistics of two experiments, stacked (their blocks side by side)."""
+        if other.parameter_names != self.parameter_names:
+            raise ValueError("statistics of different parameter layouts")
+        cat = lambda a, b: None if a is None or b is None else np.concatenate([a, b])  # noqa: E731
+        end = self.block_samples[-1]
+        return Statistics(
+            self.parameter_names, self.channels, np.concatenate([self.block_samples, other.block_samples[1:] + end]),
+            np.concatenate([self.gram, other.gram]), np.concatenate([self.rows, other.rows]),
+            cat(self.cross, other.cross), cat(self.cross_b, other.cross_b),
+        )
+
+
+def block_edges(n_samples: int, n_blocks: int) -> np.ndarray:
+    n_blocks = max(1, min(n_blocks, n_samples // MIN_BLOCK_SAMPLES))
+    return np.linspace(0, n_samples, n_blocks + 1).round().astype(int)
+
+
+# The job a forked worker reads (fork shares it without pickling the Pinocchio model).
+_JOB: dict = {}
+
+
+def _accumulate_blocks(first: int, last: int) -> tuple[np.ndarray, ...]:
+    # One BLAS thread per worker: the workers already fill the cores, and OpenBLAS threads spinning against
+    # each other cost a third of the time on a 2-core machine.
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _accumulate(first, last)
+
+
+def _accumulate(first: int, last: int) -> tuple[np.ndarray, ...]:
+    model: RobotModel = _JOB["model"]
+    source = _JOB["source"]
+    edges: np.ndarray = _JOB["edges"]
+    chunk: int = _JOB["chunk"]
+    r, p = len(row_channels(model)), len(model.layout)
+    nb = last - first
+    gram, rows = np.zeros((nb, r, p + 1, p + 1)), np.zeros((nb, r))
+    cross, cross_b = np.zeros((nb, r, p, p)), np.zeros((nb, r, p))
+    with_instruments = False
+    blocks = range(first, last)
+    for k in track(blocks, nb, "building regressors") if _JOB["progress"] else blocks:
+        for lo in range(edges[k], edges[k + 1], chunk):
+            sig, inst, w = source(lo, min(lo + chunk, edges[k + 1]))
+            n = sig.q.shape[0]
+            A, b = next(iter_stacked(model, sig, n))
+            # Channel-major, contiguous: one batched product per chunk instead of r strided ones.
+            X = np.empty((r, n, p + 1))
+            X[:, :, :p] = (A.reshape(n, r, p) * w[:, :, None]).transpose(1, 0, 2)
+            X[:, :, p] = (b.reshape(n, r) * w).T
+            rows[k - first] += (w > 0).sum(axis=0)
+            gram[k - first] += np.matmul(X.transpose(0, 2, 1), X)
+            if inst is not None:
+                with_instruments = True
+                Z, _ = next(iter_stacked(model, inst, n))
+                Zw = (Z.reshape(n, r, p) * w[:, :, None]).transpose(1, 0, 2)
+                zx = np.matmul(Zw.transpose(0, 2, 1), X)  # (r, p, p+1): Zᵀ W² [A b]
+                cross[k - first] += zx[:, :, :p]
+                cross_b[k - first] += zx[:, :, p]
+    return gram, rows, (cross if with_instruments else None), (cross_b if with_instruments else None)
+
+
+class SignalChunks(Protocol):
+    """Rows [lo, hi) of an experiment as (signals, instrument signals or None, row weights (hi − lo, r))."""
+
+    n_samples: int
+
+    def __call__(self, lo: int, hi: int) -> tuple[Signals, Signals | None, np.ndarray]: ...
+
+
+@dataclass
+class InMemory:
+    """`SignalChunks` over signals already computed for the whole experiment."""
+
+    sig: Signals
+    weights: np.ndarray
+    instruments: Signals | None = None
+
+    @property
+    def n_samples(self) -> int:
+        return self.sig.q.shape[0]
+
+    def __call__(self, lo: int, hi: int) -> tuple[Signals, Signals | None, np.ndarray]:
+        s = slice(lo, hi)
+        return self.sig.slice(s), None if self.instruments is None else self.instruments.slice(s), self.weights[s]
+
+
+def accumulate(
+    model: RobotModel,
+    source: SignalChunks,
+    n_blocks: int = 10,
+    workers: int | None = None,
+    chunk: int = DEFAULT_CHUNK,
+) -> Statistics:
+    """Statistics of the experiment `source` yields a chunk at a time (`InMemory` for signals at hand).
+
+    Instrument signals, where the source gives them, add the IV cross products."""
+    n = source.n_samples
+    edges = block_edges(n, n_blocks)
+    nb = len(edges) - 1
+    workers = max(1, min(workers or os.cpu_count() or 1, nb))
+    _JOB.update(model=model, source=source, edges=edges, chunk=chunk)
+    try:
+        if workers == 1:
+            _JOB["progress"] = True
+            parts = [_accumulate_blocks(0, nb)]
+        else:
+            _JOB["progress"] = False  # the parent shows progress, a block at a time
+            ctx = multiprocessing.get_context("fork")
+            with ProcessPoolExecutor(workers, mp_context=ctx) as pool:
+                futures = [pool.submit(_accumulate_blocks, k, k + 1) for k in range(nb)]
+                for _ in track(as_completed(futures), nb, "building regressors"):
+                    pass
+                parts = [f.result() for f in futures]
+    finally:
+        _JOB.clear()
+    gram = np.concatenate([x[0] for x in parts])
+    rows = np.concatenate([x[1] for x in parts])
+    with_instruments = all(x[2] is not None for x in parts)
+    cross = np.concatenate([x[2] for x in parts]) if with_instruments else None
+    cross_b = np.concatenate([x[3] for x in parts]) if with_instruments else None
+    return Statistics(model.layout.names, row_channels(model), edges, gram, rows, cross, cross_b)

@@ -1,0 +1,135 @@
+"""A model on a run of data: its residuals, and what `dynid validate` reports of them (no printing).
+
+- `evaluate`: the model file, one run of data, its signals and the residuals e = y − ŷ of the model;
+- `validation`: the paper's Table II (F/T error norms, identified against CAD) and per-channel RMS.
+
+The result dict is `dynid validate --json`, field for field; the arrays are what the report plots. Detection on
+the same residuals is dynid.detect.evaluation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..config.robot_config import RobotConfig
+from ..errors import DataError
+from ..io.dataset import Dataset
+from ..io.load import load_data
+from ..robot.effects import augmented_residuals
+from ..robot.model import RobotModel
+from ..robot.outputs import OutputChannel, measured_outputs, output_channels, residuals
+from ..robot.regressors.stack import Signals, rows_at_rest, signals_from_dataset
+from .model_file import IdentifiedModel, load_model
+from .supply import smoothed_residuals
+
+
+def load_run(path: str, model: RobotModel) -> Dataset:
+    """A run of data for `model`; data recorded on another robot is refused."""
+    ds = load_data(Path(path), model.config, joint_limits=model.joint_limits)
+    robot = ds.meta.get("robot")
+    if robot is not None and robot != model.config.name:
+        raise DataError(f"{path} was recorded on '{robot}', not on '{model.config.name}'")
+    return ds
+
+
+def cad_phi(model: RobotModel, record: dict, missing: float = 0.0) -> np.ndarray:
+    """The CAD parameters, with the F/T offsets that fit them best on the identification data (when the model
+    file has them); `missing` where a CAD model has no value (friction, gains)."""
+    phi = np.nan_to_num(model.cad_parameters(), nan=missing)
+    offsets = record.get("cad_ft_offsets")
+    if offsets is not None:
+        span = model.layout.span("ft_offset")
+        phi[span] = np.asarray(offsets, float)[span]
+    return phi
+
+
+@dataclass(frozen=True)
+class Evaluated:
+    """A model's residuals on one run."""
+
+    identified: IdentifiedModel
+    model: RobotModel
+    dataset: Dataset
+    signals: Signals  # with the outputs filtered as q̇, q̈ are (see signals_from_dataset)
+    e: np.ndarray  # (N, n_out) e = y − ŷ, the inputs predicted with the model's offline supply estimate (dynid.identify.supply)
+    e_constant: np.ndarray  # the same with constant motor gains (the paper's model); e itself without tracking
+
+    @property
+    def config(self) -> RobotConfig:
+        return self.model.config
+
+    @property
+    def outputs(self) -> tuple[OutputChannel, ...]:
+        return output_channels(self.model)
+
+
+def evaluate(model_path: str, data_path: str, identified: IdentifiedModel | None = None,
+             dataset: Dataset | None = None) -> Evaluated:
+    """Residuals of the model on the run; `identified` and `dataset` when the caller has loaded them already."""
+    identified = identified or load_model(model_path)
+    model = identified.robot_model
+    ds = dataset if dataset is not None else load_run(data_path, model)
+    sig = signals_from_dataset(model, ds, filter_outputs=True)
+    effects = identified.effects  # an augmented model (`dynid gaps --out`) predicts with its named effects
+    if effects:
+        e = augmented_residuals(model, identified.phi, effects, sig, ds.t - ds.t[0])
+    else:
+        e = residuals(model, identified.phi, sig)
+    tracked = smoothed_residuals(model, identified.supply_tracking, identified.min_speed, e, sig, ds.t)
+    return Evaluated(identified, model, ds, sig, tracked, e)
+
+
+def _norm_stats(x: np.ndarray) -> dict[str, float]:
+    n = np.linalg.norm(x, axis=1)
+    return {"mean": float(n.mean()), "std": float(n.std())}
+
+
+def cad_ft_residuals(ev: Evaluated) -> np.ndarray | None:
+    """(N, 6 per sensor) F/T residuals of the CAD parameters, or None without an F/T sensor."""
+    outs = ev.outputs
+    ft = [o.row for o in outs if o.kind == "ft"]
+    if not ft:
+        return None
+    cad = cad_phi(ev.model, ev.identified.record)
+    gains = [o.gain_index for o in outs if o.gain_index is not None]
+    cad[gains] = 1.0  # the CAD model has no gains: its input predictions are undefined, not used
+    return residuals(ev.model, cad, ev.signals)[:, ft]
+
+
+def validation(ev: Evaluated, model_label: str, data_label: str,
+               cad_e: np.ndarray | None = None) -> dict[str, Any]:
+    """`dynid validate --json`: Table II (identified and CAD F/T error norms) and per-channel RMS against noise."""
+    outs, e = ev.outputs, ev.e
+    ft = [o.row for o in outs if o.kind == "ft"]
+    result: dict[str, Any] = {"model": model_label, "data": data_label, "samples": ev.dataset.n_samples,
+                              "channels": {}}
+    if ft:
+        cad_e = cad_ft_residuals(ev) if cad_e is None else cad_e
+        result["table_ii"] = {"identified": {"force": _norm_stats(e[:, ft[:3]]), "torque": _norm_stats(e[:, ft[3:6]])},
+                              "cad": {"force": _norm_stats(cad_e[:, :3]), "torque": _norm_stats(cad_e[:, 3:6])}}
+    rest = rows_at_rest(ev.model, ev.signals.dq, ev.identified.min_speed)
+    for o in outs:
+        rms = float(np.sqrt(np.mean(e[:, o.row] ** 2)))
+        entry = {"rms": rms, "mean": float(e[:, o.row].mean()), "std": float(e[:, o.row].std()),
+                 "noise_std": o.sigma, "ratio_to_noise": rms / o.sigma}
+        if o.kind == "input":
+            entry["cad"] = None  # no friction and no gains in a CAD model: undefined (the paper says so too)
+            # Static friction holds a resting joint with any torque inside its band: the model says nothing
+            # there, so the motor rows at rest are also left out, as in the fit and in T².
+            moving = ~rest[:, o.row]
+            entry["moving_samples"] = int(moving.sum())
+            if moving.any():
+                entry["rms_moving"] = float(np.sqrt(np.mean(e[moving, o.row] ** 2)))
+                entry["ratio_to_noise_moving"] = entry["rms_moving"] / o.sigma
+                const = float(np.sqrt(np.mean(ev.e_constant[moving, o.row] ** 2)))
+                entry["ratio_to_noise_moving_constant_gains"] = const / o.sigma
+        result["channels"][o.name] = entry
+    torque = [o.row for o in outs if o.kind == "torque"]
+    if torque:  # joint torque sensors: the error the torque-identification literature reports
+        y = measured_outputs(ev.model, ev.signals)[:, torque]
+        result["relative_torque_error"] = float(np.linalg.norm(e[:, torque]) / np.linalg.norm(y))
+    return result

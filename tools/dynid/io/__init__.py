@@ -1,0 +1,12 @@
+"""Data in and out: recorded experiments as one `Dataset`.
+
+Takes a CSV (csv_format), a candump log of the boards (candump, decoded with the DBC through can_protocol) or
+the project's dataset file (dataset), as the robot configuration describes them (load.load_data); estimates
+q̇, q̈ from q with the offline, non-causal estimators where they were not recorded (derivatives). Hands on a
+`Dataset`; writes datasets, CSVs and candump logs back. Layer: imports config only.
+"""
+
+from .dataset import Dataset
+from .load import load_data
+
+__all__ = ["Dataset", "load_data"]

@@ -1,0 +1,91 @@
+"""Experiment data in any supported form → a `Dataset` checked against the robot configuration.
+
+The one entry point of dynid.io (`load_data`): a dataset file, a `dynid simulate` directory, a candump log or a
+CSV, told apart by content first, then by extension.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from pathlib import Path
+
+from ..config.robot_config import RobotConfig
+from ..errors import DataError
+from .candump import read_candump
+from .csv_format import check_columns, read_csv
+from .dataset import _ZIP_MAGIC, SIMULATION_DATASET, Dataset, check_units
+
+# `(1700000000.000000) can0 123#DEADBEEF` : the `candump -L` line format.
+_CANDUMP_LINE = re.compile(rb"^\s*\(\d+(\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]+#")
+
+
+def check_matches_config(dataset: Dataset, config: RobotConfig, require_all: bool = True, source: str = "") -> None:
+    """Refuse a dataset made for another robot: other joints, or channels the configuration does not know."""
+    where = f"{source}: " if source else ""
+    if dataset.joints != config.joints:
+        missing = [j for j in config.joints if j not in dataset.joints]
+        extra = [j for j in dataset.joints if j not in config.joints]
+        if missing or extra:
+            diff = "; ".join(
+                part
+                for part in (
+                    f"missing {', '.join(missing)}" if missing else "",
+                    f"not in the configuration: {', '.join(extra)}" if extra else "",
+                )
+                if part
+            )
+            made_for = dataset.meta.get("robot")
+            origin = f" (it was imported for '{made_for}')" if made_for and made_for != config.name else ""
+            raise DataError(f"{where}the dataset's joints do not match the configuration {config.name}{origin}: {diff}")
+        raise DataError(
+            f"{where}the dataset's joints are in another order than in the configuration {config.name}: "
+            f"{', '.join(dataset.joints)} (configuration: {', '.join(config.joints)})"
+        )
+    check_columns(dataset.column_names(), config, require_all=require_all, source=source)
+
+
+def load_data(
+    path: str | Path,
+    config: RobotConfig,
+    joint_limits: Mapping[str, tuple[float, float]] | None = None,
+    require_all: bool = True,
+) -> Dataset:
+    """Load experiment data in any supported form, checked against the robot configuration.
+
+    A directory written by `dynid simulate` stands for its dataset file. The form is told by content first, then by extension: a zip archive (or ``.npz``) is a dataset file, a
+    ``.log`` or a file whose first line is a ``candump -L`` frame is a CAN log, a ``.csv`` is a CSV
+    (`dynid.io.csv_format.read_csv`). Anything else raises `DataError`.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise DataError(f"data file not found: {path}")
+    if path.is_dir() and (path / SIMULATION_DATASET).is_file():  # the output directory of `dynid simulate`
+        path = path / SIMULATION_DATASET
+    if not path.is_file():
+        raise DataError(f"data path is not a file: {path}")
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4096)
+    except OSError as e:
+        raise DataError(f"cannot read {path}: {e.strerror or e}") from None
+    first_line = head.split(b"\n", 1)[0]
+    suffix = path.suffix.lower()
+    if head.startswith(_ZIP_MAGIC) or suffix == ".npz":
+        dataset = Dataset.load(path)
+        check_matches_config(dataset, config, require_all=require_all, source=str(path))
+        try:
+            check_units(dataset, joint_limits)
+        except DataError as e:
+            raise DataError(f"{path}: {e}") from None
+        return dataset
+    if suffix == ".log" or _CANDUMP_LINE.match(first_line):
+        dataset = read_candump(path, config)
+        check_matches_config(dataset, config, require_all=require_all, source=str(path))
+        return dataset
+    if suffix == ".csv":
+        return read_csv(path, config, joint_limits=joint_limits, require_all=require_all)
+    raise DataError(
+        f"{path}: unknown data format: expected a .csv (docs/design.md §4), a candump log (.log) "
+        "or a dynid dataset (.npz)"
+    )

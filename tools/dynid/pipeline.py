@@ -1,0 +1,159 @@
+"""The identified model, built in one place: the fit, the T² calibration and the model file's record.
+
+`identify` is what `dynid fit` and `dynid.DynamicsModel.fit` run: the one regression (dynid.identify.fit), the
+detector calibrated on the same contact-free runs (dynid.detect.t2), and the record of docs/formats.md.
+`build_model` is its second half, which the gap workflow calls with its own refit Φ and named effects
+(dynid.gaps.refit), so both write the same sections the same way.
+
+Layer: above detect; export, gaps, report, api and cli import it.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .detect.t2 import ALPHA, Detector, calibrate, calibration_residuals, detector_record
+from .identify.fit import FitResult, FitSettings, fit
+from .identify.model_file import IdentifiedModel, data_record, robot_record
+from .identify.statistics import Statistics
+from .identify.supply import SupplyTracking
+from .io.dataset import Dataset
+from .robot.effects import Effect, augmented_residuals
+from .robot.model import RobotModel
+from .robot.outputs import output_channels, residuals
+
+
+@dataclass(frozen=True)
+class DetectorSettings:
+    """How the T² detector is calibrated (docs/design.md §3): α, and n of the paper's F threshold."""
+
+    alpha: float = ALPHA
+    n_mode: str = "dim"  # "dim": n = dim(e), the default; "nu": the paper's n = ν
+
+
+@dataclass(frozen=True)
+class Identification:
+    """What `identify` hands on: the model file's content, and the pieces the CLI and the API report from."""
+
+    model: IdentifiedModel
+    fit: FitResult
+    detectors: dict[str, Detector]
+    fit_time_s: float  # the regression alone
+    total_time_s: float  # with the calibration
+
+
+@dataclass(frozen=True)
+class Built:
+    model: IdentifiedModel
+    detectors: dict[str, Detector]
+
+
+def derivatives_record(model: RobotModel) -> dict[str, Any]:
+    """The model file's `derivatives` section: the offline estimator of the configuration."""
+    cfg = model.config
+    return {"method": "savgol", **cfg.derivatives} if cfg.derivatives else {"method": "savgol"}
+
+
+def cad_ft_offsets(model: RobotModel, stats: Statistics) -> np.ndarray:
+    """F/T offsets that fit the CAD inertia best on the identification data (the CAD model has none)."""
+    layout, p = model.layout, stats.p
+    phi = np.nan_to_num(model.cad_parameters(), nan=0.0)
+    G = stats.gram.sum(axis=0)
+    out = np.zeros(len(layout))
+    for i, s in enumerate(model.config.ft_sensors):
+        for k in range(6):
+            o = layout.block("ft_offset", s.name).start + k
+            g = G[6 * i + k]
+            out[o] = (g[o, p] - g[o, :p] @ phi) / g[o, o] if g[o, o] > 0 else 0.0
+    return out
+
+
+def build_model(model: RobotModel, phi: np.ndarray, datasets: Sequence[Dataset], data_paths: Sequence[str | Path],
+                record: dict[str, Any], settings: FitSettings, *, detector: DetectorSettings = DetectorSettings(),
+                tracking: SupplyTracking | None = None, effects: Sequence[Effect] = (), nu: int | None = None,
+                residual_variance: np.ndarray | None = None, robot: dict[str, str] | None = None) -> Built:
+    """Calibrate T² for Φ (and the effects) on the contact-free `datasets` (read with `settings`' derivatives and
+    min_speed), and write the sections every model
+    file has into `record`: outputs (Λ: `residual_variance`, else the calibrated detector's), detector,
+    supply_tracking, derivatives, data. `record` brings the rest (the fit's sections, or the gap workflow's)."""
+    effects = list(effects)
+
+    def residual_of(sig, t):  # noqa: ANN001, ANN202 - (Signals, s since the run's start) -> e
+        return augmented_residuals(model, phi, effects, sig, t) if effects else residuals(model, phi, sig)
+
+    e, dq, e_constant = calibration_residuals(model, datasets, settings, residual_of, tracking)
+    detectors = calibrate(model, phi, e, dq, detector.alpha, settings.min_speed, detector.n_mode, nu, e_constant=e_constant)
+    outs = output_channels(model)
+    variance = detectors["calibrated"].variance if residual_variance is None else residual_variance
+    record = dict(record)
+    record["outputs"] = {"channels": [o.name for o in outs], "units": [o.unit for o in outs],
+                         "noise_std": [o.sigma for o in outs], "residual_variance": np.asarray(variance).tolist()}
+    record["detector"] = detector_record(model, detectors, e, dq)
+    if tracking is not None or "supply_tracking" in record:
+        record["supply_tracking"] = tracking.as_dict() if tracking is not None else None
+    record.setdefault("derivatives", derivatives_record(model))
+    record["data"] = [data_record(p, ds.n_samples, ds.duration) for p, ds in zip(data_paths, datasets)]
+    identified = IdentifiedModel(robot or robot_record(model.config), dict(zip(model.layout.names, phi.tolist())),
+                                 record)
+    return Built(identified, detectors)
+
+
+def fit_record(model: RobotModel, result: FitResult, settings: FitSettings, detector: DetectorSettings,
+               n_components: int | None) -> dict[str, Any]:
+    """The sections of the model file that describe the regression: estimator, settings, ν, base parameters,
+    every estimator's values."""
+    base = result.base
+    names = model.layout.names
+    return {
+        "estimator": result.chosen,
+        "settings": {"estimator": result.chosen, "n_components": n_components, "min_speed": settings.min_speed,
+                     "blocks": result.statistics.n_blocks, "instrument_window_s": settings.instrument_window_s,
+                     "alpha": detector.alpha, "n_mode": detector.n_mode},
+        "n_components": result.cv["n_components"],
+        "cv": result.cv,
+        "base": {"rank": base.rank, "combinations": list(base.combinations()),
+                 "independent": [names[i] for i in base.independent],
+                 "dependent": [names[i] for i in base.dependent], "K": base.K.tolist(),
+                 "values": result.estimates[result.chosen].beta.tolist(),
+                 "standard_errors": result.estimates[result.chosen].se.tolist(),
+                 "identified": result.identified.tolist()},
+        "estimators": {k: {"values": v.beta.tolist(), "standard_errors": v.se.tolist(), "detail": v.detail,
+                           "parameters": dict(zip(names, v.phi.tolist()))}
+                       for k, v in result.estimates.items()},
+    }
+
+
+@dataclass(frozen=True)
+class IdentifySettings:
+    """Everything `identify` takes besides the robot and the data."""
+
+    fit: FitSettings = field(default_factory=FitSettings)
+    detector: DetectorSettings = field(default_factory=DetectorSettings)
+    supply_time_constant_s: float = SupplyTracking.time_constant_s  # 0: constant motor gains
+
+    @property
+    def tracking(self) -> SupplyTracking | None:
+        return SupplyTracking(self.supply_time_constant_s) if self.supply_time_constant_s > 0 else None
+
+
+def identify(model: RobotModel, datasets: Sequence[Dataset], data_paths: Sequence[str | Path],
+             settings: IdentifySettings = IdentifySettings()) -> Identification:
+    """Fit the model of docs/design.md §3 to the stacked runs, calibrate T² on them, and build the model file."""
+    started = time.perf_counter()
+    result = fit(model, list(datasets), settings.fit)
+    fit_time = time.perf_counter() - started
+    record = fit_record(model, result, settings.fit, settings.detector, settings.fit.n_components)
+    record["cad_ft_offsets"] = cad_ft_offsets(model, result.statistics).tolist()
+    record["supply_tracking"] = None  # build_model fills it when the inputs are tracked
+    built = build_model(model, result.phi, datasets, data_paths, record, settings.fit,
+                        detector=settings.detector, tracking=settings.tracking, nu=result.cv["n_components"],
+                        residual_variance=result.residual_variance[result.chosen])
+    total = time.perf_counter() - started
+    built.model.record["fit_time_s"] = total
+    return Identification(built.model, result, built.detectors, fit_time, total)

@@ -1,0 +1,239 @@
+"""`dynid report`: the identification report of issue 4 as one self-contained HTML page.
+
+    dynid report --model MODEL --validation DATA --contact DATA --out REPORT.html
+                 [--truth TRUTH.json] [--alpha A] [--n-mode dim|nu] [--window S] [--json FILE]
+
+It holds the paper's Table II and the detection numbers beside the paper's, per-channel residuals against the
+noise, T² on the contact-free validation run (the paper's Fig. 3) and on the contact run with the skin's
+contacts shaded by side of the F/T sensor (Fig. 4), the ROC with the α point (Fig. 5), predicted against
+measured F/T and PWM in a representative window, the motor gains of every estimator, and every base parameter
+identified against CAD against true (the truth.json of a `dynid simulate` run, when there is one). Numbers
+come from the same functions as `dynid validate` and `dynid detect` (dynid.identify.validation, dynid.detect.evaluation), so they agree.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..detect.evaluation import detection
+from ..errors import DataError
+from ..identify.model_file import load_model
+from ..identify.validation import cad_ft_residuals, evaluate, load_run, validation
+from ..io.dataset import atomic_write
+from ..paper import PAPER
+from ..progress import track
+from ..robot.outputs import measured_outputs
+from ..robot.parameters import WRENCH_FIELDS
+from . import html as H
+from .params import find_truth, gains_by_estimator, parameter_table, truth_summary
+
+if TYPE_CHECKING:
+    from ..identify.model_file import IdentifiedModel
+    from ..identify.validation import Evaluated
+
+DEFAULT_WINDOW_S = 6.0
+
+
+def representative_window(t: np.ndarray, e: np.ndarray, sigma: np.ndarray, window_s: float) -> slice:
+    """The window whose residual size (mean of e²/σ² over channels) is the median of all windows: neither the
+    best nor the worst stretch of the run."""
+    n = int(np.searchsorted(t, t[0] + window_s))
+    if n <= 0 or n >= t.size:
+        return slice(0, t.size)
+    count = t.size // n
+    energy = np.mean((e[: count * n] / sigma) ** 2, axis=1).reshape(count, n).mean(axis=1)
+    k = int(np.argsort(energy)[(count - 1) // 2])
+    return slice(k * n, (k + 1) * n)
+
+
+def raw_outputs(ev: Evaluated, names: list[str]) -> np.ndarray:
+    """The measured outputs as recorded (unfiltered), in output-channel order."""
+    ds, cols = ev.dataset, []
+    for name in names:
+        family, _, rest = name.partition(".")
+        if family == "ft":
+            sensor, field = rest.rsplit(".", 1)
+            cols.append(ds.ft[sensor][:, WRENCH_FIELDS.index(field)])
+        else:
+            cols.append({"pwm": ds.pwm, "current": ds.current, "tau": ds.tau}[family][rest])
+    return np.column_stack(cols)
+
+
+def rates_text(s: dict[str, Any]) -> str:
+    tpr = "n/a" if s.get("tpr") is None else f"{100 * s['tpr']:.1f} %"
+    line = f"TPR {tpr}, FPR {100 * s['fpr']:.2f} %"
+    side = {k: v for k, v in (s.get("tpr_by_side") or {}).items() if v is not None}
+    return line + ("".join(f", {k} {100 * v:.1f} %" for k, v in side.items()))
+
+
+@dataclass(frozen=True)
+class ReportSettings:
+    """What a report is made of: the model file, a contact-free validation run and a contact run."""
+
+    model: str
+    validation: str
+    contact: str
+    out: str
+    truth: str | None = None  # truth.json; default: the one `dynid simulate` wrote beside the data
+    alpha: float = 0.99
+    n_mode: str = "dim"
+    window: float = DEFAULT_WINDOW_S  # s, the predicted-against-measured window
+    gaps: str | None = None  # a `dynid gaps --figures DIR` directory to add as a section
+
+
+def write_report(args: ReportSettings) -> dict[str, Any]:
+    """Evaluate, draw and write the page atomically; returns `dynid report --json`."""
+    out = Path(args.out)
+    if not out.parent.is_dir():  # before minutes of work, not after
+        raise DataError(f"cannot write '{out}': the directory {out.parent} does not exist")
+    if out.exists() and not out.is_file():
+        raise DataError(f"cannot write '{out}': it exists and is not a regular file")
+    gaps_section = None
+    if args.gaps:  # read before minutes of work: a bad directory fails at once
+        from .gaps_figures import report_section
+
+        gaps_section = report_section(args.gaps)
+    identified = load_model(args.model)
+    model = identified.robot_model
+    ds_val = load_run(args.validation, model)
+    ds_con = load_run(args.contact, model)
+    if ds_con.contact is None:
+        raise DataError(f"{args.contact} has no 'contact' column: the contact figure and TPR need the skin's "
+                        "ground truth (a `dynid simulate --kind contact` run has one)")
+    truth = find_truth(identified, [args.validation, args.contact], args.truth)
+    params = parameter_table(identified, truth)
+    state: dict[str, Any] = {}
+
+    def evaluate_validation() -> None:
+        ev = state["val"] = evaluate(args.model, args.validation, identified, ds_val)
+        state["cad_e"] = cad_ft_residuals(ev)
+        state["validation"] = validation(ev, args.model, args.validation, state["cad_e"])
+        state["det_val"] = detection(ev, args.model, args.validation, args.alpha, args.n_mode)
+
+    def evaluate_contact() -> None:
+        ev = state["con"] = evaluate(args.model, args.contact, identified, ds_con)
+        state["det_con"] = detection(ev, args.model, args.contact, args.alpha, args.n_mode)
+
+    def draw() -> None:
+        state["figures"], state["window_s"] = _figures(state, args)
+
+    for step in track([evaluate_validation, evaluate_contact, draw], 3, "report"):
+        step()
+
+    v, dv, dc = state["validation"], state["det_val"], state["det_con"]
+    ev_val = state["val"]
+    units = {o.name: o.unit for o in ev_val.outputs}
+    record = identified.record
+    result: dict[str, Any] = {
+        "model": args.model, "robot": identified.config.name, "estimator": record.get("estimator"),
+        "out": str(out), "alpha": args.alpha, "n_mode": args.n_mode,
+        "validation": v, "detection": {"validation": dv.result, "contact": dc.result},
+        "paper": {k: list(x) if isinstance(x, tuple) else x for k, x in PAPER.items()},
+        "truth": truth.path if truth else None, "parameters": params, "truth_check": truth_summary(params),
+        "motor_gains": gains_by_estimator(identified, truth), "window_s": state["window_s"],
+        "figures": [f[0] for f in state["figures"]],
+    }
+    html_text = _page(result, identified, units, state["figures"])
+    if gaps_section is not None:  # `dynid gaps --figures DIR`: its section goes before the closing tags
+        extra, gaps = gaps_section
+        html_text = html_text.replace("\n</body></html>", "\n" + "\n".join(extra) + "\n</body></html>")
+        result["gaps"] = {"dir": args.gaps, "effects": gaps.get("effects", []), "gap": gaps["gap"]}
+    atomic_write(out, lambda f: f.write(html_text.encode("utf-8")))
+
+    return result
+
+
+def _figures(state: dict[str, Any], args: ReportSettings) -> tuple[list[tuple[str, str, bytes]], list[float]]:
+    """(id, caption, PNG) of every figure, and the time window of the traces."""
+    from .page import figures as figs
+
+    ev_val, ev_con, dv, dc = state["val"], state["con"], state["det_val"], state["det_con"]
+    alpha = args.alpha
+    out = []
+    t = ev_val.dataset.t
+    fpr = {k: s["fpr"] for k, s in dv.result["variants"].items()}
+    thresholds = {k: d.threshold for k, d in dv.detectors.items()}
+    out.append(("fig-t2-validation", f"T² on the contact-free validation run ({args.validation}) with the threshold "
+                f"at α = {alpha:g}, both variants (the paper's Fig. 3)",
+                figs.t2_validation(t - t[0], dv.t2, thresholds, fpr, alpha)))
+    tc = ev_con.dataset.t
+    rates = {k: rates_text(s) for k, s in dc.result["variants"].items()}
+    out.append(("fig-t2-contact", f"T² on the contact run ({args.contact}); the skin's contact periods shaded, distal "
+                "and proximal of the F/T sensor in two colours (the paper's Fig. 4)",
+                figs.t2_contact(tc - tc[0], dc.t2, thresholds, ev_con.dataset.contact, dc.side, rates)))
+    curves = {k: s["roc"] for k, s in dc.result["variants"].items() if "roc" in s}
+    if curves:
+        points = {k: (s["fpr"], s["tpr"]) for k, s in dc.result["variants"].items() if k in curves}
+        auc = {k: s["auc"] for k, s in dc.result["variants"].items() if k in curves}
+        out.append(("fig-roc", f"ROC on the contact run, the operating point at α = {alpha:g} marked "
+                    "(the paper's Fig. 5); right: the same on a logarithmic FPR axis", figs.roc(curves, points, auc, alpha)))
+    names = [o.name for o in ev_val.outputs]
+    sigma = np.array([o.sigma for o in ev_val.outputs])
+    w = representative_window(t, ev_val.e, sigma, args.window)
+    y = measured_outputs(ev_val.model, ev_val.signals)[w]
+    predicted = y - ev_val.e[w]
+    ft_rows = [o.row for o in ev_val.outputs if o.kind == "ft"]
+    cad = {} if state["cad_e"] is None else {r: y[:, r] - state["cad_e"][w][:, k] for k, r in enumerate(ft_rows)}
+    tw = t[w] - t[0]
+    out.append(("fig-traces", f"Predicted against measured outputs on the validation run, {tw[0]:.1f}–{tw[-1]:.1f} s "
+                "(the window of median residual size); grey: as recorded; blue: the identified model; red dashed: "
+                "the CAD parameters (F/T only: a CAD model predicts no PWM)",
+                figs.traces(tw, names, [o.unit for o in ev_val.outputs], raw_outputs(ev_val, names)[w], predicted, cad)))
+    return out, [float(tw[0]), float(tw[-1])]
+
+
+def _page(r: dict[str, Any], identified: IdentifiedModel, units: dict[str, str],
+          figures: list[tuple[str, str, bytes]]) -> str:
+    record = identified.record
+    base = record.get("base", {})
+    data = ", ".join(H.esc(d.get("path", "?")) for d in record.get("data", []))
+    alpha = r["alpha"]
+    shown = {fid: H.figure(fid, png, caption) for fid, caption, png in figures}
+    v = r["validation"]
+    sections = [
+        f"<p>Model <code>{H.esc(r['model'])}</code> of <b>{H.esc(r['robot'])}</b>, estimator "
+        f"<b>{H.esc(r['estimator'])}</b>, fitted on {data}: base-parameter rank {H.esc(base.get('rank'))}, "
+        f"{sum(base.get('identified', []))} combinations determined; PLS ν = {H.esc(record.get('n_components'))}. "
+        f"Validation run <code>{H.esc(v['data'])}</code> ({v['samples']} samples), contact run "
+        f"<code>{H.esc(r['detection']['contact']['data'])}</code>. "
+        + (f"True parameters from <code>{H.esc(r['truth'])}</code>." if r["truth"] else "No true parameters known.")
+        + "</p>",
+        "<h2>Prediction error (the paper's Table II)</h2>",
+        H.table_ii(v, r["paper"]) if "table_ii" in v else "<p class=\"note\">No F/T sensor: no Table II.</p>",
+        "<p class=\"note\">Norm of the F/T prediction error on the validation run. CAD: the URDF inertia with the F/T "
+        "offsets that fit it best on the identification data. Paper: the real iCub arm (Traversaro et al. 2013).</p>",
+        "<h3>Per channel</h3>", H.channels(v, units),
+        "<p class=\"note\">The CAD model has no friction and no motor gains: its PWM prediction is undefined.</p>",
+        "<h2>Contact detection</h2>",
+        H.detection(r["detection"]["validation"], r["detection"]["contact"], r["paper"], alpha),
+        f"<p class=\"note\">α = {alpha:g}. <i>calibrated</i> (dynid's default): motor channels at rest left out, "
+        "threshold the α-quantile of T² on the contact-free identification data. <i>paper</i>: diagonal Λ and the F "
+        f"threshold with n = {'dim(e)' if r['n_mode'] == 'dim' else 'ν'}. Distal contacts show in the F/T, proximal "
+        "ones only in the PWMs.</p>",
+        shown["fig-t2-validation"], shown["fig-t2-contact"], shown.get("fig-roc", ""),
+        "<h2>Predicted against measured</h2>", shown["fig-traces"],
+        "<h2>Motor gains by estimator</h2>", H.gains(r["motor_gains"], r["estimator"]),
+        "<p class=\"note\">Closed-loop data bias least squares and PLS towards small gains; instrumental variables "
+        "(iv) remove that bias.</p>",
+        "<h2>Base parameters: identified, CAD, true</h2>",
+        "<p class=\"note\">Each base parameter is the combination shown (the data determine only those). ± se: "
+        "jackknife standard error over time blocks; determined: the fit's flag (standard error small against the "
+        "value). CAD is undefined (—) for combinations with friction, gains or no CAD value.</p>",
+        _truth_note(r["truth_check"]),
+        H.parameters(r["parameters"], r["truth"] is not None),
+    ]
+    return H.page(f"dynid identification report: {r['robot']}", sections)
+
+
+def _truth_note(check: dict[str, Any] | None) -> str:
+    if not check:
+        return ""
+    return (f"<p>Against the truth, the {check['determined']} determined combinations are off by "
+            f"<span data-key=\"truth_check/rms_error_in_se\" data-value=\"{check['rms_error_in_se']!r}\">"
+            f"{check['rms_error_in_se']:.2f}</span> standard errors RMS; "
+            f"<span data-key=\"truth_check/within_2se\" data-value=\"{check['within_2se']!r}\" data-scale=\"100.0\">"
+            f"{100 * check['within_2se']:.0f}</span> % lie within 2 se (honest errors: about 1 and 95 %).</p>")

@@ -1,0 +1,195 @@
+"""The rigid-body model of a configured chain, built with Pinocchio.
+
+Pinocchio merges fixed joints, so a body that holds an F/T sensor would come out as one body. We split it
+instead: the sensor's fixed joint becomes a 6-DoF (free-flyer) joint that is always held at the identity.
+It adds no motion, its body is the distal sub-body (expressed in the sensor frame, the child link frame), and
+its six rows of the joint-torque regressor are the wrench the proximal part exerts on the distal part: the
+negative of the sensor measurement in the child-to-parent convention of docs/design.md §3. One call of
+`computeJointTorqueRegressor` per sample therefore yields both Y_τ and every Y_FT.
+
+Every URDF joint that is not a configured moving joint or an F/T sensor is locked at zero (the iCub torso,
+the hand's fingers, ...).
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import pinocchio as pin
+
+from ..config.robot_config import RobotConfig
+from ..errors import ConfigError
+from .parameters import ParameterLayout
+
+_ONE_DOF = ("revolute", "continuous", "prismatic")
+
+
+@dataclass(frozen=True)
+class Body:
+    name: str  # the URDF link that carries the body frame
+    joint_id: int  # Pinocchio joint of the reduced model that moves it
+    moved_by: str  # that joint's name (a configured joint, or an F/T sensor joint for a distal sub-body)
+
+
+class RobotModel:
+    """Pinocchio model of the configured chain, with the parameter layout and CAD parameters."""
+
+    def __init__(self, config: RobotConfig) -> None:
+        self.config = config
+        tree = ET.parse(config.urdf)
+        urdf_joints = {j.get("name"): j for j in tree.getroot().findall("joint")}
+        urdf_links = {lk.get("name") for lk in tree.getroot().findall("link")}
+        for j in config.joints:
+            if j not in urdf_joints:
+                raise ConfigError(f"{config.name}: field 'joints' names '{j}', which is not a joint of {config.urdf.name}")
+            if urdf_joints[j].get("type") not in _ONE_DOF:
+                raise ConfigError(
+                    f"{config.name}: field 'joints' names '{j}', a {urdf_joints[j].get('type')} joint; "
+                    "moving joints must be revolute, continuous or prismatic"
+                )
+        if config.base_link not in urdf_links:
+            raise ConfigError(f"{config.name}: field 'base_link' names '{config.base_link}', not a link of {config.urdf.name}")
+        for s in config.ft_sensors:
+            joint = urdf_joints.get(s.joint)
+            if joint is None or joint.get("type") != "fixed":
+                raise ConfigError(
+                    f"{config.name}: field 'ft_sensors' puts '{s.name}' at '{s.joint}', which is not a fixed joint "
+                    f"of {config.urdf.name}"
+                )
+            self._check_sensor_tag(tree, config, s.name, s.joint)
+            joint.set("type", "floating")  # the split described in the module docstring
+        self._check_base_link(tree, config)
+
+        full = pin.buildModelFromXML(ET.tostring(tree.getroot(), encoding="unicode"))
+        keep = set(config.joints) | {s.joint for s in config.ft_sensors}
+        lock = [i for i in range(1, full.njoints) if full.names[i] not in keep]
+        self.pin_model: pin.Model = pin.buildReducedModel(full, lock, pin.neutral(full))
+        self.pin_model.gravity = pin.Motion(np.asarray(config.gravity, float), np.zeros(3))
+        m = self.pin_model
+
+        self.joint_ids = [int(m.getJointId(j)) for j in config.joints]
+        self.v_index = np.array([m.idx_vs[i] for i in self.joint_ids])  # columns of q̇ in Pinocchio's v
+        self.q_index = np.array([m.idx_qs[i] for i in self.joint_ids])
+        self._continuous = np.array([m.nqs[i] == 2 for i in self.joint_ids])  # q stored as (cos, sin)
+        self.sensor_joint_ids = {s.name: m.getJointId(s.joint) for s in config.ft_sensors}
+        self.sensor_v_index = {s: int(m.idx_vs[i]) for s, i in self.sensor_joint_ids.items()}
+        lower, upper = m.lowerPositionLimit[self.q_index], m.upperPositionLimit[self.q_index]
+        self.joint_limits = {j: (float(lo), float(hi)) for j, lo, hi in zip(config.joints, lower, upper)}
+
+        sensor_of_joint = {s.joint: s.name for s in config.ft_sensors}
+        bodies = []
+        for jid in range(1, m.njoints):
+            bodies.append(Body(self._child_link(jid), jid, m.names[jid]))
+        self.bodies: tuple[Body, ...] = tuple(bodies)
+        self.sensor_bodies = {sensor_of_joint[b.moved_by]: b for b in bodies if b.moved_by in sensor_of_joint}
+
+        groups = config.actuation
+        self.layout = ParameterLayout(
+            bodies=tuple(b.name for b in self.bodies),
+            ft_sensors=tuple(s.name for s in config.ft_sensors),
+            friction_joints=tuple(j for g in groups for j in g.joints),
+            friction_motors=tuple(mo for g in groups if g.coupled for mo in g.motors),
+            gain_motors=tuple(
+                mo for g in groups if g.input != "torque" for mo in g.motors if config.motor(mo).known_gain is None
+            ),
+        )
+
+    @staticmethod
+    def _check_sensor_tag(tree: ET.ElementTree, config: RobotConfig, name: str, joint: str) -> None:
+        """A URDF <sensor> at the joint must use the convention the regressor implements (or be absent)."""
+        for tag in tree.getroot().findall("sensor"):
+            parent = tag.find("parent")
+            if tag.get("type") != "force_torque" or parent is None or parent.get("joint") != joint:
+                continue
+            where = f"{config.name}: field 'ft_sensors' ({name} at {joint})"
+            if tag.get("name") != name:
+                raise ConfigError(f"{where}: the URDF names this sensor '{tag.get('name')}'")
+            frame = tag.findtext("force_torque/frame", "child").strip()
+            direction = tag.findtext("force_torque/measure_direction", "child_to_parent").strip()
+            if frame != "child" or direction != "child_to_parent":
+                raise ConfigError(
+                    f"{where}: the URDF declares frame '{frame}' and measure_direction '{direction}'; dynid "
+                    "implements frame 'child' with 'child_to_parent' (docs/design.md §3)"
+                )
+
+    @staticmethod
+    def _check_base_link(tree: ET.ElementTree, config: RobotConfig) -> None:
+        """The base link must be an ancestor of every moving joint, with no moving joint above it."""
+        parent_of = {}
+        for j in tree.getroot().findall("joint"):
+            parent_of[j.find("child").get("link")] = (j.get("name"), j.find("parent").get("link"))
+        moving = set(config.joints)
+        for joint in tree.getroot().findall("joint"):
+            if joint.get("name") not in moving:
+                continue
+            link, found = joint.find("parent").get("link"), False
+            while True:
+                if link == config.base_link:
+                    found = True
+                if link not in parent_of:
+                    break
+                name, link = parent_of[link]
+                if found and name in moving:
+                    raise ConfigError(
+                        f"{config.name}: field 'base_link' is '{config.base_link}', but the moving joint '{name}' lies "
+                        "between it and the URDF root"
+                    )
+            if not found:
+                raise ConfigError(
+                    f"{config.name}: field 'base_link' is '{config.base_link}', which is not an ancestor of the joint "
+                    f"'{joint.get('name')}'"
+                )
+
+    def _child_link(self, joint_id: int) -> str:
+        m = self.pin_model
+        joint_frame = next(i for i, f in enumerate(m.frames) if f.type == pin.FrameType.JOINT and f.parentJoint == joint_id)
+        for f in m.frames:
+            if f.type == pin.FrameType.BODY and f.parentFrame == joint_frame:
+                return f.name
+        return m.names[joint_id]
+
+    # ------------------------------------------------------------------------------------------------------
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.config.joints)
+
+    def pinocchio_configuration(self, q: np.ndarray) -> np.ndarray:
+        """Map joint positions (N, n_joints) to Pinocchio configurations (N, nq); sensor joints at identity."""
+        q = np.atleast_2d(q)
+        out = np.tile(pin.neutral(self.pin_model), (q.shape[0], 1))
+        cont = self._continuous
+        out[:, self.q_index[~cont]] = q[:, ~cont]
+        if cont.any():
+            out[:, self.q_index[cont]] = np.cos(q[:, cont])
+            out[:, self.q_index[cont] + 1] = np.sin(q[:, cont])
+        return out
+
+    def pinocchio_velocity(self, dq: np.ndarray) -> np.ndarray:
+        """Map joint velocities or accelerations (N, n_joints) to Pinocchio's (N, nv); sensor joints at rest."""
+        dq = np.atleast_2d(dq)
+        out = np.zeros((dq.shape[0], self.pin_model.nv))
+        out[:, self.v_index] = dq
+        return out
+
+    @cached_property
+    def cad_inertial_parameters(self) -> np.ndarray:
+        """φ of every body from the URDF (the CAD model), in layout order."""
+        m = self.pin_model
+        return np.concatenate([m.inertias[b.joint_id].toDynamicParameters() for b in self.bodies])
+
+    def cad_parameters(self) -> np.ndarray:
+        """Φ with the CAD inertial parameters; NaN where the CAD model says nothing (offsets, friction, gains)."""
+        phi = np.full(len(self.layout), np.nan)
+        phi[self.layout.span("inertial")] = self.cad_inertial_parameters
+        return phi
+
+    def with_inertial_parameters(self, phi_inertial: np.ndarray) -> pin.Model:
+        """A copy of the Pinocchio model carrying other inertial parameters (e.g. identified or true ones)."""
+        m = self.pin_model.copy()
+        for k, b in enumerate(self.bodies):
+            m.inertias[b.joint_id] = pin.Inertia.FromDynamicParameters(np.asarray(phi_inertial[10 * k : 10 * k + 10]))
+        return m
