@@ -38,7 +38,25 @@ _EXPORTS = {
     "ConfigError": "errors", "DataError": "errors", "InputError": "errors",
     "Dataset": "io", "RobotModel": "robot",
 }
-__all__ = sorted([*_EXPORTS, "__version__"])
+__all__ = [
+    "ConfigError",
+    "ContactDetector",
+    "DataError",
+    "Dataset",
+    "DynamicsModel",
+    "ExportSettings",
+    "Gaps",
+    "InputError",
+    "RobotConfig",
+    "RobotModel",
+    "__version__",
+    "bundled_configs",
+    "export_coefficients",
+    "find_gaps",
+    "load_model",
+    "load_robot",
+    "read_data",
+]
 
 if TYPE_CHECKING:  # what the names are, for type checkers and IDEs
     from .api import (

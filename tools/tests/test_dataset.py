@@ -13,8 +13,8 @@ import pytest
 
 from dynid.config.robot_config import load_config
 from dynid.errors import DataError
-from dynid.io.csv_format import write_csv
 from dynid.io import dataset as dataset_module
+from dynid.io.csv_format import write_csv
 from dynid.io.dataset import FORMAT_VERSION, Dataset
 from dynid.io.load import load_data
 

@@ -511,11 +511,9 @@ def test_stribeck_shape_and_joint_shares_against_independent_references() -> Non
     """The one Stribeck curve (fit, augmented model, monitor) against its formula's values, and the one joint →
     row share map against the regressor stack: a joint's Coulomb column in A is its share times the regressor."""
     from dynid.config.robot_config import load_config
-    from dynid.robot.regressors.friction import stribeck_shape
-    from dynid.robot.regressors.stack import joint_row_shares
     from dynid.robot.model import RobotModel
-    from dynid.robot.regressors.friction import friction_regressor
-    from dynid.robot.regressors.stack import Signals, fill_rows, row_channels
+    from dynid.robot.regressors.friction import friction_regressor, stribeck_shape
+    from dynid.robot.regressors.stack import Signals, fill_rows, joint_row_shares, row_channels
 
     v = np.array([-0.08, -0.04, 0.0, 0.02, 0.04])
     assert np.allclose(stribeck_shape(v, 0.04), [-np.exp(-4.0), -np.exp(-1.0), 0.0, np.exp(-0.25), np.exp(-1.0)])

@@ -172,7 +172,7 @@ def calibrate(model: RobotModel, phi: np.ndarray, e: np.ndarray, dq: np.ndarray,
 def score(t: np.ndarray, t2: np.ndarray, threshold: float, contact: np.ndarray | None,
           side: np.ndarray | None = None) -> dict:
     """TPR, FPR (per sample), ROC and AUC, detection delays per episode, TPR per side of the F/T sensor."""
-    from sklearn.metrics import roc_auc_score, roc_curve
+    from sklearn.metrics import roc_auc_score, roc_curve  # ~0.3 s: only where detection is scored
 
     alarm = t2 > threshold
     out: dict = {"threshold": threshold, "alarm_rate": float(alarm.mean()), "samples": int(t2.size)}

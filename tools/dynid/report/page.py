@@ -15,14 +15,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from ..detect.evaluation import detection
 from ..errors import DataError
-from ..identify.model_file import load_model
-from ..identify.validation import cad_ft_residuals, evaluate, load_run, validation
+from ..identify.model_file import IdentifiedModel, load_model
+from ..identify.validation import Evaluated, cad_ft_residuals, evaluate, load_run, validation
 from ..io.dataset import atomic_write
 from ..paper import PAPER
 from ..progress import track
@@ -30,10 +30,6 @@ from ..robot.outputs import measured_outputs
 from ..robot.parameters import WRENCH_FIELDS
 from . import html as H
 from .params import find_truth, gains_by_estimator, parameter_table, truth_summary
-
-if TYPE_CHECKING:
-    from ..identify.model_file import IdentifiedModel
-    from ..identify.validation import Evaluated
 
 DEFAULT_WINDOW_S = 6.0
 
@@ -149,7 +145,7 @@ def write_report(args: ReportSettings) -> dict[str, Any]:
 
 def _figures(state: dict[str, Any], args: ReportSettings) -> tuple[list[tuple[str, str, bytes]], list[float]]:
     """(id, caption, PNG) of every figure, and the time window of the traces."""
-    from .page import figures as figs
+    from . import figures as figs  # matplotlib: loaded only when a report is drawn
 
     ev_val, ev_con, dv, dc = state["val"], state["con"], state["det_val"], state["det_con"]
     alpha = args.alpha
