@@ -59,7 +59,7 @@ def test_checked_in_python_types_are_lcm_gens_output(tmp_path: Path) -> None:
     names = ("contact_event_t", "monitor_status_t", "residual_t")
     subprocess.run([str(VENV_BIN / "lcm-gen"), "--python", "--ppath", str(tmp_path)]
                    + [str(ROOT / "rt_monitor" / "lcmtypes" / f"{n}.lcm") for n in names], check=True)
-    here = ROOT / "tools" / "dynid" / "lcm_messages"
+    here = ROOT / "tools" / "dynid" / "export" / "lcm_messages"
     for f in ("__init__.py",) + tuple(f"{n}.py" for n in names):
         assert (tmp_path / "dynid" / f).read_text() == (here / f).read_text(), (
             f"{here / f} differs from lcm-gen's: lcm-gen --python --ppath TMP rt_monitor/lcmtypes/... and copy TMP/dynid/*")

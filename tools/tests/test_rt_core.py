@@ -220,7 +220,7 @@ def test_python_codec_is_lcm_gens(tmp_path: Path) -> None:
                            str(ROOT / "rt_monitor" / "lcmtypes" / "coefficients_t.lcm")], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     generated = (tmp_path / "dynid" / "coefficients_t.py").read_text()
-    assert generated == (ROOT / "tools" / "dynid" / "lcm_coefficients.py").read_text()
+    assert generated == (ROOT / "tools" / "dynid" / "export" / "lcm_coefficients.py").read_text()
 
 
 def _reencode(c: coefficients_t) -> bytes:

@@ -9,9 +9,8 @@ coefficient file"). `dynid export` writes it; the C++ loader checks every dimens
 Body, joint, motor and channel indices are 0-based; matrices are row-major.
 """
 
-import struct
 from io import BytesIO
-
+import struct
 
 class coefficients_t(object):
 

@@ -4,9 +4,8 @@ DO NOT MODIFY BY HAND!!!!
 """
 
 
-import struct
 from io import BytesIO
-
+import struct
 
 class contact_event_t(object):
     """ A contact onset or end, published by rt_monitor on channel DYNID_CONTACT (rt_monitor/README.md). """

@@ -4,9 +4,8 @@ DO NOT MODIFY BY HAND!!!!
 """
 
 
-import struct
 from io import BytesIO
-
+import struct
 
 class monitor_status_t(object):
     """ rt_monitor's health at 10 Hz on channel DYNID_STATUS; every counter counts from the start of the run. """
@@ -139,7 +138,7 @@ class monitor_status_t(object):
         self.n_supply = 0
         """
         core steps longer than the sample period
-        Supply ratio r = measured / predicted input (dynid.supply) of each motor-input channel, in the coefficient
+        Supply ratio r = measured / predicted input (dynid.identify.supply) of each motor-input channel, in the coefficient
         file's channel order (its channels of kind 1, the motors' inputs); 1 while untracked or with tracking off.
         LCM Type: int16_t
         """

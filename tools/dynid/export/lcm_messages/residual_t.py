@@ -4,9 +4,8 @@ DO NOT MODIFY BY HAND!!!!
 """
 
 
-import struct
 from io import BytesIO
-
+import struct
 
 class residual_t(object):
     """ The decimated residual stream for plotting (channel DYNID_RESIDUAL). """
