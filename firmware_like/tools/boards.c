@@ -3,7 +3,7 @@
  *
  *   boards --config MONITOR.conf --data RUN_DIR|data.csv --sink candump:PATH|loopback:DIR|socketcan
  *          [--realtime] [--t0 SECONDS] [--sensor NAME] [--strain-sat auto|on|off] [--restart ADDR@SAMPLE]
- *          [--repeat N] [--rt-priority P]
+ *          [--repeat N] [--rt-priority P] [--help]
  *
  * The configuration is rt_monitor's (rt_monitor/README.md, "Configuration"; `dynid` writes it from the robot
  * configuration): buses, the strain board, the motor-control boards' axes and PWMs, the skin boards. Per sample
@@ -50,12 +50,61 @@ static uint64_t g_bits[BOARDS_MAX_BUSES];
 static uint64_t g_frames[BOARDS_MAX_BUSES];
 static char g_err[BOARDS_ERR_LEN];
 
+#define SYNOPSIS "usage: boards --config MONITOR.conf --data RUN_DIR|data.csv --sink candump:PATH|loopback:DIR|socketcan " \
+                 "[--realtime] [--rt-priority P] [--t0 S] [--sensor NAME] [--strain-sat auto|on|off] " \
+                 "[--restart ADDRESS@SAMPLE] [--repeat N] [--help]\n"
+
+/* --help, line by line (C99 guarantees string literals of 4095 characters only). */
+static const char *const k_help[] = {
+    "",
+    "Play a simulated run (data.csv, docs/design.md §4) through the C board emulators (strain, motor-control,",
+    "skin) as iCub CAN frames, on the buses of the rt_monitor configuration; then print each bus's load.",
+    "",
+    "required:",
+    "  --config MONITOR.conf     the rt_monitor configuration: buses, which board is on which bus at which address,",
+    "                            strain full scales, ticks per degree, PWM full scales, skin patches",
+    "                            (dynid writes it from the robot configuration; rt_monitor/README.md)",
+    "  --data RUN_DIR|data.csv   a run directory (its data.csv is read) or a CSV file; every row is checked",
+    "                            before any frame is sent",
+    "  --sink SINK               where the frames go:",
+    "                              candump:PATH  a candump -L log file (written beside PATH, renamed into place)",
+    "                              loopback:DIR  one struct can_frame datagram per frame to DIR/<bus>.can, the",
+    "                                            sockets `rt_monitor --loopback DIR` binds",
+    "                              socketcan     raw CAN sockets on the interfaces named as the configured buses",
+    "",
+    "options:",
+    "  --realtime                pace the samples at the data's times (one absolute CLOCK_MONOTONIC sleep per",
+    "                            sample); live sinks need it, candump logs do not (default: as fast as possible)",
+    "  --rt-priority P           run the sender SCHED_FIFO at priority P, 1..99 (exit 7 if the system refuses)",
+    "  --t0 S                    timestamp of the first sample, in seconds (default 1700000000)",
+    "  --sensor NAME             the F/T sensor whose ft.NAME.* columns feed the strain board (default: the",
+    "                            data's only one)",
+    "  --strain-sat auto|on|off  7-byte strain frames with saturation flags in byte 6: when a channel clamps",
+    "                            somewhere in the run (auto, the default), always (on), never (off: 6 bytes)",
+    "  --restart ADDRESS@SAMPLE  reset the motor-control board at ADDRESS (0..15) before sample SAMPLE (from 0):",
+    "                            its next STATUS carries RESTARTED and sequence 0",
+    "  --repeat N                play the run N times back to back, time continuing (1..100000, default 1)",
+    "  -h, --help                print this help on stdout and exit 0",
+    "",
+    "exit codes: 0 done; 2 bad flag or value; 3 an input file is missing or unreadable; 4 a malformed CSV or",
+    "configuration; 5 the sink cannot be opened or refuses a frame; 6 a bus loaded at 70 % or more (worst-case",
+    "bit stuffing, 1 Mbit/s); 7 SCHED_FIFO refused.",
+};
+
 static int usage(const char *why)
 {
-    fprintf(stderr, "boards: error: %s\nusage: boards --config MONITOR.conf --data RUN_DIR|data.csv "
-                    "--sink candump:PATH|loopback:DIR|socketcan [--realtime] [--t0 S] [--sensor NAME] "
-                    "[--strain-sat auto|on|off] [--restart ADDRESS@SAMPLE] [--repeat N] [--rt-priority P]\n", why);
+    fprintf(stderr, "boards: error: %s\n" SYNOPSIS, why);
     return BOARDS_EXIT_USAGE;
+}
+
+static int help(void)
+{
+    size_t i;
+    fputs(SYNOPSIS, stdout);
+    for (i = 0; i < sizeof k_help / sizeof k_help[0]; ++i) {
+        puts(k_help[i]);
+    }
+    return fflush(stdout) == 0 ? 0 : 1;
 }
 
 static int fail(int code)
@@ -163,6 +212,7 @@ int main(int argc, char **argv)
     for (i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const int has = i + 1 < argc;
+        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) return help();
         if (strcmp(a, "--realtime") == 0) { realtime = 1; continue; }
         if (strcmp(a, "--config") && strcmp(a, "--data") && strcmp(a, "--sink") && strcmp(a, "--t0") &&
             strcmp(a, "--sensor") && strcmp(a, "--strain-sat") && strcmp(a, "--restart") && strcmp(a, "--repeat") &&

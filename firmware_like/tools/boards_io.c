@@ -59,15 +59,15 @@ static boards_mc_conf_t *mc_board(boards_conf_t *c, int bus, uint8_t address)
 }
 
 #define MAX_TOK 12
-int boards_read_conf(const char *path, boards_conf_t *c, char err[BOARDS_ERR_LEN])
+/* One pass over the configuration: pass 0 reads the 'buses' line, pass 1 the board lines that name its buses
+ * (so keys come in any order). 0, or an exit code with err set. */
+static int read_conf_pass(FILE *f, const char *path, int pass, boards_conf_t *c, long *buses_line,
+                          char err[BOARDS_ERR_LEN])
 {
-    FILE *f = fopen(path, "r");
     long line = 0;
-    memset(c, 0, sizeof *c);
-    if (!f) {
-        snprintf(err, BOARDS_ERR_LEN, "%s: %s", path, strerror(errno));
-        return BOARDS_EXIT_NOFILE;
-    }
+    char why[BOARDS_ERR_LEN / 2];
+#define BAD(text) do { snprintf(err, BOARDS_ERR_LEN, "%s:%ld: %s", path, line, text); \
+                       return BOARDS_EXIT_BADDATA; } while (0)
     while (fgets(g_line, LINE_LEN, f)) {
         char *tok[MAX_TOK];
         int n = 0, i, bus = -1;
@@ -79,18 +79,22 @@ int boards_read_conf(const char *path, boards_conf_t *c, char err[BOARDS_ERR_LEN
         for (p = strtok_r(g_line, " \t\r\n", &save); p && n < MAX_TOK; p = strtok_r(0, " \t\r\n", &save)) {
             tok[n++] = p;
         }
-        if (n == 0) {
-            continue;
+        if (n == 0 || (strcmp(tok[0], "buses") == 0) != (pass == 0)) {
+            continue; /* blank, or the other pass's */
         }
-#define BAD(msg) do { snprintf(err, BOARDS_ERR_LEN, "%s:%ld: %s", path, line, msg); fclose(f); \
-                      return BOARDS_EXIT_BADDATA; } while (0)
-        if (strcmp(tok[0], "buses") == 0) {
+        if (pass == 0) {
+            if (*buses_line) {
+                snprintf(why, sizeof why, "a second 'buses' line (the first is line %ld)", *buses_line);
+                BAD(why);
+            }
             if (n - 1 > BOARDS_MAX_BUSES || n < 2) BAD("'buses' needs 1 to 8 names");
             for (i = 1; i < n; ++i) {
                 if (strlen(tok[i]) >= BOARDS_NAME_LEN) BAD("bus name too long");
+                if (bus_index(c, tok[i]) >= 0) BAD("a bus named twice in the 'buses' line");
                 strcpy(c->buses[i - 1], tok[i]);
+                c->n_buses = i;
             }
-            c->n_buses = n - 1;
+            *buses_line = line;
             continue;
         }
         if (strcmp(tok[0], "strain") != 0 && strcmp(tok[0], "axis") != 0 && strcmp(tok[0], "pwm") != 0 &&
@@ -99,7 +103,10 @@ int boards_read_conf(const char *path, boards_conf_t *c, char err[BOARDS_ERR_LEN
         }
         if (n < 3) BAD("a board line needs a bus and an address");
         bus = bus_index(c, tok[1]);
-        if (bus < 0) BAD("bus not in the 'buses' line (which must come first)");
+        if (bus < 0) {
+            snprintf(why, sizeof why, "bus '%.64s' is not in the 'buses' line (line %ld)", tok[1], *buses_line);
+            BAD(why);
+        }
         if (strcmp(tok[0], "strain") == 0) {
             if (n != 9) BAD("'strain BUS ADDRESS FS*6' expected");
             if (c->has_strain) BAD("a second strain board");
@@ -144,9 +151,38 @@ int boards_read_conf(const char *path, boards_conf_t *c, char err[BOARDS_ERR_LEN
                 strcpy(b->motor[slot], tok[4]);
             }
         }
+    }
 #undef BAD
+    return 0;
+}
+
+int boards_read_conf(const char *path, boards_conf_t *c, char err[BOARDS_ERR_LEN])
+{
+    FILE *f = fopen(path, "r");
+    long buses_line = 0;
+    int rc;
+    memset(c, 0, sizeof *c);
+    if (!f) {
+        snprintf(err, BOARDS_ERR_LEN, "%s: %s", path, strerror(errno));
+        return BOARDS_EXIT_NOFILE;
+    }
+    rc = read_conf_pass(f, path, 0, c, &buses_line, err);
+    if (rc == 0 && c->n_buses == 0) {
+        snprintf(err, BOARDS_ERR_LEN, "%s: no 'buses' line", path);
+        rc = BOARDS_EXIT_BADDATA;
+    }
+    if (rc == 0) {
+        rewind(f);
+        rc = read_conf_pass(f, path, 1, c, &buses_line, err);
+    }
+    if (rc == 0 && ferror(f)) {
+        snprintf(err, BOARDS_ERR_LEN, "%s: read error", path);
+        rc = BOARDS_EXIT_NOFILE;
     }
     fclose(f);
+    if (rc != 0) {
+        return rc;
+    }
     if (!c->has_strain) {
         snprintf(err, BOARDS_ERR_LEN, "%s: no strain board", path);
         return BOARDS_EXIT_BADDATA;

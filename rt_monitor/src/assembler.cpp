@@ -23,72 +23,108 @@ int bus_index(const MonitorConfig& c, const std::string& name) {
     return -1;
 }
 
+// One configuration line other than 'buses' (read before all others: keys come in any order), its key read
+// from `s`. False with `what` naming the problem.
+bool parse_line(const std::string& key, std::istringstream& s, const std::string& raw, MonitorConfig& out,
+                bool& have_strain, std::string& what) {
+    std::string bad_bus;
+    auto bus = [&](int& b) {
+        std::string name;
+        if (!(s >> name)) return false;
+        b = bus_index(out, name);
+        if (b < 0) bad_bus = name;
+        return b >= 0;
+    };
+    int address = 1;  // the board address this line names, if any
+    bool ok = true;
+    if (key == "robot") {
+        ok = bool(s >> out.robot);
+    } else if (key == "lcm_url") {
+        ok = bool(s >> out.lcm_url);
+    } else if (key == "stale_ms") {
+        double ms = 0;
+        ok = bool(s >> ms) && ms > 0;
+        out.stale_us = int64_t(std::llround(ms * 1000));
+    } else if (key == "pair_us") {
+        ok = bool(s >> out.pair_us) && out.pair_us > 0;
+    } else if (key == "status_hz") {
+        ok = bool(s >> out.status_hz) && out.status_hz > 0;
+    } else if (key == "residual_every") {
+        ok = bool(s >> out.residual_every) && out.residual_every > 0;
+    } else if (key == "strain") {
+        ok = bus(out.strain_bus) && bool(s >> out.strain_address);
+        for (double& fs : out.full_scale) ok = ok && bool(s >> fs) && fs > 0 && std::isfinite(fs);
+        address = out.strain_address;
+        have_strain = true;
+    } else if (key == "axis") {
+        AxisMap a;
+        ok = bus(a.bus) && bool(s >> a.address >> a.slot >> a.joint >> a.ticks_per_degree >> a.zero_deg) &&
+             a.ticks_per_degree > 0 && (a.slot == 0 || a.slot == 1);
+        address = a.address;
+        out.axes.push_back(a);
+    } else if (key == "pwm") {
+        PwmMap p;
+        ok = bus(p.bus) && bool(s >> p.address >> p.slot >> p.motor >> p.full_scale) && p.full_scale > 0 &&
+             (p.slot == 0 || p.slot == 1);
+        address = p.address;
+        out.pwms.push_back(p);
+    } else if (key == "skin") {
+        MonitorConfig::Skin k;
+        ok = bus(k.bus) && bool(s >> k.address >> k.patch >> k.side) && (k.side == "distal" || k.side == "proximal");
+        address = k.address;
+        out.skins.push_back(k);
+    } else {
+        what = "unknown key '" + key + "'";
+        return false;
+    }
+    std::string extra;
+    if (!bad_bus.empty()) {
+        std::string known;
+        for (const auto& b : out.buses) known += " " + b;
+        what = "bus '" + bad_bus + "' is not in the 'buses' line (" + known.substr(1) + ")";
+    } else if (!ok || (s >> extra)) {
+        what = "bad '" + key + "' line: " + raw;
+    } else if (address < 0 || address > 15) {
+        what = "board address must be 0..15";
+    }
+    return what.empty();
+}
+
 }  // namespace
 
 bool load_monitor_config(const std::string& path, MonitorConfig& out, std::string& error) {
     std::ifstream in(path);
     if (!in) return fail(error, path, 0, "cannot open the configuration");
     out = MonitorConfig{};
-    std::string raw;
-    bool have_strain = false;
-    for (int ln = 1; std::getline(in, raw); ++ln) {
-        const auto hash = raw.find('#');
-        std::istringstream s(raw.substr(0, hash));
+    std::vector<std::string> lines;
+    for (std::string raw; std::getline(in, raw);) lines.push_back(raw);
+    auto content = [&](size_t i) { return std::istringstream(lines[i].substr(0, lines[i].find('#'))); };
+    // The 'buses' line first, then every other line in file order: keys come in any order (repeated keys keep
+    // theirs: the n-th skin line is skin board n).
+    int buses_line = 0;
+    for (size_t i = 0; i < lines.size(); ++i) {
+        std::istringstream s = content(i);
         std::string key;
-        if (!(s >> key)) continue;
-        auto bus = [&](int& b) {
-            std::string name;
-            if (!(s >> name)) return false;
-            b = bus_index(out, name);
-            return b >= 0;
-        };
-        bool ok = true;
-        if (key == "robot") {
-            ok = bool(s >> out.robot);
-        } else if (key == "buses") {
-            for (std::string b; s >> b;) out.buses.push_back(b);
-            ok = !out.buses.empty() && out.buses.size() <= 8;
-        } else if (key == "lcm_url") {
-            ok = bool(s >> out.lcm_url);
-        } else if (key == "stale_ms") {
-            double ms = 0;
-            ok = bool(s >> ms) && ms > 0;
-            out.stale_us = int64_t(std::llround(ms * 1000));
-        } else if (key == "pair_us") {
-            ok = bool(s >> out.pair_us) && out.pair_us > 0;
-        } else if (key == "status_hz") {
-            ok = bool(s >> out.status_hz) && out.status_hz > 0;
-        } else if (key == "residual_every") {
-            ok = bool(s >> out.residual_every) && out.residual_every > 0;
-        } else if (key == "strain") {
-            ok = bus(out.strain_bus) && bool(s >> out.strain_address);
-            for (double& fs : out.full_scale) ok = ok && bool(s >> fs) && fs > 0 && std::isfinite(fs);
-            have_strain = true;
-        } else if (key == "axis") {
-            AxisMap a;
-            ok = bus(a.bus) && bool(s >> a.address >> a.slot >> a.joint >> a.ticks_per_degree >> a.zero_deg) &&
-                 a.ticks_per_degree > 0 && (a.slot == 0 || a.slot == 1);
-            out.axes.push_back(a);
-        } else if (key == "pwm") {
-            PwmMap p;
-            ok = bus(p.bus) && bool(s >> p.address >> p.slot >> p.motor >> p.full_scale) && p.full_scale > 0 &&
-                 (p.slot == 0 || p.slot == 1);
-            out.pwms.push_back(p);
-        } else if (key == "skin") {
-            MonitorConfig::Skin k;
-            ok = bus(k.bus) && bool(s >> k.address >> k.patch >> k.side) && (k.side == "distal" || k.side == "proximal");
-            out.skins.push_back(k);
-        } else {
-            return fail(error, path, ln, "unknown key '" + key + "'");
+        if (!(s >> key) || key != "buses") continue;
+        const int ln = int(i) + 1;
+        if (buses_line)
+            return fail(error, path, ln, "a second 'buses' line (the first is line " + std::to_string(buses_line) + ")");
+        for (std::string b; s >> b;) {
+            if (bus_index(out, b) >= 0) return fail(error, path, ln, "bus '" + b + "' named twice");
+            out.buses.push_back(b);
         }
-        std::string extra;
-        if (!ok || (s >> extra)) return fail(error, path, ln, "bad '" + key + "' line (buses must come first): " + raw);
-        for (int a : {out.strain_address, out.axes.empty() ? 1 : out.axes.back().address,
-                      out.pwms.empty() ? 1 : out.pwms.back().address,
-                      out.skins.empty() ? 1 : out.skins.back().address})
-            if (a < 0 || a > 15) return fail(error, path, ln, "board address must be 0..15");
+        if (out.buses.empty() || out.buses.size() > 8)
+            return fail(error, path, ln, "bad 'buses' line (1 to 8 bus names): " + lines[i]);
+        buses_line = ln;
     }
-    if (out.buses.empty()) return fail(error, path, 0, "no 'buses' line");
+    if (!buses_line) return fail(error, path, 0, "no 'buses' line");
+    bool have_strain = false;
+    for (size_t i = 0; i < lines.size(); ++i) {
+        std::istringstream s = content(i);
+        std::string key, what;
+        if (!(s >> key) || key == "buses") continue;
+        if (!parse_line(key, s, lines[i], out, have_strain, what)) return fail(error, path, int(i) + 1, what);
+    }
     if (!have_strain) return fail(error, path, 0, "no 'strain' line");
     if (out.skins.size() > 16) return fail(error, path, 0, "at most 16 skin boards");
     return true;

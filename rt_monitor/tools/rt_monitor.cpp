@@ -1,5 +1,5 @@
 // rt_monitor --model COEF --config CONFIG [--replay CANDUMP.log [--realtime]] [--loopback DIR] [--lcm-url URL]
-//            [--mlockall] [--priority N] [--cpu LIST] [--latency-out FILE]
+//            [--mlockall] [--priority N] [--cpu LIST] [--latency-out FILE] [--help]
 //
 // Frames in (SocketCAN on the configured buses, a candump -L replay, or the loopback transport), samples
 // assembled, the core stepped, contact events / status (10 Hz) / decimated residuals out on LCM.
@@ -41,11 +41,55 @@ namespace {
 volatile std::sig_atomic_t g_stop = 0;
 void on_signal(int) { g_stop = 1; }
 
+constexpr const char* kSynopsis =
+    "usage: rt_monitor --model COEF --config CONFIG [--replay CANDUMP.log [--realtime]] [--loopback DIR] "
+    "[--lcm-url URL] [--mlockall] [--priority N] [--cpu LIST] [--latency-out FILE] [--help]\n";
+
+constexpr const char* kHelp = R"(
+The real-time contact monitor: reads the boards' CAN frames, assembles samples (one per F/T strain pair),
+predicts the F/T wrench and the PWMs with the identified model, computes Hotelling T2 and publishes contact
+events, a status (counters, loop times, supply ratios) and decimated residuals on LCM (channels DYNID_CONTACT,
+DYNID_STATUS, DYNID_RESIDUAL). SIGINT or SIGTERM ends the run; the final counters are printed on stdout.
+
+required:
+  --model COEF          the coefficient file written by `dynid export` (refused with exit 10 + the reason if
+                        damaged, of another format version or exported for another robot)
+  --config CONFIG       the monitor configuration: buses, which board serves which joint or channel, full
+                        scales, timing, LCM URL (rt_monitor/README.md, "Configuration"; keys in any order)
+
+frame source (default: SocketCAN raw sockets on the configured buses, kernel filters and timestamps):
+  --replay CANDUMP.log  replay a `candump -L` log instead, as fast as possible
+  --realtime            with --replay: at the log's own pace
+  --loopback DIR        read the loopback transport: one datagram socket per bus at DIR/<bus>.can
+                        (`boards --sink loopback:DIR --realtime` sends to it); excludes --replay
+
+output:
+  --lcm-url URL         LCM URL, overriding the configuration's lcm_url (default: LCM's own, UDP multicast);
+                        tests use file://PATH?mode=w or memq://
+  --latency-out FILE    benchmarks: per contact onset, the CLOCK_MONOTONIC microseconds from the read of the
+                        frame completing the onset sample to the return of its publish, written at exit
+
+real time (applied once before the loop; a refusal has its own exit code):
+  --mlockall            lock the process's memory (mlockall MCL_CURRENT|MCL_FUTURE)
+  --priority N          run SCHED_FIFO at priority N
+  --cpu LIST            pin to the CPUs in LIST, as taskset -c takes it (1, 0,2 or 0-3)
+
+  -h, --help            print this help on stdout and exit 0
+
+exit codes: 0 done (end of input, or SIGINT/SIGTERM); 1 a source or LCM failure; 2 bad arguments or
+configuration; 3 mlockall refused; 4 SCHED_FIFO refused; 5 CPU affinity refused; 10 + the reason a
+coefficient file was refused (11 unreadable ... 20 another robot).
+)";
+
 int usage(const std::string& why) {
-    std::fprintf(stderr, "rt_monitor: error: %s\nusage: rt_monitor --model COEF --config CONFIG [--replay CANDUMP.log "
-                         "[--realtime]] [--loopback DIR] [--lcm-url URL] [--mlockall] [--priority N] [--cpu LIST] "
-                         "[--latency-out FILE]\n", why.c_str());
+    std::fprintf(stderr, "rt_monitor: error: %s\n%s", why.c_str(), kSynopsis);
     return 2;
+}
+
+int help() {
+    std::fputs(kSynopsis, stdout);
+    std::fputs(kHelp, stdout);
+    return std::fflush(stdout) == 0 ? 0 : 1;
 }
 
 double mono_us() {
@@ -79,6 +123,7 @@ int main(int argc, char** argv) {
         else if (a == "--mlockall") rts.mlockall = true;
         else if (a == "--priority") ok = rts.fifo = value(priority);
         else if (a == "--cpu") ok = have_cpu = value(cpu);
+        else if (a == "--help" || a == "-h") return help();
         else return usage("unknown argument '" + a + "'");
         if (!ok) return usage("'" + a + "' needs a value");
     }

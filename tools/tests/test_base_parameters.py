@@ -49,7 +49,7 @@ def test_pendulum_with_torque_sensor_has_the_textbook_base(tmp_path) -> None:
 
 def test_pendulum_with_pwm_only_loses_the_scale(tmp_path) -> None:
     """Without F/T or torque sensing, the motor equation is homogeneous: gain and dynamics are known up to scale,
-    but the rank still counts the gain column; identification needs the F/T rows to fix it (DESIGN §3)."""
+    but the rank still counts the gain column; identification needs the F/T rows to fix it (docs/design.md §3)."""
     model = pendulum(tmp_path, "motors: {m: {nominal_gain: 5.0}}\nactuation: [{name: j, input: pwm, joints: [hinge], motors: [m]}]")
     bp = structural_base_parameters(model)
     assert bp.rank == 3 + 4 + 1

@@ -7,6 +7,8 @@ values it packed, and re-encode to the same bytes.
 
 from __future__ import annotations
 
+import re
+
 import subprocess
 from pathlib import Path
 
@@ -51,24 +53,30 @@ def _bits(msg, prefix: str) -> dict[str, int]:
 def test_header_constants_are_the_dbcs(proto: Protocol, c_side) -> None:
     c, _ = c_side
     expect = {
-        "STRAIN_FORCE": (c["ICUB_CAN_CLASS_STRAIN"], c["ICUB_CAN_STRAIN_FORCE"], c["ICUB_CAN_STRAIN_DLC_SAT"]),
-        "STRAIN_TORQUE": (c["ICUB_CAN_CLASS_STRAIN"], c["ICUB_CAN_STRAIN_TORQUE"], c["ICUB_CAN_STRAIN_DLC_SAT"]),
+        "STRAIN_FORCE": (c["ICUB_CAN_CLASS_STRAIN"], c["ICUB_CAN_STRAIN_FORCE"], c["ICUB_CAN_STRAIN_DLC"]),
+        "STRAIN_TORQUE": (c["ICUB_CAN_CLASS_STRAIN"], c["ICUB_CAN_STRAIN_TORQUE"], c["ICUB_CAN_STRAIN_DLC"]),
         "MC_POSITION": (c["ICUB_CAN_CLASS_MC"], c["ICUB_CAN_MC_POSITION"], c["ICUB_CAN_MC_POSITION_DLC"]),
         "MC_PID_VAL": (c["ICUB_CAN_CLASS_MC"], c["ICUB_CAN_MC_PID_VAL"], c["ICUB_CAN_MC_PID_VAL_DLC"]),
         "MC_STATUS": (c["ICUB_CAN_CLASS_MC"], c["ICUB_CAN_MC_STATUS"], c["ICUB_CAN_MC_STATUS_DLC"]),
         "SKIN_TAXELS": (c["ICUB_CAN_CLASS_SKIN"], c["ICUB_CAN_SKIN_TAXELS"], c["ICUB_CAN_SKIN_TAXELS_DLC"]),
     }
-    assert {m.name for m in proto.db.messages} == set(expect)
+    assert {re.sub(r"_\d+$", "", m.name) for m in proto.db.messages} == set(expect)  # MC_POSITION_2: the address
     for name, (cls, typ, dlc) in expect.items():
         msg = proto.message(name)
         got_cls, _, got_typ = split_id(msg.frame_id)
         assert (got_cls, got_typ, msg.length) == (cls, typ, dlc), name
+    # The DBC lists each message at every board address of the bus: one layout per (class, type).
+    layout = {name: _layout(proto.message(name)) for name in expect}
+    for msg in proto.db.messages:
+        assert _layout(msg) == layout[re.sub(r"_\d+$", "", msg.name)], hex(msg.frame_id)
     assert c["ICUB_CAN_STRAIN_DLC"] == 6
-    # Saturation flags: byte 6, bit i = channel i of the frame.
-    sat = proto.message("STRAIN_FORCE")
-    assert {s.name: s.start for s in sat.signals if s.name.startswith("Sat") and s.length == 1} == \
-        {"SatFx": 48, "SatFy": 49, "SatFz": 50}
-    assert sum(_bits(sat, "Sat").values()) == c["ICUB_CAN_STRAIN_SAT_MASK"]
+    # Saturation flags: the 7-byte variant's byte 6, bit i = channel i of the frame; documented by attributes of
+    # the 6-byte strain messages (one message cannot decode both lengths in `cantools decode`).
+    for msg in proto.db.messages:
+        if msg.name.startswith("STRAIN"):
+            attrs = {k: a.value for k, a in msg.dbc.attributes.items()}
+            assert attrs["SatFlagsByte"] + 1 == c["ICUB_CAN_STRAIN_DLC_SAT"], hex(msg.frame_id)
+            assert attrs["SatFlagsMask"] == c["ICUB_CAN_STRAIN_SAT_MASK"], hex(msg.frame_id)
     status = proto.message("MC_STATUS")
     faults = {"OverCurrent": "OVERCURRENT", "OverTemp": "OVERTEMP", "EncoderFault": "ENCODER",
               "ExternalFault": "EXTERNAL", "PwmLimit": "PWM_LIMIT"}
@@ -80,6 +88,10 @@ def test_header_constants_are_the_dbcs(proto: Protocol, c_side) -> None:
     board = _bits(status, "Board")
     assert board == {"Restarted": c["ICUB_CAN_MC_BOARD_RESTARTED"], "TxOverrun": c["ICUB_CAN_MC_BOARD_TX_OVERRUN"]}
     assert sum(board.values()) == c["ICUB_CAN_MC_BOARD_MASK"]
+
+
+def _layout(msg) -> tuple:
+    return msg.length, [(s.name, s.start, s.length, s.byte_order, s.is_signed, s.scale, s.offset) for s in msg.signals]
 
 
 def _expected(name: str, v: dict[str, int]) -> dict[str, int]:
@@ -102,13 +114,32 @@ def test_every_c_frame_decodes_and_reencodes_with_the_dbc(proto: Protocol, c_sid
     _, frames = c_side
     assert len(frames) == 64 * 5
     seen = set()
+    strain = {0xA: "STRAIN_FORCE", 0xB: "STRAIN_TORQUE"}
     for can_id, data, values in frames:
+        cls, address, typ = split_id(can_id)
+        if cls == 3 and len(data) == 7:
+            # The saturation variant: the 6-byte message's counts (cantools' Message.decode allows the excess
+            # byte), then byte 6 as the strain messages' SatFlagsByte / SatFlagsMask document it.
+            msg = proto.message(strain[typ])
+            attrs = {k: a.value for k, a in msg.dbc.attributes.items()}
+            want = _expected(strain[typ], values)
+            counts = {k: v for k, v in want.items() if not k.startswith("Sat")}
+            assert msg.decode(data) == counts, (hex(can_id), data.hex())
+            flags = data[attrs["SatFlagsByte"]]
+            assert flags & ~attrs["SatFlagsMask"] == 0
+            assert {k: (flags >> i) & 1 for i, k in enumerate(k for k in want if k.startswith("Sat"))} == \
+                {k: v for k, v in want.items() if k.startswith("Sat")}, (hex(can_id), data.hex())
+            name, payload = proto.encode(strain[typ], address, counts)
+            assert (name, payload + bytes([flags])) == (can_id, data)
+            seen.add((strain[typ], len(data)))
+            assert proto.decode(can_id, data).signals == want  # the package reads byte 6 too
+            continue
         f = proto.decode(can_id, data)
         seen.add((f.name, len(data)))
-        assert f.address == split_id(can_id)[1]
+        assert f.address == address
         want = _expected(f.name, values)
         got = {k: v for k, v in f.signals.items() if not k.endswith("Reserved")}
-        if len(data) == 6:  # a strain frame without the flags byte: cantools leaves the flags out
+        if len(data) == 6:  # a strain frame without the flags byte
             want = {k: v for k, v in want.items() if not k.startswith("Sat")}
         assert got == want, (hex(can_id), data.hex())
         assert proto.encode(f.name, f.address, want, dlc=len(data)) == (can_id, data)
@@ -118,10 +149,16 @@ def test_every_c_frame_decodes_and_reencodes_with_the_dbc(proto: Protocol, c_sid
 
 def test_offset_binary_reference_values(proto: Protocol) -> None:
     # docs/design.md §5, by hand: raw 0x8000 is 0, 0x0000 is -32768, 0xFFFF is 32767, little-endian.
-    f = proto.decode(0x3DA, bytes([0x00, 0x80, 0x00, 0x00, 0xFF, 0xFF, 0b101]))
-    assert f.signals | {} == {"Fx": 0, "Fy": -32768, "Fz": 32767, "SatFx": 1, "SatFy": 0, "SatFz": 1, "SatReserved": 0}
+    f = proto.decode(0x3DA, bytes([0x00, 0x80, 0x00, 0x00, 0xFF, 0xFF]))
+    assert f.signals | {} == {"Fx": 0, "Fy": -32768, "Fz": 32767}
     f = proto.decode(make_id(1, 2, 1), (-2).to_bytes(4, "little", signed=True) + (70000).to_bytes(4, "little"))
     assert (f.name, f.address, f.signals) == ("MC_POSITION", 2, {"Axis0Position": -2, "Axis1Position": 70000})
+
+
+def test_seven_byte_strain_frames_decode_with_their_flags(proto: Protocol) -> None:
+    f = proto.decode(0x3DA, bytes([0x00, 0x80, 0x00, 0x00, 0xFF, 0xFF, 0b101]))
+    assert f.signals | {} == {"Fx": 0, "Fy": -32768, "Fz": 32767, "SatFx": 1, "SatFy": 0, "SatFz": 1}
+    assert proto.encode("STRAIN_FORCE", 13, f.signals, dlc=7) == (0x3DA, bytes([0x00, 0x80, 0x00, 0x00, 0xFF, 0xFF, 0b101]))
 
 
 @pytest.mark.parametrize("can_id,data,problem", [
@@ -132,7 +169,7 @@ def test_offset_binary_reference_values(proto: Protocol) -> None:
     (0x111, bytes(4), FrameProblem.BAD_LENGTH),
     (0x112, bytes(8), FrameProblem.BAD_LENGTH),
     (0x480, bytes(1), FrameProblem.BAD_LENGTH),
-    (0x3DA, bytes(6) + b"\x08", FrameProblem.RESERVED_BITS),  # flag bit 3 is reserved
+    (0x3DA, bytes(6) + b"\x08", FrameProblem.RESERVED_BITS),  # flag bit 3
     (0x113, bytes([0x20, 0, 0, 0]), FrameProblem.RESERVED_BITS),
     (0x113, bytes([0, 0, 0x04, 0]), FrameProblem.RESERVED_BITS),
 ])
@@ -149,10 +186,10 @@ def test_extended_ids_are_unknown(proto: Protocol) -> None:
 
 
 def test_a_foreign_dbc_is_refused(tmp_path: Path) -> None:
-    text = (ROOT / "firmware_like" / "icub_can.dbc").read_text().replace("BO_ 1152 SKIN_TAXELS", "BO_ 1153 SKIN_TAXELS")
+    text = (ROOT / "firmware_like" / "icub_can.dbc").read_text().replace("BO_ 1152 SKIN_TAXELS_8", "BO_ 1153 SKIN_TAXELS_8")
     text = text.replace('BO_ 1152 1;', 'BO_ 1153 1;').replace("CM_ BO_ 1152", "CM_ BO_ 1153")
     (tmp_path / "x.dbc").write_text(text)
-    with pytest.raises(DataError, match="SKIN_TAXELS .0x481. is not in the iCub protocol"):
+    with pytest.raises(DataError, match="SKIN_TAXELS_8 .0x481. is not in the iCub protocol"):
         Protocol(tmp_path / "x.dbc")
     (tmp_path / "y.dbc").write_text("not a dbc")
     with pytest.raises(DataError, match="y.dbc"):
