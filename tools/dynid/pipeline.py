@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +23,7 @@ from .identify.fit import FitResult, FitSettings, fit
 from .identify.model_file import IdentifiedModel, data_record, robot_record
 from .identify.statistics import Statistics
 from .identify.supply import SupplyTracking
+from .errors import InputError
 from .io.dataset import Dataset
 from .robot.effects import Effect, augmented_residuals
 from .robot.model import RobotModel
@@ -142,9 +143,36 @@ class IdentifySettings:
         return SupplyTracking(self.supply_time_constant_s) if self.supply_time_constant_s > 0 else None
 
 
+def check_scale(model: RobotModel, datasets: Sequence[Dataset]) -> None:
+    """Refuse a set-up whose overall scale no data can fix (docs/design.md §3, Table I): every row is then
+    homogeneous (b = 0), and Φ = 0 fits as well as any Φ. Something measured in physical units must enter: an
+    F/T sensor, a joint torque sensor, a known motor gain, or a run carrying a known payload."""
+    cfg = model.config
+    unknown = [b.owner for b in model.layout.blocks if b.kind == "motor_gain"]
+    if not unknown or cfg.ft_sensors or cfg.joints_with_input("torque"):
+        return
+    if any(cfg.motor(m).known_gain is not None for g in cfg.actuation for m in g.motors):
+        return
+    if any(ds.meta.get("payload") for ds in datasets):
+        return
+    kinds = sorted({g.input for g in cfg.actuation if g.input != "torque"})
+    raise InputError(
+        f"{cfg.name}: the scale cannot be identified: the {'/'.join(kinds)} gains of {', '.join(unknown)} are unknown "
+        "and there is no F/T sensor; give the gains (motors.<m>.known_gain in the configuration), or add a run "
+        "carrying a known payload (--data RUN --payload MASS[@x,y,z], one --payload per --data)"
+    )
+
+
 def identify(model: RobotModel, datasets: Sequence[Dataset], data_paths: Sequence[str | Path],
              settings: IdentifySettings = IdentifySettings()) -> Identification:
     """Fit the model of docs/design.md §3 to the stacked runs, calibrate T² on them, and build the model file."""
+    check_scale(model, datasets)
+    fit_settings = settings.fit
+    if fit_settings.estimator == "iv" and any(ds.meta.get("payload") for ds in datasets):
+        # The instruments' predicted inputs leave out a payload's known torques, which would bias IV: with a
+        # payload run the fit keeps OLS (all estimators but IV are still reported).
+        fit_settings = replace(fit_settings, estimator="ols")
+        settings = replace(settings, fit=fit_settings)
     started = time.perf_counter()
     result = fit(model, list(datasets), settings.fit)
     fit_time = time.perf_counter() - started
@@ -152,7 +180,9 @@ def identify(model: RobotModel, datasets: Sequence[Dataset], data_paths: Sequenc
     record["cad_ft_offsets"] = cad_ft_offsets(model, result.statistics).tolist()
     record["supply_tracking"] = None  # build_model fills it when the inputs are tracked
     built = build_model(model, result.phi, datasets, data_paths, record, settings.fit,
-                        detector=settings.detector, tracking=settings.tracking, nu=result.cv["n_components"],
+                        detector=settings.detector, nu=result.cv["n_components"],
+                        # only a PWM input drifts with its supply (dynid.identify.supply)
+                        tracking=settings.tracking if model.config.motors_with_input("pwm") else None,
                         residual_variance=result.residual_variance[result.chosen])
     total = time.perf_counter() - started
     built.model.record["fit_time_s"] = total

@@ -12,7 +12,7 @@ from typing import Any, NoReturn
 import numpy as np
 
 from ..config.robot_config import DEFAULT_ROBOT
-from ..errors import EXIT_BAD_INPUT
+from ..errors import EXIT_BAD_INPUT, InputError
 from ..io.dataset import atomic_write
 from ..robot.regressors.stack import DEFAULT_MIN_SPEED
 
@@ -105,6 +105,8 @@ def _json_default(obj: Any) -> Any:
 def robot_arg(sp: argparse.ArgumentParser) -> None:
     sp.add_argument("--robot", default=DEFAULT_ROBOT, metavar="CFG",
                     help=f"robot configuration: a YAML file or a bundled name (default {DEFAULT_ROBOT})")
+    sp.add_argument("--urdf", metavar="FILE", help="the robot's URDF, replacing the configuration's (needed by a "
+                    "bundled configuration whose URDF you supply, e.g. ur10e; or set DYNID_URDF_PATH)")
 
 
 def min_speed_arg(sp: argparse.ArgumentParser) -> None:
@@ -115,3 +117,58 @@ def min_speed_arg(sp: argparse.ArgumentParser) -> None:
 
 def json_arg(sp: argparse.ArgumentParser) -> None:
     sp.add_argument("--json", metavar="FILE", help="also write the result as JSON ('-' for stdout)")
+
+
+def finite_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+    if not np.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
+    return value
+
+
+def window_args(sp: argparse.ArgumentParser) -> None:
+    """--from S --to S: a time window of the data, in its own seconds (docs/design.md §7)."""
+    sp.add_argument("--from", dest="t_from", type=finite_float, metavar="S",
+                    help="use the data from this time on (the data's own seconds, as in its t column)")
+    sp.add_argument("--to", dest="t_to", type=finite_float, metavar="S", help="use the data up to this time (s)")
+
+
+def window(args: argparse.Namespace) -> tuple[float | None, float | None]:
+    return (getattr(args, "t_from", None), getattr(args, "t_to", None))
+
+
+def payload(text: str) -> dict[str, Any] | None:
+    """--payload MASS[@x,y,z]: kg, and the centre of mass in the configuration's payload_frame, m; 0 = none."""
+    mass_text, at, com_text = text.partition("@")
+    try:
+        mass = float(mass_text)
+        com = [float(x) for x in com_text.split(",")] if at else None
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not MASS or MASS@x,y,z (kg, m)") from None
+    if not np.isfinite(mass) or mass < 0 or (com is not None and (len(com) != 3 or not np.all(np.isfinite(com)))):
+        raise argparse.ArgumentTypeError(f"'{text}' is not MASS or MASS@x,y,z: a mass of 0 kg or more, three finite "
+                                         "coordinates")
+    return None if mass == 0 else {"mass": mass, "com": com}
+
+
+def payload_arg(sp: argparse.ArgumentParser, repeatable: bool) -> None:
+    sp.add_argument("--payload", type=payload, action="append" if repeatable else "store", metavar="MASS[@x,y,z]",
+                    help="a known payload the run carries: kg, and where known its centre of mass (m, in the "
+                    "configuration's payload_frame; default its origin); 0 = none"
+                    + ("; one per --data, in the same order" if repeatable else ""))
+
+
+def payloads(args: argparse.Namespace, n_data: int) -> list[dict[str, Any] | None]:
+    """The payload of every --data (none when --payload is not given)."""
+    given = getattr(args, "payload", None)
+    if given is None:
+        return [None] * n_data
+    if not isinstance(given, list):
+        return [given]
+    if len(given) != n_data:
+        raise InputError(f"--payload is given {len(given)} times for {n_data} --data: give one per --data, in "
+                         "the same order (0 for a run without payload)")
+    return given

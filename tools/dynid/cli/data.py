@@ -21,7 +21,7 @@ from .common import json_arg, min_speed_arg, positive_float, positive_int, robot
 
 
 def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
-    config = load_config(args.robot)
+    config = load_config(args.robot, args.urdf)
     model = RobotModel(config)
     dataset = load_data(Path(args.data), config, joint_limits=model.joint_limits)
     dataset.meta.setdefault("robot", config.name)
@@ -51,7 +51,7 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def cmd_structure(args: argparse.Namespace) -> dict[str, Any]:
-    config = load_config(args.robot)
+    config = load_config(args.robot, args.urdf)
     model = RobotModel(config)
     if args.data:
         sig = signals_from_dataset(model, load_data(Path(args.data), config, joint_limits=model.joint_limits))
@@ -103,7 +103,7 @@ def cmd_simulate(args: argparse.Namespace) -> dict[str, Any]:
                                 "units": e.units} for k, e in CATALOG.items()}}
     if not args.out:
         raise InputError("--out DIR is required (the directory to write the experiment to)")
-    config = load_config(args.robot)
+    config = load_config(args.robot, args.urdf)
     bodies = tuple(b.name for b in RobotModel(config).bodies)
     effects = tuple(parse_effect(text, config, bodies) for text in args.effect)
     settings = SimulationSettings(

@@ -40,7 +40,7 @@ def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
     if args.cad:
         if not args.out:
             raise InputError("export --cad needs --out COEF_FILE")
-        config = load_config(args.robot)
+        config = load_config(args.robot, args.urdf)
         size = export_cad(config, args.out, _settings(args))
         print(f"exported the CAD model of {config.name} (uncalibrated: for tests and benchmarks) -> {args.out} "
               f"({size} bytes)")
@@ -91,6 +91,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--cad", action="store_true", help="export the CAD model of --robot, uncalibrated (for tests "
                     "and benchmarks: nominal gains, no friction, Λ = the noise σ², the F threshold, 1 kHz)")
     sp.add_argument("--robot", default="icub_right_arm", metavar="CFG", help="robot of --cad (default icub_right_arm)")
+    sp.add_argument("--urdf", metavar="FILE", help="the URDF of --robot, replacing the configuration's")
     sp.add_argument("--data", action="append", metavar="DATA",
                     help="contact-free data for Λ and T²_α (default: the model's identification data); repeatable")
     sp.add_argument("--lag", type=lag, metavar="N", help="filter lag in samples, 0 = causal (default: window // 4)")

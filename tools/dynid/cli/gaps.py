@@ -13,14 +13,14 @@ from ..identify.model_file import load_model
 from ..identify.validation import load_run
 from ..robot.model import RobotModel
 from .commands import COMMANDS
-from .common import json_arg, robot_arg
+from .common import json_arg, robot_arg, window, window_args
 
 
 def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
     identified = load_model(args.model) if args.model else None
-    config = identified.config if identified is not None else load_config(args.robot)
+    config = identified.config if identified is not None else load_config(args.robot, args.urdf)
     model = RobotModel(config)
-    ds = load_run(args.data, model)
+    ds = load_run(args.data, model, window(args))
     if identified is not None and identified.effects:  # before minutes of work
         raise InputError(f"{args.model} is already an augmented model (it names effects); give the standard "
                          "model it came from")
@@ -51,6 +51,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         "cross-validated forward selection, refit with them and print the gap before and after per channel.")
     robot_arg(sp)
     sp.add_argument("--data", required=True, metavar="DATA", help="the measured experiment (.csv, candump or .npz)")
+    window_args(sp)
     sp.add_argument("--model", metavar="MODEL", help="an identified model: its gap on DATA is shown too, "
                     "its inertias are held (the rest is refitted), so a payload on a link can be named; its robot "
                     "configuration is used")

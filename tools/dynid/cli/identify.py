@@ -19,15 +19,16 @@ from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from .commands import COMMANDS
 from .common import confidence as alpha
-from .common import json_arg, min_speed_arg, non_negative_float, positive_int, robot_arg
+from .common import (json_arg, min_speed_arg, non_negative_float, payload_arg, payloads, positive_int, robot_arg,
+                     window, window_args)
 
 SHOW_COMBINATIONS = 30  # print every base combination when there are at most this many (else see --json)
 
 
 def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
-    config = load_config(args.robot)
+    config = load_config(args.robot, args.urdf)
     model = RobotModel(config)
-    datasets = [load_run(p, model) for p in args.data]
+    datasets = [load_run(p, model, window(args), w) for p, w in zip(args.data, payloads(args, len(args.data)))]
     settings = FitSettings(estimator=args.estimator, n_components=args.n_components, min_speed=args.min_speed,
                            blocks=args.blocks)
     detector = DetectorSettings(args.alpha, args.n_mode)
@@ -73,7 +74,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
-    ev = evaluate(args.model, args.data)
+    ev = evaluate(args.model, args.data, window=window(args), payload=args.payload)
     result = validation(ev, args.model, args.data)
     print(f"validation of {args.model} on {args.data} ({result['samples']} samples)")
     if "table_ii" in result:
@@ -99,7 +100,7 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
-    ev = evaluate(args.model, args.data)
+    ev = evaluate(args.model, args.data, window=window(args), payload=args.payload)
     found = detection(ev, args.model, args.data, args.alpha, args.n_mode)
     print(f"T² contact detection with {args.model} on {args.data} ({ev.dataset.n_samples} samples), α = {args.alpha}")
     if ev.dataset.contact is None:
@@ -137,6 +138,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--data", action="append", required=True, metavar="DATA",
                     help="an experiment (dataset, CSV, candump log or a `dynid simulate` directory); repeatable")
     sp.add_argument("--out", required=True, metavar="MODEL", help="the model file to write")
+    window_args(sp)
+    payload_arg(sp, repeatable=True)
     sp.add_argument("--estimator", choices=ESTIMATORS, default=DEFAULT_ESTIMATOR,
                     help=f"whose parameters the model keeps (default {DEFAULT_ESTIMATOR}); all three are reported")
     sp.add_argument("--n-components", type=positive_int, metavar="NU", help="PLS latent variables (default: by CV)")
@@ -156,6 +159,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         "the CAD parameters, and per-channel residual RMS against the noise.")
     sp.add_argument("--model", required=True, metavar="MODEL")
     sp.add_argument("--data", required=True, metavar="DATA")
+    window_args(sp)
+    payload_arg(sp, repeatable=False)
     json_arg(sp)
     sp.set_defaults(func=cmd_validate)
 
@@ -164,6 +169,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         "the F threshold); TPR, FPR, ROC/AUC, detection delay, TPR per side of the F/T sensor.")
     sp.add_argument("--model", required=True, metavar="MODEL")
     sp.add_argument("--data", required=True, metavar="DATA")
+    window_args(sp)
+    payload_arg(sp, repeatable=False)
     sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"confidence level (default {ALPHA})")
     sp.add_argument("--n-mode", choices=["dim", "nu"], default="dim", help="n of the paper's F threshold")
     json_arg(sp)

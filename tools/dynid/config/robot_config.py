@@ -11,6 +11,7 @@ import difflib
 import hashlib
 import importlib.metadata
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -19,6 +20,7 @@ import numpy as np
 import yaml
 
 from ..errors import ConfigError
+from .log_columns import LogColumn, parse_columns
 
 DEFAULT_ROBOT = "icub_right_arm"
 BUNDLED_DIR = Path(__file__).parent / "robots"
@@ -73,6 +75,14 @@ class NoiseConfig:
     current: float  # A
     torque: float  # Nm, joint torque sensors
     encoder_step: float  # rad (or m), encoder quantum
+    # Per channel, where the configuration gives one value per motor (pwm, current) or joint (torque): the
+    # noise of a UR's currents differs tenfold from its base to its wrist.
+    per_channel: dict[str, float] = field(default_factory=dict)  # "current.<motor>", "tau.<joint>", ...
+
+    def of(self, kind: str, name: str) -> float:
+        """The noise std of one input channel: kind 'pwm', 'current' or 'torque', a motor or joint name."""
+        key = f"{'tau' if kind == 'torque' else kind}.{name}"
+        return self.per_channel.get(key, float(getattr(self, kind)))
 
 
 @dataclass(frozen=True)
@@ -92,6 +102,10 @@ class RobotConfig:
     # Offline derivative estimator for q̇, q̈ when the data lack them: `method` and its options, passed to
     # dynid.io.derivatives.estimate_derivatives (the window depends on the robot's sampling rate and encoders).
     derivatives: dict[str, Any] = field(default_factory=dict)
+    # A headerless log as the controller writes it: one entry per column, with its unit (config/log_columns.py).
+    columns: tuple[LogColumn, ...] = ()
+    # The URDF frame a payload's centre of mass is given in (`--payload MASS@x,y,z`); "" = the last moving link.
+    payload_frame: str = ""
 
     @property
     def motor_names(self) -> tuple[str, ...]:
@@ -206,9 +220,30 @@ def bundled_configs() -> list[str]:
     return sorted(p.stem for p in BUNDLED_DIR.glob("*.yaml"))
 
 
-def _resolve_urdf(f: _Fields, config_dir: Path) -> Path:
-    spec = f.sub("urdf").only("path", "icub_models", "package", "file")
-    if spec.has("path"):
+URDF_PATH_ENV = "DYNID_URDF_PATH"  # directories searched for a `urdf: {supplied: FILE}` (os.pathsep-separated)
+
+
+def _supplied_urdf(spec: _Fields, name: str) -> Path:
+    """A URDF dynid does not ship (its licence, or the robot's owner, keeps it out): found in DYNID_URDF_PATH."""
+    for folder in os.environ.get(URDF_PATH_ENV, "").split(os.pathsep):
+        if folder and (Path(folder) / name).is_file():
+            return Path(folder) / name
+    raise spec.fail(
+        "supplied",
+        f"names '{name}', a URDF you supply: give it with --urdf PATH, or put its folder in {URDF_PATH_ENV}",
+    )
+
+
+def _resolve_urdf(f: _Fields, config_dir: Path, override: str | Path | None = None) -> Path:
+    spec = f.sub("urdf").only("path", "icub_models", "package", "file", "supplied")
+    if override is not None:
+        path = Path(override)
+        if not path.is_file():
+            raise ConfigError(f"{f.robot}: the URDF given with --urdf is not a file: {path}")
+        return path
+    if spec.has("supplied"):
+        path = _supplied_urdf(spec, spec.string("supplied"))
+    elif spec.has("path"):
         path = Path(spec.string("path"))
         path = path if path.is_absolute() else config_dir / path
     elif spec.has("icub_models"):
@@ -234,24 +269,41 @@ def _resolve_urdf(f: _Fields, config_dir: Path) -> Path:
             raise spec.fail("file", f"matches no file of the distribution '{dist}': '{suffix}'")
         path = Path(str(hits[0].locate()))
     else:
-        raise f.fail("urdf", "must give one of 'path', 'icub_models' or 'package'")
+        raise f.fail("urdf", "must give one of 'path', 'icub_models', 'package' or 'supplied'")
     if not path.is_file():
         raise f.fail("urdf", f"points to a missing file: {path}")
     return path
 
 
-def _noise(f: _Fields) -> NoiseConfig:
+def _noise(f: _Fields, motors: tuple[str, ...], joints: tuple[str, ...]) -> NoiseConfig:
+    """`noise`: each input kind one number, or a mapping with a value per motor (pwm, current) or joint (torque)."""
     n = f.sub("noise", {}).only("pwm", "current", "torque", "encoder_step")
+    defaults = {"pwm": 0.002, "current": 0.01, "torque": 0.05}
+    scalar: dict[str, float] = {}
+    per_channel: dict[str, float] = {}
+    for kind, default in defaults.items():
+        value = n.raw(kind, default)
+        if not isinstance(value, dict):
+            scalar[kind] = n.number(kind, default, positive=True)
+            continue
+        names = joints if kind == "torque" else motors
+        per = n.sub(kind).only(*names)
+        missing = [x for x in names if not per.has(x)]
+        if missing:
+            raise per.fail(missing[0], f"is missing: a per-channel '{kind}' noise needs every "
+                           f"{'joint' if kind == 'torque' else 'motor'} ({', '.join(names)})")
+        for x in names:
+            per_channel[f"{'tau' if kind == 'torque' else kind}.{x}"] = per.number(x, positive=True)
+        scalar[kind] = float(np.median([per_channel[f"{'tau' if kind == 'torque' else kind}.{x}"] for x in names]))
     return NoiseConfig(
-        pwm=n.number("pwm", 0.002, positive=True),
-        current=n.number("current", 0.01, positive=True),
-        torque=n.number("torque", 0.05, positive=True),
+        pwm=scalar["pwm"], current=scalar["current"], torque=scalar["torque"],
         encoder_step=n.number("encoder_step", 2 * math.pi / 65536, positive=True),
+        per_channel=per_channel,
     )
 
 
-def load_config(robot: str | Path = DEFAULT_ROBOT) -> RobotConfig:
-    """Load and validate a robot configuration (a path or a bundled name)."""
+def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = None) -> RobotConfig:
+    """Load and validate a robot configuration (a path or a bundled name); `urdf` replaces its URDF (--urdf)."""
     path = resolve_config_path(robot)
     text = path.read_bytes()
     try:
@@ -264,7 +316,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT) -> RobotConfig:
     name = root.string("name")
     f = _Fields(name, "", data).only(
         "name", "urdf", "base_link", "gravity", "joints", "ft_sensors", "motors", "actuation", "noise", "can",
-        "derivatives",
+        "derivatives", "columns", "payload_frame",
     )
 
     joints = f.strings("joints")
@@ -357,16 +409,18 @@ def load_config(robot: str | Path = DEFAULT_ROBOT) -> RobotConfig:
         name=name,
         source=str(path),
         digest=hashlib.sha256(text).hexdigest(),
-        urdf=_resolve_urdf(f, path.parent),
+        urdf=_resolve_urdf(f, path.parent, urdf),
         base_link=f.string("base_link"),
         gravity=g_arr,
         joints=joints,
         ft_sensors=tuple(sensors),
         actuation=tuple(groups),
         motors=tuple(motors),
-        noise=_noise(f),
+        noise=_noise(f, tuple(motor_names), joints),
         can=_validate_can(f, joints, tuple(motor_names), tuple(s.name for s in sensors)),
         derivatives=_derivatives(f),
+        columns=parse_columns(name, f.raw("columns", None)),
+        payload_frame=f.string("payload_frame") if f.has("payload_frame") else "",
     )
 
 

@@ -237,7 +237,7 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDete
     # Supply tracking (dynid.identify.supply): off is a zero time constant; gates only on the motor inputs.
     c.supply_time_constant = tracking.time_constant_s if tracking is not None else 0.0
     c.supply_prior = tracking.prior_input ** 2 if tracking is not None else 0.0
-    c.supply_gate = [tracking.gate_of(o.sigma) if tracking is not None and o.kind == "input" else 0.0 for o in outs]
+    c.supply_gate = [tracking.gate_of(o.sigma) if tracking is not None and tracked(o) else 0.0 for o in outs]
     return c
 
 

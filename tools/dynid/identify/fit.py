@@ -255,7 +255,8 @@ def fit(model: RobotModel, datasets: list[Dataset], settings: FitSettings = FitS
     total: Statistics | None = None
     samples = 0
     for ds in datasets:
-        source = SignalSource(model, ds, settings, instruments=True)
+        # IV's instruments do not carry a payload's known torques yet: no IV when a run has one (pipeline.py)
+        source = SignalSource(model, ds, settings, instruments=not ds.meta.get("payload"))
         source(0, min(ds.n_samples, 2 * source.margin))  # bad data fail here, before any worker starts
         stats = accumulate(model, source, settings.blocks, settings.workers)
         total = stats if total is None else total + stats

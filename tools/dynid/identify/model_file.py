@@ -121,8 +121,10 @@ class IdentifiedModel:
 def _config_from(robot: dict[str, str]) -> RobotConfig:
     """The configuration the model was fitted for: its source if unchanged, else the embedded text."""
     source = robot.get("config_source", "")
+    urdf = robot.get("urdf")  # the URDF it was fitted with (a supplied one is not found again without it)
+    urdf = urdf if urdf and Path(urdf).is_file() else None
     try:
-        config = load_config(source)
+        config = load_config(source, urdf)
         if config.digest == robot["config_digest"]:
             return config
     except Exception:  # noqa: BLE001 - a moved or edited source falls back to the embedded copy below
@@ -134,14 +136,14 @@ def _config_from(robot: dict[str, str]) -> RobotConfig:
     with tempfile.NamedTemporaryFile("w", suffix=".yaml", dir=directory, delete=False, encoding="utf-8") as f:
         f.write(text)
     try:
-        return load_config(f.name)
+        return load_config(f.name, urdf)
     finally:
         Path(f.name).unlink(missing_ok=True)
 
 
 def robot_record(config: RobotConfig) -> dict[str, str]:
     return {"name": config.name, "config_digest": config.digest, "config_source": config.source,
-            "config_text": Path(config.source).read_text(encoding="utf-8")}
+            "config_text": Path(config.source).read_text(encoding="utf-8"), "urdf": str(config.urdf.resolve())}
 
 
 def load_model(path: str | Path) -> IdentifiedModel:

@@ -31,8 +31,13 @@ import numpy as np
 
 from ..errors import InputError
 from ..robot.model import RobotModel
-from ..robot.outputs import output_channels
+from ..robot.outputs import OutputChannel, output_channels
 from ..robot.regressors.stack import Signals, rows_at_rest
+
+
+def tracked(o: OutputChannel) -> bool:
+    """Only a PWM input drifts with its supply: a current or a torque is measured, not commanded by a duty."""
+    return o.kind == "input" and o.name.startswith("pwm.")
 
 
 @dataclass(frozen=True)
@@ -94,7 +99,7 @@ class SupplyTracker:
         self.last_t = float(t[-1])
         prior = self.settings.prior_input ** 2
         for o in output_channels(self.model):
-            if o.kind != "input":
+            if not tracked(o):
                 continue
             state = self.states.setdefault(o.row, ChannelState())
             y = sig.inputs[o.motor]
@@ -135,7 +140,7 @@ def smoothed_residuals(model: RobotModel, settings: SupplyTracking | None, min_s
     ratio = smoothed_ratios(model, settings, min_speed, e, sig, t)
     out = np.array(e, dtype=float, copy=True)
     for o in output_channels(model):
-        if o.kind == "input":
+        if tracked(o):
             y = sig.inputs[o.motor]
             out[:, o.row] = y - ratio[:, o.row] * (y - e[:, o.row])
     return out

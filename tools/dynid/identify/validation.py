@@ -18,7 +18,7 @@ import numpy as np
 from ..config.robot_config import RobotConfig
 from ..errors import DataError
 from ..io.dataset import Dataset
-from ..io.load import load_data
+from ..io.load import apply_window, load_data
 from ..robot.effects import augmented_residuals
 from ..robot.model import RobotModel
 from ..robot.outputs import OutputChannel, measured_outputs, output_channels, residuals
@@ -27,9 +27,17 @@ from .model_file import IdentifiedModel, load_model
 from .supply import smoothed_residuals
 
 
-def load_run(path: str, model: RobotModel) -> Dataset:
-    """A run of data for `model`; data recorded on another robot is refused."""
-    ds = load_data(Path(path), model.config, joint_limits=model.joint_limits)
+Window = tuple[float | None, float | None]
+
+
+def load_run(path: str, model: RobotModel, window: Window = (None, None),
+             payload: dict[str, Any] | None = None) -> Dataset:
+    """A run of data for `model`, cut to `window` (--from/--to, the data's own seconds), marked with the known
+    `payload` it carries ({mass, com}); data recorded on another robot is refused."""
+    ds = apply_window(load_data(Path(path), model.config, joint_limits=model.joint_limits), *window, source=path)
+    if payload is not None:
+        model.payload_parameters(float(payload["mass"]), payload.get("com"))  # the frame exists
+        ds.meta["payload"] = payload
     robot = ds.meta.get("robot")
     if robot is not None and robot != model.config.name:
         raise DataError(f"{path} was recorded on '{robot}', not on '{model.config.name}'")
@@ -68,11 +76,12 @@ class Evaluated:
 
 
 def evaluate(model_path: str, data_path: str, identified: IdentifiedModel | None = None,
-             dataset: Dataset | None = None) -> Evaluated:
+             dataset: Dataset | None = None, window: Window = (None, None),
+             payload: dict[str, Any] | None = None) -> Evaluated:
     """Residuals of the model on the run; `identified` and `dataset` when the caller has loaded them already."""
     identified = identified or load_model(model_path)
     model = identified.robot_model
-    ds = dataset if dataset is not None else load_run(data_path, model)
+    ds = dataset if dataset is not None else load_run(data_path, model, window, payload)
     sig = signals_from_dataset(model, ds, filter_outputs=True)
     effects = identified.effects  # an augmented model (`dynid gaps --out`) predicts with its named effects
     if effects:
@@ -132,4 +141,45 @@ def validation(ev: Evaluated, model_label: str, data_label: str,
     if torque:  # joint torque sensors: the error the torque-identification literature reports
         y = measured_outputs(ev.model, ev.signals)[:, torque]
         result["relative_torque_error"] = float(np.linalg.norm(e[:, torque]) / np.linalg.norm(y))
+    relative = relative_errors(ev)
+    if relative is not None:
+        result["relative_error"] = relative
     return result
+
+
+def raw_outputs(ev: Evaluated) -> np.ndarray:
+    """y (N, n_out) as recorded, unfiltered (the signals' outputs are smoothed with q̈'s filter)."""
+    ds, cols = ev.dataset, []
+    for o in ev.outputs:
+        kind, _, rest = o.name.partition(".")
+        if kind == "ft":
+            sensor, c = rest.rsplit(".", 1)
+            cols.append(ds.ft[sensor][:, ("fx", "fy", "fz", "tx", "ty", "tz").index(c)])
+        elif kind == "tau":
+            cols.append(ds.tau[rest])
+        else:
+            cols.append((ds.pwm if kind == "pwm" else ds.current)[rest])
+    return np.column_stack(cols)
+
+
+def relative_errors(ev: Evaluated) -> dict[str, Any] | None:
+    """The relative error of the predicted inputs or joint torques: per channel ‖y − ŷ‖ / ‖y‖ with the raw,
+    unfiltered y, and overall over all channels stacked, each weighted by its gain (Nm per unit input, 1 for a
+    torque), ‖K(y − ŷ)‖ / ‖K y‖: the error in joint torque, the figure current- and torque-driven arms report.
+    None for F/T-only set-ups."""
+    rows = [o for o in ev.outputs if o.kind in ("input", "torque")]
+    if not rows:
+        return None
+    idx = [o.row for o in rows]
+    y = raw_outputs(ev)[:, idx]
+    predicted = measured_outputs(ev.model, ev.signals)[:, idx] - ev.e[:, idx]
+    err = y - predicted
+    phi = ev.identified.phi
+    gains = np.array([phi[o.gain_index] if o.gain_index is not None else o.known_gain for o in rows])
+    per = {o.name: {"relative": float(np.linalg.norm(err[:, k]) / max(np.linalg.norm(y[:, k]), 1e-300)),
+                    "rms_error": float(np.sqrt(np.mean(err[:, k] ** 2))), "rms_measured": float(np.sqrt(np.mean(y[:, k] ** 2))),
+                    "gain": float(gains[k])}
+           for k, o in enumerate(rows)}
+    overall = float(np.linalg.norm(err * gains) / max(np.linalg.norm(y * gains), 1e-300))
+    return {"overall": overall, "channels": per, "measured": "raw (unfiltered)",
+            "weights": "the model's gains (Nm per unit input; 1 for joint torques)"}

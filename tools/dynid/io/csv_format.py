@@ -36,7 +36,7 @@ from __future__ import annotations
 import difflib
 import hashlib
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -214,7 +214,10 @@ def _header(raw: bytes, path: Path) -> list[str]:
     # Some tools quote every header cell; the names themselves never contain commas or quotes.
     names = [n[1:-1].strip() if len(n) >= 2 and n[0] == n[-1] == '"' else n for n in names]
     if _NUMBER.fullmatch(names[0]):
-        raise DataError(f"{path}: no header: the first line is data; it must name the columns (t, q.<joint>, ...)")
+        raise DataError(
+            f"{path}: no header: the first line is data; name the columns in a header line (t, q.<joint>, ...), "
+            "or describe them in the robot configuration's 'columns' field (docs/formats.md)"
+        )
     if len(names) == 1 and any(sep in names[0] for sep in (";", "\t")):
         raise DataError(f"{path}: the header is one column '{names[0][:40]}...': columns must be separated by commas")
     return names
@@ -284,6 +287,22 @@ def read_csv(
         raise DataError(f"{path}: the file has a header but no data rows")
     columns = check_columns(names, config, require_all=require_all, source=str(path))
     data = _parse(raw, names, n_rows, path)
+    return table_dataset(path, raw, names, columns, data, config, joint_limits, "csv", _row)
+
+
+def table_dataset(
+    path: Path,
+    raw: bytes,
+    names: Sequence[str],
+    columns: Sequence[Column],
+    data: np.ndarray,
+    config: RobotConfig,
+    joint_limits: Mapping[str, tuple[float, float]] | None,
+    source_format: str,
+    row: Callable[[int], str],
+) -> Dataset:
+    """A parsed table (N, columns) in the project's units as a checked `Dataset`; `row` names a 0-based row."""
+    _row = row
 
     finite = np.isfinite(data)
     if not finite.all():
@@ -328,7 +347,7 @@ def read_csv(
             "robot": config.name,
             "config_digest": config.digest,
             "source": str(path),
-            "source_format": "csv",
+            "source_format": source_format,
             "source_sha256": hashlib.sha256(raw).hexdigest(),
         },
     )

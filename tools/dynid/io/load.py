@@ -10,10 +10,13 @@ import re
 from collections.abc import Mapping
 from pathlib import Path
 
+import numpy as np
+
 from ..config.robot_config import RobotConfig
 from ..errors import DataError
 from .candump import read_candump
 from .csv_format import check_columns, read_csv
+from .headerless import looks_headerless, read_headerless
 from .dataset import _ZIP_MAGIC, SIMULATION_DATASET, Dataset, check_units
 
 # `(1700000000.000000) can0 123#DEADBEEF` : the `candump -L` line format.
@@ -83,9 +86,34 @@ def load_data(
         dataset = read_candump(path, config)
         check_matches_config(dataset, config, require_all=require_all, source=str(path))
         return dataset
+    if suffix in (".csv", ".txt") and config.columns and looks_headerless(head):
+        return read_headerless(path, config, joint_limits=joint_limits, require_all=require_all)
     if suffix == ".csv":
         return read_csv(path, config, joint_limits=joint_limits, require_all=require_all)
     raise DataError(
         f"{path}: unknown data format: expected a .csv (docs/design.md §4), a candump log (.log) "
         "or a dynid dataset (.npz)"
     )
+
+
+MIN_WINDOW_SAMPLES = 100  # a `--from/--to` window with fewer samples is refused: no filter or fit can use it
+
+
+def apply_window(dataset: Dataset, start: float | None, stop: float | None, source: str = "") -> Dataset:
+    """The samples with start <= t <= stop, in the data's own seconds (`--from S --to S`, docs/design.md §7)."""
+    if start is None and stop is None:
+        return dataset
+    where = f"{source}: " if source else ""
+    t = dataset.t
+    span = f"the data run from {t[0]:.6g} s to {t[-1]:.6g} s"
+    if start is not None and stop is not None and stop <= start:
+        raise DataError(f"{where}--to {stop:g} s must come after --from {start:g} s")
+    lo = 0 if start is None else int(np.searchsorted(t, start, side="left"))
+    hi = t.size if stop is None else int(np.searchsorted(t, stop, side="right"))
+    if hi - lo < MIN_WINDOW_SAMPLES:
+        what = "no sample" if hi <= lo else f"only {hi - lo} samples"
+        raise DataError(
+            f"{where}the window --from {'start' if start is None else f'{start:g} s'} --to "
+            f"{'end' if stop is None else f'{stop:g} s'} holds {what} (at least {MIN_WINDOW_SAMPLES} needed); {span}"
+        )
+    return dataset.slice(lo, hi)

@@ -187,6 +187,25 @@ class RobotModel:
         phi[self.layout.span("inertial")] = self.cad_inertial_parameters
         return phi
 
+    def payload_parameters(self, mass: float, com: list[float] | None = None) -> np.ndarray:
+        """A point-mass payload as inertial parameters, in the layout's inertial span (zero but in its body's slot).
+
+        `com` is its centre of mass in the configuration's `payload_frame` (default: the origin of the last
+        moving link's frame), m. Raises ConfigError when the frame is not in the URDF.
+        """
+        m = self.pin_model
+        frame_name = self.config.payload_frame or self.bodies[-1].name
+        if not m.existFrame(frame_name):
+            raise ConfigError(f"{self.config.name}: field 'payload_frame' names '{frame_name}', not a frame of the URDF")
+        frame = m.frames[m.getFrameId(frame_name)]
+        c = frame.placement.act(np.asarray(com if com is not None else [0.0, 0.0, 0.0], float))
+        body = next((k for k, b in enumerate(self.bodies) if b.joint_id == frame.parentJoint), None)
+        if body is None:
+            raise ConfigError(f"{self.config.name}: the payload frame '{frame_name}' is fixed to the base, not carried")
+        out = np.zeros(10 * len(self.bodies))
+        out[10 * body : 10 * body + 10] = pin.Inertia(float(mass), c, np.zeros((3, 3))).toDynamicParameters()
+        return out
+
     def with_inertial_parameters(self, phi_inertial: np.ndarray) -> pin.Model:
         """A copy of the Pinocchio model carrying other inertial parameters (e.g. identified or true ones)."""
         m = self.pin_model.copy()

@@ -55,13 +55,13 @@ def output_channels(model: RobotModel) -> tuple[OutputChannel, ...]:
                 f"{cfg.name}: actuation group '{g.name}' mixes several motors' inputs in one row; the outputs "
                 "need one motor per row (a square coupling, or one motor per joint)"
             )
-        noise = cfg.noise.pwm if g.input == "pwm" else cfg.noise.current
         unit = "duty" if g.input == "pwm" else "A"
         for m in g.motors:
             i = len(out)
             known = cfg.motor(m).known_gain
             gain_index = None if known is not None else layout.block("motor_gain", m).start
-            out.append(OutputChannel(f"{g.input}.{m}", i, "input", unit, noise, m, gain_index, known or 1.0))
+            out.append(OutputChannel(f"{g.input}.{m}", i, "input", unit, cfg.noise.of(g.input, m), m, gain_index,
+                                     known or 1.0))
     assert [o.row for o in out] == list(range(len(rows)))
     return tuple(out)
 

@@ -60,17 +60,17 @@ def row_channels(model: RobotModel) -> tuple[RowChannel, ...]:
             rows.append(RowChannel(f"ft.{s.name}.{c}", s.force_noise if k < 3 else s.torque_noise))
     for g in cfg.actuation:
         if g.input == "torque":
-            rows.extend(RowChannel(f"joint.{j}", cfg.noise.torque) for j in g.joints)
+            rows.extend(RowChannel(f"joint.{j}", cfg.noise.of("torque", j)) for j in g.joints)
             continue
-        noise = cfg.noise.pwm if g.input == "pwm" else cfg.noise.current
+        noise = np.array([cfg.noise.of(g.input, m) for m in g.motors])  # per motor (configuration's noise)
         gains = np.array([cfg.motor(m).known_gain or cfg.motor(m).nominal_gain for m in g.motors])
         if motor_space(g):
-            rows.extend(RowChannel(f"motor.{m}", float(noise * k)) for m, k in zip(g.motors, gains))
+            rows.extend(RowChannel(f"motor.{m}", float(s * k)) for m, s, k in zip(g.motors, noise, gains))
             continue
         Tt = g.coupling.T
         for li, j in enumerate(g.joints):
             # An input error δu on motor m is a torque error Tᵀ[j, m]·gain_m·δu on this row.
-            rows.append(RowChannel(f"joint.{j}", float(noise * np.linalg.norm(Tt[li] * gains))))
+            rows.append(RowChannel(f"joint.{j}", float(np.linalg.norm(Tt[li] * gains * noise))))
     return tuple(rows)
 
 
@@ -111,6 +111,10 @@ class Signals:
     inputs: Mapping[str, np.ndarray]  # motor -> PWM duty or current (whichever its group's input is)
     tau: Mapping[str, np.ndarray]  # joint -> measured torque
     ft: Mapping[str, np.ndarray]  # sensor -> (N, 6) measured wrench
+    # A known payload carried through the run: its inertial parameters in the layout's inertial span (its
+    # body's slot, RobotModel.payload_parameters). Its torques are known, so they move to b: that fixes the
+    # scale of a set-up with unknown gains and no F/T sensor (the loaded/unloaded runs of Gautier and Khalil).
+    payload: np.ndarray | None = None
 
     def slice(self, s: slice) -> Signals:
         return Signals(
@@ -118,6 +122,7 @@ class Signals:
             {k: v[s] for k, v in self.inputs.items()},
             {k: v[s] for k, v in self.tau.items()},
             {k: v[s] for k, v in self.ft.items()},
+            self.payload,
         )
 
 
@@ -162,8 +167,10 @@ def signals_from_dataset(model: RobotModel, dataset, filter_outputs: bool = Fals
         if s.name not in dataset.ft:
             raise DataError(f"the data have no ft.{s.name}.* columns, which the configuration's F/T sensor needs")
     ft = {s.name: dataset.ft[s.name] for s in cfg.ft_sensors}
+    payload = dataset.meta.get("payload")
+    phi_payload = None if not payload else model.payload_parameters(float(payload["mass"]), payload.get("com"))
     if smoother is None:
-        return Signals(dataset.q, dataset.dq, dataset.ddq, inputs, tau, ft)
+        return Signals(dataset.q, dataset.dq, dataset.ddq, inputs, tau, ft, phi_payload)
     columns = [dataset.q] + [v[:, None] for v in inputs.values()] + [v[:, None] for v in tau.values()] + list(ft.values())
     smooth = smoother(dataset.t, np.hstack(columns)).q
     cut = np.cumsum([c.shape[1] for c in columns])[:-1]
@@ -172,7 +179,7 @@ def signals_from_dataset(model: RobotModel, dataset, filter_outputs: bool = Fals
     inputs = {k: next(parts)[:, 0] for k in inputs}
     tau = {k: next(parts)[:, 0] for k in tau}
     ft = {k: next(parts) for k in ft}
-    return Signals(q, dataset.dq, dataset.ddq, inputs, tau, ft)
+    return Signals(q, dataset.dq, dataset.ddq, inputs, tau, ft, phi_payload)
 
 
 def motor_velocities(dq_joints: np.ndarray, coupling: np.ndarray) -> np.ndarray:
@@ -253,6 +260,8 @@ def fill_rows(model: RobotModel, sig: Signals, A: np.ndarray, b: np.ndarray) -> 
         A[:, rows, inertial] = rb.ft[s.name]
         A[:, rows, layout.block("ft_offset", s.name).slice] = np.eye(6)
         b[:, rows] = sig.ft[s.name]
+        if sig.payload is not None:
+            b[:, rows] -= rb.ft[s.name] @ sig.payload
 
     start = 6 * len(cfg.ft_sensors)
     for g in cfg.actuation:
@@ -263,10 +272,12 @@ def fill_rows(model: RobotModel, sig: Signals, A: np.ndarray, b: np.ndarray) -> 
         # the joint equations through Tᵀ, hence the rows through C = L Tᵀ: exactly I in motor space.
         L, C = group_row_maps(g)
         A[:, rows, inertial] = np.einsum("rj,njp->nrp", L, rb.tau[:, gj])
+        if sig.payload is not None:  # the payload's known torques, Y_τ φ_payload, on the right-hand side
+            b[:, rows] -= (rb.tau[:, gj] @ sig.payload) @ L.T
         for li, (j, c) in enumerate(zip(g.joints, gj)):
             A[:, rows, layout.block("joint_friction", j).slice] = L[:, li, None] * friction_regressor(sig.dq[:, c])[:, None]
         if g.input == "torque":
-            b[:, rows] = np.column_stack([sig.tau[j] for j in g.joints]) @ L.T
+            b[:, rows] += np.column_stack([sig.tau[j] for j in g.joints]) @ L.T
             continue
         if g.coupled:
             motor_friction = friction_regressor(motor_velocities(sig.dq[:, gj], g.coupling))  # at q̇_m = T q̇_I: (N, n_motors, 4)
