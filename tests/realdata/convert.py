@@ -24,6 +24,9 @@ from dynid.io.dataset import Dataset
 
 # CI clones the repository with shared/ beside it: <parent>/main/tests/realdata/convert.py, <parent>/shared.
 REALDATA = Path(__file__).resolve().parents[2].parent / "shared" / "realdata"
+# The URDFs of the bundled configurations that the user supplies (`--urdf`): they live beside the runs.
+TIAGO_URDF = REALDATA / "tiago_wrist_ft" / "urdf" / "tiago_48_hey5.urdf"
+UR10E_URDF = REALDATA / "ur10e_mamedov" / "ur10e.urdf"
 
 PANDA_JOINTS: tuple[str, ...] = tuple(f"panda_joint{i}" for i in range(1, 8))  # as in example-robot-data's URDF
 TIAGO_JOINTS: tuple[str, ...] = ("torso_lift_joint", *(f"arm_{i}_joint" for i in range(1, 8)))

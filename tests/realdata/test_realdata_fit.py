@@ -44,7 +44,7 @@ def test_panda_fit_on_two_thirds_predicts_the_last_third(tmp_path: Path) -> None
     train = split_csv(conversion, tmp_path, slice(0, 2 * n // 3), "train")
     test = split_csv(conversion, tmp_path, slice(2 * n // 3, n), "test")
     model = tmp_path / "panda.json"
-    fit = dynid("fit", "--robot", str(HERE / "panda.yaml"), "--data", str(train), "--out", str(model))
+    fit = dynid("fit", "--robot", "panda", "--data", str(train), "--out", str(model))
     assert fit["rank"] == 71
     held_out = dynid("validate", "--model", str(model), "--data", str(test))
     fitted = dynid("validate", "--model", str(model), "--data", str(train))
@@ -57,7 +57,7 @@ def test_tiago_hand_mass_com_and_offsets_and_what_the_run_cannot_identify(tmp_pa
     """The authors' static fit gives 0.79 kg for the hand, the URDF 1.032 kg. The slow motion determines the mass,
     the first moment along the sensor's axis and four offsets; the rest must be named, not printed."""
     train = split_csv(convert.convert_tiago(), tmp_path, slice(921, 6791), "train")  # protocol.yaml's rows
-    fit = dynid("fit", "--robot", str(HERE / "tiago_wrist_ft.yaml"), "--data", str(train), "--out",
+    fit = dynid("fit", "--robot", "tiago_wrist", "--urdf", str(convert.TIAGO_URDF), "--data", str(train), "--out",
                 str(tmp_path / "tiago.json"))
     determined = fit["determined"]
     mass = determined["wrist_ft_link.m"]

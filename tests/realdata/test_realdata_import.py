@@ -52,10 +52,10 @@ def check_chain(config: RobotConfig) -> None:
 
 @needs_data
 def test_configs_load_and_match_their_urdf() -> None:
-    panda = load_config(HERE / "panda.yaml")
+    panda = load_config("panda")
     assert panda.joints == convert.PANDA_JOINTS and panda.base_link == "panda_link0" and not panda.ft_sensors
     assert [(g.input, g.joints) for g in panda.actuation] == [("torque", convert.PANDA_JOINTS)]
-    tiago = load_config(HERE / "tiago_wrist_ft.yaml")
+    tiago = load_config("tiago_wrist", convert.TIAGO_URDF)
     assert tiago.joints == convert.TIAGO_JOINTS and not tiago.actuation
     assert [(s.name, s.joint, s.force_noise, s.torque_noise) for s in tiago.ft_sensors] == [
         ("wrist_ft", "wrist_ft_joint", 0.1, 0.01)
@@ -74,7 +74,7 @@ def test_panda_run_imports(tmp_path: Path) -> None:
     assert "nothing dropped" in conversion.notes[0]
     path = tmp_path / "panda.csv"
     conversion.write(path)
-    config = load_config(HERE / "panda.yaml")
+    config = load_config("panda")
     ds = read_csv(path, config, joint_limits=urdf_limits(config))
     assert ds.n_samples == 20544 and ds.joints == convert.PANDA_JOINTS
     assert np.all(np.diff(ds.t) > 0) and ds.t[0] == 0.0 and ds.t[-1] == pytest.approx(20.9991)
@@ -90,7 +90,7 @@ def test_tiago_run_imports(tmp_path: Path) -> None:
     assert conversion.rows_read == 8022 and conversion.dropped.size == 0  # 8022 stamps, strictly increasing
     path = tmp_path / "tiago.csv"
     conversion.write(path)
-    config = load_config(HERE / "tiago_wrist_ft.yaml")
+    config = load_config("tiago_wrist", convert.TIAGO_URDF)
     ds = read_csv(path, config, joint_limits=urdf_limits(config))
     assert ds.n_samples == 8022 and ds.joints == convert.TIAGO_JOINTS
     assert np.all(np.diff(ds.t) > 0) and ds.t[-1] == pytest.approx(80.211, abs=1e-3)

@@ -24,7 +24,7 @@ def imported(tmp_path: Path, which: str):
     conversion = convert.convert_panda() if which == "panda" else convert.convert_tiago()
     csv = tmp_path / f"{which}.csv"
     conversion.write(csv)
-    config = load_config(HERE / ("panda.yaml" if which == "panda" else "tiago_wrist_ft.yaml"))
+    config = load_config("panda") if which == "panda" else load_config("tiago_wrist", convert.TIAGO_URDF)
     model = RobotModel(config)
     return model, load_data(csv, config, joint_limits=model.joint_limits)
 

@@ -54,11 +54,10 @@ def real_runs(tmp: Path) -> None:
     if not convert.REALDATA.is_dir():
         print(f"real runs: skipped, no data at {convert.REALDATA}")
         return
-    here = ROOT / "tests" / "realdata"
-    for which, conv, cfg_file in (("panda", convert.convert_panda, "panda.yaml"),
-                                  ("tiago", convert.convert_tiago, "tiago_wrist_ft.yaml")):
+    for which, conv, cfg, urdf in (("panda", convert.convert_panda, "panda", None),
+                                   ("tiago", convert.convert_tiago, "tiago_wrist", convert.TIAGO_URDF)):
         conv().write(tmp / f"{which}.csv")
-        config = load_config(here / cfg_file)
+        config = load_config(cfg, urdf)
         model = RobotModel(config)
         ds = load_data(tmp / f"{which}.csv", config, joint_limits=model.joint_limits)
         if which == "panda":

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from conftest import dynid
 
+from dynid.config.robot_config import load_config
 from dynid.identify.model_file import load_model
 
 
@@ -155,7 +156,7 @@ def test_fit_refuses_data_it_cannot_fit(default_experiments, tmp_path: Path, dro
 
 def test_a_model_of_another_robot_is_refused(default_model: Path, default_experiments, tmp_path: Path) -> None:
     other = json.loads(default_model.read_text())
-    panda = Path(__file__).resolve().parents[2] / "tests" / "realdata" / "panda.yaml"
+    panda = Path(load_config("panda").source)
     other["robot"] = {"name": "panda", "config_digest": "0" * 64, "config_source": str(panda),
                       "config_text": panda.read_text()}
     path = tmp_path / "panda_model.json"

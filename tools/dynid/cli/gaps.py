@@ -12,6 +12,7 @@ from ..gaps.workflow import format_report
 from ..identify.model_file import load_model
 from ..identify.validation import load_run
 from ..robot.model import RobotModel
+from ..pipeline import check_scale
 from .commands import COMMANDS
 from .common import json_arg, robot_arg, window, window_args
 
@@ -21,10 +22,12 @@ def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
     config = identified.config if identified is not None else load_config(args.robot, args.urdf)
     model = RobotModel(config)
     ds = load_run(args.data, model, window(args))
+    check_scale(model, [ds])  # the workflow refits the standard model on these data alone
     if identified is not None and identified.effects:  # before minutes of work
         raise InputError(f"{args.model} is already an augmented model (it names effects); give the standard "
                          "model it came from")
-    found = find_gaps(model, ds, args.data, identified, supply_tracking=not args.no_supply_tracking, log=print)
+    tracking = not args.no_supply_tracking and bool(config.motors_with_input("pwm"))  # a PWM's supply drifts
+    found = find_gaps(model, ds, args.data, identified, supply_tracking=tracking, log=print)
     result = found.result
     print(format_report(result))
     if args.out:

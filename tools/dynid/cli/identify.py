@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ..config.robot_config import load_config
+from ..config.robot_config import RobotConfig, load_config
 from ..detect.evaluation import detection
 from ..detect.t2 import ALPHA
 from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, FitSettings
@@ -22,6 +22,9 @@ from .common import confidence as alpha
 from .common import (json_arg, min_speed_arg, non_negative_float, payload_arg, payloads, positive_int, robot_arg,
                      window, window_args)
 
+PAPER_ROBOT = "icub_right_arm"  # the arm of dynid.paper's figures: only its output shows them
+INPUT_WORD = {"pwm": "PWM", "current": "current", "tau": "joint torque"}
+GAIN_UNIT = {"pwm": "Nm per unit duty", "current": "Nm per A"}
 SHOW_COMBINATIONS = 30  # print every base combination when there are at most this many (else see --json)
 
 
@@ -46,12 +49,24 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
           f"10 % or better; PLS ν = {result.cv['n_components']} (cross-validated on {result.statistics.n_blocks} time "
           "blocks)")
     gains = [i for i, n in enumerate(record["base"]["independent"]) if n.endswith(".phi_m")]
-    print("  motor gains (Nm per unit input) by estimator:" if gains else "  no unknown motor gains in this set-up")
+    unit = " and ".join(GAIN_UNIT[k] for k in sorted({g.input for g in config.actuation if g.input != "torque"}))
+    print(f"  motor gains ({unit}) by estimator:" if gains else "  no unknown motor gains in this set-up")
     for name, est in result.estimates.items() if gains else ():
         mark = "*" if name == result.chosen else " "
         values = ", ".join(f"{record['base']['independent'][i].split('.')[0]} {est.beta[i]:.3f}±{est.se[i]:.3f}"
                            for i in gains)
         print(f"   {mark}{name:4s} {values}")
+    if gains:
+        chosen_est = result.estimates[result.chosen]
+        print(f"  {result.chosen} gains beside the configuration's nominal ones (a published or datasheet value; "
+              "the rows' weights):")
+        for i in gains:
+            motor = record["base"]["independent"][i].split(".")[0]
+            nominal = config.motor(motor).nominal_gain
+            value, se = chosen_est.beta[i], chosen_est.se[i]
+            status = "determined" if result.identified[i] else "NOT determined by these runs (standard error over 10 %)"
+            print(f"    {motor:16s} {value:8.3f} ± {se:.3f}   nominal {nominal:8.3f}   "
+                  f"{100 * (value / nominal - 1):+6.1f} %   {status}")
     chosen = result.estimates[result.chosen]
     determined = {c: (float(v), float(e)) for c, v, e, ok in zip(names, chosen.beta, chosen.se, result.identified) if ok}
     undetermined = [c for c, ok in zip(names, result.identified) if not ok]
@@ -73,17 +88,26 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
             "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed}
 
 
+def input_words(config: RobotConfig) -> list[str]:
+    """What the set-up's motor rows predict, in words: ["current"], ["PWM"], ["joint torque"], ..."""
+    kinds = sorted({"tau" if g.input == "torque" else g.input for g in config.actuation})
+    return [f"{INPUT_WORD[k]}s" for k in kinds]
+
+
 def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
     ev = evaluate(args.model, args.data, window=window(args), payload=args.payload)
     result = validation(ev, args.model, args.data)
     print(f"validation of {args.model} on {args.data} ({result['samples']} samples)")
     if "table_ii" in result:
         table = result["table_ii"]
-        print("  F/T prediction error (norm), mean ± std:    identified            CAD (offsets fitted)      paper (id / CAD)")
+        paper = ev.config.name == PAPER_ROBOT  # the paper's figures describe its arm only
+        print("  F/T prediction error (norm), mean ± std:    identified            CAD (offsets fitted)"
+              + ("      paper (id / CAD)" if paper else ""))
         for what, unit, key in (("force", "N", "force_error"), ("torque", "Nm", "torque_error")):
             i, c = table["identified"][what], table["cad"][what]
             print(f"    {what:6s} {i['mean']:8.3f} ± {i['std']:.3f} {unit:2s}   {c['mean']:8.3f} ± {c['std']:.3f} {unit:2s}"
-                  f"        {PAPER[key][0]} ± {PAPER[key][1]} / {PAPER[key + '_cad'][0]} ± {PAPER[key + '_cad'][1]}")
+                  + (f"        {PAPER[key][0]} ± {PAPER[key][1]} / {PAPER[key + '_cad'][0]} ± {PAPER[key + '_cad'][1]}"
+                     if paper else ""))
     print("  per channel: RMS of e = y − ŷ, and against the channel's noise std")
     for o in ev.outputs:
         entry = result["channels"][o.name]
@@ -94,8 +118,16 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
         print(line)
     if "relative_torque_error" in result:
         print(f"  relative torque error ‖τ − τ̂‖ / ‖τ‖: {100 * result['relative_torque_error']:.2f} %")
-    if any(o.kind == "input" for o in ev.outputs):
-        print("  CAD input (PWM) prediction: undefined; a CAD model has no friction and no motor gains")
+    relative = result.get("relative_error")
+    if relative:
+        print("  relative error of the predicted " + " and ".join(input_words(ev.config)) + " (raw, unfiltered): "
+              + ", ".join(f"{c} {100 * v['relative']:.2f} %" for c, v in relative["channels"].items()))
+        print(f"    overall, each channel weighted by its gain (joint torque), ‖K(y − ŷ)‖ / ‖K y‖: "
+              f"{100 * relative['overall']:.2f} %")
+    kinds = sorted({o.name.split(".")[0] for o in ev.outputs if o.kind == "input"})
+    if kinds:
+        print(f"  CAD {' and '.join(INPUT_WORD[k] for k in kinds)} prediction: undefined; a CAD model has no friction "
+              "and no motor gains")
     return result
 
 
@@ -124,7 +156,8 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
         print(f"  calibrated: the contact alone reaches T²_α in {vis['visible']} of {len(vis['episodes'])} episodes "
               f"(plant truth), {vis['visible_found']} of them found"
               + ("; below it: " + ", ".join(f"{v['start_s']:.1f} s (peak {v['peak_t2']:.3g})" for v in hidden) if hidden else ""))
-    print(f"  paper (real iCub arm, α = 0.99): TPR {100 * PAPER['tpr']:.0f} %, FPR {100 * PAPER['fpr']:.0f} %")
+    if ev.config.name == PAPER_ROBOT:
+        print(f"  paper (real iCub arm, α = 0.99): TPR {100 * PAPER['tpr']:.0f} %, FPR {100 * PAPER['fpr']:.0f} %")
     return found.result
 
 
@@ -156,7 +189,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
 
     sp = sub.add_parser("validate", help=COMMANDS["validate"].help,
                         description="F/T prediction error (force and torque norms, mean ± std) of the identified and "
-                        "the CAD parameters, and per-channel residual RMS against the noise.")
+                        "the CAD parameters (F/T set-ups), per-channel residual RMS against the noise, and the relative "
+                        "error of the predicted inputs or joint torques per channel and overall (current-, PWM- and "
+                        "torque-driven set-ups).")
     sp.add_argument("--model", required=True, metavar="MODEL")
     sp.add_argument("--data", required=True, metavar="DATA")
     window_args(sp)
