@@ -95,7 +95,12 @@ def test_every_command_over_every_file_without_a_traceback(tmp_path: Path) -> No
     """What a user would try on each log: import, structure, fit on a window, validate, detect, gaps, export, and
     the mistakes (a window past the end, a reversed window, a bad payload). Exit 0 or 2, never a traceback."""
     model = tmp_path / "model.json"
-    dynid("fit", "--robot", "ur10e_known_gains", *urdf(), "--data", str(PAIR[0]), "--out", str(model))
+    fit = dynid("fit", "--robot", "ur10e_known_gains", *urdf(), "--data", str(PAIR[0]), "--out", str(model),
+                "--noise", "estimate")
+    # The estimated noise (each channel's residual RMS on moving rows) replaces the configuration's in the model.
+    noise = json.loads(model.read_text())["outputs"]["noise_std"]
+    assert noise != [0.17, 0.2, 0.11, 0.03, 0.04, 0.03] and all(0.5 < r / s < 2 for r, s in
+                                                               zip(fit["residual_rms"].values(), noise))
     assert len(FILES) == 8
     outcomes: list[tuple[str, int]] = []
     for path in FILES:

@@ -47,6 +47,7 @@ class Identification:
     detectors: dict[str, Detector]
     fit_time_s: float  # the regression alone
     total_time_s: float  # with the calibration
+    robot: RobotModel | None = None  # the model fitted: the given one, or with the estimated input noise
 
 
 @dataclass(frozen=True)
@@ -137,6 +138,9 @@ class IdentifySettings:
     fit: FitSettings = field(default_factory=FitSettings)
     detector: DetectorSettings = field(default_factory=DetectorSettings)
     supply_time_constant_s: float = SupplyTracking.time_constant_s  # 0: constant motor gains
+    # Estimate each input channel's noise from the first fit's residuals (moving rows) and refit with it: the
+    # weighting, the model file's noise, validation's ratios and the detector's prior then use the estimate.
+    estimate_noise: bool = False
 
     @property
     def tracking(self) -> SupplyTracking | None:
@@ -175,6 +179,9 @@ def identify(model: RobotModel, datasets: Sequence[Dataset], data_paths: Sequenc
         settings = replace(settings, fit=fit_settings)
     started = time.perf_counter()
     result = fit(model, list(datasets), settings.fit)
+    if settings.estimate_noise:
+        model = with_estimated_noise(model, result)
+        result = fit(model, list(datasets), settings.fit)
     fit_time = time.perf_counter() - started
     record = fit_record(model, result, settings.fit, settings.detector, settings.fit.n_components)
     record["cad_ft_offsets"] = cad_ft_offsets(model, result.statistics).tolist()
@@ -186,4 +193,14 @@ def identify(model: RobotModel, datasets: Sequence[Dataset], data_paths: Sequenc
                         residual_variance=result.residual_variance[result.chosen])
     total = time.perf_counter() - started
     built.model.record["fit_time_s"] = total
-    return Identification(built.model, result, built.detectors, fit_time, total)
+    return Identification(built.model, result, built.detectors, fit_time, total, model)
+
+
+def with_estimated_noise(model: RobotModel, result: FitResult) -> RobotModel:
+    """The model with each input or joint-torque channel's noise set to the fit's residual RMS on the rows that
+    move (the configuration's noise is a prior; a UR's current noise differs fivefold from base to wrist)."""
+    rms = np.sqrt(result.residual_variance[result.chosen])
+    per = {o.name: float(r) for o, r in zip(output_channels(model), rms) if o.kind != "ft" and np.isfinite(r) and r > 0}
+    cfg = model.config
+    noise = replace(cfg.noise, per_channel={**cfg.noise.per_channel, **per})
+    return RobotModel(replace(cfg, noise=noise))

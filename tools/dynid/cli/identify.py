@@ -35,7 +35,9 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     settings = FitSettings(estimator=args.estimator, n_components=args.n_components, min_speed=args.min_speed,
                            blocks=args.blocks)
     detector = DetectorSettings(args.alpha, args.n_mode)
-    done = identify(model, datasets, args.data, IdentifySettings(settings, detector, args.supply_time_constant))
+    done = identify(model, datasets, args.data, IdentifySettings(settings, detector, args.supply_time_constant,
+                                                                 estimate_noise=args.noise == "estimate"))
+    model = done.robot or model
     done.model.save(args.out)
     result, record, detectors = done.fit, done.model.record, done.detectors
     elapsed, elapsed_fit = done.total_time_s, done.fit_time_s
@@ -183,6 +185,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--supply-time-constant", type=non_negative_float, default=SupplyTracking.time_constant_s,
                     metavar="S", help="track each motor's supply (its torque per unit duty) with this time constant "
                     f"when predicting inputs (dynid.identify.supply; default {SupplyTracking.time_constant_s:g} s, 0 = constant gains)")
+    sp.add_argument("--noise", choices=["config", "estimate"], default="config",
+                    help="the input channels' noise that weights the rows, validation and the detector: the "
+                    "configuration's (default), or estimated from a first fit's residuals on moving rows, then refitted")
     min_speed_arg(sp)
     json_arg(sp)
     sp.set_defaults(func=cmd_fit)

@@ -26,7 +26,7 @@ from __future__ import annotations
 import hashlib
 import json
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -45,7 +45,7 @@ FORMAT_VERSION = 2  # 2: an `effects` section; files without one are still writt
 
 @dataclass
 class IdentifiedModel:
-    robot: dict[str, str]
+    robot: dict[str, Any]
     parameters: dict[str, float]
     record: dict[str, Any] = field(default_factory=dict)  # every other section, as in the file
     path: str | None = None
@@ -118,7 +118,7 @@ class IdentifiedModel:
         self.path = str(path)
 
 
-def _config_from(robot: dict[str, str]) -> RobotConfig:
+def _config_from(robot: dict[str, Any]) -> RobotConfig:
     """The configuration the model was fitted for: its source if unchanged, else the embedded text."""
     source = robot.get("config_source", "")
     urdf = robot.get("urdf")  # the URDF it was fitted with (a supplied one is not found again without it)
@@ -126,7 +126,7 @@ def _config_from(robot: dict[str, str]) -> RobotConfig:
     try:
         config = load_config(source, urdf)
         if config.digest == robot["config_digest"]:
-            return config
+            return _with_noise(config, robot)
     except Exception:  # noqa: BLE001 - a moved or edited source falls back to the embedded copy below
         pass
     text = robot.get("config_text")
@@ -136,14 +136,24 @@ def _config_from(robot: dict[str, str]) -> RobotConfig:
     with tempfile.NamedTemporaryFile("w", suffix=".yaml", dir=directory, delete=False, encoding="utf-8") as f:
         f.write(text)
     try:
-        return load_config(f.name, urdf)
+        return _with_noise(load_config(f.name, urdf), robot)
     finally:
         Path(f.name).unlink(missing_ok=True)
 
 
-def robot_record(config: RobotConfig) -> dict[str, str]:
+def robot_record(config: RobotConfig) -> dict[str, Any]:
     return {"name": config.name, "config_digest": config.digest, "config_source": config.source,
-            "config_text": Path(config.source).read_text(encoding="utf-8"), "urdf": str(config.urdf.resolve())}
+            "config_text": Path(config.source).read_text(encoding="utf-8"), "urdf": str(config.urdf.resolve()),
+            "noise_per_channel": dict(config.noise.per_channel)}
+
+
+def _with_noise(config: RobotConfig, robot: dict[str, Any]) -> RobotConfig:
+    """The configuration with the per-channel noise the model was fitted with (estimated by `fit --noise
+    estimate`, or the configuration's own)."""
+    per = robot.get("noise_per_channel")
+    if not per:
+        return config
+    return replace(config, noise=replace(config.noise, per_channel={k: float(v) for k, v in per.items()}))
 
 
 def load_model(path: str | Path) -> IdentifiedModel:
