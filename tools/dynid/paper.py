@@ -5,6 +5,8 @@ These describe the paper's robot and set-up only; output for another robot does 
 
 from __future__ import annotations
 
+PAPER_ROBOT = "icub_right_arm"  # the bundled configuration of the paper's arm: only its output shows PAPER
+
 # Contact detection at α = 0.99 (TPR, FPR), and Table II: F/T prediction error norms, mean and std.
 PAPER: dict[str, float | tuple[float, float]] = {
     "tpr": 0.67,

@@ -155,3 +155,16 @@ def test_windows_in_the_datas_own_seconds() -> None:
         apply_window(ds, 200.0, None)
     with pytest.raises(DataError, match="must come after"):
         apply_window(ds, 105.0, 104.0)
+
+
+def test_the_papers_rows_only_on_the_papers_arm() -> None:
+    from dynid.paper import PAPER
+    from dynid.report import html as H
+
+    stats = {"mean": 1.0, "std": 0.5}
+    v = {"table_ii": {s: {"force": stats, "torque": stats} for s in ("identified", "cad")}}
+    variant = {"threshold": 3.0, "fpr": 0.01, "tpr": 0.7, "auc": 0.9}
+    det = {"variants": {"calibrated": variant}}
+    assert "paper" in H.table_ii(v, dict(PAPER)) and "paper" not in H.table_ii(v, None)
+    assert "real iCub arm" in H.detection(det, det, dict(PAPER), 0.99)
+    assert "real iCub arm" not in H.detection(det, det, None, 0.99)

@@ -13,7 +13,7 @@ from ..detect.t2 import ALPHA
 from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, FitSettings
 from ..identify.supply import SupplyTracking
 from ..identify.validation import evaluate, load_run, validation
-from ..paper import PAPER
+from ..paper import PAPER, PAPER_ROBOT
 from ..pipeline import DetectorSettings, IdentifySettings, identify
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
@@ -22,7 +22,6 @@ from .common import confidence as alpha
 from .common import (json_arg, min_speed_arg, non_negative_float, payload_arg, payloads, positive_int, robot_arg,
                      window, window_args)
 
-PAPER_ROBOT = "icub_right_arm"  # the arm of dynid.paper's figures: only its output shows them
 INPUT_WORD = {"pwm": "PWM", "current": "current", "tau": "joint torque"}
 GAIN_UNIT = {"pwm": "Nm per unit duty", "current": "Nm per A"}
 SHOW_COMBINATIONS = 30  # print every base combination when there are at most this many (else see --json)

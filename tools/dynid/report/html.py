@@ -65,17 +65,23 @@ def page(title: str, sections: list[str]) -> str:
 # The report's tables
 
 
-def table_ii(v: dict[str, Any], paper: dict[str, Any]) -> str:
+def table_ii(v: dict[str, Any], paper: dict[str, Any] | None) -> str:
+    """Table II; the paper's columns only when `paper` is given (the paper's own arm)."""
     rows = []
     for what, unit, key in (("force", "N", "force_error"), ("torque", "Nm", "torque_error")):
         cells = [text(f"{what} error norm ({unit})")]
         for source in ("identified", "cad"):
             for stat in ("mean", "std"):
                 cells.append(num(v["table_ii"][source][what][stat], ".3f", f"validation/table_ii/{source}/{what}/{stat}"))
-        cells += [num(paper[k][i], ".2f", f"paper/{k}/{i}") for k in (key, key + "_cad") for i in (0, 1)]
+        if paper is not None:
+            cells += [num(paper[k][i], ".2f", f"paper/{k}/{i}") for k in (key, key + "_cad") for i in (0, 1)]
         ident, cad = v["table_ii"]["identified"][what]["mean"], v["table_ii"]["cad"][what]["mean"]
-        cells += [num(ident / cad if cad else None, ".2f"), num(paper[key][0] / paper[key + "_cad"][0], ".2f")]
+        cells.append(num(ident / cad if cad else None, ".2f"))
+        if paper is not None:
+            cells.append(num(paper[key][0] / paper[key + "_cad"][0], ".2f"))
         rows.append("<tr>" + "".join(cells) + "</tr>")
+    if paper is None:
+        return table(["", "identified mean", "± std", "CAD mean", "± std", "identified / CAD"], rows)
     return table(["", "identified mean", "± std", "CAD mean", "± std", "paper identified", "± std", "paper CAD",
                   "± std", "identified / CAD", "paper: identified / CAD"], rows)
 
@@ -91,7 +97,7 @@ def channels(v: dict[str, Any], units: dict[str, str]) -> str:
     return table(["channel", "unit", "RMS of e", "noise std", "RMS / noise", "mean of e", "CAD prediction"], rows, 2)
 
 
-def detection(det_val: dict[str, Any], det_con: dict[str, Any], paper: dict[str, Any], alpha: float) -> str:
+def detection(det_val: dict[str, Any], det_con: dict[str, Any], paper: dict[str, Any] | None, alpha: float) -> str:
     rows = []
     for variant, s in det_con["variants"].items():
         v, k, kv = det_val["variants"][variant], f"detection/contact/variants/{variant}", f"detection/validation/variants/{variant}"
@@ -104,8 +110,9 @@ def detection(det_val: dict[str, Any], det_con: dict[str, Any], paper: dict[str,
             f"{num(side.get('proximal'), '.1f', k + '/tpr_by_side/proximal', 100)}"
             f"<td>{s.get('episodes_detected', '—')}/{s.get('episodes', '—')}</td>"
             f"{num(delay.get('median'), '.0f', k + '/delay_s/median', 1e3)}{num(delay.get('p90'), '.0f', k + '/delay_s/p90', 1e3)}</tr>")
-    rows.append(f"<tr>{text('paper (real iCub arm)')}<td>—</td><td>—</td>{num(paper['tpr'], '.0f', 'paper/tpr', 100)}"
-                f"{num(paper['fpr'], '.0f', 'paper/fpr', 100)}" + "<td>—</td>" * 6 + "</tr>")
+    if paper is not None:  # the paper's figures describe its own arm only
+        rows.append(f"<tr>{text('paper (real iCub arm)')}<td>—</td><td>—</td>{num(paper['tpr'], '.0f', 'paper/tpr', 100)}"
+                    f"{num(paper['fpr'], '.0f', 'paper/fpr', 100)}" + "<td>—</td>" * 6 + "</tr>")
     return table(["variant", "threshold", f"FPR % validation (promise {100 * (1 - alpha):.0f} %)", "TPR % contact run",
                   "FPR % contact run", "AUC", "TPR % distal", "TPR % proximal", "episodes detected",
                   "delay median (ms)", "delay p90 (ms)"], rows)

@@ -24,7 +24,7 @@ from ..errors import DataError
 from ..identify.model_file import IdentifiedModel, load_model
 from ..identify.validation import Evaluated, cad_ft_residuals, evaluate, load_run, validation
 from ..io.dataset import atomic_write
-from ..paper import PAPER
+from ..paper import PAPER, PAPER_ROBOT
 from ..progress import track
 from ..robot.outputs import measured_outputs
 from ..robot.parameters import WRENCH_FIELDS
@@ -128,7 +128,9 @@ def write_report(args: ReportSettings) -> dict[str, Any]:
         "model": args.model, "robot": identified.config.name, "estimator": record.get("estimator"),
         "out": str(out), "alpha": args.alpha, "n_mode": args.n_mode,
         "validation": v, "detection": {"validation": dv.result, "contact": dc.result},
-        "paper": {k: list(x) if isinstance(x, tuple) else x for k, x in PAPER.items()},
+        # The paper's figures describe its arm only: no reference rows for another robot.
+        "paper": ({k: list(x) if isinstance(x, tuple) else x for k, x in PAPER.items()}
+                  if identified.config.name == PAPER_ROBOT else None),
         "truth": truth.path if truth else None, "parameters": params, "truth_check": truth_summary(params),
         "motor_gains": gains_by_estimator(identified, truth), "window_s": state["window_s"],
         "figures": [f[0] for f in state["figures"]],
@@ -158,8 +160,10 @@ def _figures(state: dict[str, Any], args: ReportSettings) -> tuple[list[tuple[st
                 figs.t2_validation(t - t[0], dv.t2, thresholds, fpr, alpha)))
     tc = ev_con.dataset.t
     rates = {k: rates_text(s) for k, s in dc.result["variants"].items()}
-    out.append(("fig-t2-contact", f"T² on the contact run ({args.contact}); the skin's contact periods shaded, distal "
-                "and proximal of the F/T sensor in two colours (the paper's Fig. 4)",
+    skin = bool(ev_con.config.can.get("skin"))
+    truth = "the skin's contact periods" if skin else "the contact periods of the run's contact column"
+    sides = ", distal and proximal of the F/T sensor in two colours" if ev_con.config.ft_sensors else ""
+    out.append(("fig-t2-contact", f"T² on the contact run ({args.contact}); {truth} shaded{sides} (the paper's Fig. 4)",
                 figs.t2_contact(tc - tc[0], dc.t2, thresholds, ev_con.dataset.contact, dc.side, rates)))
     curves = {k: s["roc"] for k, s in dc.result["variants"].items() if "roc" in s}
     if curves:
@@ -177,7 +181,7 @@ def _figures(state: dict[str, Any], args: ReportSettings) -> tuple[list[tuple[st
     tw = t[w] - t[0]
     out.append(("fig-traces", f"Predicted against measured outputs on the validation run, {tw[0]:.1f}–{tw[-1]:.1f} s "
                 "(the window of median residual size); grey: as recorded; blue: the identified model; red dashed: "
-                "the CAD parameters (F/T only: a CAD model predicts no PWM)",
+                f"the CAD parameters (F/T only: a CAD model predicts no {input_words(ev_val)})",
                 figs.traces(tw, names, [o.unit for o in ev_val.outputs], raw_outputs(ev_val, names)[w], predicted, cad)))
     return out, [float(tw[0]), float(tw[-1])]
 
@@ -190,6 +194,7 @@ def _page(r: dict[str, Any], identified: IdentifiedModel, units: dict[str, str],
     alpha = r["alpha"]
     shown = {fid: H.figure(fid, png, caption) for fid, caption, png in figures}
     v = r["validation"]
+    words = input_words(identified)
     sections = [
         f"<p>Model <code>{H.esc(r['model'])}</code> of <b>{H.esc(r['robot'])}</b>, estimator "
         f"<b>{H.esc(r['estimator'])}</b>, fitted on {data}: base-parameter rank {H.esc(base.get('rank'))}, "
@@ -201,15 +206,16 @@ def _page(r: dict[str, Any], identified: IdentifiedModel, units: dict[str, str],
         "<h2>Prediction error (the paper's Table II)</h2>",
         H.table_ii(v, r["paper"]) if "table_ii" in v else "<p class=\"note\">No F/T sensor: no Table II.</p>",
         "<p class=\"note\">Norm of the F/T prediction error on the validation run. CAD: the URDF inertia with the F/T "
-        "offsets that fit it best on the identification data. Paper: the real iCub arm (Traversaro et al. 2013).</p>",
+        "offsets that fit it best on the identification data."
+        + (" Paper: the real iCub arm (Traversaro et al. 2013)." if r["paper"] else "") + "</p>",
         "<h3>Per channel</h3>", H.channels(v, units),
-        "<p class=\"note\">The CAD model has no friction and no motor gains: its PWM prediction is undefined.</p>",
+        f"<p class=\"note\">The CAD model has no friction and no motor gains: its {words} prediction is undefined.</p>",
         "<h2>Contact detection</h2>",
         H.detection(r["detection"]["validation"], r["detection"]["contact"], r["paper"], alpha),
         f"<p class=\"note\">α = {alpha:g}. <i>calibrated</i> (dynid's default): motor channels at rest left out, "
         "threshold the α-quantile of T² on the contact-free identification data. <i>paper</i>: diagonal Λ and the F "
-        f"threshold with n = {'dim(e)' if r['n_mode'] == 'dim' else 'ν'}. Distal contacts show in the F/T, proximal "
-        "ones only in the PWMs.</p>",
+        f"threshold with n = {'dim(e)' if r['n_mode'] == 'dim' else 'ν'}."
+        + (f" Distal contacts show in the F/T, proximal ones only in the {words}." if "table_ii" in v else "") + "</p>",
         shown["fig-t2-validation"], shown["fig-t2-contact"], shown.get("fig-roc", ""),
         "<h2>Predicted against measured</h2>", shown["fig-traces"],
         "<h2>Motor gains by estimator</h2>", H.gains(r["motor_gains"], r["estimator"]),
@@ -223,6 +229,12 @@ def _page(r: dict[str, Any], identified: IdentifiedModel, units: dict[str, str],
         H.parameters(r["parameters"], r["truth"] is not None),
     ]
     return H.page(f"dynid identification report: {r['robot']}", sections)
+
+
+def input_words(source: Any) -> str:  # an Evaluated or an IdentifiedModel: anything with a `config`
+    """What the motor rows predict, in words: "PWM", "current", "joint torque" (several joined by "and")."""
+    kinds = sorted({g.input for g in source.config.actuation})
+    return " and ".join({"pwm": "PWM", "current": "current", "torque": "joint torque"}[k] for k in kinds) or "input"
 
 
 def _truth_note(check: dict[str, Any] | None) -> str:
