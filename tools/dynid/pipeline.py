@@ -147,7 +147,7 @@ class IdentifySettings:
         return SupplyTracking(self.supply_time_constant_s) if self.supply_time_constant_s > 0 else None
 
 
-def check_scale(model: RobotModel, datasets: Sequence[Dataset]) -> None:
+def check_scale(model: RobotModel, datasets: Sequence[Dataset], payload_possible: bool = True) -> None:
     """Refuse a set-up whose overall scale no data can fix (docs/design.md §3, Table I): every row is then
     homogeneous (b = 0), and Φ = 0 fits as well as any Φ. Something measured in physical units must enter: an
     F/T sensor, a joint torque sensor, a known motor gain, or a run carrying a known payload."""
@@ -162,8 +162,9 @@ def check_scale(model: RobotModel, datasets: Sequence[Dataset]) -> None:
     kinds = sorted({g.input for g in cfg.actuation if g.input != "torque"})
     raise InputError(
         f"{cfg.name}: the scale cannot be identified: the {'/'.join(kinds)} gains of {', '.join(unknown)} are unknown "
-        "and there is no F/T sensor; give the gains (motors.<m>.known_gain in the configuration), or add a run "
-        "carrying a known payload (--data RUN --payload MASS[@x,y,z], one --payload per --data)"
+        "and there is no F/T sensor; give the gains (motors.<m>.known_gain in the configuration)"
+        + (", or add a run carrying a known payload (--data RUN --payload MASS[@x,y,z], one --payload per --data)"
+           if payload_possible else " (this command refits on one run without a payload)")
     )
 
 

@@ -9,7 +9,7 @@ from typing import Any
 
 from ..config.robot_config import load_config
 from ..errors import InputError
-from ..io.load import load_data
+from ..io.load import apply_window, load_data
 from ..robot.model import RobotModel
 from ..robot.regressors.base import data_base_parameters, exciting_signals
 from ..robot.regressors.stack import row_channels, rows_at_rest, signals_from_dataset
@@ -17,13 +17,14 @@ from ..simulation import SimulationSettings, parse_effect, simulate
 from ..simulation.effects import CATALOG, catalog_text
 from ..simulation.output import write_simulation
 from .commands import COMMANDS
-from .common import json_arg, min_speed_arg, positive_float, positive_int, robot_arg, seed
+from .common import json_arg, min_speed_arg, positive_float, positive_int, robot_arg, seed, window, window_args
 
 
 def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
     config = load_config(args.robot, args.urdf)
     model = RobotModel(config)
-    dataset = load_data(Path(args.data), config, joint_limits=model.joint_limits)
+    dataset = apply_window(load_data(Path(args.data), config, joint_limits=model.joint_limits), *window(args),
+                           source=args.data)
     dataset.meta.setdefault("robot", config.name)
     dataset.meta.setdefault("config_digest", config.digest)
     dataset.save(Path(args.out))
@@ -54,7 +55,8 @@ def cmd_structure(args: argparse.Namespace) -> dict[str, Any]:
     config = load_config(args.robot, args.urdf)
     model = RobotModel(config)
     if args.data:
-        sig = signals_from_dataset(model, load_data(Path(args.data), config, joint_limits=model.joint_limits))
+        data = load_data(Path(args.data), config, joint_limits=model.joint_limits)
+        sig = signals_from_dataset(model, apply_window(data, *window(args), source=args.data))
         source = args.data
     else:
         sig = exciting_signals(model, args.samples, args.seed)
@@ -145,6 +147,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         "column against the robot configuration, and write the dataset file (.npz).")
     robot_arg(sp)
     sp.add_argument("--data", required=True, metavar="DATA", help="the experiment: a .csv or a .npz dataset")
+    window_args(sp)
     sp.add_argument("--out", required=True, metavar="DATASET", help="the dataset file to write (.npz, atomically)")
     json_arg(sp)
     sp.set_defaults(func=cmd_import)
@@ -155,6 +158,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         "exciting states (the structural rank) or on a recorded experiment (--data).")
     robot_arg(sp)
     sp.add_argument("--data", metavar="DATA", help="measure the rank on this experiment instead of random states")
+    window_args(sp)
     sp.add_argument("--samples", type=positive_int, default=2000, help="random states for the structural rank (default 2000)")
     sp.add_argument("--seed", type=int, default=0, help="seed of the random states (default 0)")
     sp.add_argument("--combinations", action="store_true", help="print every base-parameter combination")

@@ -22,7 +22,7 @@ def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
     config = identified.config if identified is not None else load_config(args.robot, args.urdf)
     model = RobotModel(config)
     ds = load_run(args.data, model, window(args))
-    check_scale(model, [ds])  # the workflow refits the standard model on these data alone
+    check_scale(model, [ds], payload_possible=False)  # the workflow refits the standard model on these data alone
     if identified is not None and identified.effects:  # before minutes of work
         raise InputError(f"{args.model} is already an augmented model (it names effects); give the standard "
                          "model it came from")
