@@ -25,7 +25,7 @@ import numpy as np
 
 from ..detect.online import FixedLagSavitzkyGolay
 from ..errors import DataError
-from ..identify.supply import SupplyTracking
+from ..identify.supply import SupplyTracking, tracked
 from ..io.dataset import atomic_write
 from ..robot.effects import EXPORTABLE, Effect
 from ..robot.model import RobotModel
