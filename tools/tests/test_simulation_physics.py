@@ -213,8 +213,6 @@ def test_pwm_delay_shifts_the_pwm_stream_only() -> None:
 
 
 def test_another_arm_is_a_configuration_joint_torque_sensors_included() -> None:
-    from pathlib import Path
-
     panda = load_config("panda")
     model = RobotModel(panda)
     sim = simulate(panda, SimulationSettings(duration=4.0, noise=False))
