@@ -16,6 +16,7 @@ from .report import add_report_command
 PAPER = {"tpr": 0.67, "fpr": 0.06, "force_error": (1.33, 0.64), "force_error_cad": (1.86, 0.59),
          "torque_error": (0.15, 0.13), "torque_error_cad": (0.15, 0.07)}
 SHOW_COMBINATIONS = 30  # print every base combination when there are at most this many (else see --json)
+SHOW_UNSEEN = 6  # name the combinations a jackknife fold misses when there are at most this many
 
 
 def _cad_offsets(model: RobotModel, stats) -> np.ndarray:  # stats: dynid.statistics.Statistics
@@ -34,7 +35,7 @@ def _cad_offsets(model: RobotModel, stats) -> np.ndarray:  # stats: dynid.statis
 
 def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     from .detection import calibrate, calibration_residuals, detector_record
-    from .identification import FitSettings, fit
+    from .identification import IV_SETTLED, FitSettings, fit
     from .identified import IdentifiedModel, data_record, robot_record
     from .outputs import output_channels, residuals
     from .supply import SupplyTracking
@@ -66,6 +67,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
                      "alpha": args.alpha, "n_mode": args.n_mode},
         "n_components": result.cv["n_components"],
         "cv": result.cv,
+        "jackknife": result.jackknife,
         "base": {"rank": base.rank, "combinations": names,
                  "independent": [model.layout.names[i] for i in base.independent],
                  "dependent": [model.layout.names[i] for i in base.dependent], "K": base.K.tolist(),
@@ -100,6 +102,24 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         values = ", ".join(f"{record['base']['independent'][i].split('.')[0]} {est.beta[i]:.3f}±{est.se[i]:.3f}"
                            for i in gains)
         print(f"   {mark}{name:4s} {values}")
+    for name, est in result.estimates.items():
+        step = est.detail.get("last_step", 0.0)
+        if "last_step" in est.detail and (step is None or step > IV_SETTLED):
+            last = "not finite" if step is None else f"{step:.2g}"
+            print(f"  {name}: the iteration did not settle in {est.detail['iterations']} iterations (last relative "
+                  f"step {last}): its values are the last iterate")
+    inertial = set(model.layout.names[model.layout.span("inertial")])
+    unexcited = [n for n in base.unidentifiable if n not in inertial]  # inertial ones: structural (CAD kept)
+    if unexcited:
+        print("  not excited by this run (a joint that never moves, or never one way; an input that never changes); "
+              "the model keeps the prior, the nominal gain or zero friction: " + ", ".join(unexcited))
+    deficient = result.jackknife.get("rank_deficient", [])
+    if deficient:
+        unseen = list(dict.fromkeys(c for fold in deficient for c in fold["unseen"]))
+        left_out = ", ".join(f"{f['block']} (samples {f['samples'][0]}-{f['samples'][1]})" for f in deficient)
+        print(f"  jackknife: {len(deficient)} of {result.jackknife['folds']} folds miss a direction the whole run sees "
+              f"(time block left out: {left_out}); the {len(unseen)} combination(s) involved are not determined"
+              + (": " + "; ".join(unseen) if len(unseen) <= SHOW_UNSEEN else " (listed in --json under jackknife)"))
     chosen = result.estimates[result.chosen]
     determined = {c: (float(v), float(e)) for c, v, e, ok in zip(names, chosen.beta, chosen.se, result.identified) if ok}
     undetermined = [c for c, ok in zip(names, result.identified) if not ok]
@@ -108,7 +128,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         for c, (v, e) in determined.items():
             print(f"    {c:60s} {v:12.5g} ± {e:.2g}")
         if undetermined:
-            print("  not determined by this run (standard error above 10 %; no value given): " + ", ".join(undetermined))
+            print("  not determined by this run (standard error above 10 %, or unseen by a jackknife fold; no value "
+                  "given): " + ", ".join(undetermined))
     rms = np.sqrt(result.residual_variance[result.chosen])
     print("  residual RMS on the identification data (rows at rest left out) / channel noise:")
     print("   " + ", ".join(f"{o.name} {r:.3g} ({r / o.sigma:.2f}×)" for o, r in zip(outs, rms)))
@@ -116,7 +137,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
             "n_components": result.cv["n_components"], "estimator": result.chosen,
             "identified": int(result.identified.sum()), "determined": {c: {"value": v, "standard_error": e}
                                                                      for c, (v, e) in determined.items()},
-            "undetermined": undetermined, "estimators": record["estimators"],
+            "undetermined": undetermined, "unidentifiable": list(base.unidentifiable), "jackknife": result.jackknife,
+            "estimators": record["estimators"],
             "base": record["base"], "residual_rms": dict(zip(record["outputs"]["channels"], rms.tolist())),
             "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed}
 
