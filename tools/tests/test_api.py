@@ -108,3 +108,15 @@ def test_export_coefficients_writes_what_the_monitor_loads(fitted: dynid.Dynamic
     assert out.size == (tmp_path / "m.dcoef").stat().st_size > 0
     done = run("export", "--print", str(tmp_path / "m.dcoef"), "--json", "-")
     assert done.returncode == 0 and json.loads(done.stdout)["robot"] == "icub_right_arm"
+
+
+def test_find_gaps_is_the_workflow_of_dynid_gaps(runs: Path, fitted: dynid.DynamicsModel) -> None:
+    """Against the model fitted on the same run, the gap workflow names nothing it cannot defend: the control."""
+    gaps = dynid.find_gaps(str(runs / "identification"), model=fitted)
+    result = gaps.result
+    assert result["data"] == str(runs / "identification") and result["given_model"] is not None
+    assert {g["channel"] for g in result["gap"]} == set(fitted.output_channels_)
+    assert all(np.isfinite(g["before_rms"]) and np.isfinite(g["after_rms"]) for g in result["gap"])
+    augmented = gaps.augmented_model()
+    assert [e["kind"] for e in augmented.record["effects"]] == [e.kind for e in gaps.effects]
+    assert augmented.record["detector"]["calibrated"]["threshold"] > 0
