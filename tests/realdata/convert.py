@@ -5,7 +5,7 @@ Usage::
     python tests/realdata/convert.py panda OUT.csv [--source DIR]
     python tests/realdata/convert.py tiago OUT.csv [--source DIR] [--run dynamic]
 
-Both converters keep every recorded value (what is not a DESIGN §4 signal goes to an extra column) and say
+Both converters keep every recorded value (what is not a docs/design.md §4 signal goes to an extra column) and say
 what they changed: a sample whose time stamp does not come after the previous one is dropped, counted and
 reported, never silently (the README beside this file lists what happened on the shipped runs).
 """
@@ -49,7 +49,7 @@ def keep_increasing(t: np.ndarray) -> tuple[np.ndarray, str]:
     """Mask of the samples whose stamp comes strictly after every earlier one, and a note saying what it did.
 
     A stamp that repeats or goes back is a logging artefact (the sample was re-sent, or the clock stepped);
-    keeping it would break the strictly increasing time of DESIGN §4, and reordering would invent an order.
+    keeping it would break the strictly increasing time of docs/design.md §4, and reordering would invent an order.
     """
     keep = np.ones(t.shape, dtype=bool)
     if t.size > 1:

@@ -119,6 +119,7 @@ def fit_record(model: RobotModel, result: FitResult, settings: FitSettings, dete
                      "alpha": detector.alpha, "n_mode": detector.n_mode},
         "n_components": result.cv["n_components"],
         "cv": result.cv,
+        "jackknife": result.jackknife,
         "base": {"rank": base.rank, "combinations": list(base.combinations()),
                  "independent": [names[i] for i in base.independent],
                  "dependent": [names[i] for i in base.dependent], "K": base.K.tolist(),

@@ -25,12 +25,11 @@ def run(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    work = tmp_path_factory.mktemp("api")
-    for kind, seconds in (("identification", 60), ("contact", 30)):
-        done = run("simulate", "--kind", kind, "--duration", str(seconds), "--out", str(work / kind))
-        assert done.returncode == 0, done.stderr
-    return work
+def runs(default_experiments: dict[str, Path]) -> Path:
+    """The session's default runs (conftest): DIR/identification, DIR/contact."""
+    root = default_experiments["identification"].parent
+    assert default_experiments["contact"] == root / "contact"
+    return root
 
 
 @pytest.fixture(scope="module")
@@ -62,10 +61,8 @@ def test_parameters_are_checked_at_fit_and_clone_keeps_them(runs: Path) -> None:
         dynid.DynamicsModel().predict(str(runs / "contact"))
 
 
-def test_the_api_fit_is_the_cli_fit(runs: Path, fitted: dynid.DynamicsModel, tmp_path: Path) -> None:
-    done = run("fit", "--data", str(runs / "identification"), "--out", str(tmp_path / "m.json"))
-    assert done.returncode == 0, done.stderr
-    cli = json.loads((tmp_path / "m.json").read_text())
+def test_the_api_fit_is_the_cli_fit(fitted: dynid.DynamicsModel, default_model: Path) -> None:
+    cli = json.loads(default_model.read_text())  # `dynid fit` on the same run (conftest)
     assert cli["parameters"] == fitted.parameters_
     assert cli["detector"] == fitted.model_.record["detector"]
     assert fitted.rank_ == cli["base"]["rank"] and fitted.rank_ > 0
@@ -108,3 +105,15 @@ def test_export_coefficients_writes_what_the_monitor_loads(fitted: dynid.Dynamic
     assert out.size == (tmp_path / "m.dcoef").stat().st_size > 0
     done = run("export", "--print", str(tmp_path / "m.dcoef"), "--json", "-")
     assert done.returncode == 0 and json.loads(done.stdout)["robot"] == "icub_right_arm"
+
+
+def test_find_gaps_is_the_workflow_of_dynid_gaps(runs: Path, fitted: dynid.DynamicsModel) -> None:
+    """Against the model fitted on the same run, the gap workflow names nothing it cannot defend: the control."""
+    gaps = dynid.find_gaps(str(runs / "identification"), model=fitted)
+    result = gaps.result
+    assert result["data"] == str(runs / "identification") and result["given_model"] is not None
+    assert {g["channel"] for g in result["gap"]} == set(fitted.output_channels_)
+    assert all(np.isfinite(g["before_rms"]) and np.isfinite(g["after_rms"]) for g in result["gap"])
+    augmented = gaps.augmented_model()
+    assert [e["kind"] for e in augmented.record["effects"]] == [e.kind for e in gaps.effects]
+    assert augmented.record["detector"]["calibrated"]["threshold"] > 0

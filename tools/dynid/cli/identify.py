@@ -10,7 +10,7 @@ import numpy as np
 from ..config.robot_config import RobotConfig, load_config
 from ..detect.evaluation import detection
 from ..detect.t2 import ALPHA
-from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, FitSettings
+from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, FitSettings
 from ..identify.supply import SupplyTracking
 from ..identify.validation import evaluate, load_run, validation
 from ..paper import PAPER, PAPER_ROBOT
@@ -25,6 +25,7 @@ from .common import (json_arg, min_speed_arg, non_negative_float, payload_arg, p
 INPUT_WORD = {"pwm": "PWM", "current": "current", "tau": "joint torque"}
 GAIN_UNIT = {"pwm": "Nm per unit duty", "current": "Nm per A"}
 SHOW_COMBINATIONS = 30  # print every base combination when there are at most this many (else see --json)
+SHOW_UNSEEN = 6  # name the combinations a jackknife fold misses when there are at most this many
 
 
 def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
@@ -68,6 +69,24 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
             status = "determined" if result.identified[i] else "NOT determined by these runs (standard error over 10 %)"
             print(f"    {motor:16s} {value:8.3f} ± {se:.3f}   nominal {nominal:8.3f}   "
                   f"{100 * (value / nominal - 1):+6.1f} %   {status}")
+    for name, est in result.estimates.items():
+        step = est.detail.get("last_step", 0.0)
+        if "last_step" in est.detail and (step is None or step > IV_SETTLED):
+            last = "not finite" if step is None else f"{step:.2g}"
+            print(f"  {name}: the iteration did not settle in {est.detail['iterations']} iterations (last relative "
+                  f"step {last}): its values are the last iterate")
+    inertial = set(model.layout.names[model.layout.span("inertial")])
+    unexcited = [n for n in base.unidentifiable if n not in inertial]  # inertial ones: structural (CAD kept)
+    if unexcited:
+        print("  not excited by this run (a joint that never moves, or never one way; an input that never changes); "
+              "the model keeps the prior, the nominal gain or zero friction: " + ", ".join(unexcited))
+    deficient = result.jackknife.get("rank_deficient", [])
+    if deficient:
+        unseen = list(dict.fromkeys(c for fold in deficient for c in fold["unseen"]))
+        left_out = ", ".join(f"{f['block']} (samples {f['samples'][0]}-{f['samples'][1]})" for f in deficient)
+        print(f"  jackknife: {len(deficient)} of {result.jackknife['folds']} folds miss a direction the whole run sees "
+              f"(time block left out: {left_out}); the {len(unseen)} combination(s) involved are not determined"
+              + (": " + "; ".join(unseen) if len(unseen) <= SHOW_UNSEEN else " (listed in --json under jackknife)"))
     chosen = result.estimates[result.chosen]
     determined = {c: (float(v), float(e)) for c, v, e, ok in zip(names, chosen.beta, chosen.se, result.identified) if ok}
     undetermined = [c for c, ok in zip(names, result.identified) if not ok]
@@ -76,7 +95,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         for c, (v, e) in determined.items():
             print(f"    {c:60s} {v:12.5g} ± {e:.2g}")
         if undetermined:
-            print("  not determined by this run (standard error above 10 %; no value given): " + ", ".join(undetermined))
+            print("  not determined by this run (standard error above 10 %, or unseen by a jackknife fold; no value "
+                  "given): " + ", ".join(undetermined))
     rms = np.sqrt(result.residual_variance[result.chosen])
     print("  residual RMS on the identification data (rows at rest left out) / channel noise:")
     print("   " + ", ".join(f"{o.name} {r:.3g} ({r / o.sigma:.2f}×)" for o, r in zip(outs, rms)))
@@ -84,7 +104,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
             "n_components": result.cv["n_components"], "estimator": result.chosen,
             "identified": int(result.identified.sum()), "determined": {c: {"value": v, "standard_error": e}
                                                                      for c, (v, e) in determined.items()},
-            "undetermined": undetermined, "estimators": record["estimators"],
+            "undetermined": undetermined, "unidentifiable": list(base.unidentifiable), "jackknife": result.jackknife,
+            "estimators": record["estimators"],
             "base": record["base"], "residual_rms": dict(zip(record["outputs"]["channels"], rms.tolist())),
             "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed}
 

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import DataError
 from ..identify.fit import SignalSource
 from ..identify.supply import SupplyTracking, smoothed_residuals
 from ..io.dataset import contact_episodes
@@ -148,17 +149,24 @@ def calibrate(model: RobotModel, phi: np.ndarray, e: np.ndarray, dq: np.ndarray,
     """The detectors (both by default) from contact-free residuals e (N, n_out) of the identification data, fitted Φ;
     the paper's variant, as published, on the residuals with constant gains `e_constant` (default e)."""
     N, n_out = e.shape
+    # A channel whose residual never varies (a constant channel the model reproduces) keeps its noise variance.
+    noise = np.array([o.sigma for o in output_channels(model)]) ** 2
     out: dict[str, Detector] = {}
     if "paper" in variants:
         n = n_out if n_mode == "dim" else int(nu or n_out)
+        if N <= n:
+            raise DataError(f"{N} calibration samples for a T² of {n} outputs: too few")
         banded = static_band_residuals(model, phi, dq, e if e_constant is None else e_constant, min_speed)
-        out["paper"] = Detector("paper", banded.var(axis=0), f_threshold(n, N, alpha), alpha, min_speed, n)
+        variance = banded.var(axis=0)
+        out["paper"] = Detector("paper", np.where(variance > 0, variance, noise), f_threshold(n, N, alpha), alpha,
+                                min_speed, n)
     if "calibrated" not in variants:
         return out
     rest = rows_at_rest(model, dq, min_speed)
-    moving = np.where(rest, np.nan, e)
-    variance = np.nanmean(moving**2, axis=0)
-    variance = np.where(np.isfinite(variance) & (variance > 0), variance, e.var(axis=0))
+    moving = (~rest).sum(axis=0)  # a channel can have none: a joint that never moves
+    variance = np.where(rest, 0.0, e**2).sum(axis=0) / np.maximum(moving, 1)
+    variance = np.where((moving > 0) & (variance > 0), variance, e.var(axis=0))
+    variance = np.where(variance > 0, variance, noise)
     draft = Detector("calibrated", variance, np.inf, alpha, min_speed, n_out)
     threshold = float(np.quantile(draft.t2(model, e, dq), alpha))
     out["calibrated"] = Detector("calibrated", variance, threshold, alpha, min_speed, n_out)

@@ -4,7 +4,7 @@ named, and the augmented model that carries them (what `dynid gaps` and `dynid.f
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -24,10 +24,11 @@ class Gaps:
     result: dict[str, Any]  # `dynid gaps --json` (docs/formats.md)
     effects: list[Effect]  # named effects the augmented model predicts with
     folded: list[Effect]  # payloads named, already added to their links' inertial parameters
-    _model: RobotModel
-    _ds: Dataset
-    _phi: np.ndarray
-    _given: IdentifiedModel | None
+    # What the augmented model is built from, on demand.
+    _model: RobotModel = field(repr=False)
+    _ds: Dataset = field(repr=False)
+    _phi: np.ndarray = field(repr=False)
+    _given: IdentifiedModel | None = field(repr=False)
 
     def augmented_model(self) -> IdentifiedModel:
         """The refit Φ with its effects, and T² recalibrated with them on the run (a few seconds: built on demand)."""

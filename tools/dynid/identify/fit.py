@@ -15,6 +15,10 @@ sufficient statistics per time block (`dynid.identify.statistics`) → base para
 
 Uncertainty: a delete-one-block jackknife over the time blocks, which keeps the residuals' autocorrelation
 (rows of one sample and of neighbouring samples are not independent, so the textbook σ²(AᵀA)⁻¹ is too small).
+On a short run a fold can miss a direction the whole run sees (a joint that moved one way only in the block left
+out): the fold is solved on the whole run's base with those directions at the prior (`restricted_solve`), and
+every base combination they involve is reported as not determined, the fold named in `FitResult.jackknife`
+(the jackknife cannot estimate an error the data of one block alone carry).
 """
 
 from __future__ import annotations
@@ -31,12 +35,16 @@ from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from ..robot.regressors.base import BaseParameters, base_parameters_from_factor
 from ..robot.regressors.stack import DEFAULT_MIN_SPEED, Signals, row_weights, signals_from_dataset
-from .regression import InputColumns, base_least_squares, instrumental_variables, pls_path
-from .statistics import Statistics, accumulate
+from .regression import InputColumns, base_least_squares, instrumental_variables, pls_path, unseen_directions
+from .statistics import MIN_BLOCK_SAMPLES, Statistics, accumulate
 
 ESTIMATORS: tuple[str, ...] = ("iv", "pls", "ols")
 DEFAULT_ESTIMATOR = "iv"  # the best measured on the simulated arm (README: gains within 1.2 %, against −9…−11 % for OLS and PLS)
 INSTRUMENT_WINDOW_S = 0.2
+IV_TOL = 1e-10  # the IV iteration's fixed point: largest relative change of β̂ in one iteration
+# The IV has settled when its last step moved no combination by more than 0.1 % of its value: immaterial beside the
+# 10 % that determines one (a short run's rounding floor is near 1e-8; a diverging iteration's steps exceed 1).
+IV_SETTLED = 1e-3
 # Rank threshold on singular values of the column-normalised system, from the Gram matrix: its rounding floor
 # sits near 1e-8 (the square root of machine precision), the iCub's last base direction near 1e-2.
 BASE_RTOL = 1e-6
@@ -76,6 +84,7 @@ class FitResult:
     statistics: Statistics
     samples: int
     rows_used: np.ndarray  # per row channel
+    jackknife: dict = field(default_factory=dict)  # folds, and the rank-deficient ones with what they do not see
 
     @property
     def phi(self) -> np.ndarray:
@@ -141,8 +150,12 @@ def _factor(gram: np.ndarray) -> np.ndarray:
 
 
 def prior_parameters(model: RobotModel) -> np.ndarray:
-    """What fills the combinations the data cannot see: the CAD inertia, zero for everything else."""
-    return np.nan_to_num(model.cad_parameters(), nan=0.0)
+    """What fills the combinations the data cannot see: the CAD inertia, the configured nominal motor gains (a
+    motor whose joint never moves still needs a gain to predict its input), zero for everything else."""
+    prior = np.nan_to_num(model.cad_parameters(), nan=0.0)
+    for b in model.layout.blocks_of("motor_gain"):
+        prior[b.start] = model.config.motor(b.owner).nominal_gain
+    return prior
 
 
 def expand(base: BaseParameters, beta: np.ndarray, prior: np.ndarray) -> np.ndarray:
@@ -153,30 +166,37 @@ def expand(base: BaseParameters, beta: np.ndarray, prior: np.ndarray) -> np.ndar
 
 
 def _input_columns(model: RobotModel, base: BaseParameters) -> InputColumns:
-    gains = {o.row: o.gain_index for o in output_channels(model) if o.gain_index is not None}
-    missing = [model.layout.names[g] for g in gains.values() if g not in set(base.independent.tolist())]
-    if missing:
-        raise DataError(f"the run does not identify {', '.join(missing)} on its own: no IV (try --estimator ols)")
-    return InputColumns(gains)
+    """The channels whose instrument is the predicted input: those whose gain the run identifies on its own. A
+    gain that is no base parameter (its motor never moves, or its input never changes) has no row of Zᵀ A_b to
+    instrument: that channel's raw instruments serve (the replaced entry would be the gain's, unused)."""
+    independent = set(base.independent.tolist())
+    return InputColumns({o.row: o.gain_index for o in output_channels(model)
+                         if o.gain_index is not None and o.gain_index in independent})
 
 
 def _estimate(name: str, stats: Statistics, keep: np.ndarray | None, base: BaseParameters, settings: FitSettings,
-              nu: int, inputs: InputColumns | None, start: np.ndarray | None) -> tuple[np.ndarray, dict]:
-    """β̂ of one estimator on the blocks `keep`."""
+              nu: int, inputs: InputColumns | None, start: np.ndarray | None,
+              prior: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
+    """β̂ of one estimator on the blocks `keep`; base directions those blocks do not see stay at `prior` (β)."""
     sel = slice(None) if keep is None else keep
     G = stats.system(sel)
     p = stats.p
     ind = base.independent
     if name == "ols":
-        return base_least_squares(G, ind), {}
+        return base_least_squares(G, ind, prior), {}
     if name == "pls":
-        coef = pls_path(G[:p, :p], G[:p, p], nu)[-1]
+        path = pls_path(G[:p, :p], G[:p, p], nu)
+        coef = path[-1] if len(path) else np.zeros(p)  # no latent variable at all: Xᵀy is zero on these blocks
         return base.base(coef), {"n_components": nu}
     cross = stats.cross[sel].sum(axis=0)
     cross_b = stats.cross_b[sel].sum(axis=0)
-    beta0 = start if start is not None else base_least_squares(G, ind)
-    beta, iterations = instrumental_variables(cross, cross_b, ind, beta0, inputs, settings.iv_iterations)
-    return beta, {"iterations": iterations, "instrument_window_s": settings.instrument_window_s}
+    beta0 = start if start is not None else base_least_squares(G, ind, prior)
+    beta, iterations, step = instrumental_variables(cross, cross_b, ind, beta0, inputs, settings.iv_iterations,
+                                                    IV_TOL, prior)
+    # `step`: the last iteration's largest relative change (rounding keeps a short run's near 1e-8, above the 1e-10
+    # that ends the iteration; far above, the iterate has not settled and only its jackknife error says how far off)
+    return beta, {"iterations": iterations, "converged": step < IV_TOL,
+                  "last_step": step if np.isfinite(step) else None, "instrument_window_s": settings.instrument_window_s}
 
 
 def cross_validate_nu(stats: Statistics, max_components: int) -> dict:
@@ -189,6 +209,8 @@ def cross_validate_nu(stats: Statistics, max_components: int) -> dict:
         held = stats.gram[k].sum(axis=0)
         train = total - held
         path = pls_path(train[:p, :p], train[:p, p], max_components)
+        if not len(path):  # Xᵀy is zero without block k: this training set predicts zero
+            path = np.zeros((1, p))
         available = min(available, len(path))
         for i, coef in enumerate(path[:available]):
             press[i] += held[p, p] - 2 * coef @ held[:p, p] + coef @ held[:p, :p] @ coef
@@ -204,12 +226,19 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
     base = base_parameters_from_factor(_factor(G)[:, :p], model.layout.names, BASE_RTOL)
     if base.rank == 0:
         raise DataError("the data excite no parameter at all (does the arm move?)")
+    if not np.any(G[:p, p]):
+        raise DataError("the measured wrenches and joint torques are all zero (or excite no parameter): nothing "
+                        "fixes the parameters' scale")
     rows_used = stats.rows.sum(axis=0)
     if rows_used.sum() < 2 * base.rank:
         raise DataError(f"too few samples: {int(rows_used.sum())} usable rows for a rank of {base.rank}")
     if stats.n_blocks < 2:
-        raise DataError(f"too few samples for cross-validation: {samples} (at least {2 * 200} needed)")
+        if settings.blocks < 2:
+            raise DataError(f"--blocks {settings.blocks}: cross-validation and the jackknife need at least 2 time "
+                            "blocks")
+        raise DataError(f"too few samples for cross-validation: {samples} (at least {2 * MIN_BLOCK_SAMPLES} needed)")
     prior = prior_parameters(model)
+    beta_prior = base.base(prior)
     cv = cross_validate_nu(stats, base.rank) if settings.n_components is None else {"n_components": settings.n_components}
     nu = int(cv["n_components"])
     names = [settings.estimator] + [e for e in ESTIMATORS if e != settings.estimator]
@@ -218,21 +247,42 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
         inputs = _input_columns(model, base)
     elif "iv" in names:
         names.remove("iv")
+    B = stats.n_blocks
+    folds = [np.arange(B) != k for k in range(B)]
+    unseen = np.array([_unseen(stats.system(f), base) for f in folds])  # (B, rank)
     estimates: dict[str, Estimate] = {}
     for name in names:
-        beta, detail = _estimate(name, stats, None, base, settings, nu, inputs, None)
-        jack = np.array([
-            _estimate(name, stats, np.arange(stats.n_blocks) != k, base, settings, nu, inputs, beta)[0]
-            for k in range(stats.n_blocks)
-        ])
-        B = stats.n_blocks
+        beta, detail = _estimate(name, stats, None, base, settings, nu, inputs, None, beta_prior)
+        jack = np.array([_estimate(name, stats, f, base, settings, nu, inputs, beta, beta_prior)[0] for f in folds])
         se = np.sqrt((B - 1) / B * np.sum((jack - jack.mean(axis=0)) ** 2, axis=0))
         estimates[name] = Estimate(name, beta, se, expand(base, beta, prior), detail)
     variance = {name: channel_variance(stats, e.phi, model) for name, e in estimates.items()}
     chosen = estimates[settings.estimator]
-    cad = np.abs(base.base(prior))
+    cad = np.abs(base.base(np.nan_to_num(model.cad_parameters(), nan=0.0)))
     identified = (chosen.se <= IDENTIFIED_RSE * np.abs(chosen.beta)) | (chosen.se <= IDENTIFIED_SCALE * cad)
-    return FitResult(model, base, estimates, settings.estimator, cv, variance, identified, stats, samples, rows_used)
+    identified &= ~unseen.any(axis=0)  # a fold cannot see them: the jackknife has no error to give
+    step = chosen.detail.get("last_step", 0.0)
+    settled = step is not None and step <= IV_SETTLED
+    identified &= settled  # an iterate that still moves: neither it nor its jackknife spread means anything
+    if not identified.any():
+        hint = f"; the {chosen.name} iteration did not settle (try --estimator ols)" if not settled else ""
+        raise DataError(f"the run determines no base combination to 10 % ({samples} samples, rank {base.rank}{hint}): "
+                        "a longer run, or one that moves every joint both ways, is needed")
+    combinations = base.combinations()
+    edges = stats.block_samples
+    jackknife = {"folds": B, "rank_deficient": [
+        {"block": k, "samples": [int(edges[k]), int(edges[k + 1])],
+         "unseen": [combinations[i] for i in np.flatnonzero(unseen[k])]}
+        for k in range(B) if unseen[k].any()]}
+    return FitResult(model, base, estimates, settings.estimator, cv, variance, identified, stats, samples, rows_used,
+                     jackknife)
+
+
+def _unseen(gram: np.ndarray, base: BaseParameters) -> np.ndarray:
+    """(rank,) bool: the base combinations that the rows of `gram` ([A b]ᵀ[A b]) leave undetermined, i.e. that a
+    direction their base Gram does not see involves (above rounding)."""
+    V = unseen_directions(gram[np.ix_(base.independent, base.independent)])
+    return np.linalg.norm(V, axis=1) > 1e-8
 
 
 def channel_variance(stats: Statistics, phi: np.ndarray, model: RobotModel) -> np.ndarray:

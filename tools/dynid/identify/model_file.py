@@ -5,13 +5,17 @@ JSON (``format: dynid-model``, ``format_version: 1``), written atomically:
     robot             {name, config_digest, config_source, config_text}: the configuration it was fitted for,
                       embedded, so the file stands alone
     parameters        {name: value}: a full Φ (layout order) that reproduces the identified base parameters;
-                      combinations the data do not determine take the CAD value (inertia) or 0
+                      combinations the data do not determine take the CAD value (inertia), the nominal motor
+                      gain, or 0
     base              {rank, combinations, independent, dependent, K, values, standard_errors, identified}: the
                       base parameters β = Φ[independent] + K Φ[dependent] of the run, with jackknife standard
                       errors; `identified` is false where the run cannot determine the combination
     estimators        {ols|pls|iv: {base values, standard errors, detail}}: all three, side by side
     estimator         the one `parameters` comes from; `settings` the fit's settings
     n_components      PLS ν (cross-validated unless given); `cv` the held-out error for every ν
+    jackknife         {folds, rank_deficient: [{block, samples [start, end), unseen}]}: the folds (one time block
+                      left out) whose data miss base directions the whole run sees, and the combinations
+                      involved (all reported not `identified`); empty on a run long enough
     outputs           {channels, units, noise_std, residual_variance}: Λ, per output channel, on the
                       identification data (rows at rest left out)
     derivatives       the offline derivative estimator (the configuration's)

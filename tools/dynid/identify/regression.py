@@ -80,6 +80,8 @@ def kernel_pls1(XtX: np.ndarray, Xty: np.ndarray, n_components: int) -> PLSCompo
         w /= np.linalg.norm(w)
         r = w - R[:, :a] @ (P[:, :a].T @ w)
         tt = r @ XtX @ r
+        if not tt > 0.0:  # rounding left Xᵀy a direction X does not see (a rank-deficient fold): nothing more to fit
+            return PLSComponents(W[:, :a], P[:, :a], C[:a])
         P[:, a], C[a], W[:, a], R[:, a] = XtX @ r / tt, r @ xy / tt, w, r
         xy = xy - P[:, a] * (C[a] * tt)
     return PLSComponents(W, P, C)
@@ -140,16 +142,50 @@ def pls_path(XtX: np.ndarray, Xty: np.ndarray, max_components: int) -> np.ndarra
 # Least squares and instrumental variables on the base parameters
 
 
+# A direction a Gram-like matrix (AᵀA, or the IV's ZᵀA) does not see: its eigen- or singular value, columns
+# scaled to unit norm, below this times the largest. It is the base parameters' rank cut (singular values of the
+# column-normalised A below 1e-6 of the largest, dynid.identification.BASE_RTOL) squared, as a Gram squares them.
+NULL_RTOL = 1e-12
+
+
 def solve_normal(G: np.ndarray, g: np.ndarray) -> np.ndarray:
     """Solve G x = g for a symmetric positive definite G, scaled to unit diagonal first (Gram of mixed units)."""
     s = column_scale(G)
     return scipy.linalg.solve(G / np.outer(s, s), g / s, assume_a="pos") / s
 
 
-def base_least_squares(gram: np.ndarray, base: np.ndarray) -> np.ndarray:
-    """β̂ minimising |A_b β − b|² from the augmented Gram [A b]ᵀ[A b] (p+1, p+1); `base`: columns of A_b."""
+def unseen_directions(G: np.ndarray, rtol: float = NULL_RTOL) -> np.ndarray:
+    """An orthonormal basis (columns) of the directions a Gram matrix G does not see, in G's unit-diagonal scaling
+    (x = v / s for a direction v, s the column norms): none when G is positive definite to `rtol`."""
+    s = column_scale(G)
+    lam, V = np.linalg.eigh(G / np.outer(s, s))
+    return V[:, lam <= rtol * max(float(lam[-1]), 0.0)]
+
+
+def restricted_solve(M: np.ndarray, g: np.ndarray, x0: np.ndarray, rtol: float = NULL_RTOL) -> np.ndarray:
+    """x solving M x = g (square, Gram-like M) on the directions M sees, and keeping x0 on those it does not.
+
+    With M's columns scaled to unit norm, x = x0 + the minimum-norm least-squares solution of M d = g − M x0,
+    singular values below `rtol` times the largest counted as zero. Where M has full numerical rank this is
+    M⁻¹ g whatever x0; where it is singular along v, x's component along v is x0's: the data say nothing there.
+    """
+    s = column_scale(M.T @ M)
+    U, sv, Vt = np.linalg.svd(M / s[None, :])
+    keep = sv > rtol * sv[0] if sv.size and sv[0] > 0 else np.zeros(sv.size, dtype=bool)
+    d = Vt[keep].T @ ((U[:, keep].T @ (g - M @ x0)) / sv[keep])
+    return x0 + d / s
+
+
+def base_least_squares(gram: np.ndarray, base: np.ndarray, prior: np.ndarray | None = None) -> np.ndarray:
+    """β̂ minimising |A_b β − b|² from the augmented Gram [A b]ᵀ[A b] (p+1, p+1); `base`: columns of A_b.
+
+    Rows that do not determine every base parameter (a jackknife fold of a short run: a joint that moved one way
+    in the left-out block only) leave the directions they do not see at `prior` (β; zero by default)."""
     p = gram.shape[0] - 1
-    return solve_normal(gram[np.ix_(base, base)], gram[base, p])
+    G, g = gram[np.ix_(base, base)], gram[base, p]
+    if unseen_directions(G).shape[1] == 0:
+        return solve_normal(G, g)
+    return restricted_solve(G, g, np.zeros(len(base)) if prior is None else prior)
 
 
 @dataclass(frozen=True)
@@ -175,15 +211,22 @@ def instrumental_variables(
     inputs: InputColumns,
     iterations: int = 20,
     tol: float = 1e-10,
-) -> tuple[np.ndarray, int]:
+    prior: np.ndarray | None = None,
+) -> tuple[np.ndarray, int, float]:
     """Iterated IV on the base parameters: β = (Zᵀ A_b)⁻¹ Zᵀ b, Z from the instrument regressors.
 
     `cross[c]` = Σ Z₀ᵀ A over the rows of channel c (Z₀: the regressor along the instrument trajectory, A: the
     measured one), `cross_b[c]` = Σ Z₀ᵀ b. The instruments' input columns hold the model's predicted inputs,
-    which depend on Φ̂, so the estimate is iterated to a fixed point from `beta0`. Returns (β̂, iterations).
+    which depend on Φ̂, so the estimate is iterated to a fixed point from `beta0`. Where Zᵀ A_b is singular (rows
+    that do not see every base direction) those directions stay at `prior` (default `beta0`), as in
+    `restricted_solve`. Returns (β̂, iterations, the last step: max relative change of β̂, below `tol` once
+    converged); an iteration that cannot go on (a gain at zero, a step that is not finite) ends with the last
+    iterate and an infinite step.
     """
     r, p, _ = cross.shape
     beta = beta0.copy()
+    x0 = beta0 if prior is None else prior
+    step = np.inf
     for it in range(1, iterations + 1):
         phi = np.zeros(p)
         phi[base] = beta
@@ -194,16 +237,22 @@ def instrumental_variables(
                 ZA += cross[c]
                 Zb += cross_b[c]
                 continue
-            if phi[g] == 0.0:
-                raise np.linalg.LinAlgError(f"the gain at index {g} is not a base parameter of this run")
+            if not (np.isfinite(phi[g]) and phi[g] != 0.0):  # no predicted input to instrument this channel with
+                return beta, it - 1, np.inf
             G = instrument_map(p, g, phi)
             ZA += G.T @ cross[c]
             Zb += G.T @ cross_b[c]
         M = ZA[np.ix_(base, base)]
         s = column_scale(M.T @ M)
-        new = np.linalg.solve(M / s[None, :], Zb[base]) / s
-        done = np.max(np.abs(new - beta) / np.maximum(np.abs(new), 1e-12)) < tol
+        sv = scipy.linalg.svdvals(M / s[None, :])
+        if sv[-1] > NULL_RTOL * sv[0]:
+            new = np.linalg.solve(M / s[None, :], Zb[base]) / s
+        else:
+            new = restricted_solve(M, Zb[base], x0)
+        if not np.all(np.isfinite(new)):
+            return beta, it - 1, np.inf
+        step = float(np.max(np.abs(new - beta) / np.maximum(np.abs(new), 1e-12)))
         beta = new
-        if done:
-            return beta, it
-    return beta, iterations
+        if step < tol:
+            return beta, it, step
+    return beta, iterations, step
