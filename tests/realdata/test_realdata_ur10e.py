@@ -136,10 +136,7 @@ def test_every_command_over_every_file_without_a_traceback(tmp_path: Path) -> No
     # The monitor's fixed-lag filter needs uniform samples; the UR's stamps step 2-12 ms: one line, exit 2.
     done = run("export", "--model", str(model), "--out", str(tmp_path / "ur.dcoef"))
     assert done.returncode == 2 and "uniform samples" in done.stderr and len(done.stderr.splitlines()) == 1, done.stderr
-    # A singular jackknife fold of IV on a short window is the one traceback left: its fix (identify/fit.py,
-    # identify/regression.py) is on another branch. Any other traceback fails here.
-    other = [(c, e) for c, e in tracebacks if not ("instrumental_variables" in e and "Singular matrix" in e)]
-    assert not other, "\n".join(f"{c}\n{e}" for c, e in other)
+    assert not tracebacks, "\n".join(f"{c}\n{e}" for c, e in tracebacks)
     refused = [(o, e) for o, rc, e in outcomes if rc == 2]
     for o, e in refused:
         print(f"  exit 2: {o}: {e}")
@@ -152,6 +149,3 @@ def test_every_command_over_every_file_without_a_traceback(tmp_path: Path) -> No
     assert not unexpected, unexpected
     assert sum("the scale cannot be identified" in e for _, e in refused) == len(FILES)
     assert [o for o, rc, _ in outcomes if rc == 0 and o.startswith(("validate", "detect", "import", "structure"))]
-    if tracebacks:
-        pytest.xfail(f"{len(tracebacks)} fits on a 12 s window end in IV's singular jackknife fold "
-                     f"(fixed on the jackknife branch): {', '.join(c.split(' --data ')[1].split()[0] for c, _ in tracebacks)}")
