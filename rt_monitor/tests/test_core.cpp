@@ -139,6 +139,45 @@ TEST(Loader, RefusesDamagedBytes) {
     EXPECT_NE(robot.message.find("not for 'another_arm'"), std::string::npos) << robot.message;
 }
 
+// The payload's counts and string lengths are walked before LCM's decoder runs (issue 22, found by the fuzzer): a
+// count of 2³¹ − 1 joints made the decoder ask for gigabytes before reading one, a string length of −2³¹ overflowed
+// int inside it. Each is now refused from the counts alone, with the reason.
+TEST(Loader, RefusesAbsurdCountsBeforeDecoding) {
+    const std::vector<uint8_t> good = fixture_bytes();
+    auto be32 = [](std::vector<uint8_t>& b, size_t at, uint32_t v) {
+        for (int k = 0; k < 4; ++k) b[at + size_t(k)] = uint8_t(v >> (8 * (3 - k)));
+    };
+    size_t at = 16 + 8;  // the header, the LCM fingerprint: then six strings, then n_joints
+    const size_t first_string = at;
+    for (int k = 0; k < 6; ++k)
+        at += 4 + (size_t(good[at]) << 24 | size_t(good[at + 1]) << 16 | size_t(good[at + 2]) << 8 | good[at + 3]);
+    const size_t n_joints = at;
+    ASSERT_EQ(good[n_joints + 3], 7);  // the fixture's seven joints
+    struct Case {
+        const char* what;
+        size_t at;
+        uint32_t value;
+        LoadError error;
+        const char* message;
+    };
+    const Case cases[] = {
+        {"2^31 - 1 joints", n_joints, 0x7FFFFFFFu, LoadError::kCapacity, "too many joints: 2147483647 (this build's capacity is 8)"},
+        {"-1 joints", n_joints, 0xFFFFFFFFu, LoadError::kDecode, "not a dynid.coefficients_t"},
+        {"string length -2^31", first_string, 0x80000000u, LoadError::kDecode, "not a dynid.coefficients_t"},
+        {"string length 0", first_string, 0, LoadError::kDecode, "not a dynid.coefficients_t"},
+        {"string past the end", first_string, 0x7FFFFFFFu, LoadError::kDecode, "not a dynid.coefficients_t"},
+    };
+    Coefficients c;
+    for (const Case& k : cases) {
+        auto b = good;
+        be32(b, k.at, k.value);
+        reseal(b);
+        const LoadResult r = load_coefficients_from_bytes(b.data(), b.size(), "", c);
+        EXPECT_EQ(r.error, k.error) << k.what << ": " << r.message;
+        EXPECT_NE(r.message.find(k.message), std::string::npos) << k.what << ": " << r.message;
+    }
+}
+
 TEST(Core, NoHeapAllocationOver100000Samples) {
     auto c = load_fixture();
     // With an augmented model's effects on (the CAD fixture has none): their evaluation allocates nothing either.
