@@ -158,12 +158,21 @@ CandumpReplay::~CandumpReplay() {
 
 ReadStatus CandumpReplay::read(RxFrame& out, int /*timeout_ms*/) noexcept {
     char line[160];  // a classic-CAN candump -L line is < 80 characters
-    while (std::fgets(line, sizeof line, f_)) {
+    while (true) {
+        // fgets stops at a newline, not at a NUL byte, and strlen would: a damaged log's line with a NUL in it must
+        // not end early and have its rest read as a line of its own. The buffer is filled with a non-zero byte
+        // first, so the terminator fgets writes is the buffer's last NUL: its index is the true length.
+        std::memset(line, '\n', sizeof line);
+        if (!std::fgets(line, sizeof line, f_)) break;
+        const size_t n = size_t(static_cast<const char*>(memrchr(line, '\0', sizeof line)) - line);
         ++line_;
-        const size_t n = std::strlen(line);
         if (n == sizeof line - 1 && line[n - 1] != '\n') {  // overlong: skip the rest of it
             int c;
             while ((c = std::fgetc(f_)) != EOF && c != '\n') {}
+            ++counters_.bad_lines;
+            continue;
+        }
+        if (std::memchr(line, '\0', n)) {  // a NUL byte: one bad line
             ++counters_.bad_lines;
             continue;
         }

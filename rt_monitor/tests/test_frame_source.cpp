@@ -135,6 +135,29 @@ TEST(Candump, ReplayCountsBadLinesAndEnds) {
     EXPECT_NE(err.find("/nonexistent/x.log: cannot open candump log"), std::string::npos) << err;
 }
 
+// A damaged log (issue 22, found by the fuzzer): a line with a NUL byte whose rest is a frame. fgets + strlen ended
+// the line's text at the NUL, and once the line was longer than the buffer its rest was read as a line of its own:
+// here a frame out of a line that is not one. Now such a line is one bad line, however long, and nothing else.
+TEST(Candump, ALineWithANulByteIsOneBadLine) {
+    const std::string path = temp_dir() + "/nul.log";
+    std::string text = "(1.000000) can0 111#00";
+    text += '\0';
+    text += std::string(150, 'x') + "(1.000100) can1 112#0000\n";  // past the 160-byte buffer
+    text += "(1.000200) can0 3DA#00";
+    text += '\0';
+    text += "80\n(1.000300) can2 480#0100\n";  // short, a NUL in it
+    std::ofstream(path, std::ios::binary) << text;
+    std::string err;
+    auto r = CandumpReplay::open(path, kBuses, false, err);
+    ASSERT_TRUE(r) << err;
+    RxFrame f;
+    std::vector<canid_t> ids;
+    while (r->read(f, 0) == ReadStatus::kFrame) ids.push_back(f.frame.can_id);
+    EXPECT_EQ(ids, (std::vector<canid_t>{0x480}));
+    EXPECT_EQ(r->counters().bad_lines, 2u);
+    EXPECT_EQ(r->line_number(), 3u);
+}
+
 TEST(Candump, RealTimeReplayKeepsTheLogsPace) {
     const std::string path = temp_dir() + "/rt.log";
     std::ofstream(path) << "(100.000000) can0 111#00\n(100.030000) can0 111#01\n(100.060000) can0 111#02\n";
