@@ -269,6 +269,13 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     if (c.threshold <= 0 || c.ft_threshold <= 0 || c.hysteresis <= 0 || c.hysteresis > 1 || c.sample_period <= 0 ||
         c.alpha <= 0 || c.alpha >= 1 || c.min_speed < 0)
         return dim("detector settings out of range (threshold, hysteresis, α, period)");
+    // The sample clock counts periods between stamps in int64: a period of 1e-300 s overflowed it (fuzzer finding).
+    if (c.sample_period < kMinSamplePeriod || c.sample_period > kMaxSamplePeriod) {
+        std::ostringstream m;
+        m << "sample period " << c.sample_period << " s out of range: " << kMinSamplePeriod << " to " << kMaxSamplePeriod
+          << " s";
+        return dim(m.str());
+    }
 
     if (!expected_robot.empty() && c.robot_name != expected_robot)
         return fail(LoadError::kRobot, "exported for robot '" + c.robot_name + "', not for '" + expected_robot + "'");

@@ -12,6 +12,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <iterator>
 #include <memory>
@@ -175,6 +176,29 @@ TEST(Loader, RefusesAbsurdCountsBeforeDecoding) {
         const LoadResult r = load_coefficients_from_bytes(b.data(), b.size(), "", c);
         EXPECT_EQ(r.error, k.error) << k.what << ": " << r.message;
         EXPECT_NE(r.message.find(k.message), std::string::npos) << k.what << ": " << r.message;
+    }
+}
+
+// A sample period outside 1e-5..1 s is refused (fuzzer finding: 1e-300 s passed the loader, and the sample clock's
+// count of periods between two stamps overflowed int64, undefined behaviour).
+TEST(Loader, RefusesASamplePeriodOutOfRange) {
+    const std::vector<uint8_t> good = fixture_bytes();
+    // The period's 8 bytes (big-endian 0.001) come just before the filter window's count (31); find them.
+    ASSERT_EQ(load_fixture()->window, 31);
+    const uint8_t ms[12] = {0x3F, 0x50, 0x62, 0x4D, 0xD2, 0xF1, 0xA9, 0xFC, 0, 0, 0, 31};
+    const auto it = std::search(good.begin() + 16, good.end() - 4, std::begin(ms), std::end(ms));
+    ASSERT_NE(it, good.end() - 4);
+    for (const double period : {1e-300, 5e-6, 2.0}) {
+        auto b = good;
+        uint64_t bits = 0;
+        std::memcpy(&bits, &period, 8);
+        for (int k = 0; k < 8; ++k) b[size_t(it - good.begin()) + size_t(k)] = uint8_t(bits >> (8 * (7 - k)));
+        reseal(b);
+        Coefficients c;
+        const LoadResult r = load_coefficients_from_bytes(b.data(), b.size(), "", c);
+        EXPECT_EQ(r.error, LoadError::kDimension) << period << ": " << r.message;
+        EXPECT_NE(r.message.find("sample period"), std::string::npos) << r.message;
+        EXPECT_NE(r.message.find("out of range: 1e-05 to 1 s"), std::string::npos) << r.message;
     }
 }
 

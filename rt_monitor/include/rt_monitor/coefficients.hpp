@@ -18,6 +18,8 @@ constexpr int kMaxMotors = 8;
 constexpr int kMaxOutputs = 16;
 constexpr int kMaxWindow = 64;
 constexpr int kMaxEffects = 8;
+// The sample period a file may give: 100 kHz to 1 Hz (the sample clock counts periods between µs stamps in int64).
+constexpr double kMinSamplePeriod = 1e-5, kMaxSamplePeriod = 1.0;
 
 constexpr uint32_t kFileVersion = 3;  // 2: effects (Stribeck, spring) of an augmented model; 3: supply tracking
 constexpr char kMagic[8] = {'D', 'Y', 'N', 'I', 'D', 'C', 'O', 'F'};
