@@ -18,7 +18,7 @@ namespace dynid::rt {
 namespace {
 
 bool fail(std::string& error, const std::string& path, int line, const std::string& what) {
-    error = path + ":" + std::to_string(line) + ": " + what;
+    error = path + ":" + std::to_string(line) + ": " + escape_control(what);  // a NUL or CR of the file: one line
     return false;
 }
 
@@ -316,7 +316,8 @@ bool Assembler::init(const MonitorConfig& cfg, const Coefficients& coef, std::st
         for (size_t a = 0; a < cfg.axes.size(); ++a)
             if (cfg.axes[a].joint == coef.joint_names[size_t(j)]) joint_axis_[size_t(j)] = int(a);
         if (joint_axis_[size_t(j)] < 0) {
-            error = "joint " + coef.joint_names[size_t(j)] + " of the coefficient file has no 'axis' line in the configuration";
+            error = "joint " + shown_name(coef.joint_names[size_t(j)]) +
+                    " of the coefficient file has no 'axis' line in the configuration";
             return false;
         }
     }
@@ -329,7 +330,7 @@ bool Assembler::init(const MonitorConfig& cfg, const Coefficients& coef, std::st
         for (size_t p = 0; p < cfg.pwms.size(); ++p)
             if (name == "pwm." + cfg.pwms[p].motor) src = 6 + int(p);
         if (src < 0) {
-            error = "channel " + name + " of the coefficient file is served by no board of the configuration";
+            error = "channel " + shown_name(name) + " of the coefficient file is served by no board of the configuration";
             return false;
         }
         out_src_[size_t(o)] = src;

@@ -31,6 +31,7 @@ bool finite_all(const V& v) {
 
 std::string str(int v) { return std::to_string(v); }
 
+
 // The payload's shape, walked before LCM's decoder sees it: lcm-gen's decoder sizes each array from its count field
 // before it reads one element (a 4-byte count of 2³¹ − 1 asked for gigabytes) and computes a string's length minus
 // one in int (undefined for a length of −2³¹). This walk reads the counts and lengths in the order of
@@ -130,6 +131,26 @@ LoadResult check_shape(const uint8_t* p, size_t n) {
 }
 
 }  // namespace
+
+std::string escape_control(const std::string& s) {
+    std::string out;
+    for (const char ch : s) {
+        const unsigned char b = static_cast<unsigned char>(ch);
+        if (b < 0x20 || b == 0x7F) {
+            static const char* hex = "0123456789ABCDEF";
+            out += "\\x";
+            out += hex[b >> 4];
+            out += hex[b & 15];
+        } else {
+            out += ch;
+        }
+    }
+    return out;
+}
+
+std::string shown_name(const std::string& s) {
+    return s.size() > 80 ? escape_control(s.substr(0, 80)) + "…" : escape_control(s);
+}
 
 uint32_t crc32(const uint8_t* data, size_t size) {
     // CRC-32/IEEE 802.3 (zlib's), reflected, table-driven; the table is built once.
@@ -261,10 +282,10 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
         return dim("supply tracking: the time constant must be ≥ 0, and the prior positive when it is on");
     for (int i = 0; i < c.n_outputs; ++i)
         if (c.supply_gate[i] < 0 || (c.supply_gate[i] > 0 && c.channel_kind[i] != 1))
-            return dim("supply tracking: the gate of " + c.channel_names[i] + " must be ≥ 0, and 0 unless it is a motor input");
+            return dim("supply tracking: the gate of " + shown_name(c.channel_names[i]) + " must be ≥ 0, and 0 unless it is a motor input");
     for (int i = 0; i < c.n_outputs; ++i) {
-        if (c.residual_variance[i] <= 0) return dim("Λ of " + c.channel_names[i] + " is not positive");
-        if (c.divisor[i] == 0) return dim("the divisor (motor gain) of " + c.channel_names[i] + " is zero");
+        if (c.residual_variance[i] <= 0) return dim("Λ of " + shown_name(c.channel_names[i]) + " is not positive");
+        if (c.divisor[i] == 0) return dim("the divisor (motor gain) of " + shown_name(c.channel_names[i]) + " is zero");
     }
     if (c.threshold <= 0 || c.ft_threshold <= 0 || c.hysteresis <= 0 || c.hysteresis > 1 || c.sample_period <= 0 ||
         c.alpha <= 0 || c.alpha >= 1 || c.min_speed < 0)
@@ -278,7 +299,7 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     }
 
     if (!expected_robot.empty() && c.robot_name != expected_robot)
-        return fail(LoadError::kRobot, "exported for robot '" + c.robot_name + "', not for '" + expected_robot + "'");
+        return fail(LoadError::kRobot, "exported for robot '" + shown_name(c.robot_name) + "', not for '" + shown_name(expected_robot) + "'");
 
     // Accepted: copy into fixed storage.
     out = Coefficients{};

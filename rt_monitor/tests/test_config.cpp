@@ -242,6 +242,15 @@ TEST(MonitorConfig, TheRobotLineIsRequired) {
     EXPECT_EQ(error_of("robot_two", with("robot a b", 2)), d + "robot_two.conf:2: bad 'robot' line: robot a b");
 }
 
+// Control bytes of the file in a message are escaped: one whole line, and a NUL does not cut it.
+TEST(MonitorConfig, ARefusalIsOneLineWhateverTheFileHolds) {
+    const std::string d = ::testing::TempDir() + "rt_config_";
+    EXPECT_EQ(error_of("cr", with("stale_ms five\r", 5)), d + "cr.conf:5: bad 'stale_ms' line: stale_ms five\\x0D");
+    std::string nul = with("colour", 5);
+    nul.insert(nul.find("colour") + 3, 1, '\0');
+    EXPECT_EQ(error_of("nul_key", nul), d + "nul_key.conf:5: unknown key 'col\\x00our'");
+}
+
 TEST(MonitorConfig, TextAndFileParseAlike) {
     MonitorConfig a, b;
     std::string ea, eb;

@@ -179,6 +179,23 @@ TEST(Loader, RefusesAbsurdCountsBeforeDecoding) {
     }
 }
 
+// Names from the file are shown with their control bytes escaped, so a refusal stays one whole line (fuzzer finding:
+// a robot name holding a NUL and a newline cut the message, and split it).
+TEST(Loader, ARefusalIsOneLineWhateverTheNames) {
+    std::vector<uint8_t> b = fixture_bytes();
+    const std::string name = "icub_right_arm";
+    const auto it = std::search(b.begin(), b.end(), name.begin(), name.end());
+    ASSERT_NE(it, b.end());
+    const std::string bad("icub\nri\0ht_arm", name.size());
+    std::copy(bad.begin(), bad.end(), it);
+    reseal(b);
+    Coefficients c;
+    const LoadResult r = load_coefficients_from_bytes(b.data(), b.size(), "icub_right_arm", c);
+    EXPECT_EQ(r.error, LoadError::kRobot);
+    EXPECT_EQ(r.message, "exported for robot 'icub\\x0Ari\\x00ht_arm', not for 'icub_right_arm'");
+    EXPECT_EQ(dynid::rt::shown_name(std::string(100, 'a')), std::string(80, 'a') + "…");
+}
+
 // A sample period outside 1e-5..1 s is refused (fuzzer finding: 1e-300 s passed the loader, and the sample clock's
 // count of periods between two stamps overflowed int64, undefined behaviour).
 TEST(Loader, RefusesASamplePeriodOutOfRange) {

@@ -104,6 +104,12 @@ struct LoadResult {
 
 uint32_t crc32(const uint8_t* data, size_t size);
 
+// Outside text in a message, so that a refusal stays one whole line whatever the file holds (fuzzer finding: a robot
+// name with a NUL and a newline in it): control bytes (newline, carriage return, NUL, …) as \xNN.
+std::string escape_control(const std::string& s);
+// The same for a name from a file, cut at 80 bytes ("…").
+std::string shown_name(const std::string& s);
+
 // Check and load a coefficient file. `expected_robot` empty: any robot. On failure `out` is unspecified.
 LoadResult load_coefficients(const std::string& path, const std::string& expected_robot, Coefficients& out);
 LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const std::string& expected_robot,
