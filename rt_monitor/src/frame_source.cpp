@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdint>
 #include <cstring>
 #include <ctime>
 
@@ -30,11 +31,14 @@ int hex_digit(char c) noexcept {
 
 // `(S.F)`: integer seconds and up to 9 fraction digits, to µs without floating point.
 const char* parse_time(const char* p, int64_t& us) noexcept {
+    // The most seconds whose µs, fraction included, fit int64 (9 223 372 036 853 s, 292 271 years). The bound was
+    // checked before the last digit, which let 9 223 372 036 854..9 with a signed overflow through (fuzzer finding).
+    constexpr int64_t kMaxSeconds = (INT64_MAX - 999999) / 1000000;
     if (*p++ != '(') return nullptr;
     int64_t s = 0;
     int digits = 0;
     for (; *p >= '0' && *p <= '9'; ++p, ++digits) {
-        if (s > 922337203685LL) return nullptr;  // would overflow as µs
+        if (s > (kMaxSeconds - (*p - '0')) / 10) return nullptr;  // would overflow as µs
         s = s * 10 + (*p - '0');
     }
     if (digits == 0) return nullptr;

@@ -111,6 +111,17 @@ TEST(Candump, FormatParsesBackToTheSameFrame) {
     }
 }
 
+// The largest stamp whose µs fit int64 parses; one second more is a bad line (fuzzer finding: 9223372036854 to
+// 9223372036859 s passed the old bound and overflowed int64 when scaled to µs).
+TEST(Candump, StampsUpToTheInt64LimitAndNoFurther) {
+    RxFrame f;
+    ASSERT_EQ(parse_candump_line("(9223372036853.999999) can0 111#00", kBuses, f), LineKind::kFrame);
+    EXPECT_EQ(f.t_us, INT64_C(9223372036853999999));
+    for (const char* bad : {"(9223372036854.000000) can0 111#00", "(9223372036857) can0 111#00",
+                            "(9223372036859.5) can0 111#00", "(92233720368547758070) can0 111#00"})
+        EXPECT_EQ(parse_candump_line(bad, kBuses, f), LineKind::kBad) << bad;
+}
+
 TEST(Candump, ReplayCountsBadLinesAndEnds) {
     const std::string path = temp_dir() + "/x.log";
     std::ofstream(path) << "(1.000000) can0 3DA#008000800080\n"
