@@ -237,11 +237,11 @@ int main(int argc, char **argv)
         } else if (strcmp(a, "--repeat") == 0) {
             char *end = 0;
             repeat = strtol(argv[i], &end, 10);
-            if (*end || repeat < 1 || repeat > 100000) return usage("--repeat N needs 1 <= N <= 100000");
+            if (*end || repeat < 1 || repeat > BOARDS_MAX_REPEAT) return usage("--repeat N needs 1 <= N <= 100000");
         } else if (strcmp(a, "--t0") == 0) {
             char *end = 0;
             t0 = strtod(argv[i], &end);
-            if (*end || !(t0 >= 0.0 && t0 < 1e11)) return usage("--t0 must be seconds >= 0");
+            if (*end || !(t0 >= 0.0 && t0 < BOARDS_MAX_T0_S)) return usage("--t0 must be seconds >= 0");
         } else {
             char *end = 0;
             restart_addr = strtol(argv[i], &end, 10);
@@ -262,9 +262,8 @@ int main(int argc, char **argv)
     /* Pass 1: check every row before any frame leaves, and find whether the strain channels ever clamp. */
     while ((rc = boards_csv_row(&g_csv, &g_cols, g_err)) == 1) {
         const double t = g_csv.v[g_cols.t];
-        if (n > 0 && !(t > t_prev)) {
-            snprintf(g_err, sizeof g_err, "%.400s:%ld: t is not strictly increasing", csv_path, g_csv.line);
-            return fail(BOARDS_EXIT_BADDATA);
+        if ((rc = boards_csv_check_time(&g_csv, n, t, t_first, t_prev, g_err)) != 0) {
+            return fail(-rc);
         }
         for (i = 0; i < 6; ++i) {  /* the strain board's own conversion decides what clamps */
             int16_t count;
@@ -324,7 +323,7 @@ int main(int argc, char **argv)
         if (r > 0 && (rc = boards_csv_rewind(&g_csv, g_err)) != 0) break;
         while ((rc = boards_csv_row(&g_csv, &g_cols, g_err)) == 1) {
             /* µs timestamps as dynid.io.candump computes them (rint: numpy's round, half to even) */
-            const int64_t t_us = (int64_t)rint((g_csv.v[g_cols.t] - t_first + t0 + shift) * 1e6);
+            const int64_t t_us = boards_time_us(g_csv.v[g_cols.t], t_first, t0, shift);
             if (k == 0) {
                 struct timespec rt;
                 pace.first_us = t_us - 300;

@@ -159,13 +159,22 @@ static int read_conf_pass(FILE *f, const char *path, int pass, boards_conf_t *c,
 int boards_read_conf(const char *path, boards_conf_t *c, char err[BOARDS_ERR_LEN])
 {
     FILE *f = fopen(path, "r");
-    long buses_line = 0;
     int rc;
-    memset(c, 0, sizeof *c);
     if (!f) {
+        memset(c, 0, sizeof *c);
         snprintf(err, BOARDS_ERR_LEN, "%s: %s", path, strerror(errno));
         return BOARDS_EXIT_NOFILE;
     }
+    rc = boards_read_conf_stream(f, path, c, err);
+    fclose(f);
+    return rc;
+}
+
+int boards_read_conf_stream(FILE *f, const char *path, boards_conf_t *c, char err[BOARDS_ERR_LEN])
+{
+    long buses_line = 0;
+    int rc;
+    memset(c, 0, sizeof *c);
     rc = read_conf_pass(f, path, 0, c, &buses_line, err);
     if (rc == 0 && c->n_buses == 0) {
         snprintf(err, BOARDS_ERR_LEN, "%s: no 'buses' line", path);
@@ -179,7 +188,6 @@ int boards_read_conf(const char *path, boards_conf_t *c, char err[BOARDS_ERR_LEN
         snprintf(err, BOARDS_ERR_LEN, "%s: read error", path);
         rc = BOARDS_EXIT_NOFILE;
     }
-    fclose(f);
     if (rc != 0) {
         return rc;
     }
@@ -239,6 +247,18 @@ static int find(char *field[], int n, const char *name)
 int boards_csv_open(boards_csv_t *csv, const char *path, const boards_conf_t *c, const char *sensor,
                     boards_columns_t *cols, char err[BOARDS_ERR_LEN])
 {
+    FILE *f = fopen(path, "r");
+    if (!f) {
+        csv->f = 0;
+        snprintf(err, BOARDS_ERR_LEN, "%s: %s", path, strerror(errno));
+        return BOARDS_EXIT_NOFILE;
+    }
+    return boards_csv_open_stream(csv, f, path, c, sensor, cols, err);
+}
+
+int boards_csv_open_stream(boards_csv_t *csv, FILE *f, const char *path, const boards_conf_t *c, const char *sensor,
+                           boards_columns_t *cols, char err[BOARDS_ERR_LEN])
+{
     static const char *axes[6] = {"fx", "fy", "fz", "tx", "ty", "tz"};
     static char *field[BOARDS_MAX_COLS];
     char name[2 * BOARDS_NAME_LEN + 16];
@@ -246,11 +266,7 @@ int boards_csv_open(boards_csv_t *csv, const char *path, const boards_conf_t *c,
     int n, i, s;
     csv->path = path;
     csv->line = 1;
-    csv->f = fopen(path, "r");
-    if (!csv->f) {
-        snprintf(err, BOARDS_ERR_LEN, "%s: %s", path, strerror(errno));
-        return BOARDS_EXIT_NOFILE;
-    }
+    csv->f = f;
 #define BAD(...) do { snprintf(err, BOARDS_ERR_LEN, __VA_ARGS__); fclose(csv->f); csv->f = 0; \
                       return BOARDS_EXIT_BADDATA; } while (0)
     if (!fgets(g_line, LINE_LEN, csv->f)) BAD("%s: empty file, no CSV header", path);
@@ -343,4 +359,25 @@ int boards_csv_rewind(boards_csv_t *csv, char err[BOARDS_ERR_LEN])
     }
     csv->line = 1;
     return 0;
+}
+
+int boards_csv_check_time(const boards_csv_t *csv, long n, double t, double t_first, double t_prev,
+                          char err[BOARDS_ERR_LEN])
+{
+    if (n > 0 && !(t > t_prev)) {
+        snprintf(err, BOARDS_ERR_LEN, "%s:%ld: t is not strictly increasing", csv->path, csv->line);
+        return -BOARDS_EXIT_BADDATA;
+    }
+    if (n > 0 && !(t - t_first <= BOARDS_MAX_SPAN_S)) {
+        snprintf(err, BOARDS_ERR_LEN, "%s:%ld: t is %g s after the first row, more than the %g s a run may span",
+                 csv->path, csv->line, t - t_first, BOARDS_MAX_SPAN_S);
+        return -BOARDS_EXIT_BADDATA;
+    }
+    return 0;
+}
+
+int64_t boards_time_us(double t, double t_first, double t0, double shift)
+{
+    /* |t - t_first| <= BOARDS_MAX_SPAN_S, t0 < BOARDS_MAX_T0_S, shift < 2 BOARDS_MAX_REPEAT spans: < 2.1e18 us. */
+    return (int64_t)rint((t - t_first + t0 + shift) * 1e6);
 }

@@ -62,6 +62,8 @@ typedef struct {
 
 /* Read the rt_monitor configuration (rt_monitor/README.md, "Configuration"); 0 or an exit code, err set. */
 int boards_read_conf(const char *path, boards_conf_t *c, char err[BOARDS_ERR_LEN]);
+/* The same from an open stream (read twice: it is rewound; not closed); `path` names it in messages. */
+int boards_read_conf_stream(FILE *f, const char *path, boards_conf_t *c, char err[BOARDS_ERR_LEN]);
 
 /* The CSV: header, then rows of numbers (docs/design.md §4). */
 typedef struct {
@@ -72,10 +74,25 @@ typedef struct {
 } boards_csv_t;
 int boards_csv_open(boards_csv_t *csv, const char *path, const boards_conf_t *c, const char *sensor,
                     boards_columns_t *cols, char err[BOARDS_ERR_LEN]);
+/* The same on an open stream, which csv->f then owns (closed on error here, else by the caller). */
+int boards_csv_open_stream(boards_csv_t *csv, FILE *f, const char *path, const boards_conf_t *c, const char *sensor,
+                           boards_columns_t *cols, char err[BOARDS_ERR_LEN]);
 /* 1: a row in csv->v; 0: end of file; negative exit code on a bad row (err set). */
 int boards_csv_row(boards_csv_t *csv, const boards_columns_t *cols, char err[BOARDS_ERR_LEN]);
 /* Back to the first data row (the second pass). */
 int boards_csv_rewind(boards_csv_t *csv, char err[BOARDS_ERR_LEN]);
+
+/* Times: a run spans at most BOARDS_MAX_SPAN_S seconds (116 days), --t0 is below BOARDS_MAX_T0_S and --repeat at
+ * most BOARDS_MAX_REPEAT, so that every frame's µs timestamp fits int64 with room to spare. */
+#define BOARDS_MAX_SPAN_S 1e7
+#define BOARDS_MAX_T0_S 1e11
+#define BOARDS_MAX_REPEAT 100000L
+/* Pass 1's check of row n's time t (n from 0; t_first, t_prev the first and the previous row's): strictly
+ * increasing, within the span. 0, or -BOARDS_EXIT_BADDATA with err naming the file and line. */
+int boards_csv_check_time(const boards_csv_t *csv, long n, double t, double t_first, double t_prev,
+                          char err[BOARDS_ERR_LEN]);
+/* A row's µs timestamp, as dynid.io.candump computes it (rint: half to even), for rows that passed the check. */
+int64_t boards_time_us(double t, double t_first, double t0, double shift);
 
 /* ---- sinks: "candump:PATH", "loopback:DIR", "socketcan" (interfaces named as the configured buses) ---- */
 typedef struct {

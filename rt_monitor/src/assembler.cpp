@@ -2,9 +2,14 @@
 // the same code the board emulators encode with.
 #include "rt_monitor/assembler.hpp"
 
+#include <cerrno>
+#include <climits>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
+#include <map>
 #include <sstream>
+#include <tuple>
 
 #include "icub_can.h"
 
@@ -13,7 +18,7 @@ namespace dynid::rt {
 namespace {
 
 bool fail(std::string& error, const std::string& path, int line, const std::string& what) {
-    error = path + ":" + std::to_string(line) + ": " + what;
+    error = path + ":" + std::to_string(line) + ": " + escape_control(what);  // a NUL or CR of the file: one line
     return false;
 }
 
@@ -23,111 +28,271 @@ int bus_index(const MonitorConfig& c, const std::string& name) {
     return -1;
 }
 
-// One configuration line other than 'buses' (read before all others: keys come in any order), its key read
-// from `s`. False with `what` naming the problem.
-bool parse_line(const std::string& key, std::istringstream& s, const std::string& raw, MonitorConfig& out,
-                bool& have_strain, std::string& what) {
-    std::string bad_bus;
-    auto bus = [&](int& b) {
-        std::string name;
-        if (!(s >> name)) return false;
-        b = bus_index(out, name);
-        if (b < 0) bad_bus = name;
-        return b >= 0;
+// A whole token as a finite number (strtod's syntax) or a decimal integer; false on anything else.
+bool to_number(const std::string& t, double& v) {
+    if (t.empty()) return false;
+    char* end = nullptr;
+    errno = 0;
+    v = std::strtod(t.c_str(), &end);
+    return *end == '\0' && errno != ERANGE && std::isfinite(v);
+}
+bool to_integer(const std::string& t, long long& v) {
+    if (t.empty()) return false;
+    char* end = nullptr;
+    errno = 0;
+    v = std::strtoll(t.c_str(), &end, 10);
+    return *end == '\0' && errno != ERANGE;
+}
+
+std::string str(double v) {
+    std::ostringstream o;
+    o << v;
+    return o.str();
+}
+
+// What has been read so far, for the duplicate checks: where each single-valued key, joint, motor and board slot
+// was first given.
+struct Seen {
+    std::map<std::string, int> key, joint, motor;
+    std::map<std::tuple<int, int, int>, int> axis_slot, pwm_slot;  // (bus, address, slot)
+    std::map<std::pair<int, int>, int> skin_board;                 // (bus, address)
+};
+
+// One configuration line other than 'buses' (read before all others: keys come in any order), split into tokens
+// (`tok[0]` the key). False with `what` naming the problem.
+bool parse_line(const std::vector<std::string>& tok, const std::string& raw, int line, MonitorConfig& out, Seen& seen,
+                std::string& what) {
+    const std::string& key = tok[0];
+    const size_t n = tok.size();
+    auto bad = [&] {
+        what = "bad '" + key + "' line: " + raw;
+        return false;
     };
-    int address = 1;  // the board address this line names, if any
-    bool ok = true;
+    auto bus = [&](const std::string& name, int& b) {
+        b = bus_index(out, name);
+        if (b >= 0) return true;
+        std::string known;
+        for (const auto& x : out.buses) known += " " + x;
+        what = "bus '" + name + "' is not in the 'buses' line (" + known.substr(1) + ")";
+        return false;
+    };
+    auto address = [&](const std::string& t, int& a) {
+        long long v = 0;
+        if (!to_integer(t, v)) return bad();
+        if (v < 0 || v > 15) {
+            what = "board address must be 0..15";
+            return false;
+        }
+        a = int(v);
+        return true;
+    };
+    auto slot = [&](const std::string& t, int& sl) {
+        long long v = 0;
+        if (!to_integer(t, v) || (v != 0 && v != 1)) {
+            what = "bad '" + key + "' line (the slot is 0 or 1): " + raw;
+            return false;
+        }
+        sl = int(v);
+        return true;
+    };
+    // The value of a one-number setting, within [lo, hi] (`unit` for the message).
+    auto setting = [&](double lo, double hi, const char* unit, double& v) {
+        if (n != 2 || !to_number(tok[1], v)) return bad();
+        if (v < lo || v > hi) {
+            what = key + " " + tok[1] + " is out of range: " + str(lo) + " to " + str(hi) + unit;
+            return false;
+        }
+        return true;
+    };
+    auto integer_setting = [&](long long lo, long long hi, const char* unit, long long& v) {
+        if (n != 2) return bad();
+        if (!to_integer(tok[1], v)) {  // 1e3, or a whole number beyond long long: its range is the problem
+            double d = 0;
+            if (!to_number(tok[1], d)) return bad();
+            if (d != std::floor(d)) {
+                what = key + " must be a whole number, got " + tok[1];
+                return false;
+            }
+            v = d < -9e18 ? LLONG_MIN : d > 9e18 ? LLONG_MAX : (long long)d;
+        }
+        if (v < lo || v > hi) {
+            what = key + " " + tok[1] + " is out of range: " + std::to_string(lo) + " to " + std::to_string(hi) + unit;
+            return false;
+        }
+        return true;
+    };
+
+    // Keys given once: a second line is refused, naming the first.
+    static const char* kOnce[] = {"robot", "lcm_url", "stale_ms", "pair_us", "status_hz", "residual_every", "strain"};
+    for (const char* k : kOnce) {
+        if (key != k) continue;
+        const auto it = seen.key.find(key);
+        if (it != seen.key.end()) {
+            what = "a second '" + key + "' line (the first is line " + std::to_string(it->second) + ")";
+            return false;
+        }
+        seen.key[key] = line;
+    }
+
     if (key == "robot") {
-        ok = bool(s >> out.robot);
+        if (n != 2) return bad();
+        out.robot = tok[1];
     } else if (key == "lcm_url") {
-        ok = bool(s >> out.lcm_url);
+        if (n != 2) return bad();
+        out.lcm_url = tok[1];
     } else if (key == "stale_ms") {
         double ms = 0;
-        ok = bool(s >> ms) && ms > 0;
+        if (!setting(kStaleMsMin, kStaleMsMax, " ms", ms)) return false;
         out.stale_us = int64_t(std::llround(ms * 1000));
     } else if (key == "pair_us") {
-        ok = bool(s >> out.pair_us) && out.pair_us > 0;
+        long long v = 0;
+        if (!integer_setting(kPairUsMin, kPairUsMax, " µs", v)) return false;
+        out.pair_us = v;
     } else if (key == "status_hz") {
-        ok = bool(s >> out.status_hz) && out.status_hz > 0;
+        if (!setting(kStatusHzMin, kStatusHzMax, " Hz", out.status_hz)) return false;
     } else if (key == "residual_every") {
-        ok = bool(s >> out.residual_every) && out.residual_every > 0;
+        long long v = 0;
+        if (!integer_setting(1, kResidualEveryMax, " samples", v)) return false;
+        out.residual_every = int(v);
     } else if (key == "strain") {
-        ok = bus(out.strain_bus) && bool(s >> out.strain_address);
-        for (double& fs : out.full_scale) ok = ok && bool(s >> fs) && fs > 0 && std::isfinite(fs);
-        address = out.strain_address;
-        have_strain = true;
-    } else if (key == "axis") {
-        AxisMap a;
-        ok = bus(a.bus) && bool(s >> a.address >> a.slot >> a.joint >> a.ticks_per_degree >> a.zero_deg) &&
-             a.ticks_per_degree > 0 && (a.slot == 0 || a.slot == 1);
-        address = a.address;
-        out.axes.push_back(a);
-    } else if (key == "pwm") {
-        PwmMap p;
-        ok = bus(p.bus) && bool(s >> p.address >> p.slot >> p.motor >> p.full_scale) && p.full_scale > 0 &&
-             (p.slot == 0 || p.slot == 1);
-        address = p.address;
-        out.pwms.push_back(p);
+        if (n != 9) return bad();
+        if (!bus(tok[1], out.strain_bus) || !address(tok[2], out.strain_address)) return false;
+        for (size_t k = 0; k < 6; ++k) {
+            if (!to_number(tok[3 + k], out.full_scale[k])) return bad();
+            if (!(out.full_scale[k] > 0 && out.full_scale[k] <= kFullScaleMax)) {
+                what = "strain full scale " + tok[3 + k] + " is out of range: above 0, at most " + str(kFullScaleMax);
+                return false;
+            }
+        }
+    } else if (key == "axis" || key == "pwm") {
+        const bool is_axis = key == "axis";
+        if (n != (is_axis ? 7u : 6u)) return bad();
+        int b = 0, a = 0, sl = 0;
+        if (!bus(tok[1], b) || !address(tok[2], a) || !slot(tok[3], sl)) return false;
+        const std::string& name = tok[4];
+        double v1 = 0, v2 = 0;
+        if (!to_number(tok[5], v1) || (is_axis && !to_number(tok[6], v2))) return bad();
+        if (is_axis && !(v1 >= kTicksPerDegreeMin && v1 <= kTicksPerDegreeMax)) {
+            what = "ticks per degree " + tok[5] + " is out of range: " + str(kTicksPerDegreeMin) + " to " +
+                   str(kTicksPerDegreeMax);
+            return false;
+        }
+        if (is_axis && !(std::fabs(v2) <= kZeroDegMax)) {
+            what = "zero " + tok[6] + " is out of range: -" + str(kZeroDegMax) + " to " + str(kZeroDegMax) + " degrees";
+            return false;
+        }
+        if (!is_axis && !(v1 > 0 && v1 <= kPwmFullScaleMax)) {
+            what = "PWM full scale " + tok[5] + " is out of range: above 0, at most " + str(kPwmFullScaleMax);
+            return false;
+        }
+        auto& names = is_axis ? seen.joint : seen.motor;
+        auto& slots = is_axis ? seen.axis_slot : seen.pwm_slot;
+        const auto named = names.find(name);
+        if (named != names.end()) {
+            what = std::string(is_axis ? "joint" : "motor") + " '" + name + "' has a second '" + key +
+                   "' line (the first is line " + std::to_string(named->second) + ")";
+            return false;
+        }
+        const auto used = slots.find({b, a, sl});
+        if (used != slots.end()) {
+            what = "board " + tok[1] + " " + tok[2] + " slot " + tok[3] + " has a second '" + key +
+                   "' line (the first is line " + std::to_string(used->second) + ")";
+            return false;
+        }
+        names[name] = line;
+        slots[{b, a, sl}] = line;
+        if (is_axis) {
+            AxisMap m;
+            m.bus = b, m.address = a, m.slot = sl, m.joint = name, m.ticks_per_degree = v1, m.zero_deg = v2;
+            out.axes.push_back(m);
+        } else {
+            PwmMap m;
+            m.bus = b, m.address = a, m.slot = sl, m.motor = name, m.full_scale = v1;
+            out.pwms.push_back(m);
+        }
     } else if (key == "skin") {
         MonitorConfig::Skin k;
-        ok = bus(k.bus) && bool(s >> k.address >> k.patch >> k.side) && (k.side == "distal" || k.side == "proximal");
-        address = k.address;
+        if (n != 5) return bad();
+        if (!bus(tok[1], k.bus) || !address(tok[2], k.address)) return false;
+        k.patch = tok[3];
+        k.side = tok[4];
+        if (k.side != "distal" && k.side != "proximal") {
+            what = "skin side must be distal or proximal, got '" + k.side + "'";
+            return false;
+        }
+        const auto used = seen.skin_board.find({k.bus, k.address});
+        if (used != seen.skin_board.end()) {
+            what = "skin board " + tok[1] + " " + tok[2] + " has a second 'skin' line (the first is line " +
+                   std::to_string(used->second) + ")";
+            return false;
+        }
+        if (out.skins.size() == kMaxSkins) {
+            what = "more than " + std::to_string(kMaxSkins) + " skin boards";
+            return false;
+        }
+        seen.skin_board[{k.bus, k.address}] = line;
         out.skins.push_back(k);
     } else {
         what = "unknown key '" + key + "'";
         return false;
     }
-    std::string extra;
-    if (!bad_bus.empty()) {
-        std::string known;
-        for (const auto& b : out.buses) known += " " + b;
-        what = "bus '" + bad_bus + "' is not in the 'buses' line (" + known.substr(1) + ")";
-    } else if (!ok || (s >> extra)) {
-        what = "bad '" + key + "' line: " + raw;
-    } else if (address < 0 || address > 15) {
-        what = "board address must be 0..15";
-    }
-    return what.empty();
+    return true;
 }
 
 }  // namespace
 
-bool load_monitor_config(const std::string& path, MonitorConfig& out, std::string& error) {
-    std::ifstream in(path);
-    if (!in) return fail(error, path, 0, "cannot open the configuration");
+bool parse_monitor_config(const std::string& text, const std::string& path, MonitorConfig& out, std::string& error) {
     out = MonitorConfig{};
     std::vector<std::string> lines;
-    for (std::string raw; std::getline(in, raw);) lines.push_back(raw);
-    auto content = [&](size_t i) { return std::istringstream(lines[i].substr(0, lines[i].find('#'))); };
+    {
+        std::istringstream in(text);
+        for (std::string raw; std::getline(in, raw);) lines.push_back(raw);
+    }
+    // Tokens of line i, comment stripped.
+    auto tokens = [&](size_t i) {
+        std::istringstream s(lines[i].substr(0, lines[i].find('#')));
+        std::vector<std::string> tok;
+        for (std::string t; s >> t;) tok.push_back(t);
+        return tok;
+    };
     // The 'buses' line first, then every other line in file order: keys come in any order (repeated keys keep
     // theirs: the n-th skin line is skin board n).
     int buses_line = 0;
     for (size_t i = 0; i < lines.size(); ++i) {
-        std::istringstream s = content(i);
-        std::string key;
-        if (!(s >> key) || key != "buses") continue;
+        const std::vector<std::string> tok = tokens(i);
+        if (tok.empty() || tok[0] != "buses") continue;
         const int ln = int(i) + 1;
         if (buses_line)
             return fail(error, path, ln, "a second 'buses' line (the first is line " + std::to_string(buses_line) + ")");
-        for (std::string b; s >> b;) {
-            if (bus_index(out, b) >= 0) return fail(error, path, ln, "bus '" + b + "' named twice");
-            out.buses.push_back(b);
+        for (size_t k = 1; k < tok.size(); ++k) {
+            if (bus_index(out, tok[k]) >= 0) return fail(error, path, ln, "bus '" + tok[k] + "' named twice");
+            out.buses.push_back(tok[k]);
         }
-        if (out.buses.empty() || out.buses.size() > 8)
+        if (out.buses.empty() || out.buses.size() > size_t(kMaxBuses))
             return fail(error, path, ln, "bad 'buses' line (1 to 8 bus names): " + lines[i]);
         buses_line = ln;
     }
     if (!buses_line) return fail(error, path, 0, "no 'buses' line");
-    bool have_strain = false;
+    Seen seen;
     for (size_t i = 0; i < lines.size(); ++i) {
-        std::istringstream s = content(i);
-        std::string key, what;
-        if (!(s >> key) || key == "buses") continue;
-        if (!parse_line(key, s, lines[i], out, have_strain, what)) return fail(error, path, int(i) + 1, what);
+        const std::vector<std::string> tok = tokens(i);
+        std::string what;
+        if (tok.empty() || tok[0] == "buses") continue;
+        if (!parse_line(tok, lines[i], int(i) + 1, out, seen, what)) return fail(error, path, int(i) + 1, what);
     }
-    if (!have_strain) return fail(error, path, 0, "no 'strain' line");
-    if (out.skins.size() > 16) return fail(error, path, 0, "at most 16 skin boards");
+    if (!seen.key.count("robot"))
+        return fail(error, path, 0, "no 'robot' line (the coefficient file's robot is checked against it)");
+    if (!seen.key.count("strain")) return fail(error, path, 0, "no 'strain' line");
     return true;
+}
+
+bool load_monitor_config(const std::string& path, MonitorConfig& out, std::string& error) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return fail(error, path, 0, "cannot open the configuration");
+    std::ostringstream text;
+    text << in.rdbuf();
+    if (in.bad()) return fail(error, path, 0, "read error");
+    return parse_monitor_config(text.str(), path, out, error);
 }
 
 int Assembler::board(int bus, unsigned cls, unsigned address) const noexcept {
@@ -151,7 +316,8 @@ bool Assembler::init(const MonitorConfig& cfg, const Coefficients& coef, std::st
         for (size_t a = 0; a < cfg.axes.size(); ++a)
             if (cfg.axes[a].joint == coef.joint_names[size_t(j)]) joint_axis_[size_t(j)] = int(a);
         if (joint_axis_[size_t(j)] < 0) {
-            error = "joint " + coef.joint_names[size_t(j)] + " of the coefficient file has no 'axis' line in the configuration";
+            error = "joint " + shown_name(coef.joint_names[size_t(j)]) +
+                    " of the coefficient file has no 'axis' line in the configuration";
             return false;
         }
     }
@@ -164,7 +330,7 @@ bool Assembler::init(const MonitorConfig& cfg, const Coefficients& coef, std::st
         for (size_t p = 0; p < cfg.pwms.size(); ++p)
             if (name == "pwm." + cfg.pwms[p].motor) src = 6 + int(p);
         if (src < 0) {
-            error = "channel " + name + " of the coefficient file is served by no board of the configuration";
+            error = "channel " + shown_name(name) + " of the coefficient file is served by no board of the configuration";
             return false;
         }
         out_src_[size_t(o)] = src;

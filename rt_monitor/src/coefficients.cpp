@@ -31,7 +31,126 @@ bool finite_all(const V& v) {
 
 std::string str(int v) { return std::to_string(v); }
 
+
+// The payload's shape, walked before LCM's decoder sees it: lcm-gen's decoder sizes each array from its count field
+// before it reads one element (a 4-byte count of 2³¹ − 1 asked for gigabytes) and computes a string's length minus
+// one in int (undefined for a length of −2³¹). This walk reads the counts and lengths in the order of
+// lcmtypes/coefficients_t.lcm, allocating nothing: a count above this build's capacity is refused as such (kCapacity,
+// the loader's message), a negative count, a string length below 1 or anything running past the end as not this
+// type (kDecode). The decoder then only runs on payloads whose every array fits the capacity and the bytes.
+class Shape {
+public:
+    Shape(const uint8_t* p, size_t n) : p_(p), n_(n) {}
+    bool ok() const { return ok_; }
+    size_t at() const { return at_; }
+    void skip(uint64_t k) {
+        if (ok_ && k <= n_ - at_) at_ += size_t(k);
+        else ok_ = false;
+    }
+    uint64_t u64() {
+        uint64_t v = 0;
+        if (ok_ && n_ - at_ >= 8)
+            for (int i = 0; i < 8; ++i) v = v << 8 | p_[at_ + size_t(i)];  // LCM is big-endian
+        skip(8);
+        return v;
+    }
+    int32_t i32() {
+        uint32_t v = 0;
+        if (ok_ && n_ - at_ >= 4)
+            for (int i = 0; i < 4; ++i) v = v << 8 | p_[at_ + size_t(i)];
+        skip(4);
+        return int32_t(v);
+    }
+    void strings(int64_t count) {
+        for (int64_t k = 0; k < count && ok_; ++k) {
+            const int32_t len = i32();
+            if (len < 1) ok_ = false;
+            skip(uint64_t(len < 1 ? 0 : len));
+        }
+    }
+    // count elements of `size` bytes; count is within the capacity here (at most 64), so no product overflows.
+    void array(int64_t count, uint64_t size) { skip(uint64_t(count) * size); }
+    // A count field: negative is not this type; above the capacity is refused as too many.
+    bool count(int32_t& n, const char* what, int max, LoadResult& r) {
+        n = i32();
+        if (!ok_ || n < 0) {
+            ok_ = false;
+            return false;
+        }
+        if (n > max) {
+            r = fail(LoadError::kCapacity, std::string("too many ") + what + ": " + str(n) + " (this build's capacity is " +
+                                               str(max) + ")");
+            return false;
+        }
+        return true;
+    }
+
+private:
+    const uint8_t* p_;
+    size_t n_, at_ = 0;
+    bool ok_ = true;
+};
+
+LoadResult check_shape(const uint8_t* p, size_t n) {
+    const LoadResult not_this = fail(LoadError::kDecode, "payload is not a dynid.coefficients_t (fingerprint or size)");
+    Shape w(p, n);
+    LoadResult r;
+    if (w.u64() != uint64_t(dynid::coefficients_t::getHash())) return not_this;
+    w.strings(6);  // robot_name … estimator
+    int32_t nj = 0, nb = 0, nm = 0, no = 0, win = 0, ne = 0;
+    if (!w.count(nj, "joints", kMaxJoints, r)) return r ? not_this : r;
+    w.strings(nj);
+    if (!w.count(nb, "bodies", kMaxBodies, r)) return r ? not_this : r;
+    w.strings(nb);
+    w.array(nb, 4 + 1 + 4 + 8 * (3 + 9 + 3 + 10));  // parent, joint_type, joint_index, axis, rotation, translation, φ
+    w.array(3, 8);                                  // gravity
+    w.array(1, 4);                                  // sensor_body
+    w.strings(1);                                   // sensor_name
+    if (!w.count(nm, "motors", kMaxMotors, r)) return r ? not_this : r;
+    w.strings(nm);
+    w.array(int64_t(nm) * nj, 8);                   // motor_velocity
+    w.array(nm, 1 + 8 * 4);                         // motor_friction_on, motor_friction
+    w.array(nj, 8 * 4);                             // joint_friction
+    if (!w.count(no, "outputs", kMaxOutputs, r)) return r ? not_this : r;
+    w.strings(no);
+    w.array(no, 1);                                 // channel_kind
+    w.array(6, 8);                                  // ft_offset
+    w.array(int64_t(no) * nj, 8);                   // row_map
+    w.array(no, 4 + 8 + 8 + 8 + 8);                 // channel_motor, divisor, residual_variance, gate_joints, gate_motors
+    w.array(1, 4 * 8 + 3 * 4 + 8 + 8);              // min_speed … ft_threshold, calibration_samples, debounce_on/off,
+                                                    // hysteresis, sample_period
+    if (!w.count(win, "filter samples", kMaxWindow, r)) return r ? not_this : r;
+    w.array(2, 4);                                  // order, lag
+    w.array(int64_t(3) * win, 8);                   // filter
+    if (!w.count(ne, "effects", kMaxEffects, r)) return r ? not_this : r;
+    w.array(ne, 1 + 4 + 3 * 8);                     // effect_kind, effect_joint, effect_param
+    w.array(2, 8);                                  // supply_time_constant, supply_prior
+    w.array(no, 8);                                 // supply_gate
+    if (!w.ok() || w.at() != n) return not_this;
+    return LoadResult{};
+}
+
 }  // namespace
+
+std::string escape_control(const std::string& s) {
+    std::string out;
+    for (const char ch : s) {
+        const unsigned char b = static_cast<unsigned char>(ch);
+        if (b < 0x20 || b == 0x7F) {
+            static const char* hex = "0123456789ABCDEF";
+            out += "\\x";
+            out += hex[b >> 4];
+            out += hex[b & 15];
+        } else {
+            out += ch;
+        }
+    }
+    return out;
+}
+
+std::string shown_name(const std::string& s) {
+    return s.size() > 80 ? escape_control(s.substr(0, 80)) + "…" : escape_control(s);
+}
 
 uint32_t crc32(const uint8_t* data, size_t size) {
     // CRC-32/IEEE 802.3 (zlib's), reflected, table-driven; the table is built once.
@@ -76,9 +195,11 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     if (crc32(data, kHeader + length) != read_le32(data + kHeader + length))
         return fail(LoadError::kCrc, "CRC mismatch (the file is corrupt)");
 
+    // Counts and lengths first, without allocating (Shape): the decoder then allocates within the capacity only.
+    if (LoadResult shape = check_shape(data + kHeader, size_t(length)); !shape) return shape;
     dynid::coefficients_t c;
     int used = -1;
-    try {  // start-up only: the LCM decoder allocates, and may throw on absurd sizes
+    try {  // start-up only: the LCM decoder allocates (within the capacity, after check_shape)
         used = c.decode(data + kHeader, 0, int(length));
     } catch (...) {
         used = -1;
@@ -161,17 +282,24 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
         return dim("supply tracking: the time constant must be ≥ 0, and the prior positive when it is on");
     for (int i = 0; i < c.n_outputs; ++i)
         if (c.supply_gate[i] < 0 || (c.supply_gate[i] > 0 && c.channel_kind[i] != 1))
-            return dim("supply tracking: the gate of " + c.channel_names[i] + " must be ≥ 0, and 0 unless it is a motor input");
+            return dim("supply tracking: the gate of " + shown_name(c.channel_names[i]) + " must be ≥ 0, and 0 unless it is a motor input");
     for (int i = 0; i < c.n_outputs; ++i) {
-        if (c.residual_variance[i] <= 0) return dim("Λ of " + c.channel_names[i] + " is not positive");
-        if (c.divisor[i] == 0) return dim("the divisor (motor gain) of " + c.channel_names[i] + " is zero");
+        if (c.residual_variance[i] <= 0) return dim("Λ of " + shown_name(c.channel_names[i]) + " is not positive");
+        if (c.divisor[i] == 0) return dim("the divisor (motor gain) of " + shown_name(c.channel_names[i]) + " is zero");
     }
     if (c.threshold <= 0 || c.ft_threshold <= 0 || c.hysteresis <= 0 || c.hysteresis > 1 || c.sample_period <= 0 ||
         c.alpha <= 0 || c.alpha >= 1 || c.min_speed < 0)
         return dim("detector settings out of range (threshold, hysteresis, α, period)");
+    // The sample clock counts periods between stamps in int64: a period of 1e-300 s overflowed it (fuzzer finding).
+    if (c.sample_period < kMinSamplePeriod || c.sample_period > kMaxSamplePeriod) {
+        std::ostringstream m;
+        m << "sample period " << c.sample_period << " s out of range: " << kMinSamplePeriod << " to " << kMaxSamplePeriod
+          << " s";
+        return dim(m.str());
+    }
 
     if (!expected_robot.empty() && c.robot_name != expected_robot)
-        return fail(LoadError::kRobot, "exported for robot '" + c.robot_name + "', not for '" + expected_robot + "'");
+        return fail(LoadError::kRobot, "exported for robot '" + shown_name(c.robot_name) + "', not for '" + shown_name(expected_robot) + "'");
 
     // Accepted: copy into fixed storage.
     out = Coefficients{};

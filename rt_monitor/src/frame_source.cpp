@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdint>
 #include <cstring>
 #include <ctime>
 
@@ -30,11 +31,14 @@ int hex_digit(char c) noexcept {
 
 // `(S.F)`: integer seconds and up to 9 fraction digits, to µs without floating point.
 const char* parse_time(const char* p, int64_t& us) noexcept {
+    // The most seconds whose µs, fraction included, fit int64 (9 223 372 036 853 s, 292 271 years). The bound was
+    // checked before the last digit, which let 9 223 372 036 854..9 with a signed overflow through (fuzzer finding).
+    constexpr int64_t kMaxSeconds = (INT64_MAX - 999999) / 1000000;
     if (*p++ != '(') return nullptr;
     int64_t s = 0;
     int digits = 0;
     for (; *p >= '0' && *p <= '9'; ++p, ++digits) {
-        if (s > 922337203685LL) return nullptr;  // would overflow as µs
+        if (s > (kMaxSeconds - (*p - '0')) / 10) return nullptr;  // would overflow as µs
         s = s * 10 + (*p - '0');
     }
     if (digits == 0) return nullptr;
@@ -158,12 +162,21 @@ CandumpReplay::~CandumpReplay() {
 
 ReadStatus CandumpReplay::read(RxFrame& out, int /*timeout_ms*/) noexcept {
     char line[160];  // a classic-CAN candump -L line is < 80 characters
-    while (std::fgets(line, sizeof line, f_)) {
+    while (true) {
+        // fgets stops at a newline, not at a NUL byte, and strlen would: a damaged log's line with a NUL in it must
+        // not end early and have its rest read as a line of its own. The buffer is filled with a non-zero byte
+        // first, so the terminator fgets writes is the buffer's last NUL: its index is the true length.
+        std::memset(line, '\n', sizeof line);
+        if (!std::fgets(line, sizeof line, f_)) break;
+        const size_t n = size_t(static_cast<const char*>(memrchr(line, '\0', sizeof line)) - line);
         ++line_;
-        const size_t n = std::strlen(line);
         if (n == sizeof line - 1 && line[n - 1] != '\n') {  // overlong: skip the rest of it
             int c;
             while ((c = std::fgetc(f_)) != EOF && c != '\n') {}
+            ++counters_.bad_lines;
+            continue;
+        }
+        if (std::memchr(line, '\0', n)) {  // a NUL byte: one bad line
             ++counters_.bad_lines;
             continue;
         }

@@ -12,6 +12,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <iterator>
 #include <memory>
@@ -137,6 +138,85 @@ TEST(Loader, RefusesDamagedBytes) {
     const LoadResult robot = load_coefficients_from_bytes(good.data(), good.size(), "another_arm", c);
     EXPECT_EQ(robot.error, LoadError::kRobot);
     EXPECT_NE(robot.message.find("not for 'another_arm'"), std::string::npos) << robot.message;
+}
+
+// The payload's counts and string lengths are walked before LCM's decoder runs (issue 22, found by the fuzzer): a
+// count of 2³¹ − 1 joints made the decoder ask for gigabytes before reading one, a string length of −2³¹ overflowed
+// int inside it. Each is now refused from the counts alone, with the reason.
+TEST(Loader, RefusesAbsurdCountsBeforeDecoding) {
+    const std::vector<uint8_t> good = fixture_bytes();
+    auto be32 = [](std::vector<uint8_t>& b, size_t at, uint32_t v) {
+        for (int k = 0; k < 4; ++k) b[at + size_t(k)] = uint8_t(v >> (8 * (3 - k)));
+    };
+    size_t at = 16 + 8;  // the header, the LCM fingerprint: then six strings, then n_joints
+    const size_t first_string = at;
+    for (int k = 0; k < 6; ++k)
+        at += 4 + (size_t(good[at]) << 24 | size_t(good[at + 1]) << 16 | size_t(good[at + 2]) << 8 | good[at + 3]);
+    const size_t n_joints = at;
+    ASSERT_EQ(good[n_joints + 3], 7);  // the fixture's seven joints
+    struct Case {
+        const char* what;
+        size_t at;
+        uint32_t value;
+        LoadError error;
+        const char* message;
+    };
+    const Case cases[] = {
+        {"2^31 - 1 joints", n_joints, 0x7FFFFFFFu, LoadError::kCapacity, "too many joints: 2147483647 (this build's capacity is 8)"},
+        {"-1 joints", n_joints, 0xFFFFFFFFu, LoadError::kDecode, "not a dynid.coefficients_t"},
+        {"string length -2^31", first_string, 0x80000000u, LoadError::kDecode, "not a dynid.coefficients_t"},
+        {"string length 0", first_string, 0, LoadError::kDecode, "not a dynid.coefficients_t"},
+        {"string past the end", first_string, 0x7FFFFFFFu, LoadError::kDecode, "not a dynid.coefficients_t"},
+    };
+    Coefficients c;
+    for (const Case& k : cases) {
+        auto b = good;
+        be32(b, k.at, k.value);
+        reseal(b);
+        const LoadResult r = load_coefficients_from_bytes(b.data(), b.size(), "", c);
+        EXPECT_EQ(r.error, k.error) << k.what << ": " << r.message;
+        EXPECT_NE(r.message.find(k.message), std::string::npos) << k.what << ": " << r.message;
+    }
+}
+
+// Names from the file are shown with their control bytes escaped, so a refusal stays one whole line (fuzzer finding:
+// a robot name holding a NUL and a newline cut the message, and split it).
+TEST(Loader, ARefusalIsOneLineWhateverTheNames) {
+    std::vector<uint8_t> b = fixture_bytes();
+    const std::string name = "icub_right_arm";
+    const auto it = std::search(b.begin(), b.end(), name.begin(), name.end());
+    ASSERT_NE(it, b.end());
+    const std::string bad("icub\nri\0ht_arm", name.size());
+    std::copy(bad.begin(), bad.end(), it);
+    reseal(b);
+    Coefficients c;
+    const LoadResult r = load_coefficients_from_bytes(b.data(), b.size(), "icub_right_arm", c);
+    EXPECT_EQ(r.error, LoadError::kRobot);
+    EXPECT_EQ(r.message, "exported for robot 'icub\\x0Ari\\x00ht_arm', not for 'icub_right_arm'");
+    EXPECT_EQ(dynid::rt::shown_name(std::string(100, 'a')), std::string(80, 'a') + "…");
+}
+
+// A sample period outside 1e-5..1 s is refused (fuzzer finding: 1e-300 s passed the loader, and the sample clock's
+// count of periods between two stamps overflowed int64, undefined behaviour).
+TEST(Loader, RefusesASamplePeriodOutOfRange) {
+    const std::vector<uint8_t> good = fixture_bytes();
+    // The period's 8 bytes (big-endian 0.001) come just before the filter window's count (31); find them.
+    ASSERT_EQ(load_fixture()->window, 31);
+    const uint8_t ms[12] = {0x3F, 0x50, 0x62, 0x4D, 0xD2, 0xF1, 0xA9, 0xFC, 0, 0, 0, 31};
+    const auto it = std::search(good.begin() + 16, good.end() - 4, std::begin(ms), std::end(ms));
+    ASSERT_NE(it, good.end() - 4);
+    for (const double period : {1e-300, 5e-6, 2.0}) {
+        auto b = good;
+        uint64_t bits = 0;
+        std::memcpy(&bits, &period, 8);
+        for (int k = 0; k < 8; ++k) b[size_t(it - good.begin()) + size_t(k)] = uint8_t(bits >> (8 * (7 - k)));
+        reseal(b);
+        Coefficients c;
+        const LoadResult r = load_coefficients_from_bytes(b.data(), b.size(), "", c);
+        EXPECT_EQ(r.error, LoadError::kDimension) << period << ": " << r.message;
+        EXPECT_NE(r.message.find("sample period"), std::string::npos) << r.message;
+        EXPECT_NE(r.message.find("out of range: 1e-05 to 1 s"), std::string::npos) << r.message;
+    }
 }
 
 TEST(Core, NoHeapAllocationOver100000Samples) {

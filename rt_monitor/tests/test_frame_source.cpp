@@ -111,6 +111,17 @@ TEST(Candump, FormatParsesBackToTheSameFrame) {
     }
 }
 
+// The largest stamp whose µs fit int64 parses; one second more is a bad line (fuzzer finding: 9223372036854 to
+// 9223372036859 s passed the old bound and overflowed int64 when scaled to µs).
+TEST(Candump, StampsUpToTheInt64LimitAndNoFurther) {
+    RxFrame f;
+    ASSERT_EQ(parse_candump_line("(9223372036853.999999) can0 111#00", kBuses, f), LineKind::kFrame);
+    EXPECT_EQ(f.t_us, INT64_C(9223372036853999999));
+    for (const char* bad : {"(9223372036854.000000) can0 111#00", "(9223372036857) can0 111#00",
+                            "(9223372036859.5) can0 111#00", "(92233720368547758070) can0 111#00"})
+        EXPECT_EQ(parse_candump_line(bad, kBuses, f), LineKind::kBad) << bad;
+}
+
 TEST(Candump, ReplayCountsBadLinesAndEnds) {
     const std::string path = temp_dir() + "/x.log";
     std::ofstream(path) << "(1.000000) can0 3DA#008000800080\n"
@@ -133,6 +144,29 @@ TEST(Candump, ReplayCountsBadLinesAndEnds) {
 
     EXPECT_FALSE(CandumpReplay::open("/nonexistent/x.log", kBuses, false, err));
     EXPECT_NE(err.find("/nonexistent/x.log: cannot open candump log"), std::string::npos) << err;
+}
+
+// A damaged log (issue 22, found by the fuzzer): a line with a NUL byte whose rest is a frame. fgets + strlen ended
+// the line's text at the NUL, and once the line was longer than the buffer its rest was read as a line of its own:
+// here a frame out of a line that is not one. Now such a line is one bad line, however long, and nothing else.
+TEST(Candump, ALineWithANulByteIsOneBadLine) {
+    const std::string path = temp_dir() + "/nul.log";
+    std::string text = "(1.000000) can0 111#00";
+    text += '\0';
+    text += std::string(150, 'x') + "(1.000100) can1 112#0000\n";  // past the 160-byte buffer
+    text += "(1.000200) can0 3DA#00";
+    text += '\0';
+    text += "80\n(1.000300) can2 480#0100\n";  // short, a NUL in it
+    std::ofstream(path, std::ios::binary) << text;
+    std::string err;
+    auto r = CandumpReplay::open(path, kBuses, false, err);
+    ASSERT_TRUE(r) << err;
+    RxFrame f;
+    std::vector<canid_t> ids;
+    while (r->read(f, 0) == ReadStatus::kFrame) ids.push_back(f.frame.can_id);
+    EXPECT_EQ(ids, (std::vector<canid_t>{0x480}));
+    EXPECT_EQ(r->counters().bad_lines, 2u);
+    EXPECT_EQ(r->line_number(), 3u);
 }
 
 TEST(Candump, RealTimeReplayKeepsTheLogsPace) {

@@ -137,7 +137,12 @@ int main(int argc, char** argv) {
 
     std::string err;
     MonitorConfig cfg;
-    if (!load_monitor_config(config, cfg, err)) return usage(err);
+    // A refused configuration is one line naming the file, the line and the problem (no usage: the arguments were fine).
+    auto bad_config = [](const std::string& why) {
+        std::fprintf(stderr, "rt_monitor: error: %s\n", why.c_str());
+        return 2;
+    };
+    if (!load_monitor_config(config, cfg, err)) return bad_config(err);
     auto coef = std::make_unique<Coefficients>();
     const LoadResult lr = load_coefficients(model, cfg.robot, *coef);
     if (lr.error != LoadError::kOk) {
@@ -145,7 +150,7 @@ int main(int argc, char** argv) {
         return kExitBase + int(lr.error);
     }
     Assembler asm_;
-    if (!asm_.init(cfg, *coef, err)) return usage(config + ": " + err);
+    if (!asm_.init(cfg, *coef, err)) return bad_config(config + ": " + err);
 
     std::unique_ptr<FrameSource> src;
     if (!replay.empty()) src = CandumpReplay::open(replay, cfg.buses, realtime, err);
@@ -205,7 +210,7 @@ int main(int argc, char** argv) {
         if (n > 0) lcm.publish(channel, wire.data(), unsigned(n));
     };
 
-    const int64_t status_period_us = int64_t(1e6 / cfg.status_hz);
+    const int64_t status_period_us = dynid::rt::status_period_us(cfg);
     const double period_us = coef->sample_period * 1e6;
     int64_t next_status = -1, evaluated = 0, onset_utime = 0, overruns = 0, events = 0;
     double loop_sum = 0, loop_max = 0;

@@ -162,6 +162,8 @@ def test_board_restart_sends_the_flag_and_restarts_the_sequence(part: dict) -> N
     ("badcsv", 4, "not a finite number"),
     ("nocolumn", 4, "no column 'q.r_elbow'"),
     ("time", 4, "not strictly increasing"),
+    # A time far after the first (issue 22): its µs stamp overflowed int64 (undefined behaviour) before.
+    ("span", 4, "s after the first row, more than the 1e+07 s a run may span"),
     ("socketcan", 5, "socketcan"),
 ])
 def test_bad_input_one_line_and_a_distinct_exit_code(part: dict, case: str, code: int, words: str) -> None:
@@ -172,12 +174,16 @@ def test_bad_input_one_line_and_a_distinct_exit_code(part: dict, case: str, code
         args.append("--fast")
     elif case == "missing":
         args[3] = str(root / "nothere.csv")
-    elif case in ("badcsv", "nocolumn", "time"):
+    elif case in ("badcsv", "nocolumn", "time", "span"):
         bad = root / f"{case}.csv"
         if case == "badcsv":
             text = f"{head}\n{row}\n{row.replace(',', ',x', 1)}\n"
         elif case == "nocolumn":
             text = head.replace("q.r_elbow", "q.r_elbo") + f"\n{row}\n"
+        elif case == "span":
+            fields = row.split(",")
+            fields[head.split(",").index("t")] = "1e300"
+            text = f"{head}\n{row}\n{','.join(fields)}\n"
         else:
             text = f"{head}\n{row}\n{row}\n"
         bad.write_text(text)

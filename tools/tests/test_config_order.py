@@ -129,3 +129,46 @@ def test_bad_bus_lines_are_one_clear_line(case: str, tmp_path: Path) -> None:
     done = run(BOARDS, "--config", conf, "--data", data, "--sink", f"candump:{tmp_path / 'x.log'}")
     assert done.returncode == 4
     assert done.stderr.splitlines() == [f"boards: error: {boards_why}"], done.stderr
+
+
+# Issue 22: what a hostile user got past the monitor's configuration. Each is now exit 2 and one line on stderr
+# naming the file, the line and the problem (no usage line: the arguments were fine); nothing is read or published.
+REFUSED = {
+    "joint mapped twice": ("append", "axis can1 3 0 r_elbow 182.04444444444445 0.0",
+                           "joint 'r_elbow' has a second 'axis' line (the first is line 15)"),
+    "axis duplicated": ("dup", "axis can0 1 0 ", "joint 'r_shoulder_pitch' has a second 'axis' line (the first is line 9)"),
+    "pwm duplicated": ("dup", "pwm can1 2 1 ", "motor 'm3' has a second 'pwm' line (the first is line 16)"),
+    "strain duplicated": ("dup", "strain ", "a second 'strain' line (the first is line 8)"),
+    "stale_ms huge": ("set", "stale_ms 99999999999", "stale_ms 99999999999 is out of range: 0.1 to 1000 ms"),
+    "stale_ms 0": ("set", "stale_ms 0", "stale_ms 0 is out of range: 0.1 to 1000 ms"),
+    "pair_us huge": ("set", "pair_us 99999999999", "pair_us 99999999999 is out of range: 1 to 10000 µs"),
+    "status_hz huge": ("set", "status_hz 99999999999", "status_hz 99999999999 is out of range: 0.1 to 1000 Hz"),
+    "no robot": ("drop", "robot ", "no 'robot' line (the coefficient file's robot is checked against it)"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(REFUSED))
+def test_refused_configuration_is_one_line(case: str, tmp_path: Path) -> None:
+    how, text, why = REFUSED[case]
+    lines = CONF.read_text().splitlines()
+    at = 0
+    if how == "append":
+        lines.append(text)
+        at = len(lines)
+    elif how == "dup":
+        lines.append(next(l for l in lines if l.startswith(text)))
+        at = len(lines)
+    elif how == "set":
+        key = text.split()[0]
+        at = next(i for i, l in enumerate(lines) if l.startswith(key + " ")) + 1
+        lines[at - 1] = text
+    else:
+        lines = [l for l in lines if not l.startswith(text)]
+    conf = tmp_path / "bad.conf"
+    conf.write_text("\n".join(lines) + "\n")
+    empty = tmp_path / "empty.log"
+    empty.write_text("")
+    done = run(RT_MONITOR, "--model", COEF, "--config", conf, "--replay", empty, "--lcm-url", "memq://")
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.splitlines() == [f"rt_monitor: error: {conf}:{at}: {why}"], done.stderr
+    assert done.stdout == ""

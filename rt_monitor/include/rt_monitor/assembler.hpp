@@ -50,8 +50,25 @@ struct MonitorConfig {
     std::vector<Skin> skins;
 };
 
-// Parses the configuration (rt_monitor/README.md, "Configuration"); false and one line naming the file, the
-// line and the problem on error.
+// The configuration's limits (rt_monitor/README.md, "Configuration"): a value outside them is refused, not clamped.
+constexpr int kMaxBuses = 8;                    // the sources' and the assembler's tables
+constexpr size_t kMaxSkins = 16;                // bits of the sample's skin mask
+constexpr double kStaleMsMin = 0.1, kStaleMsMax = 1000;  // beyond a second the staleness guard is as good as off
+constexpr long long kPairUsMin = 1, kPairUsMax = 10000;  // two halves further apart are not one conversion
+constexpr double kStatusHzMin = 0.1, kStatusHzMax = 1000;  // at most one status per 1 kHz sample
+constexpr long long kResidualEveryMax = 100000;
+constexpr double kFullScaleMax = 1e6;           // strain full scales, N and Nm
+constexpr double kTicksPerDegreeMin = 1e-3, kTicksPerDegreeMax = 1e7;
+constexpr double kZeroDegMax = 3600;            // |ZERO_DEG|: ten turns
+constexpr double kPwmFullScaleMax = 32767;      // PID_VAL carries int16 counts
+
+// The status message's period in CAN time, µs (status_hz within its limits: 1 000 to 10 000 000).
+inline int64_t status_period_us(const MonitorConfig& c) noexcept { return int64_t(1e6 / c.status_hz); }
+
+// Parses the configuration (rt_monitor/README.md, "Configuration") from its text; `path` names it in messages.
+// False and one line naming the file, the line and the problem on error (line 0: the file as a whole).
+bool parse_monitor_config(const std::string& text, const std::string& path, MonitorConfig& out, std::string& error);
+// The same, read from the file at `path`.
 bool load_monitor_config(const std::string& path, MonitorConfig& out, std::string& error);
 
 struct MonitorCounters {
@@ -78,7 +95,7 @@ public:
     const MonitorCounters& counters() const noexcept { return n_; }
 
 private:
-    static constexpr int kMaxBus = 8;
+    static constexpr int kMaxBus = kMaxBuses;
     enum : int8_t { kNone = 0, kStrain = 1, kMc = 2, kSkin = 3 };
     int board(int bus, unsigned cls, unsigned address) const noexcept;
 

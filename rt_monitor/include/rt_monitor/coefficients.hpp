@@ -18,6 +18,8 @@ constexpr int kMaxMotors = 8;
 constexpr int kMaxOutputs = 16;
 constexpr int kMaxWindow = 64;
 constexpr int kMaxEffects = 8;
+// The sample period a file may give: 100 kHz to 1 Hz (the sample clock counts periods between µs stamps in int64).
+constexpr double kMinSamplePeriod = 1e-5, kMaxSamplePeriod = 1.0;
 
 constexpr uint32_t kFileVersion = 3;  // 2: effects (Stribeck, spring) of an augmented model; 3: supply tracking
 constexpr char kMagic[8] = {'D', 'Y', 'N', 'I', 'D', 'C', 'O', 'F'};
@@ -101,6 +103,12 @@ struct LoadResult {
 };
 
 uint32_t crc32(const uint8_t* data, size_t size);
+
+// Outside text in a message, so that a refusal stays one whole line whatever the file holds (fuzzer finding: a robot
+// name with a NUL and a newline in it): control bytes (newline, carriage return, NUL, …) as \xNN.
+std::string escape_control(const std::string& s);
+// The same for a name from a file, cut at 80 bytes ("…").
+std::string shown_name(const std::string& s);
 
 // Check and load a coefficient file. `expected_robot` empty: any robot. On failure `out` is unspecified.
 LoadResult load_coefficients(const std::string& path, const std::string& expected_robot, Coefficients& out);
