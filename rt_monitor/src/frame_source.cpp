@@ -151,6 +151,9 @@ std::unique_ptr<CandumpReplay> CandumpReplay::open(const std::string& path, std:
     }
     std::unique_ptr<CandumpReplay> r(new CandumpReplay());
     r->f_ = f;
+    // The stream's buffer is ours, made here: stdio would allocate its own on the first read, inside the loop.
+    r->buffer_.assign(size_t(1) << 16, '\0');
+    std::setvbuf(f, r->buffer_.data(), _IOFBF, r->buffer_.size());
     r->buses_ = std::move(buses);
     r->realtime_ = realtime;
     return r;

@@ -77,6 +77,7 @@ public:
 private:
     CandumpReplay() = default;
     std::FILE* f_ = nullptr;
+    std::vector<char> buffer_;  // the stream's buffer (setvbuf), allocated at open
     std::vector<std::string> buses_;
     bool realtime_ = false;
     int64_t t0_log_ = -1, t0_wall_ = 0;
