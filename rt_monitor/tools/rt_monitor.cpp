@@ -399,13 +399,15 @@ int main(int argc, char** argv) {
     const SourceCounters& sc = src->counters();
     std::printf("rt_monitor: %s; frames %lld, samples %lld, evaluated %lld, stale %lld, events %lld, unknown id %lld, "
                 "bad length %lld, error frames %lld, unpaired strain %lld, saturated %lld, board faults %lld, "
-                "board restarts %lld, bad source input %llu, interpolated %lld, late %lld, filter restarts %lld, overruns %lld\n",
+                "board restarts %lld, bad source input %llu, interpolated %lld, late %lld, filter restarts %lld, overruns %lld, "
+                "kernel drops %llu\n",
                 g_stop ? "stopped by signal" : (rc ? "failed" : "end of input"), (long long)c.frames,
                 (long long)c.samples, (long long)evaluated, (long long)c.stale_samples, (long long)events,
                 (long long)c.unknown_id, (long long)c.bad_length, (long long)c.error_frames,
                 (long long)c.unpaired_strain, (long long)c.saturated, (long long)c.board_faults,
                 (long long)c.board_restarts, (unsigned long long)(sc.bad_lines + sc.unknown_bus + sc.bad_size),
-                (long long)cc.interpolated, (long long)cc.late, (long long)cc.restarts, (long long)overruns);
+                (long long)cc.interpolated, (long long)cc.late, (long long)cc.restarts, (long long)overruns,
+                (unsigned long long)sc.kernel_drops);
     if (!stats_out.empty() && !write_stats(stats_out, {allocations_in_loop, publish_allocations}, [&](JsonOut& j) {
             j.str("source", !replay.empty() ? (realtime ? "replay, real time" : "replay")
                             : !loopback.empty() ? "loopback" : "socketcan")
@@ -422,6 +424,7 @@ int main(int argc, char** argv) {
             j.open("source_counters")
                 .num("frames", (long long)sc.frames).num("bad_lines", (long long)sc.bad_lines)
                 .num("unknown_bus", (long long)sc.unknown_bus).num("bad_size", (long long)sc.bad_size)
+                .num("kernel_drops", (long long)sc.kernel_drops)
                 .close();
             j.open("samples")  // evaluated = taken − held + interpolated; taken = assembled − stale
                 .num("assembled", c.samples).num("stale", c.stale_samples).num("taken", cc.taken).num("held", cc.held)
