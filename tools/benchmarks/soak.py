@@ -12,7 +12,9 @@ Two runs, each printing one summary line (PASS or FAIL and why); exit 1 if a req
   `rt_monitor --loopback DIR --mlockall` (both SCHED_FIFO where the system allows it), for S seconds of wall time.
 Faults (rt_monitor/bench/soak_feed.cpp): one every N samples, the kinds in turn (drops, duplicates, swaps, a late
 sender, error frames, unknown IDs, malformed input, wrong lengths), one board stalled for 2 s at 30 % of the run,
-one board restarted at 60 %. The monitor's LCM output is a file:// log in /dev/shm, counted message by message.
+one board restarted at 60 %. The monitor's LCM output is a file:// log in /dev/shm, counted message by message, or
+(paced, --lcm udpm) LCM's default UDP multicast inside a private network namespace made for the run, counted by a
+subscriber there (tools/tests/netns_lcm_driver.py).
 Requirements: every counter equal to what the injection implies (`expected`), the accounting identities
 (`identities`), no allocation after start-up outside lcm_publish, the resident set's slope after the first 10 % within
 --rss-slope-kb KB/h, and (paced) no sample whose response time exceeds one period.
@@ -23,6 +25,7 @@ default identification and contact runs simulated, fitted and exported in --work
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -35,6 +38,7 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -51,6 +55,7 @@ RT_MONITOR = BUILD / "rt_monitor" / "rt_monitor"
 FEED = BUILD / "rt_monitor" / "soak_feed"
 PROBE = BUILD / "rt_monitor" / "wake_probe"
 CAD = ROOT / "rt_monitor" / "tests" / "data" / "icub_cad.dcoef"
+DRIVER = ROOT / "tools" / "tests" / "netns_lcm_driver.py"  # subscribes beside the monitor in a private namespace
 
 
 def dynid(*args: str) -> None:
@@ -255,13 +260,44 @@ def judge(name: str, stats: dict, rep: dict, counts: dict[str, int], last: monit
               f"{probe.get('max', 0) / 1000:.1f} ms)" + ("" if a.timing == "require" else " [timing reported only]")
               if paced else f"processing p50 {pr['p50']:.1f} µs, max {pr['max']:.0f} µs (not paced: no deadline)")
     line = (f"soak {name}: {extra['data_s']:.1f} s of data ({rep['samples']} samples, {rep['frames_out']} frames, "
-            f"{sum(rep['injected'].values())} faults) in {extra['wall_s']:.1f} s; allocations after start-up "
+            f"{sum(rep['injected'].values())} faults) in {extra['wall_s']:.1f} s, LCM {extra['lcm_provider']}; "
+            f"allocations after start-up "
             f"{alloc['elsewhere']} (+{alloc['in_lcm_publish']} in lcm_publish); RSS {rss.get('last_kb', 0) / 1024:.1f} MB, "
             f"slope {slope:+.1f} kB/h; {timing}; "
             f"counters {len(want) + len(ids) - len(wrong) - sum(l != r for l, r in ids.values())}/"
             f"{len(want) + len(ids)} accounted; events {stats['events']['total']}: " + ("PASS" if not fails else "FAIL"))
-    return {"line": line, "fails": fails, "notes": notes, "stats": stats, "feed": rep, "lcm": counts, "rss": rss, "expected": want,
-            **extra}
+    return {"line": line, "fails": fails, "notes": notes, "stats": stats, "feed": rep, "lcm": counts, "rss": rss,
+            "expected": want, **extra}
+
+
+class Netns:
+    """A private network namespace (only lo in it), deleted on exit: the paced run's LCM over UDP multicast stays in it."""
+
+    def __enter__(self) -> str:
+        if os.geteuid() != 0 or not shutil.which("ip"):
+            sys.exit("soak: --lcm udpm needs root and iproute2 (a private network namespace)")
+        self.name = f"dynid-soak-{os.getpid()}"
+        subprocess.run(["ip", "netns", "add", self.name], check=True, capture_output=True)
+        return self.name
+
+    def __exit__(self, *exc: object) -> None:
+        subprocess.run(["ip", "netns", "del", self.name], capture_output=True)
+        if self.name in subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout.split():
+            raise RuntimeError(f"network namespace {self.name} left behind")
+
+
+def child_pid(pid: int, timeout: float = 10.0) -> int:
+    """The first child of `pid` (the monitor the namespace driver starts)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        try:
+            kids = Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
+        except OSError:
+            kids = []
+        if kids:
+            return int(kids[0])
+        time.sleep(0.02)
+    raise SystemExit("soak: the monitor did not start in the network namespace")
 
 
 def fifo_allowed() -> bool:
@@ -279,13 +315,16 @@ def run(name: str, a: argparse.Namespace, coef: Path, csv: Path, seconds: float,
     stall_at, stall_n = int(0.3 * n), int(round(2.0 * rate))
     restart_at = int(0.6 * n)
     config = load_config(a.robot)
+    udpm = paced and a.lcm == "udpm"
     shm = Path("/dev/shm") if Path("/dev/shm").is_dir() else None
-    with tempfile.TemporaryDirectory(prefix="dynid-soak-", dir=shm) as tmp, \
-            tempfile.TemporaryDirectory(prefix="dynid-soak-sock-") as sock:
-        tmp_p = Path(tmp)
+    with contextlib.ExitStack() as stack:
+        tmp_p = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="dynid-soak-", dir=shm)))
+        sock = stack.enter_context(tempfile.TemporaryDirectory(prefix="dynid-soak-sock-"))
+        netns = stack.enter_context(Netns()) if udpm else None
         lcm_log, stats_file, feed_file = tmp_p / "soak.lcmlog", tmp_p / "stats.json", tmp_p / "feed.json"
         conf = tmp_p / "monitor.conf"
-        conf.write_text(monitor_config_text(config, f"file://{lcm_log}?mode=w"))
+        # udpm: no lcm_url, so LCM's default (UDP multicast, ttl=0), inside the namespace only
+        conf.write_text(monitor_config_text(config, None if udpm else f"file://{lcm_log}?mode=w"))
         fifo = paced and not a.no_fifo and fifo_allowed()
         nice = (lambda: os.nice(a.nice)) if a.nice and not fifo else None
         boards = [str(BOARDS), "--config", str(conf), "--data", str(csv), "--sink", "candump:-", "--repeat",
@@ -298,16 +337,20 @@ def run(name: str, a: argparse.Namespace, coef: Path, csv: Path, seconds: float,
             monitor = (["chrt", "-f", "45"] if fifo else []) + monitor + ["--loopback", sock, "--mlockall"]
         else:
             monitor += ["--replay", "/dev/stdin"]
+        if netns:  # the driver subscribes in the namespace and starts the monitor there, as its child
+            monitor = ["ip", "netns", "exec", netns, sys.executable, str(DRIVER), os.readlink("/proc/self/ns/net"),
+                       *monitor]
         probe = subprocess.Popen([str(PROBE), "--period-us", str(round(period * 1e6))] + (
             ["--priority", "45"] if fifo else []), stdout=subprocess.PIPE, text=True) if paced else None
+        probe_out = ""
         t0 = time.monotonic()
         mon = subprocess.Popen(monitor, stdin=subprocess.PIPE if not paced else subprocess.DEVNULL,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=nice)
-        sampler = RssSampler(mon.pid, 1.0 if paced else 0.2)
+        sampler = RssSampler(child_pid(mon.pid) if netns else mon.pid, 1.0 if paced else 0.2)
         sampler.start()
         try:
             if paced:
-                for _ in range(200):  # the monitor binds its sockets at start-up
+                for _ in range(500):  # the monitor binds its sockets at start-up
                     if all((Path(sock) / f"{b}.can").exists() for b in config.can["buses"]) or mon.poll() is not None:
                         break
                     time.sleep(0.02)
@@ -323,7 +366,7 @@ def run(name: str, a: argparse.Namespace, coef: Path, csv: Path, seconds: float,
             f_err = fd.communicate()[1].decode()
             if paced:
                 time.sleep(0.5)  # the last datagrams drained
-                mon.send_signal(signal.SIGTERM)
+                mon.send_signal(signal.SIGTERM)  # the namespace driver passes it on
             m_out, m_err = mon.communicate(timeout=120)
             wall = time.monotonic() - t0
         finally:
@@ -339,15 +382,26 @@ def run(name: str, a: argparse.Namespace, coef: Path, csv: Path, seconds: float,
         for what, p, err in (("boards", bd, b_err), ("soak_feed", fd, f_err), ("rt_monitor", mon, m_err)):
             if p.returncode != 0:
                 raise SystemExit(f"soak {name}: {what} failed ({p.returncode}): {err.strip()}")
+        if netns:  # what the subscriber in the namespace received
+            got = json.loads(m_out)
+            if got["returncode"] != 0:
+                raise SystemExit(f"soak {name}: rt_monitor failed ({got['returncode']}): {got['stderr'].strip()}")
+            m_out = got["stdout"]
+            counts = {"DYNID_CONTACT": len(got["events"]), "DYNID_STATUS": got["statuses"],
+                      "DYNID_RESIDUAL": got["residuals"]}
+            last = SimpleNamespace(**got["last_status"]) if got["last_status"] else None
+            lcm_mb = 0.0
+        else:
+            counts, last = lcm_counts(lcm_log)
+            lcm_mb = lcm_log.stat().st_size / 1e6
         stats = json.loads(stats_file.read_text())
         rep = json.loads(feed_file.read_text())
-        counts, last = lcm_counts(lcm_log)
-        lcm_mb = lcm_log.stat().st_size / 1e6
     data_s = n * period
     extra = {"data_s": data_s, "wall_s": wall, "repeat": repeat, "fifo": fifo, "boards": b_err.strip(),
-             "monitor": m_out.strip(), "lcm_log_mb": lcm_mb, "stall_at": stall_at, "stall_samples": stall_n,
-             "restart_at": restart_at, "rate_hz": rate,
-             "probe": json.loads(probe_out) if probe is not None and probe_out.strip() else None}
+             "monitor": m_out.strip(),
+             "lcm_provider": "udpm in a private network namespace" if udpm else "file:// in /dev/shm",
+             "lcm_log_mb": lcm_mb, "stall_at": stall_at, "stall_samples": stall_n, "restart_at": restart_at,
+             "rate_hz": rate, "probe": json.loads(probe_out) if probe_out.strip() else None}
     if rep["samples"] != n:
         raise SystemExit(f"soak {name}: the feed saw {rep['samples']} samples, expected {n}")
     rss = rss_figures(sampler.samples, data_s / wall)
@@ -374,6 +428,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--timing", choices=("require", "report"), default="require",
                    help="paced run: fail on a loop overrun, a missed deadline or a counter that rests on the kernel's "
                         "stamps (require), or only report them (report: for shared test machines)")
+    p.add_argument("--lcm", choices=("file", "udpm"), default="file",
+                   help="paced run's LCM: a file:// log in /dev/shm, or LCM's default UDP multicast inside a private "
+                        "network namespace made for the run (root), counted by a subscriber there")
     p.add_argument("--json", help="write every figure here")
     a = p.parse_args(argv)
     for exe in (BOARDS, RT_MONITOR, FEED, PROBE):
