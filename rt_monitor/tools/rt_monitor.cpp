@@ -10,7 +10,7 @@
 // that completed the onset sample to the return of its LCM publish, one per line, written at exit.
 // --stats-out (soak, docs/benchmarks.md "Soak"): at exit, a JSON object with every counter (frames by kind, the sample
 // clock's taken/held/lost), the heap allocations made after start-up (all, and those inside lcm_publish), the
-// response-time distribution of the samples and the deadline overruns, the messages published and the resident set.
+// samples' processing and response times (loop overruns, missed deadlines), the messages published, the resident set.
 // Exit codes: 0 done, 2 bad arguments or configuration, 1 a source or LCM failure, 3 mlockall refused, 4 SCHED_FIFO
 // refused, 5 CPU affinity refused, 10+ a refused coefficient file.
 #include <algorithm>
