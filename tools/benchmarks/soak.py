@@ -69,7 +69,7 @@ def prepare(a: argparse.Namespace) -> tuple[Path, Path]:
             sys.exit("soak: --model and --data go together")
         data = Path(a.data)
         return Path(a.model), data / "data.csv" if data.is_dir() else data
-    work = Path(a.work)
+    work = Path(a.work) if a.rate == 1000 else Path(a.work) / f"rate{a.rate}"  # runs of another rate kept apart
     work.mkdir(parents=True, exist_ok=True)
     rate = ["--rate", str(a.rate)]
     if a.cad:
@@ -380,7 +380,8 @@ def run(name: str, a: argparse.Namespace, coef: Path, csv: Path, seconds: float,
             sampler.stop.set()
             sampler.join()
         for what, p, err in (("boards", bd, b_err), ("soak_feed", fd, f_err), ("rt_monitor", mon, m_err)):
-            if p.returncode != 0:
+            # boards' exit 6: every frame sent, but a bus would be loaded at 70 % or more (a rate above 1 kHz)
+            if p.returncode != 0 and not (what == "boards" and p.returncode == 6):
                 raise SystemExit(f"soak {name}: {what} failed ({p.returncode}): {err.strip()}")
         if netns:  # what the subscriber in the namespace received
             got = json.loads(m_out)
@@ -405,7 +406,10 @@ def run(name: str, a: argparse.Namespace, coef: Path, csv: Path, seconds: float,
     if rep["samples"] != n:
         raise SystemExit(f"soak {name}: the feed saw {rep['samples']} samples, expected {n}")
     rss = rss_figures(sampler.samples, data_s / wall)
-    return judge(name, stats, rep, counts, last, rss, a, paced, extra)
+    r = judge(name, stats, rep, counts, last, rss, a, paced, extra)
+    if bd.returncode == 6:
+        r["notes"].append("boards: a bus would be loaded at 70 % or more at this rate (1 Mbit/s, worst-case stuffing)")
+    return r
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -419,7 +423,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--clip", type=float, default=120.0, help="with --cad: the clip's length (s)")
     p.add_argument("--model", help="a coefficient file (with --data)")
     p.add_argument("--data", help="a run directory or data.csv (with --model)")
-    p.add_argument("--robot", default="icub_right_arm")
+    p.add_argument("--robot", default="icub_right_arm", help="robot configuration (its monitor configuration)")
     p.add_argument("--stall-address", type=int, default=2, help="the motor-control board stalled for 2 s")
     p.add_argument("--restart-address", type=int, default=1, help="the motor-control board restarted")
     p.add_argument("--rss-slope-kb", type=float, default=64.0, help="largest |RSS slope| allowed, kB per hour of data")
