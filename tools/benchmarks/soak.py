@@ -326,7 +326,7 @@ def run(name: str, a: argparse.Namespace, coef: Path, csv: Path, seconds: float,
         # udpm: no lcm_url, so LCM's default (UDP multicast, ttl=0), inside the namespace only
         conf.write_text(monitor_config_text(config, None if udpm else f"file://{lcm_log}?mode=w"))
         fifo = paced and not a.no_fifo and fifo_allowed()
-        nice = (lambda: os.nice(a.nice)) if a.nice and not fifo else None
+        nice = (lambda: os.nice(a.nice)) if a.nice and not paced else None  # paced: the default or SCHED_FIFO
         boards = [str(BOARDS), "--config", str(conf), "--data", str(csv), "--sink", "candump:-", "--repeat",
                   str(repeat), "--restart", f"{a.restart_address}@{restart_at}"]
         feed = [str(FEED), "--every", str(a.every), "--stall", f"{a.stall_address}@{stall_at}:{stall_n}",
@@ -346,8 +346,11 @@ def run(name: str, a: argparse.Namespace, coef: Path, csv: Path, seconds: float,
         t0 = time.monotonic()
         mon = subprocess.Popen(monitor, stdin=subprocess.PIPE if not paced else subprocess.DEVNULL,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=nice)
-        sampler = RssSampler(child_pid(mon.pid) if netns else mon.pid, 1.0 if paced else 0.2)
+        mon_pid = child_pid(mon.pid) if netns else mon.pid
+        sampler = RssSampler(mon_pid, 1.0 if paced else 0.2)
         sampler.start()
+        fd = bd = None
+        finished = False
         try:
             if paced:
                 for _ in range(500):  # the monitor binds its sockets at start-up
@@ -369,14 +372,18 @@ def run(name: str, a: argparse.Namespace, coef: Path, csv: Path, seconds: float,
                 mon.send_signal(signal.SIGTERM)  # the namespace driver passes it on
             m_out, m_err = mon.communicate(timeout=120)
             wall = time.monotonic() - t0
-        finally:
+            finished = True
+        finally:  # whatever happened (an interrupt too), no process of the run is left behind
             if probe is not None:
                 probe.send_signal(signal.SIGTERM)
                 probe_out = probe.communicate(timeout=30)[0]
-            for p in (mon, probe):
+            for p in (bd, fd, mon, probe):
                 if p is not None and p.poll() is None:
                     p.kill()
                     p.wait()
+            if netns and not finished:  # the monitor is the namespace driver's child
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(mon_pid, signal.SIGKILL)
             sampler.stop.set()
             sampler.join()
         for what, p, err in (("boards", bd, b_err), ("soak_feed", fd, f_err), ("rt_monitor", mon, m_err)):
@@ -427,7 +434,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--stall-address", type=int, default=2, help="the motor-control board stalled for 2 s")
     p.add_argument("--restart-address", type=int, default=1, help="the motor-control board restarted")
     p.add_argument("--rss-slope-kb", type=float, default=64.0, help="largest |RSS slope| allowed, kB per hour of data")
-    p.add_argument("--nice", type=int, default=10, help="niceness of the unpaced processes")
+    p.add_argument("--nice", type=int, default=10, help="niceness of the fast run's processes")
     p.add_argument("--no-fifo", action="store_true", help="never SCHED_FIFO (default: where the system allows it)")
     p.add_argument("--timing", choices=("require", "report"), default="require",
                    help="paced run: fail on a loop overrun, a missed deadline or a counter that rests on the kernel's "
