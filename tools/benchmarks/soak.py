@@ -189,8 +189,10 @@ def expected(rep: dict, paced: bool) -> dict[str, int]:
 
 
 # Paced, these rest on the kernel's stamps: a sender stalled by the platform at the wrong moment moves a stall's
-# first stale sample, or makes the sample clock read a late burst around a loss otherwise (sample_clock.hpp).
-TIMING_DEPENDENT = ("samples.stale", "samples.lost", "samples.held", "samples.interpolated", "samples.filter_restarts")
+# first stale sample, makes the sample clock read a late burst as losses (sample_clock.hpp), or sends a sample's
+# torque half more than pair_us after its force half (two unpaired halves, a sample fewer).
+TIMING_DEPENDENT = ("frames.unpaired_strain", "samples.assembled", "samples.stale", "samples.lost", "samples.held",
+                    "samples.interpolated", "samples.filter_restarts")
 
 
 def identities(s: dict, counts: dict[str, int]) -> dict[str, tuple[int, int]]:
@@ -255,8 +257,9 @@ def judge(name: str, stats: dict, rep: dict, counts: dict[str, int], last: monit
     r, pr = stats["response_us"], stats["processing_us"]
     probe = extra.get("probe") or {}
     timing = (f"loop overruns {over} (processing p50 {pr['p50']:.1f} µs, max {pr['max']:.1f} µs), missed deadlines "
-              f"{missed} (response p50 {r['p50']:.1f} µs, p99 {r['p99']:.1f} µs, max {r['max']:.1f} µs; a SCHED_FIFO "
-              f"probe woke late by more than a period {probe.get('over_period', '?')} times, max "
+              f"{missed} (response p50 {r['p50']:.1f} µs, p99 {r['p99']:.1f} µs, max {r['max']:.1f} µs; a "
+              f"{'SCHED_FIFO ' if extra.get('fifo') else ''}probe woke late by more than a period "
+              f"{probe.get('over_period', '?')} times, max "
               f"{probe.get('max', 0) / 1000:.1f} ms)" + ("" if a.timing == "require" else " [timing reported only]")
               if paced else f"processing p50 {pr['p50']:.1f} µs, max {pr['max']:.0f} µs (not paced: no deadline)")
     line = (f"soak {name}: {extra['data_s']:.1f} s of data ({rep['samples']} samples, {rep['frames_out']} frames, "
@@ -287,16 +290,21 @@ class Netns:
 
 
 def child_pid(pid: int, timeout: float = 10.0) -> int:
-    """The first child of `pid` (the monitor the namespace driver starts)."""
+    """The monitor among the children of `pid` (the namespace driver runs `ip` first, then the monitor; under chrt,
+    which execs it, the PID is the same)."""
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         try:
             kids = Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
         except OSError:
             kids = []
-        if kids:
-            return int(kids[0])
-        time.sleep(0.02)
+        for k in kids:
+            try:
+                if str(RT_MONITOR).encode() in Path(f"/proc/{k}/cmdline").read_bytes():
+                    return int(k)
+            except OSError:
+                continue
+        time.sleep(0.01)
     raise SystemExit("soak: the monitor did not start in the network namespace")
 
 

@@ -85,7 +85,9 @@ def test_the_paced_run_is_timed_from_the_kernel_stamps(soak: tuple) -> None:
     assert st["response_us"]["samples"] == st["processing_us"]["samples"] == st["samples"]["assembled"]
     assert 0 < st["processing_us"]["p50"] <= st["response_us"]["p50"]
     assert paced["probe"]["wakeups"] >= 15000  # the platform's own wake-up lateness, measured beside it
-    # Frame-level counters do not depend on timing: exact here too.
+    # What the feed sent arrived, frame for frame, whatever the timing (pairing and the clock's counters may move with a
+    # stalled sender: soak.py's TIMING_DEPENDENT, reported only here).
     feed = paced["feed"]
     assert st["frames"]["total"] == feed["frames_out"] and st["source_counters"]["bad_size"] == feed["bad_input"] > 0
-    assert st["frames"]["unpaired_strain"] == paced["expected"]["frames.unpaired_strain"]
+    assert st["frames"]["strain"] == feed["out"]["strain_force"] + feed["out"]["strain_torque"]
+    assert paced["rss"]["samples"] >= 15 and paced["rss"]["last_kb"] > 0
