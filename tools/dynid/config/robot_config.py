@@ -185,8 +185,9 @@ class _Fields:
         value = self.raw(key, default)
         if value is None and default is None:
             return None  # type: ignore[return-value]
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise self.fail(key, f"must be a finite number, got {value!r}")
+        # float() first: math.isfinite raised OverflowError on an integer too large for a float (1 with 400 zeros).
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(_float(value)):
+            raise self.fail(key, f"must be a finite number, got {_shown(value)}")
         if positive and value <= 0:
             raise self.fail(key, f"must be positive, got {value!r}")
         return float(value)
@@ -195,11 +196,25 @@ class _Fields:
         value = self.raw(key)
         try:
             m = np.array(value, dtype=float)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):  # OverflowError: an integer too large for a float
             raise self.fail(key, f"must be a numeric matrix, got {value!r}") from None
         if m.shape != shape or not np.all(np.isfinite(m)):
             raise self.fail(key, f"must be a finite {shape[0]}x{shape[1]} matrix, got shape {m.shape}")
         return m
+
+
+def _float(value: int | float) -> float:
+    """`value` as a float; inf for an integer too large for one."""
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf
+
+
+def _shown(value: Any) -> str:
+    """A value for a message: its repr, cut to 60 characters (an integer of 400 digits, a long list)."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def resolve_config_path(robot: str | Path) -> Path:
@@ -312,6 +327,10 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         mark = getattr(e, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark else ""
         raise ConfigError(f"{path}: not valid YAML{where}") from None
+    # PyYAML's constructors let ValueError out (a date such as 2001-13-45, an integer of more than 4300 digits),
+    # and its composer recurses once per level of nesting.
+    except (ValueError, RecursionError) as e:
+        raise ConfigError(f"{path}: not valid YAML: {e.__class__.__name__}: {str(e)[:80]}") from None
     root = _Fields(path.stem, "", data)
     name = root.string("name")
     f = _Fields(name, "", data).only(
@@ -361,6 +380,8 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         if kind not in INPUT_KINDS:
             raise g.fail("input", f"must be one of {', '.join(INPUT_KINDS)}, got '{kind}'")
         gj = g.strings("joints")
+        if not gj:  # a group that drives nothing is a mistake, and a 0x0 coupling matrix
+            raise g.fail("joints", "must list at least one joint")
         for j in gj:
             if j not in joints:
                 raise g.fail("joints", f"names '{j}', which is not in 'joints'")
@@ -396,7 +417,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     gravity = f.raw("gravity", [0.0, 0.0, -9.81])
     try:
         g_arr = np.array(gravity, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise f.fail("gravity", f"must be three numbers, got {gravity!r}") from None
     if g_arr.shape != (3,) or not np.all(np.isfinite(g_arr)):
         raise f.fail("gravity", f"must be three finite numbers, got {gravity!r}")
@@ -474,7 +495,8 @@ def _validate_can(f: _Fields, joints: tuple[str, ...], motors: tuple[str, ...], 
         if sensor not in sensors:
             raise b.fail("sensor", f"names '{sensor}', which is not in ft_sensors")
         fs = b.raw("full_scale")
-        if not (isinstance(fs, list) and len(fs) == 6 and all(isinstance(x, (int, float)) and x > 0 for x in fs)):
+        if not (isinstance(fs, list) and len(fs) == 6 and all(  # finite: an inf full scale made every F/T value nan
+                not isinstance(x, bool) and isinstance(x, (int, float)) and 0 < _float(x) < math.inf for x in fs)):
             raise b.fail("full_scale", f"must be six positive numbers (N, N, N, Nm, Nm, Nm), got {fs!r}")
         strain.append(b.data)
     mc = []

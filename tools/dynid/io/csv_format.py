@@ -186,15 +186,25 @@ def check_columns(
 # Reading
 
 
+_LONE_CR = re.compile(rb"\r(?=[^\n])")
+
+
 def _read_bytes(path: Path) -> bytes:
     if not path.exists():
         raise DataError(f"CSV file not found: {path}")
     if not path.is_file():
         raise DataError(f"CSV path is not a file: {path}")
     try:
-        return path.read_bytes()
+        raw = path.read_bytes()
     except OSError as e:
         raise DataError(f"cannot read {path}: {e.strerror}") from None
+    # numpy's parser ends a line at a lone CR too, and skips blank lines: a row split by a CR and a blank line
+    # elsewhere kept the row count, and the file was read with its rows shifted. Lines end in LF or CRLF only.
+    lone = _LONE_CR.search(raw)
+    if lone:
+        line = raw.count(b"\n", 0, lone.start()) + 1
+        raise DataError(f"{path}: line {line} holds a carriage return inside the line: lines must end in LF or CRLF")
+    return raw
 
 
 def _header(raw: bytes, path: Path) -> list[str]:
