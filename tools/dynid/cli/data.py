@@ -28,6 +28,7 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
     dataset.meta.setdefault("robot", config.name)
     dataset.meta.setdefault("config_digest", config.digest)
     dataset.save(Path(args.out))
+    skipped = int(dataset.meta.get("skipped_lines", 0)) if dataset.meta.get("source") == str(Path(args.data)) else 0
     channels = (
         [f"q.{j}" for j in dataset.joints]
         + [f"pwm.{m}" for m in dataset.pwm]
@@ -39,6 +40,7 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
         f"imported {dataset.n_samples} samples ({dataset.duration:.3f} s) of {config.name} from {args.data} -> {args.out}\n"
         f"  channels: {', '.join(channels)}"
         + ("" if dataset.dq is not None else "\n  no dq/ddq columns: derivatives will be estimated from q when needed")
+        + (f"\n  skipped {skipped} malformed line{'s' * (skipped != 1)} of the candump log" if skipped else "")
     )
     return {
         "robot": config.name,
@@ -47,6 +49,7 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
         "channels": channels,
         "has_derivatives": dataset.dq is not None,
         "contact": dataset.contact is not None,
+        "skipped_lines": skipped,
         "out": args.out,
     }
 

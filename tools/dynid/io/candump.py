@@ -35,7 +35,11 @@ from .can_protocol import MESSAGE_NAMES, default_protocol, make_id
 from .dataset import Dataset
 
 PAIR_US = 500
-_LINE = re.compile(rb"^\((\d+)\.(\d{6})\)\s+(\S+)\s+([0-9A-Fa-f]{3})#([0-9A-Fa-f]{0,16})\s*$", re.M)
+# Whole bytes only: an odd hex digit count used to shift every later payload (a numpy shape error, a traceback).
+_LINE = re.compile(rb"^\((\d+)\.(\d{6})\)\s+(\S+)\s+([0-9A-Fa-f]{3})#((?:[0-9A-Fa-f]{2}){0,8})\s*$", re.M)
+# Stamps in µs must fit int64, as in rt_monitor's replay (a larger one is a bad line there, and was an
+# OverflowError traceback here).
+_MAX_STAMP_US = 9_223_372_036_853_999_999
 
 
 def _signals(name: str, payload: np.ndarray) -> dict[str, np.ndarray]:
@@ -61,7 +65,8 @@ def read_candump(path: str | Path, config: RobotConfig) -> Dataset:
         text = path.read_bytes()
     except OSError as e:
         raise DataError(f"cannot read {path}: {e.strerror or e}") from None
-    rows = _LINE.findall(text)
+    rows = [r for r in _LINE.findall(text) if int(r[0]) * 1_000_000 + int(r[1]) <= _MAX_STAMP_US]
+    skipped = sum(1 for line in text.split(b"\n") if line.strip()) - len(rows)  # malformed lines, told by import
     if not rows:
         raise DataError(f"{path}: no classic-CAN candump -L frame in the file")
     t_us = np.array([int(a) * 1_000_000 + int(b) for a, b, *_ in rows], np.int64)
@@ -142,7 +147,7 @@ def read_candump(path: str | Path, config: RobotConfig) -> Dataset:
     return Dataset(t=tt, joints=tuple(config.joints), q=q[keep], pwm={m: v[keep] for m, v in pwm.items()},
                    ft={s["sensor"]: ft[keep]}, contact=contact[keep],
                    meta={"source": str(path), "source_format": "candump", "robot": config.name,
-                         "messages": sorted(MESSAGE_NAMES.values())})
+                         "messages": sorted(MESSAGE_NAMES.values()), "skipped_lines": skipped})
 
 
 # ---- writing ----
