@@ -17,7 +17,12 @@ from ..simulation import SimulationSettings, parse_effect, simulate
 from ..simulation.effects import CATALOG, catalog_text
 from ..simulation.output import write_simulation
 from .commands import COMMANDS
-from .common import json_arg, min_speed_arg, positive_float, positive_int, robot_arg, seed, window, window_args
+from .common import int_in, json_arg, min_speed_arg, positive_float, robot_arg, seed, window, window_args
+
+
+# `structure --samples`: 2000 random states give the structural rank; 10⁵ take about 0.7 GB, 10¹² ended in a
+# MemoryError traceback.
+MAX_STATES = 100_000
 
 
 def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
@@ -162,8 +167,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     robot_arg(sp)
     sp.add_argument("--data", metavar="DATA", help="measure the rank on this experiment instead of random states")
     window_args(sp)
-    sp.add_argument("--samples", type=positive_int, default=2000, help="random states for the structural rank (default 2000)")
-    sp.add_argument("--seed", type=int, default=0, help="seed of the random states (default 0)")
+    sp.add_argument("--samples", type=int_in(1, MAX_STATES), default=2000,
+                    help=f"random states for the structural rank, at most {MAX_STATES} (default 2000)")
+    sp.add_argument("--seed", type=seed, default=0, help="seed of the random states, 0 or more (default 0)")
     sp.add_argument("--combinations", action="store_true", help="print every base-parameter combination")
     min_speed_arg(sp)
     json_arg(sp)
