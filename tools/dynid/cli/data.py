@@ -17,7 +17,12 @@ from ..simulation import SimulationSettings, parse_effect, simulate
 from ..simulation.effects import CATALOG, catalog_text
 from ..simulation.output import write_simulation
 from .commands import COMMANDS
-from .common import json_arg, min_speed_arg, positive_float, positive_int, robot_arg, seed, window, window_args
+from .common import int_in, json_arg, min_speed_arg, positive_float, robot_arg, seed, window, window_args
+
+
+# `structure --samples`: 2000 random states give the structural rank; 10⁵ take about 0.7 GB, 10¹² ended in a
+# MemoryError traceback.
+MAX_STATES = 100_000
 
 
 def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
@@ -28,6 +33,7 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
     dataset.meta.setdefault("robot", config.name)
     dataset.meta.setdefault("config_digest", config.digest)
     dataset.save(Path(args.out))
+    skipped = int(dataset.meta.get("skipped_lines", 0)) if dataset.meta.get("source") == str(Path(args.data)) else 0
     channels = (
         [f"q.{j}" for j in dataset.joints]
         + [f"pwm.{m}" for m in dataset.pwm]
@@ -39,6 +45,7 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
         f"imported {dataset.n_samples} samples ({dataset.duration:.3f} s) of {config.name} from {args.data} -> {args.out}\n"
         f"  channels: {', '.join(channels)}"
         + ("" if dataset.dq is not None else "\n  no dq/ddq columns: derivatives will be estimated from q when needed")
+        + (f"\n  skipped {skipped} malformed line{'s' * (skipped != 1)} of the candump log" if skipped else "")
     )
     return {
         "robot": config.name,
@@ -47,6 +54,7 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
         "channels": channels,
         "has_derivatives": dataset.dq is not None,
         "contact": dataset.contact is not None,
+        "skipped_lines": skipped,
         "out": args.out,
     }
 
@@ -159,8 +167,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     robot_arg(sp)
     sp.add_argument("--data", metavar="DATA", help="measure the rank on this experiment instead of random states")
     window_args(sp)
-    sp.add_argument("--samples", type=positive_int, default=2000, help="random states for the structural rank (default 2000)")
-    sp.add_argument("--seed", type=int, default=0, help="seed of the random states (default 0)")
+    sp.add_argument("--samples", type=int_in(1, MAX_STATES), default=2000,
+                    help=f"random states for the structural rank, at most {MAX_STATES} (default 2000)")
+    sp.add_argument("--seed", type=seed, default=0, help="seed of the random states, 0 or more (default 0)")
     sp.add_argument("--combinations", action="store_true", help="print every base-parameter combination")
     min_speed_arg(sp)
     json_arg(sp)

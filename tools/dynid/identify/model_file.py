@@ -41,6 +41,7 @@ from ..errors import DataError, InputError
 from ..io.dataset import SIMULATION_DATASET, atomic_write
 from ..robot.effects import finite_number, parse_effects
 from ..robot.model import RobotModel
+from .model_schema import check_sections
 from .supply import SupplyTracking
 
 FORMAT_NAME = "dynid-model"
@@ -59,7 +60,10 @@ class IdentifiedModel:
     @property
     def config(self) -> RobotConfig:
         if self._config is None:
-            self._config = _config_from(self.robot)
+            try:
+                self._config = _config_from(self.robot)
+            except DataError as e:
+                raise DataError(f"{self.path}: {e}" if self.path else str(e)) from None
         return self._config
 
     @property
@@ -123,7 +127,16 @@ class IdentifiedModel:
 
 
 def _config_from(robot: dict[str, Any]) -> RobotConfig:
-    """The configuration the model was fitted for: its source if unchanged, else the embedded text."""
+    """The configuration the model was fitted for (its source if unchanged, else the embedded text), which must be
+    the robot the file names: an edited name used to pass, and export wrote another robot's monitor file."""
+    config = _config_of(robot)
+    if config.name != robot["name"]:
+        raise DataError(f"the model file names robot '{robot['name']}', but the configuration it embeds is "
+                        f"{config.name}'s")
+    return config
+
+
+def _config_of(robot: dict[str, Any]) -> RobotConfig:
     source = robot.get("config_source", "")
     urdf = robot.get("urdf")  # the URDF it was fitted with (a supplied one is not found again without it)
     urdf = urdf if urdf and Path(urdf).is_file() else None
@@ -185,6 +198,7 @@ def load_model(path: str | Path) -> IdentifiedModel:
     if not isinstance(params, dict) or not all(finite_number(v) for v in params.values()):
         raise DataError(f"{path}: every parameter must be a finite number")
     _check_sections(data, path)
+    check_sections(data, str(path))
     record = {k: v for k, v in data.items() if k not in ("format", "format_version", "robot", "parameters")}
     return IdentifiedModel(data["robot"], {k: float(v) for k, v in params.items()}, record, str(path))
 

@@ -64,6 +64,7 @@ def read_candump(path: str | Path, config: RobotConfig) -> Dataset:
     except OSError as e:
         raise DataError(f"cannot read {path}: {e.strerror or e}") from None
     rows = _LINE.findall(text)
+    skipped = sum(1 for line in text.split(b"\n") if line.strip()) - len(rows)  # malformed lines, told by import
     if not rows:
         raise DataError(f"{path}: no classic-CAN candump -L frame in the file")
     # In stamp order, as the monitor's frame sources hand frames over (rt_monitor/README.md): the pairing and the
@@ -148,7 +149,7 @@ def read_candump(path: str | Path, config: RobotConfig) -> Dataset:
     return Dataset(t=tt, joints=tuple(config.joints), q=q[keep], pwm={m: v[keep] for m, v in pwm.items()},
                    ft={s["sensor"]: ft[keep]}, contact=contact[keep],
                    meta={"source": str(path), "source_format": "candump", "robot": config.name,
-                         "messages": sorted(MESSAGE_NAMES.values())})
+                         "messages": sorted(MESSAGE_NAMES.values()), "skipped_lines": skipped})
 
 
 # ---- writing ----

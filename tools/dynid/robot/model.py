@@ -39,7 +39,10 @@ class RobotModel:
 
     def __init__(self, config: RobotConfig) -> None:
         self.config = config
-        tree = ET.parse(config.urdf)
+        try:
+            tree = ET.parse(config.urdf)
+        except ET.ParseError as e:  # named here: the CLI's fallback line did not say which file was not XML
+            raise ConfigError(f"{config.name}: the URDF {config.urdf} is not XML: {e}") from None
         urdf_joints = {j.get("name"): j for j in tree.getroot().findall("joint")}
         urdf_links = {lk.get("name") for lk in tree.getroot().findall("link")}
         for j in config.joints:

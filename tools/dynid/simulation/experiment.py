@@ -22,6 +22,7 @@ import pinocchio as pin
 from ..config.robot_config import RobotConfig
 from ..errors import InputError
 from ..io.dataset import Dataset
+from ..io.load import MIN_SAMPLES
 from ..progress import track
 from ..robot.model import RobotModel
 from ..robot.parameters import WRENCH_FIELDS
@@ -88,13 +89,17 @@ def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
             "controller runs at the sample rate"
         )
     dt = 1.0 / settings.rate_hz
-    n = int(round(settings.seconds * settings.rate_hz))
-    if n < 2:
-        raise InputError(f"duration {settings.seconds:g} s is shorter than two samples")
-    if n > MAX_SAMPLES:
+    samples = settings.seconds * settings.rate_hz
+    if samples > MAX_SAMPLES:  # before int(): `--duration 1e300` printed a 300-digit sample count
         raise InputError(
-            f"duration {settings.seconds:g} s at {settings.rate_hz:g} Hz is {n} samples; at most {MAX_SAMPLES} "
-            "(an hour at 1 kHz) fit in memory: simulate several experiments instead"
+            f"duration {settings.seconds:g} s at {settings.rate_hz:g} Hz is {samples:.3g} samples; at most "
+            f"{MAX_SAMPLES} (an hour at 1 kHz) fit in memory: simulate several experiments instead"
+        )
+    n = int(round(samples))
+    if n < MIN_SAMPLES:  # a shorter run was written, and then refused by every command that reads it
+        raise InputError(
+            f"duration {settings.seconds:g} s at {settings.rate_hz:g} Hz is {n} samples; a run needs at least "
+            f"{MIN_SAMPLES}"
         )
     model = RobotModel(config)
     streams = np.random.SeedSequence([settings.seed, _KIND_STREAM[settings.kind], settings.robot_seed]).spawn(5)
