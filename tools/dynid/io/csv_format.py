@@ -200,6 +200,11 @@ def _read_bytes(path: Path) -> bytes:
         raise DataError(f"cannot read {path}: {e.strerror}") from None
     # numpy's parser ends a line at a lone CR too, and skips blank lines: a row split by a CR and a blank line
     # elsewhere kept the row count, and the file was read with its rows shifted. Lines end in LF or CRLF only.
+    first = raw.split(b"\n", 1)[0]
+    try:
+        first.decode("utf-8-sig")
+    except UnicodeDecodeError:  # not text at all: the header's own check says so, which means more than a CR
+        return raw
     lone = _LONE_CR.search(raw)
     if lone:
         line = raw.count(b"\n", 0, lone.start()) + 1
