@@ -92,7 +92,7 @@ class RobotConfig:
     digest: str  # sha256 of the file's bytes: models and datasets record it
     urdf: Path
     base_link: str
-    gravity: np.ndarray  # (3,) in the URDF root frame
+    gravity: np.ndarray  # (3,) in the model root's frame: the URDF root, or base_link when re-rooted there
     joints: tuple[str, ...]
     ft_sensors: tuple[FTSensorConfig, ...]
     actuation: tuple[ActuationGroup, ...]
