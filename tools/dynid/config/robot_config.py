@@ -21,6 +21,7 @@ import yaml
 
 from ..errors import ConfigError
 from .log_columns import LogColumn, parse_columns
+from .yarp_ports import YarpLayout, parse_yarp
 
 DEFAULT_ROBOT = "icub_right_arm"
 BUNDLED_DIR = Path(__file__).parent / "robots"
@@ -106,6 +107,8 @@ class RobotConfig:
     columns: tuple[LogColumn, ...] = ()
     # The URDF frame a payload's centre of mass is given in (`--payload MASS@x,y,z`); "" = the last moving link.
     payload_frame: str = ""
+    # A yarpdatadumper folder: which port holds which joints and sensors (config/yarp_ports.py).
+    yarp: YarpLayout | None = None
 
     @property
     def motor_names(self) -> tuple[str, ...]:
@@ -316,7 +319,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     name = root.string("name")
     f = _Fields(name, "", data).only(
         "name", "urdf", "base_link", "gravity", "joints", "ft_sensors", "motors", "actuation", "noise", "can",
-        "derivatives", "columns", "payload_frame",
+        "derivatives", "columns", "payload_frame", "yarp",
     )
 
     joints = f.strings("joints")
@@ -421,6 +424,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         derivatives=_derivatives(f),
         columns=parse_columns(name, f.raw("columns", None)),
         payload_frame=f.string("payload_frame") if f.has("payload_frame") else "",
+        yarp=parse_yarp(name, f.raw("yarp", None), joints, tuple(s.name for s in sensors)),
     )
 
 
