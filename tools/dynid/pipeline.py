@@ -199,10 +199,11 @@ def identify(model: RobotModel, datasets: Sequence[Dataset], data_paths: Sequenc
 
 
 def with_estimated_noise(model: RobotModel, result: FitResult) -> RobotModel:
-    """The model with each input or joint-torque channel's noise set to the fit's residual RMS on the rows that
-    move (the configuration's noise is a prior; a UR's current noise differs fivefold from base to wrist)."""
+    """The model with each channel's noise set to the fit's residual RMS on the rows that move (the configuration's
+    noise is a prior; a UR's current noise differs fivefold from base to wrist, an iCub leg sensor's axes
+    differ too)."""
     rms = np.sqrt(result.residual_variance[result.chosen])
-    per = {o.name: float(r) for o, r in zip(output_channels(model), rms) if o.kind != "ft" and np.isfinite(r) and r > 0}
+    per = {o.name: float(r) for o, r in zip(output_channels(model), rms) if np.isfinite(r) and r > 0}
     cfg = model.config
     noise = replace(cfg.noise, per_channel={**cfg.noise.per_channel, **per})
     return RobotModel(replace(cfg, noise=noise))

@@ -120,15 +120,20 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
     ev = evaluate(args.model, args.data, window=window(args), payload=args.payload)
     result = validation(ev, args.model, args.data)
     print(f"validation of {args.model} on {args.data} ({result['samples']} samples)")
-    if "table_ii" in result:
-        table = result["table_ii"]
-        paper = ev.config.name == PAPER_ROBOT  # the paper's figures describe its arm only
-        print("  F/T prediction error (norm), mean ± std:    identified            CAD (offsets fitted)"
-              + ("      paper (id / CAD)" if paper else ""))
+    paper = ev.config.name == PAPER_ROBOT  # the paper's figures describe its arm only
+    tables = result.get("table_ii_sensors", {})
+    if tables:
+        print("  F/T prediction error (norm), mean ± std:    identified            CAD (offsets fitted)   id. vs CAD"
+              + ("   paper (id / CAD)" if paper else ""))
+    for sensor, table in tables.items():
+        if len(tables) > 1:
+            print(f"   {sensor}")
         for what, unit, key in (("force", "N", "force_error"), ("torque", "Nm", "torque_error")):
             i, c = table["identified"][what], table["cad"][what]
+            change = f"{100 * (i['mean'] / c['mean'] - 1):+6.1f} %" if c["mean"] > 0 else "     -  "
             print(f"    {what:6s} {i['mean']:8.3f} ± {i['std']:.3f} {unit:2s}   {c['mean']:8.3f} ± {c['std']:.3f} {unit:2s}"
-                  + (f"        {PAPER[key][0]} ± {PAPER[key][1]} / {PAPER[key + '_cad'][0]} ± {PAPER[key + '_cad'][1]}"
+                  f"    {change}"
+                  + (f"   {PAPER[key][0]} ± {PAPER[key][1]} / {PAPER[key + '_cad'][0]} ± {PAPER[key + '_cad'][1]}"
                      if paper else ""))
     print("  per channel: RMS of e = y − ŷ, and against the channel's noise std")
     for o in ev.outputs:

@@ -28,6 +28,7 @@ BUNDLED_DIR = Path(__file__).parent / "robots"
 
 InputKind = Literal["pwm", "current", "torque"]
 INPUT_KINDS: tuple[str, ...] = ("pwm", "current", "torque")
+FT_CHANNEL_NAMES: tuple[str, ...] = ("fx", "fy", "fz", "tx", "ty", "tz")
 
 
 @dataclass(frozen=True)
@@ -38,6 +39,13 @@ class FTSensorConfig:
     joint: str
     force_noise: float  # std of one force channel, N
     torque_noise: float  # std of one torque channel, Nm
+    channel_noise: tuple[float, ...] = ()  # std per channel fx fy fz tx ty tz (N, Nm), force/torque unless given
+
+    def noise_of(self, k: int) -> float:
+        """The noise std of channel k (0..5: fx fy fz tx ty tz)."""
+        if self.channel_noise:
+            return self.channel_noise[k]
+        return self.force_noise if k < 3 else self.torque_noise
 
 
 @dataclass(frozen=True)
@@ -329,13 +337,17 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     sensors = []
     for s in f.items("ft_sensors", []):
         s.only("name", "joint", "noise")
-        noise = s.sub("noise", {}).only("force", "torque")
+        noise = s.sub("noise", {}).only("force", "torque", *FT_CHANNEL_NAMES)
+        force, torque = noise.number("force", 0.1, positive=True), noise.number("torque", 0.005, positive=True)
+        # A channel may have its own value (a real sensor's axes differ: the iCub leg's fz is noisier than fx)
+        channels = tuple(noise.number(c, force if k < 3 else torque, positive=True) for k, c in enumerate(FT_CHANNEL_NAMES))
         sensors.append(
             FTSensorConfig(
                 name=s.string("name"),
                 joint=s.string("joint"),
-                force_noise=noise.number("force", 0.1, positive=True),
-                torque_noise=noise.number("torque", 0.005, positive=True),
+                force_noise=force,
+                torque_noise=torque,
+                channel_noise=channels if any(noise.has(c) for c in FT_CHANNEL_NAMES) else (),
             )
         )
     if len({s.name for s in sensors}) != len(sensors):

@@ -191,7 +191,7 @@ def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
     for s in config.ft_sensors:
         offset = sensors.ft_offset_track(effects, s.name, t, truth.ft_offsets[s.name], rng_effects)
         gain = sensors.ft_gain_matrix(effects, s.name, np.random.default_rng([settings.robot_seed, 0xF7]))
-        std = np.array([s.force_noise] * 3 + [s.torque_noise] * 3)
+        std = np.array([s.noise_of(k) for k in range(6)])
         ft_measured[s.name], ft_saturated[s.name] = sensors.measure_ft(
             wrenches[s.name], offset, gain, std, sensors.ft_full_scale(config, s.name), settings.noise, rng_noise
         )

@@ -57,7 +57,8 @@ def row_channels(model: RobotModel) -> tuple[RowChannel, ...]:
     rows: list[RowChannel] = []
     for s in cfg.ft_sensors:
         for k, c in enumerate(WRENCH_FIELDS):
-            rows.append(RowChannel(f"ft.{s.name}.{c}", s.force_noise if k < 3 else s.torque_noise))
+            # an estimated value (`fit --noise estimate`) overrides the configuration's
+            rows.append(RowChannel(f"ft.{s.name}.{c}", cfg.noise.per_channel.get(f"ft.{s.name}.{c}", s.noise_of(k))))
     for g in cfg.actuation:
         if g.input == "torque":
             rows.extend(RowChannel(f"joint.{j}", cfg.noise.of("torque", j)) for j in g.joints)
