@@ -21,6 +21,7 @@ import numpy as np
 from .detect.t2 import ALPHA, Detector, calibrate, calibration_residuals, detector_record
 from .identify.fit import FitResult, FitSettings, fit
 from .identify.model_file import IdentifiedModel, data_record, robot_record
+from .identify.plausibility import implausible
 from .identify.statistics import Statistics
 from .identify.supply import SupplyTracking
 from .errors import InputError
@@ -195,6 +196,8 @@ def identify(model: RobotModel, datasets: Sequence[Dataset], data_paths: Sequenc
                         residual_variance=result.residual_variance[result.chosen])
     total = time.perf_counter() - started
     built.model.record["fit_time_s"] = total
+    # Nothing keeps each body physical in the regression: say where the estimate is not (identify/plausibility.py)
+    built.model.record["plausibility"] = implausible(model, result.phi)
     return Identification(built.model, result, built.detectors, fit_time, total, model)
 
 

@@ -97,6 +97,12 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         if undetermined:
             print("  not determined by this run (standard error above 10 %, or unseen by a jackknife fold; no value "
                   "given): " + ", ".join(undetermined))
+    warnings = record.get("plausibility", [])
+    if warnings:
+        print(f"  WARNING: {len(warnings)} physically implausible estimate(s) (a fit that keeps every body physical is "
+              "issue 21's; the data may not determine these bodies one by one):")
+        for w in warnings:
+            print(f"    {w['text']}")
     rms = np.sqrt(result.residual_variance[result.chosen])
     print("  residual RMS on the identification data (rows at rest left out) / channel noise:")
     print("   " + ", ".join(f"{o.name} {r:.3g} ({r / o.sigma:.2f}×)" for o, r in zip(outs, rms)))
@@ -107,7 +113,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
             "undetermined": undetermined, "unidentifiable": list(base.unidentifiable), "jackknife": result.jackknife,
             "estimators": record["estimators"],
             "base": record["base"], "residual_rms": dict(zip(record["outputs"]["channels"], rms.tolist())),
-            "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed}
+            "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed,
+            "plausibility": warnings}
 
 
 def input_words(config: RobotConfig) -> list[str]:
