@@ -40,6 +40,13 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
         f"  channels: {', '.join(channels)}"
         + ("" if dataset.dq is not None else "\n  no dq/ddq columns: derivatives will be estimated from q when needed")
     )
+    yarp = dataset.meta.get("yarp")
+    if yarp:  # what aligning the ports did (dynid.io.yarp)
+        print(f"  yarp ports on one {yarp['rate_hz']:g} Hz time base (time 0 = Unix {yarp['origin_unix_s']:.3f} s):")
+        for port, p in yarp["ports"].items():
+            dropped = p["dropped_not_increasing"] + p["dropped_cut_last_line"]
+            print(f"    {port}: {p['messages']} messages, every {1e3 * p['median_interval_s']:.1f} ms (longest "
+                  f"{1e3 * p['max_interval_s']:.1f} ms)" + (f", {dropped} dropped" if dropped else ""))
     return {
         "robot": config.name,
         "samples": dataset.n_samples,
@@ -48,6 +55,7 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
         "has_derivatives": dataset.dq is not None,
         "contact": dataset.contact is not None,
         "out": args.out,
+        **({"yarp": dataset.meta["yarp"]} if "yarp" in dataset.meta else {}),
     }
 
 

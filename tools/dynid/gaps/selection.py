@@ -147,6 +147,10 @@ class Design:
         return [self.inv_folds[b] @ (gt - gb[b]) / self.scale for b in range(self.n_blocks)]
 
 
+WORSE_TOLERANCE = 0.01  # a channel's held-out error may grow by 1 % (the refit's noise) before a fix is refused
+WORSE_NOISE_SQUARED = 0.25  # ... and by a quarter of its noise variance
+
+
 @dataclass
 class Trial:
     candidate: Candidate
@@ -154,6 +158,9 @@ class Trial:
     before_blocks: np.ndarray  # (B,) held-out SSE on those channels, per block
     after_blocks: np.ndarray
     p_value: float
+    # (row channel, relative increase) of every channel whose held-out error the candidate raises by more than
+    # WORSE_TOLERANCE: such a fix is never accepted, however much it lowers the others
+    worse: tuple[tuple[int, float], ...] = ()
 
     @property
     def cv_before(self) -> float:
@@ -179,7 +186,13 @@ def evaluate(design: Design, cand: Candidate, weights: np.ndarray, base_cv: np.n
         if not np.all(design.fit(E)[0][-k:][list(cand.positive)] > 0):  # a negative Stribeck bump or mass: never named
             return Trial(cand, channels, before, before, float("nan"))
     cv = design.cv_sse(E)
-    return Trial(cand, channels, before, cv[:, channels].sum(axis=1), float("nan"))
+    was, now = base_cv.sum(axis=0), cv.sum(axis=0)
+    rows = np.maximum(design.rows.sum(axis=0), 1)
+    # worse: the held-out mean square grows by over 1 % and by over a quarter of the noise's (the rows are in noise
+    # units), so a channel at its noise floor that moves by a few per cent is not held against a fix
+    grew = (now > (1 + WORSE_TOLERANCE) * was) & ((now - was) / rows > WORSE_NOISE_SQUARED)
+    worse = tuple((int(c), float(now[c] / was[c] - 1)) for c in np.flatnonzero(grew) if was[c] > 0)
+    return Trial(cand, channels, before, cv[:, channels].sum(axis=1), float("nan"), worse)
 
 
 def robust_p_value(design: Design, E: np.ndarray, batch: int) -> float:

@@ -28,6 +28,7 @@ from ..robot.effect_library import LIBRARY, NEEDS_GIVEN_MODEL, Candidate, Contex
 from ..robot.model import RobotModel
 from ..robot.outputs import divisors, output_channels
 from ..robot.regressors.stack import Signals, fill_rows, row_channels
+from .episodes import format_episode, residual_episodes
 from .profile import profile
 from .refit import reference_phi, refit
 from .selection import Design, Trial, evaluate, robust_p_value, weighted_columns
@@ -60,6 +61,9 @@ class Settings:
     alpha: float = ALPHA
     max_effects: int = MAX_EFFECTS
     supply: SupplyTracking | None = SupplyTracking()  # None: constant gains (one pass)
+
+
+MIN_SAMPLES = 2000
 
 
 def _collect(model: RobotModel, ds: Dataset, stride: int) -> tuple[Context, np.ndarray, np.ndarray, np.ndarray]:
@@ -144,8 +148,11 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
     this is) analyses the run with the inputs corrected by it. The ratio is estimated after the effects, so a
     named effect is not learned as supply variation; a sample whose residual is past the gate never updates it."""
     started = time.perf_counter()
-    if ds.n_samples < 2000:
-        raise DataError(f"the run has {ds.n_samples} samples; the gap analysis needs at least 2000 (2 s at 1 kHz)")
+    if ds.n_samples < MIN_SAMPLES:
+        rate = (ds.n_samples - 1) / ds.duration if ds.duration > 0 else float("nan")
+        raise DataError(f"the run has {ds.n_samples} samples; the gap analysis needs at least {MIN_SAMPLES} "
+                        f"({MIN_SAMPLES / rate:.3g} s at this run's {rate:.4g} Hz): held-out blocks of fewer hold "
+                        "too little to compare")
     stride = max(1, int(np.ceil(ds.n_samples / settings.max_samples)))
     if not any(o.kind == "input" for o in output_channels(model)):  # torque-sensed joints only: no supply to track
         settings = replace(settings, supply=None)
@@ -169,6 +176,10 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
         result["supply"] = None
     result.pop("_residual")
     result["samples"], result["kept_every"] = ds.n_samples, stride
+    for ep in result["episodes"]:  # the data's own seconds, as --from/--to take them
+        ep["from_s"] += float(ds.t[0])
+        ep["to_s"] += float(ds.t[0])
+    result["t0_s"] = float(ds.t[0])  # the profile's time edges start from it
     result["seconds"] = time.perf_counter() - started
     return result
 
@@ -210,6 +221,7 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
     named: list[dict] = []
     tried: list[Trial] = []
     not_significant: dict | None = None  # the round's best by held-out gain, when the robust test rejected it
+    rejected: dict | None = None  # the best candidate refused because it raised a channel's held-out error
     accepted_E: list[np.ndarray] = []
     accepted: list[Candidate] = []
     current = design
@@ -219,10 +231,17 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
     batch = max(1, min(int(round(BATCH_S * n / max(duration, 1e-9))), n // MIN_BATCHES))  # samples per batch (target)
     for _ in range(settings.max_effects):
         trials = [evaluate(current, c, w, cur_cv) for c in candidates if c.key not in taken]
-        if not trials:
+        # A fix that makes any channel worse on held-out blocks is never taken (the best such one is reported)
+        eligible = [tr for tr in trials if not tr.worse]
+        harmful = max((tr for tr in trials if tr.worse), key=lambda tr: tr.gain, default=None)
+        if harmful is not None and (rejected is None or harmful.gain > rejected["cv_gain"]):
+            rejected = {"effect": harmful.candidate.key, "search": dict(harmful.candidate.nonlinear),
+                        "cv_gain": harmful.gain,
+                        "worse": {channels[c].name: rel for c, rel in harmful.worse}}
+        if not eligible:
             break
-        best = max(trials, key=lambda tr: tr.gain)
-        fine = [evaluate(current, c, w, cur_cv) for c in refined(ctx, best.candidate)]
+        best = max(eligible, key=lambda tr: tr.gain)
+        fine = [tr for tr in (evaluate(current, c, w, cur_cv) for c in refined(ctx, best.candidate)) if not tr.worse]
         best = max([best, *fine], key=lambda tr: tr.gain)
         # best per effect/place, for the report of what was ruled out
         tried = trials
@@ -285,9 +304,12 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
                 for ch, bf, af, gv in zip(channels, before, after, given if given is not None else before)],
         "given_model": reference[0] if reference is not None else None,
         "where": _where(model, ctx, resid0, w),
+        # when and where the residual left after the fix steps (what the library could not name)
+        "episodes": residual_episodes(model, ctx.t, ctx.sig.q, resid_after, np.asarray(after)),
         "profile": profile(model, ctx, resid0, resid_after, w),  # binned, before/after: what the figures plot
         "ruled_out": ruled_out[:12],
         "not_significant": not_significant,
+        "rejected_worse": rejected,
         "not_tried": [] if reference is not None else list(NEEDS_GIVEN_MODEL),  # effects that need a given model
         "_residual": resid_after,  # weighted rows after the named effects: the supply estimate of a second pass
         # the augmented model (`dynid gaps --out`): not part of the --json result (see cli_gaps)
@@ -320,11 +342,18 @@ def format_report(result: dict) -> str:
         else:
             extra = f"; best candidate {best['effect']} lowers the held-out error only {100 * best['cv_gain']:.1f} %" if best else ""
         lines.append("named: nothing — no effect in the library explains a significant part of the residual" + extra)
+    refused = result.get("rejected_worse")
+    if refused is not None:
+        worse = ", ".join(f"{ch} +{100 * rel:.0f} %" for ch, rel in refused["worse"].items())
+        lines.append(f"refused: {refused['effect']} lowers the held-out error {100 * refused['cv_gain']:.1f} % but makes "
+                     f"{worse} worse on held-out blocks")
     high = sorted((g for g in result["gap"] if g["after_over_noise"] > 1.3), key=lambda g: -g["after_over_noise"])
     if high:
         listed = ", ".join(f"{g['channel']} {g['after_over_noise']:.2f}×" for g in high)
         untried = result["not_tried"] and f"; not tried without a given model (--model): {', '.join(result['not_tried'])}"
         lines.append(f"unexplained: {listed} its noise floor after the fix{untried or ''}")
+    for ep in result.get("episodes", []):
+        lines.append("  " + format_episode(ep))
     given = result.get("given_model")
     head = f"{'given':>10s} " if given else ""
     lines.append(f"{'channel':24s} {head}{'before':>10s} {'after':>10s}  {'(× noise)':>18s}")
