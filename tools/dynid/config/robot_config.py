@@ -117,6 +117,10 @@ class RobotConfig:
     payload_frame: str = ""
     # A yarpdatadumper folder: which port holds which joints and sensors (config/yarp_ports.py).
     yarp: YarpLayout | None = None
+    # Gravity per sample for a base that tilts: the URDF frame of an accelerometer fixed to the base and its three
+    # data columns (m/s², the specific force it measures: −g at rest); "" = the constant `gravity`.
+    gravity_imu: str = ""
+    gravity_imu_columns: tuple[str, ...] = ()
 
     @property
     def motor_names(self) -> tuple[str, ...]:
@@ -409,6 +413,14 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         raise f.fail("motors", f"defines {unused[0]}, which no actuation group uses")
 
     gravity = f.raw("gravity", [0.0, 0.0, -9.81])
+    imu_frame, imu_columns = "", ()
+    if isinstance(gravity, dict):  # per sample, from an accelerometer fixed to the base (a base that tilts)
+        spec = f.sub("gravity").only("imu", "columns", "magnitude")
+        imu_frame = spec.string("imu")
+        imu_columns = spec.strings("columns", ["imu.ax", "imu.ay", "imu.az"])
+        if len(imu_columns) != 3 or len(set(imu_columns)) != 3:
+            raise spec.fail("columns", f"must name three different columns (x, y, z), got {list(imu_columns)}")
+        gravity = [0.0, 0.0, -spec.number("magnitude", 9.81, positive=True)]  # the nominal: export, CAD checks
     try:
         g_arr = np.array(gravity, dtype=float)
     except (TypeError, ValueError):
@@ -427,6 +439,8 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         urdf=_resolve_urdf(f, path.parent, urdf),
         base_link=f.string("base_link"),
         gravity=g_arr,
+        gravity_imu=imu_frame,
+        gravity_imu_columns=tuple(imu_columns),
         joints=joints,
         ft_sensors=tuple(sensors),
         actuation=tuple(groups),

@@ -82,6 +82,8 @@ def _collect(model: RobotModel, ds: Dataset, stride: int) -> tuple[Context, np.n
         {k: np.concatenate([s.inputs[k] for s in sigs]) for k in sigs[0].inputs},
         {k: np.concatenate([s.tau[k] for s in sigs]) for k in sigs[0].tau},
         {k: np.vstack([s.ft[k] for s in sigs]) for k in sigs[0].ft},
+        None,  # a payload's known torques are already in b (_rows, per chunk)
+        None if sigs[0].gravity is None else np.vstack([s.gravity for s in sigs]),
     )
     t = np.concatenate(ts)
     full = {k: np.concatenate([d[k] for d in dus]) for k in dus[0]}

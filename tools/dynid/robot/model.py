@@ -84,6 +84,18 @@ class RobotModel:
         self.pin_model.gravity = pin.Motion(np.asarray(config.gravity, float), np.zeros(3))
         m = self.pin_model
 
+        # root <- accelerometer: gravity per sample is −R a (config.gravity_imu); the frame must not move
+        self.imu_rotation: np.ndarray | None = None
+        if config.gravity_imu:
+            if not m.existFrame(config.gravity_imu):
+                raise ConfigError(f"{config.name}: field 'gravity.imu' names '{config.gravity_imu}', not a frame of "
+                                  f"{config.urdf.name}")
+            frame = m.frames[m.getFrameId(config.gravity_imu)]
+            if frame.parentJoint != 0:
+                raise ConfigError(f"{config.name}: field 'gravity.imu' names '{config.gravity_imu}', which a moving "
+                                  "joint carries: the accelerometer must be fixed to the base")
+            self.imu_rotation = frame.placement.rotation.copy()
+
         self.joint_ids = [int(m.getJointId(j)) for j in config.joints]
         self.v_index = np.array([m.idx_vs[i] for i in self.joint_ids])  # columns of q̇ in Pinocchio's v
         self.q_index = np.array([m.idx_qs[i] for i in self.joint_ids])
