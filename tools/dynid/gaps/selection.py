@@ -158,9 +158,6 @@ class Trial:
     before_blocks: np.ndarray  # (B,) held-out SSE on those channels, per block
     after_blocks: np.ndarray
     p_value: float
-    # (row channel, relative increase) of every channel whose held-out error the candidate raises by more than
-    # WORSE_TOLERANCE: such a fix is never accepted, however much it lowers the others
-    worse: tuple[tuple[int, float], ...] = ()
 
     @property
     def cv_before(self) -> float:
@@ -186,13 +183,19 @@ def evaluate(design: Design, cand: Candidate, weights: np.ndarray, base_cv: np.n
         if not np.all(design.fit(E)[0][-k:][list(cand.positive)] > 0):  # a negative Stribeck bump or mass: never named
             return Trial(cand, channels, before, before, float("nan"))
     cv = design.cv_sse(E)
-    was, now = base_cv.sum(axis=0), cv.sum(axis=0)
-    rows = np.maximum(design.rows.sum(axis=0), 1)
-    # worse: the held-out mean square grows by over 1 % and by over a quarter of the noise's (the rows are in noise
-    # units), so a channel at its noise floor that moves by a few per cent is not held against a fix
-    grew = (now > (1 + WORSE_TOLERANCE) * was) & ((now - was) / rows > WORSE_NOISE_SQUARED)
-    worse = tuple((int(c), float(now[c] / was[c] - 1)) for c in np.flatnonzero(grew) if was[c] > 0)
-    return Trial(cand, channels, before, cv[:, channels].sum(axis=1), float("nan"), worse)
+    return Trial(cand, channels, before, cv[:, channels].sum(axis=1), float("nan"))
+
+
+def worse_channels(before_cv: np.ndarray, after_cv: np.ndarray, rows: np.ndarray) -> list[tuple[int, float]]:
+    """(row channel, relative increase) of every channel whose held-out error a fix makes worse.
+
+    Worse: the held-out mean square grows by over 1 % and by over a quarter of the noise's (the rows are in noise
+    units), so a channel at its noise floor that moves by a few per cent is not held against a fix. `before_cv`,
+    `after_cv`: (B, r) held-out SSE per block; `rows`: (B, r) rows per block."""
+    was, now = before_cv.sum(axis=0), after_cv.sum(axis=0)
+    n = np.maximum(rows.sum(axis=0), 1)
+    grew = (now > (1 + WORSE_TOLERANCE) * was) & ((now - was) / n > WORSE_NOISE_SQUARED)
+    return [(int(c), float(now[c] / was[c] - 1)) for c in np.flatnonzero(grew) if was[c] > 0]
 
 
 def robust_p_value(design: Design, E: np.ndarray, batch: int) -> float:

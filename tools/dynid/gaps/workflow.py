@@ -31,7 +31,7 @@ from ..robot.regressors.stack import Signals, fill_rows, row_channels
 from .episodes import format_episode, residual_episodes
 from .profile import profile
 from .refit import reference_phi, refit
-from .selection import Design, Trial, evaluate, robust_p_value, weighted_columns
+from .selection import Design, Trial, evaluate, robust_p_value, weighted_columns, worse_channels
 
 MAX_SAMPLES = 6000  # decimated samples kept: the filtered signals are smooth, and selection stays seconds
 N_BLOCKS = 5
@@ -223,7 +223,6 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
     named: list[dict] = []
     tried: list[Trial] = []
     not_significant: dict | None = None  # the round's best by held-out gain, when the robust test rejected it
-    rejected: dict | None = None  # the best candidate refused because it raised a channel's held-out error
     accepted_E: list[np.ndarray] = []
     accepted: list[Candidate] = []
     current = design
@@ -233,17 +232,10 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
     batch = max(1, min(int(round(BATCH_S * n / max(duration, 1e-9))), n // MIN_BATCHES))  # samples per batch (target)
     for _ in range(settings.max_effects):
         trials = [evaluate(current, c, w, cur_cv) for c in candidates if c.key not in taken]
-        # A fix that makes any channel worse on held-out blocks is never taken (the best such one is reported)
-        eligible = [tr for tr in trials if not tr.worse]
-        harmful = max((tr for tr in trials if tr.worse), key=lambda tr: tr.gain, default=None)
-        if harmful is not None and (rejected is None or harmful.gain > rejected["cv_gain"]):
-            rejected = {"effect": harmful.candidate.key, "search": dict(harmful.candidate.nonlinear),
-                        "cv_gain": harmful.gain,
-                        "worse": {channels[c].name: rel for c, rel in harmful.worse}}
-        if not eligible:
+        if not trials:
             break
-        best = max(eligible, key=lambda tr: tr.gain)
-        fine = [tr for tr in (evaluate(current, c, w, cur_cv) for c in refined(ctx, best.candidate)) if not tr.worse]
+        best = max(trials, key=lambda tr: tr.gain)
+        fine = [evaluate(current, c, w, cur_cv) for c in refined(ctx, best.candidate)]
         best = max([best, *fine], key=lambda tr: tr.gain)
         # best per effect/place, for the report of what was ruled out
         tried = trials
@@ -262,6 +254,21 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
         current = Design(np.concatenate([design.D] + accepted_E, axis=2), y, bounds)
         cur_cv = current.cv_sse(None)
         named.append({"trial": best})
+
+    # The fix is never accepted when it makes a channel worse on held-out blocks: the last-named effects are
+    # dropped until no channel is (a greedy round may hurt a channel that a later effect repairs, so this is
+    # judged on the whole fix, not per round).
+    refused: list[dict] = []
+    while accepted:
+        worse = worse_channels(base_cv, cur_cv, current.rows)
+        if not worse:
+            break
+        c, item = accepted.pop(), named.pop()
+        accepted_E.pop()
+        refused.append({"effect": c.key, "search": dict(c.nonlinear), "cv_gain": item["trial"].gain,
+                        "worse": {channels[k].name: rel for k, rel in worse}})
+        current = Design(np.concatenate([design.D] + accepted_E, axis=2), y, bounds) if accepted_E else design
+        cur_cv = current.cv_sse(None)
 
     # Final refit with every named effect; coefficients in row units (the columns were weighted like the rows).
     # Φ outside the run's identifiable subspace keeps the given model's (or CAD) values (dynid.gaps.refit).
@@ -311,7 +318,7 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
         "profile": profile(model, ctx, resid0, resid_after, w),  # binned, before/after: what the figures plot
         "ruled_out": ruled_out[:12],
         "not_significant": not_significant,
-        "rejected_worse": rejected,
+        "refused": refused,  # effects dropped because the fix with them made a channel worse on held-out blocks
         "not_tried": [] if reference is not None else list(NEEDS_GIVEN_MODEL),  # effects that need a given model
         "_residual": resid_after,  # weighted rows after the named effects: the supply estimate of a second pass
         # the augmented model (`dynid gaps --out`): not part of the --json result (see cli_gaps)
@@ -338,17 +345,18 @@ def format_report(result: dict) -> str:
     else:
         best = result["ruled_out"][0] if result["ruled_out"] else None
         weak = result.get("not_significant")
-        if weak is not None:
+        if result.get("refused"):
+            extra = "; what the selection found made a channel worse on held-out blocks (refused, below)"
+        elif weak is not None:
             extra = (f"; best candidate {weak['effect']} lowers the held-out error {100 * weak['cv_gain']:.1f} %, but not "
                      f"consistently over the run (robust p={weak['p_value']:.1e} > {weak['level']:.1e})")
         else:
             extra = f"; best candidate {best['effect']} lowers the held-out error only {100 * best['cv_gain']:.1f} %" if best else ""
         lines.append("named: nothing — no effect in the library explains a significant part of the residual" + extra)
-    refused = result.get("rejected_worse")
-    if refused is not None:
+    for refused in result.get("refused", []):
         worse = ", ".join(f"{ch} +{100 * rel:.0f} %" for ch, rel in refused["worse"].items())
-        lines.append(f"refused: {refused['effect']} lowers the held-out error {100 * refused['cv_gain']:.1f} % but makes "
-                     f"{worse} worse on held-out blocks")
+        lines.append(f"refused: {refused['effect']} (held-out error on its channels −{100 * refused['cv_gain']:.1f} %): "
+                     f"the fix with it makes {worse} worse on held-out blocks")
     high = sorted((g for g in result["gap"] if g["after_over_noise"] > 1.3), key=lambda g: -g["after_over_noise"])
     if high:
         listed = ", ".join(f"{g['channel']} {g['after_over_noise']:.2f}×" for g in high)

@@ -204,7 +204,7 @@ def _page(r: dict[str, Any], identified: IdentifiedModel, units: dict[str, str],
         + (f"True parameters from <code>{H.esc(r['truth'])}</code>." if r["truth"] else "No true parameters known.")
         + "</p>",
         "<h2>Prediction error (the paper's Table II)</h2>",
-        H.table_ii(v, r["paper"]) if "table_ii" in v else "<p class=\"note\">No F/T sensor: no Table II.</p>",
+        _tables_ii(v, r["paper"]),
         "<p class=\"note\">Norm of the F/T prediction error on the validation run. CAD: the URDF inertia with the F/T "
         "offsets that fit it best on the identification data."
         + (" Paper: the real iCub arm (Traversaro et al. 2013)." if r["paper"] else "") + "</p>",
@@ -245,3 +245,13 @@ def _truth_note(check: dict[str, Any] | None) -> str:
             f"{check['rms_error_in_se']:.2f}</span> standard errors RMS; "
             f"<span data-key=\"truth_check/within_2se\" data-value=\"{check['within_2se']!r}\" data-scale=\"100.0\">"
             f"{100 * check['within_2se']:.0f}</span> % lie within 2 se (honest errors: about 1 and 95 %).</p>")
+
+
+def _tables_ii(v: dict[str, Any], paper: dict[str, Any] | None) -> str:
+    """Table II, one per F/T sensor when the configuration has several."""
+    sensors = list(v.get("table_ii_sensors", {}))
+    if not sensors:
+        return "<p class=\"note\">No F/T sensor: no Table II.</p>" if "table_ii" not in v else H.table_ii(v, paper)
+    if len(sensors) == 1:
+        return H.table_ii(v, paper)
+    return "\n".join(f"<h3>{H.esc(s)}</h3>" + H.table_ii(v, None, s) for s in sensors)
