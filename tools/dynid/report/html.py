@@ -122,6 +122,15 @@ def detection(det_val: dict[str, Any], det_con: dict[str, Any], paper: dict[str,
                   "delay median (ms)", "delay p90 (ms)"], rows)
 
 
+def false_positives(det_val: dict[str, Any], alpha: float) -> str:
+    """The detection table without a contact run: each variant's threshold and false positives on validation."""
+    rows = [f"<tr>{text(variant)}{num(v['threshold'], '.4g', f'detection/validation/variants/{variant}/threshold')}"
+            f"{num(v['fpr'], '.2f', f'detection/validation/variants/{variant}/fpr', 100)}</tr>"
+            for variant, v in det_val["variants"].items()]
+    return (table(["variant", "threshold", f"FPR % validation (promise {100 * (1 - alpha):.0f} %)"], rows)
+            + "<p class=\"note\">No run with contact ground truth was given (--contact): no TPR, ROC or delays.</p>")
+
+
 def gains(rows_in: list[dict[str, Any]], chosen: str) -> str:
     if not rows_in:
         return "<p class=\"note\">No motor gains in this model.</p>"
