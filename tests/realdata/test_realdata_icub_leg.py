@@ -111,11 +111,14 @@ def test_the_gap_workflow_locates_the_step(tmp_path: Path) -> None:
         ("detect", "--from", "47", "--to", "65"),
         ("validate", "--from", "47", "--to", "65"),
         ("export",),
+        ("report",),  # no contact labels in these logs: the report without --contact
     ],
 )
 def test_every_command_ends_in_a_result_or_one_line(tmp_path: Path, fitted: Path, args: tuple[str, ...]) -> None:
     command, rest = args[0], list(args[1:])
-    if command in ("validate", "detect", "export"):
+    if command == "report":
+        call = [command, "--model", str(fitted), "--validation", str(DUMP), "--out", str(tmp_path / "out.html")]
+    elif command in ("validate", "detect", "export"):
         call = [command, "--model", str(fitted)]
         if command != "export":
             call += ["--data", str(DUMP)]
