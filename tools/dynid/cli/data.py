@@ -47,6 +47,13 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
         + ("" if dataset.dq is not None else "\n  no dq/ddq columns: derivatives will be estimated from q when needed")
         + (f"\n  skipped {skipped} malformed line{'s' * (skipped != 1)} of the candump log" if skipped else "")
     )
+    yarp = dataset.meta.get("yarp")
+    if yarp:  # what aligning the ports did (dynid.io.yarp)
+        print(f"  yarp ports on one {yarp['rate_hz']:g} Hz time base (time 0 = Unix {yarp['origin_unix_s']:.3f} s):")
+        for port, p in yarp["ports"].items():
+            dropped = p["dropped_not_increasing"] + p["dropped_cut_last_line"]
+            print(f"    {port}: {p['messages']} messages, every {1e3 * p['median_interval_s']:.1f} ms (longest "
+                  f"{1e3 * p['max_interval_s']:.1f} ms)" + (f", {dropped} dropped" if dropped else ""))
     return {
         "robot": config.name,
         "samples": dataset.n_samples,
@@ -56,6 +63,7 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
         "contact": dataset.contact is not None,
         "skipped_lines": skipped,
         "out": args.out,
+        **({"yarp": dataset.meta["yarp"]} if "yarp" in dataset.meta else {}),
     }
 
 
@@ -104,6 +112,17 @@ def cmd_structure(args: argparse.Namespace) -> dict[str, Any]:
     }
 
 
+def tilt_degrees(text: str) -> float:
+    """--tilt DEG: 0 to 45 degrees (beyond, a robot does not stand)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of degrees") from None
+    if not 0.0 <= value <= 45.0:
+        raise argparse.ArgumentTypeError(f"{text} degrees is outside 0..45")
+    return value
+
+
 def cmd_simulate(args: argparse.Namespace) -> dict[str, Any]:
 
     if args.list_effects:
@@ -119,7 +138,7 @@ def cmd_simulate(args: argparse.Namespace) -> dict[str, Any]:
     settings = SimulationSettings(
         kind=args.kind, duration=args.duration, seed=args.seed, robot_seed=args.robot_seed,
         noise=args.noise == "realistic", disturbance=args.disturbance == "realistic", effects=effects,
-        rate_hz=args.rate,
+        rate_hz=args.rate, tilt_deg=args.tilt,
     )
     started = time.perf_counter()
     sim = simulate(config, settings)
@@ -195,6 +214,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     help="switch on a hidden effect (repeatable); --list-effects shows them")
     sp.add_argument("--list-effects", action="store_true", help="list the hidden effects and their parameters")
     sp.add_argument("--rate", type=positive_float, default=1000.0, metavar="HZ", help="sample rate (default 1000)")
+    sp.add_argument("--tilt", type=tilt_degrees, default=0.0, metavar="DEG",
+                    help="a base that tilts by up to DEG degrees about the root's x and y (periods 17 s and 23 s), "
+                    "as a balancing humanoid's; the run records an accelerometer at the root (imu.ax, imu.ay, imu.az, "
+                    "m/s²) for a configuration with 'gravity: {imu: FRAME}' (default 0: a fixed base)")
     sp.add_argument("--out", metavar="DIR", help="the directory to write")
     json_arg(sp)
     sp.set_defaults(func=cmd_simulate)

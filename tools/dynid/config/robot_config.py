@@ -21,12 +21,14 @@ import yaml
 
 from ..errors import ConfigError
 from .log_columns import LogColumn, parse_columns
+from .yarp_ports import YarpLayout, parse_yarp
 
 DEFAULT_ROBOT = "icub_right_arm"
 BUNDLED_DIR = Path(__file__).parent / "robots"
 
 InputKind = Literal["pwm", "current", "torque"]
 INPUT_KINDS: tuple[str, ...] = ("pwm", "current", "torque")
+FT_CHANNEL_NAMES: tuple[str, ...] = ("fx", "fy", "fz", "tx", "ty", "tz")
 
 
 @dataclass(frozen=True)
@@ -37,6 +39,13 @@ class FTSensorConfig:
     joint: str
     force_noise: float  # std of one force channel, N
     torque_noise: float  # std of one torque channel, Nm
+    channel_noise: tuple[float, ...] = ()  # std per channel fx fy fz tx ty tz (N, Nm), force/torque unless given
+
+    def noise_of(self, k: int) -> float:
+        """The noise std of channel k (0..5: fx fy fz tx ty tz)."""
+        if self.channel_noise:
+            return self.channel_noise[k]
+        return self.force_noise if k < 3 else self.torque_noise
 
 
 @dataclass(frozen=True)
@@ -92,7 +101,7 @@ class RobotConfig:
     digest: str  # sha256 of the file's bytes: models and datasets record it
     urdf: Path
     base_link: str
-    gravity: np.ndarray  # (3,) in the URDF root frame
+    gravity: np.ndarray  # (3,) in the model root's frame: the URDF root, or base_link when re-rooted there
     joints: tuple[str, ...]
     ft_sensors: tuple[FTSensorConfig, ...]
     actuation: tuple[ActuationGroup, ...]
@@ -106,6 +115,12 @@ class RobotConfig:
     columns: tuple[LogColumn, ...] = ()
     # The URDF frame a payload's centre of mass is given in (`--payload MASS@x,y,z`); "" = the last moving link.
     payload_frame: str = ""
+    # A yarpdatadumper folder: which port holds which joints and sensors (config/yarp_ports.py).
+    yarp: YarpLayout | None = None
+    # Gravity per sample for a base that tilts: the URDF frame of an accelerometer fixed to the base and its three
+    # data columns (m/s², the specific force it measures: −g at rest); "" = the constant `gravity`.
+    gravity_imu: str = ""
+    gravity_imu_columns: tuple[str, ...] = ()
 
     @property
     def motor_names(self) -> tuple[str, ...]:
@@ -335,7 +350,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     name = root.string("name")
     f = _Fields(name, "", data).only(
         "name", "urdf", "base_link", "gravity", "joints", "ft_sensors", "motors", "actuation", "noise", "can",
-        "derivatives", "columns", "payload_frame",
+        "derivatives", "columns", "payload_frame", "yarp",
     )
 
     joints = f.strings("joints")
@@ -345,13 +360,17 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     sensors = []
     for s in f.items("ft_sensors", []):
         s.only("name", "joint", "noise")
-        noise = s.sub("noise", {}).only("force", "torque")
+        noise = s.sub("noise", {}).only("force", "torque", *FT_CHANNEL_NAMES)
+        force, torque = noise.number("force", 0.1, positive=True), noise.number("torque", 0.005, positive=True)
+        # A channel may have its own value (a real sensor's axes differ: the iCub leg's fz is noisier than fx)
+        channels = tuple(noise.number(c, force if k < 3 else torque, positive=True) for k, c in enumerate(FT_CHANNEL_NAMES))
         sensors.append(
             FTSensorConfig(
                 name=s.string("name"),
                 joint=s.string("joint"),
-                force_noise=noise.number("force", 0.1, positive=True),
-                torque_noise=noise.number("torque", 0.005, positive=True),
+                force_noise=force,
+                torque_noise=torque,
+                channel_noise=channels if any(noise.has(c) for c in FT_CHANNEL_NAMES) else (),
             )
         )
     if len({s.name for s in sensors}) != len(sensors):
@@ -415,6 +434,14 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         raise f.fail("motors", f"defines {unused[0]}, which no actuation group uses")
 
     gravity = f.raw("gravity", [0.0, 0.0, -9.81])
+    imu_frame, imu_columns = "", ()
+    if isinstance(gravity, dict):  # per sample, from an accelerometer fixed to the base (a base that tilts)
+        spec = f.sub("gravity").only("imu", "columns", "magnitude")
+        imu_frame = spec.string("imu")
+        imu_columns = spec.strings("columns", ["imu.ax", "imu.ay", "imu.az"])
+        if len(imu_columns) != 3 or len(set(imu_columns)) != 3:
+            raise spec.fail("columns", f"must name three different columns (x, y, z), got {list(imu_columns)}")
+        gravity = [0.0, 0.0, -spec.number("magnitude", 9.81, positive=True)]  # the nominal: export, CAD checks
     try:
         g_arr = np.array(gravity, dtype=float)
     except (TypeError, ValueError, OverflowError):
@@ -433,6 +460,8 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         urdf=_resolve_urdf(f, path.parent, urdf),
         base_link=f.string("base_link"),
         gravity=g_arr,
+        gravity_imu=imu_frame,
+        gravity_imu_columns=tuple(imu_columns),
         joints=joints,
         ft_sensors=tuple(sensors),
         actuation=tuple(groups),
@@ -442,6 +471,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         derivatives=_derivatives(f),
         columns=parse_columns(name, f.raw("columns", None)),
         payload_frame=f.string("payload_frame") if f.has("payload_frame") else "",
+        yarp=parse_yarp(name, f.raw("yarp", None), joints, tuple(s.name for s in sensors)),
     )
 
 

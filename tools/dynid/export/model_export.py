@@ -83,6 +83,10 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
     """Calibrate the monitor's T² on contact-free data through its fixed-lag filter and write the coefficient file
     atomically."""
     model = identified.robot_model
+    if model.config.gravity_imu:  # the coefficient file and the monitor's core hold one gravity vector
+        raise DataError(f"{model.config.name} takes gravity per sample from the accelerometer at "
+                        f"{model.config.gravity_imu}; the monitor takes it constant: export a configuration with a "
+                        "constant 'gravity' (the base held still) instead")
     effects = identified.effects
     exportable_effects(effects)  # before the (slow) calibration: an effect the monitor lacks is refused at once
     datasets, data_digest = calibration_data(identified, model, settings.data)

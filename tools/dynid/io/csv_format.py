@@ -130,6 +130,7 @@ def required_columns(config: RobotConfig) -> list[tuple[str, str]]:
             needed += [(f"{g.input}.{m}", f"drives actuation group '{g.name}' by {g.input}") for m in g.motors]
     for s in config.ft_sensors:
         needed += [(f"ft.{s.name}.{c}", f"has the F/T sensor {s.name}") for c in FT_CHANNELS]
+    needed += [(c, f"takes gravity from the accelerometer at {config.gravity_imu}") for c in config.gravity_imu_columns]
     return needed
 
 

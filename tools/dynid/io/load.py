@@ -1,7 +1,7 @@
 """Experiment data in any supported form → a `Dataset` checked against the robot configuration.
 
-The one entry point of dynid.io (`load_data`): a dataset file, a `dynid simulate` directory, a candump log or a
-CSV, told apart by content first, then by extension.
+The one entry point of dynid.io (`load_data`): a dataset file, a `dynid simulate` directory, a yarpdatadumper
+folder, a candump log or a CSV, told apart by content first, then by extension.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from ..errors import DataError
 from .candump import read_candump
 from .csv_format import check_columns, read_csv
 from .headerless import looks_headerless, read_headerless
+from .yarp import is_dumper_folder, read_yarp
 from .dataset import _ZIP_MAGIC, SIMULATION_DATASET, Dataset, check_units
 
 # `(1700000000.000000) can0 123#DEADBEEF` : the `candump -L` line format.
@@ -75,6 +76,8 @@ def _load(
         raise DataError(f"data file not found: {path}")
     if path.is_dir() and (path / SIMULATION_DATASET).is_file():  # the output directory of `dynid simulate`
         path = path / SIMULATION_DATASET
+    elif is_dumper_folder(path):  # a YARP robot's log: one folder per port
+        return read_yarp(path, config, joint_limits=joint_limits, require_all=require_all)
     if not path.is_file():
         raise DataError(f"data path is not a file: {path}")
     try:
