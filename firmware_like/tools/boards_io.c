@@ -58,6 +58,48 @@ static boards_mc_conf_t *mc_board(boards_conf_t *c, int bus, uint8_t address)
     return &c->mc[c->n_mc++];
 }
 
+/* The keys of the rt_monitor configuration that only the monitor reads. */
+static int is_monitor_key(const char *key)
+{
+    static const char *const keys[] = {"robot", "lcm_url", "stale_ms", "pair_us", "status_hz", "residual_every"};
+    size_t i;
+    for (i = 0; i < sizeof keys / sizeof keys[0]; ++i) {
+        if (strcmp(key, keys[i]) == 0) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
+/* A name from the file for a message: at most 64 bytes, control bytes as '?' (the refusal stays one line). */
+static const char *shown(const char *name)
+{
+    static char out[65];
+    size_t i;
+    for (i = 0; name[i] && i < sizeof out - 1; ++i) {
+        const unsigned char ch = (unsigned char)name[i];
+        out[i] = (char)(ch < 0x20 || ch == 0x7f ? '?' : ch);
+    }
+    out[i] = '\0';
+    return out;
+}
+
+/* Some board already maps the joint (axis) or the motor (pwm) `name`. */
+static int mapped_twice(const boards_conf_t *c, int axis, const char *name)
+{
+    int i;
+    unsigned s;
+    for (i = 0; i < c->n_mc; ++i) {
+        for (s = 0; s < BOARD_MC_AXES; ++s) {
+            if (axis ? (c->mc[i].axis[s].used && strcmp(c->mc[i].joint[s], name) == 0)
+                     : (c->mc[i].axis[s].has_pwm && strcmp(c->mc[i].motor[s], name) == 0)) {
+                return 1;
+            }
+        }
+    }
+    return 0;
+}
+
 #define MAX_TOK 12
 /* One pass over the configuration: pass 0 reads the 'buses' line, pass 1 the board lines that name its buses
  * (so keys come in any order). 0, or an exit code with err set. */
@@ -73,6 +115,10 @@ static int read_conf_pass(FILE *f, const char *path, int pass, boards_conf_t *c,
         int n = 0, i, bus = -1;
         char *save = 0, *p;
         ++line;
+        if (!strchr(g_line, '\n') && !feof(f)) { /* its rest would be read as a line of its own */
+            snprintf(why, sizeof why, "line longer than %d bytes, or with a NUL byte", LINE_LEN - 1);
+            BAD(why);
+        }
         if ((p = strchr(g_line, '#')) != 0) {
             *p = '\0';
         }
@@ -99,7 +145,12 @@ static int read_conf_pass(FILE *f, const char *path, int pass, boards_conf_t *c,
         }
         if (strcmp(tok[0], "strain") != 0 && strcmp(tok[0], "axis") != 0 && strcmp(tok[0], "pwm") != 0 &&
             strcmp(tok[0], "skin") != 0) {
-            continue; /* the monitor's own settings */
+            if (is_monitor_key(tok[0])) {
+                continue; /* the monitor's own settings */
+            }
+            /* A misspelt board line was skipped without a word (rt_monitor refuses it): the board went missing. */
+            snprintf(why, sizeof why, "unknown key '%s'", shown(tok[0]));
+            BAD(why);
         }
         if (n < 3) BAD("a board line needs a bus and an address");
         bus = bus_index(c, tok[1]);
@@ -121,6 +172,13 @@ static int read_conf_pass(FILE *f, const char *path, int pass, boards_conf_t *c,
             if (n != 5) BAD("'skin BUS ADDRESS PATCH SIDE' expected");
             if (c->n_skin == BOARDS_MAX_SKIN) BAD("too many skin boards");
             if (!parse_address(tok[2], &c->skin_address[c->n_skin])) BAD("board address must be 0..15");
+            for (i = 0; i < c->n_skin; ++i) { /* one board, two patches: its frames would be sent twice */
+                if (c->skin_bus[i] == bus && c->skin_address[i] == c->skin_address[c->n_skin]) {
+                    snprintf(why, sizeof why, "skin board %.64s %u has a second 'skin' line", tok[1],
+                             (unsigned)c->skin_address[i]);
+                    BAD(why);
+                }
+            }
             c->skin_bus[c->n_skin++] = bus;
         } else {
             uint8_t address;
@@ -134,6 +192,12 @@ static int read_conf_pass(FILE *f, const char *path, int pass, boards_conf_t *c,
             if (strcmp(tok[0], "axis") == 0 && n != 7) BAD("'axis BUS ADDRESS SLOT JOINT TICKS_PER_DEG ZERO_DEG' expected");
             if (strcmp(tok[0], "pwm") == 0 && n != 6) BAD("'pwm BUS ADDRESS SLOT MOTOR FULL_SCALE' expected");
             if (strlen(tok[4]) >= BOARDS_NAME_LEN) BAD("name too long");
+            if (mapped_twice(c, strcmp(tok[0], "axis") == 0, tok[4])) {
+                /* rt_monitor refuses a joint or a motor on two boards; the boards sent both without a word */
+                snprintf(why, sizeof why, "%s '%s' has a second '%s' line", strcmp(tok[0], "axis") == 0 ? "joint" : "motor",
+                         shown(tok[4]), tok[0]);
+                BAD(why);
+            }
             b = mc_board(c, bus, address);
             if (!b) BAD("too many motor-control boards");
             a = &b->axis[slot];
@@ -176,6 +240,10 @@ int boards_read_conf_stream(FILE *f, const char *path, boards_conf_t *c, char er
     int rc;
     memset(c, 0, sizeof *c);
     rc = read_conf_pass(f, path, 0, c, &buses_line, err);
+    if (rc == 0 && ferror(f)) { /* a directory reads as an error, not as an empty file without 'buses' */
+        snprintf(err, BOARDS_ERR_LEN, "%s: read error: %s", path, strerror(errno));
+        return BOARDS_EXIT_NOFILE;
+    }
     if (rc == 0 && c->n_buses == 0) {
         snprintf(err, BOARDS_ERR_LEN, "%s: no 'buses' line", path);
         rc = BOARDS_EXIT_BADDATA;
@@ -274,6 +342,9 @@ int boards_csv_open_stream(boards_csv_t *csv, FILE *f, const char *path, const b
     n = split(g_line, field);
     if (n < 0) BAD("%s:1: more than %d columns", path, BOARDS_MAX_COLS);
     cols->n_cols = n;
+    for (i = 1; i < n; ++i) { /* which of two 'q.r_elbow' columns is the joint's? dynid refuses it, so do the boards */
+        if (find(field, i, field[i]) >= 0) BAD("%s:1: column '%s' appears twice in the header", path, shown(field[i]));
+    }
     cols->t = find(field, n, "t");
     if (cols->t < 0) BAD("%s: no column 't'", path);
     if (!sensor) { /* the one F/T sensor of the data */
@@ -333,7 +404,8 @@ int boards_csv_row(boards_csv_t *csv, const boards_columns_t *cols, char err[BOA
         }
     }
     if (!strchr(g_line, '\n') && !feof(csv->f)) {
-        snprintf(err, BOARDS_ERR_LEN, "%s:%ld: line longer than %d bytes", csv->path, csv->line, LINE_LEN - 1);
+        snprintf(err, BOARDS_ERR_LEN, "%s:%ld: line longer than %d bytes, or with a NUL byte", csv->path, csv->line,
+                 LINE_LEN - 1);
         return -BOARDS_EXIT_BADDATA;
     }
     n = split(g_line, field);

@@ -5,8 +5,9 @@
 #include <cerrno>
 #include <climits>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
-#include <fstream>
+#include <cstring>
 #include <map>
 #include <sstream>
 #include <tuple>
@@ -287,12 +288,19 @@ bool parse_monitor_config(const std::string& text, const std::string& path, Moni
 }
 
 bool load_monitor_config(const std::string& path, MonitorConfig& out, std::string& error) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) return fail(error, path, 0, "cannot open the configuration");
-    std::ostringstream text;
-    text << in.rdbuf();
-    if (in.bad()) return fail(error, path, 0, "read error");
-    return parse_monitor_config(text.str(), path, out, error);
+    // stdio, so that a read error is one (a directory read as an ifstream was an empty file: "no 'buses' line").
+    constexpr size_t kMaxBytes = size_t(1) << 20;  // a configuration is a few hundred bytes; /dev/zero is not one
+    std::FILE* f = std::fopen(path.c_str(), "rb");
+    if (!f) return fail(error, path, 0, std::string("cannot open the configuration: ") + std::strerror(errno));
+    std::string text;
+    char block[4096];
+    size_t n = 0;
+    while ((n = std::fread(block, 1, sizeof block, f)) > 0 && text.size() <= kMaxBytes) text.append(block, n);
+    const int read_errno = std::ferror(f) ? errno : 0;
+    std::fclose(f);
+    if (read_errno) return fail(error, path, 0, std::string("cannot read the configuration: ") + std::strerror(read_errno));
+    if (text.size() > kMaxBytes) return fail(error, path, 0, "larger than 1 MB: not a monitor configuration");
+    return parse_monitor_config(text, path, out, error);
 }
 
 int Assembler::board(int bus, unsigned cls, unsigned address) const noexcept {

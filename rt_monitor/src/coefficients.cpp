@@ -4,9 +4,10 @@
 
 #include "dynid/coefficients_t.hpp"
 
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
-#include <fstream>
 #include <iterator>
 #include <sstream>
 #include <vector>
@@ -15,6 +16,7 @@ namespace dynid::rt {
 namespace {
 
 constexpr size_t kHeader = 16;  // magic (8) + version (4) + payload length (4)
+constexpr size_t kMaxFileBytes = size_t(1) << 24;  // 16 MB: a full-capacity coefficient file is under 100 kB
 
 uint32_t read_le32(const uint8_t* p) {
     return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24;
@@ -169,10 +171,21 @@ uint32_t crc32(const uint8_t* data, size_t size) {
 }
 
 LoadResult load_coefficients(const std::string& path, const std::string& expected_robot, Coefficients& out) {
-    std::ifstream f(path, std::ios::binary);
-    if (!f) return fail(LoadError::kIo, path + ": cannot open the coefficient file");
-    std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-    if (f.bad()) return fail(LoadError::kIo, path + ": read error");
+    // stdio, not an ifstream: libstdc++'s filebuf throws std::ios_failure from underflow on a read error, and
+    // `rt_monitor --model DIR` (EISDIR) ended in std::terminate, SIGABRT (issue 22's sweep).
+    std::FILE* f = std::fopen(path.c_str(), "rb");
+    if (!f) return fail(LoadError::kIo, path + ": cannot open the coefficient file: " + std::strerror(errno));
+    std::vector<uint8_t> bytes;
+    uint8_t block[65536];
+    size_t n = 0;
+    while ((n = std::fread(block, 1, sizeof block, f)) > 0 && bytes.size() <= kMaxFileBytes)
+        bytes.insert(bytes.end(), block, block + n);
+    const int read_errno = std::ferror(f) ? errno : 0;
+    std::fclose(f);
+    if (read_errno) return fail(LoadError::kIo, path + ": cannot read the coefficient file: " + std::strerror(read_errno));
+    if (bytes.size() > kMaxFileBytes)  // /dev/zero, or a wrong file: not read to the end
+        return fail(LoadError::kTruncated, path + ": larger than " + std::to_string(kMaxFileBytes) +
+                                                " bytes, far more than a coefficient file holds");
     LoadResult r = load_coefficients_from_bytes(bytes.data(), bytes.size(), expected_robot, out);
     if (!r) r.message = path + ": " + r.message;
     return r;

@@ -4,6 +4,7 @@
 
 #include <poll.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/un.h>
 #include <unistd.h>
 
@@ -147,6 +148,14 @@ std::unique_ptr<CandumpReplay> CandumpReplay::open(const std::string& path, std:
     std::FILE* f = std::fopen(path.c_str(), "rb");
     if (!f) {
         error = path + ": cannot open candump log: " + std::strerror(errno);
+        return nullptr;
+    }
+    // A directory opens for reading and fails at the first read: refused here, as a bad argument, before the
+    // monitor starts (it printed its start-up line, then "read error: Is a directory" and exit 1).
+    struct stat st {};
+    if (fstat(fileno(f), &st) == 0 && S_ISDIR(st.st_mode)) {
+        std::fclose(f);
+        error = path + ": cannot open candump log: " + std::strerror(EISDIR);
         return nullptr;
     }
     std::unique_ptr<CandumpReplay> r(new CandumpReplay());

@@ -13,6 +13,9 @@
 // samples' processing and response times (loop overruns, missed deadlines), the messages published, the resident set.
 // Exit codes: 0 done, 2 bad arguments or configuration, 1 a source or LCM failure, 3 mlockall refused, 4 SCHED_FIFO
 // refused, 5 CPU affinity refused, 10+ a refused coefficient file.
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <csignal>
@@ -101,6 +104,54 @@ int help() {
     return std::fflush(stdout) == 0 ? 0 : 1;
 }
 
+// The parent directory exists and the path is not a directory (or another non-file): what rename() needs.
+bool writable_file(const std::string& path) {
+    struct stat st {};
+    if (stat(path.c_str(), &st) == 0) {
+        if (!S_ISREG(st.st_mode)) {
+            errno = S_ISDIR(st.st_mode) ? EISDIR : EINVAL;
+            return false;
+        }
+        return true;
+    }
+    const size_t slash = path.rfind('/');
+    const std::string dir = slash == std::string::npos ? "." : (slash == 0 ? "/" : path.substr(0, slash));
+    if (stat(dir.c_str(), &st) != 0) return false;  // errno: ENOENT, ...
+    if (!S_ISDIR(st.st_mode)) {
+        errno = ENOTDIR;
+        return false;
+    }
+    return true;
+}
+
+// lcm::LCM(url), with what liblcm writes to fd 2 meanwhile returned in `said` (whitespace folded to one line).
+std::unique_ptr<lcm::LCM> open_lcm(const std::string& url, std::string& said) {
+    std::fflush(stderr);
+    std::FILE* tmp = std::tmpfile();
+    const int saved = tmp ? dup(2) : -1;
+    if (saved >= 0) dup2(fileno(tmp), 2);
+    auto lc = std::make_unique<lcm::LCM>(url);
+    if (saved >= 0) {
+        std::fflush(stderr);
+        dup2(saved, 2);
+        close(saved);
+        std::rewind(tmp);
+        int ch = 0;
+        bool space = false;
+        while ((ch = std::fgetc(tmp)) != EOF) {
+            if (ch == '\n' || ch == '\r' || ch == '\t' || ch == ' ') {
+                space = !said.empty();
+                continue;
+            }
+            if (space) said += ' ';
+            space = false;
+            said += char(ch);
+        }
+    }
+    if (tmp) std::fclose(tmp);
+    return lc;
+}
+
 double mono_us() {
     timespec ts{};
     clock_gettime(CLOCK_MONOTONIC, &ts);
@@ -152,14 +203,16 @@ int main(int argc, char** argv) {
             v = argv[++i];
             return true;
         };
+        // A path option's empty value is none: `--replay ""` fell through to SocketCAN (issue 22's sweep).
+        auto path = [&](std::string& v) { return value(v) && !v.empty(); };
         bool ok = true;
-        if (a == "--model") ok = value(model);
-        else if (a == "--config") ok = value(config);
-        else if (a == "--replay") ok = value(replay);
-        else if (a == "--loopback") ok = value(loopback);
+        if (a == "--model") ok = path(model);
+        else if (a == "--config") ok = path(config);
+        else if (a == "--replay") ok = path(replay);
+        else if (a == "--loopback") ok = path(loopback);
         else if (a == "--lcm-url") ok = have_url = value(url);
-        else if (a == "--latency-out") ok = value(latency_out);
-        else if (a == "--stats-out") ok = value(stats_out);
+        else if (a == "--latency-out") ok = path(latency_out);
+        else if (a == "--stats-out") ok = path(stats_out);
         else if (a == "--realtime") realtime = true;
         else if (a == "--mlockall") rts.mlockall = true;
         else if (a == "--priority") ok = rts.fifo = value(priority);
@@ -175,6 +228,16 @@ int main(int argc, char** argv) {
         return usage("--priority needs an integer, got '" + priority + "'");
     if (have_cpu && !parse_cpu_list(cpu, rts.cpus))
         return usage("--cpu needs a CPU list as taskset -c takes it (1, 0,2 or 0-3), got '" + cpu + "'");
+
+    // The latency file is written at exit: an unwritable one was found only after the whole run (and left its
+    // temporary file behind when it named a directory).
+    for (const auto& [flag, out] : {std::pair<const char*, const std::string*>{"--latency-out", &latency_out},
+                                    {"--stats-out", &stats_out}}) {
+        if (!out->empty() && !writable_file(*out)) {  // one line, no synopsis: the arguments were well formed
+            std::fprintf(stderr, "rt_monitor: error: %s %s: %s\n", flag, out->c_str(), std::strerror(errno));
+            return 2;
+        }
+    }
 
     std::string err;
     MonitorConfig cfg;
@@ -193,6 +256,14 @@ int main(int argc, char** argv) {
     Assembler asm_;
     if (!asm_.init(cfg, *coef, err)) return bad_config(config + ": " + err);
 
+    // Before the source and LCM are opened: a refused --priority or --cpu left an empty file:// LCM log (and the
+    // loopback's sockets) behind (issue 22's sweep). mlockall's MCL_FUTURE still locks what they allocate.
+    const int refused = apply_rt_settings(rts, err);
+    if (refused) {
+        std::fprintf(stderr, "rt_monitor: error: %s\n", err.c_str());
+        return refused;
+    }
+
     std::unique_ptr<FrameSource> src;
     if (!replay.empty()) src = CandumpReplay::open(replay, cfg.buses, realtime, err);
     else if (!loopback.empty()) src = LoopbackSource::open(loopback, cfg.buses, err);
@@ -203,17 +274,17 @@ int main(int argc, char** argv) {
         return replay.empty() ? 1 : 2;
     }
     if (!have_url) url = cfg.lcm_url;
-    lcm::LCM lcm(url);
+    // liblcm writes its own reason to fd 2 ("Error: LCM provider ... not found"): caught and put on the one line.
+    std::string lcm_said;
+    std::unique_ptr<lcm::LCM> lcm_owner = open_lcm(url, lcm_said);
+    lcm::LCM& lcm = *lcm_owner;
     if (!lcm.good()) {
-        std::fprintf(stderr, "rt_monitor: error: cannot open LCM at '%s'\n", url.c_str());
+        std::fprintf(stderr, "rt_monitor: error: cannot open LCM at '%s'%s%s\n", url.c_str(),
+                     lcm_said.empty() ? "" : ": ", lcm_said.c_str());
         return 1;
     }
+    if (!lcm_said.empty()) std::fprintf(stderr, "rt_monitor: liblcm: %s\n", lcm_said.c_str());
 
-    const int refused = apply_rt_settings(rts, err);
-    if (refused) {
-        std::fprintf(stderr, "rt_monitor: error: %s\n", err.c_str());
-        return refused;
-    }
     // Before the start-up line: a SIGTERM sent once it is read always ends in a clean stop with counters.
     struct sigaction sa {};
     sa.sa_handler = on_signal;  // no SA_RESTART: poll() returns, the loop sees the flag
@@ -457,11 +528,15 @@ int main(int argc, char** argv) {
     }
     if (!latency_out.empty()) {
         const std::string tmp = latency_out + ".tmp";
+        bool written = false;
         {
             std::ofstream out(tmp);
             for (double v : latency) out << v << '\n';
+            out.flush();
+            written = bool(out);  // a short write (a full disk) must not be renamed into place
         }
-        if (std::rename(tmp.c_str(), latency_out.c_str()) != 0) {
+        if (!written || std::rename(tmp.c_str(), latency_out.c_str()) != 0) {
+            std::remove(tmp.c_str());  // nothing half-written left behind
             std::fprintf(stderr, "rt_monitor: error: cannot write %s\n", latency_out.c_str());
             rc = rc ? rc : 1;
         }

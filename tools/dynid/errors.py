@@ -6,7 +6,12 @@ prints its message on one line and exits with `exit_code`. Every other exception
 
 from __future__ import annotations
 
+import re
+
 EXIT_BAD_INPUT = 2
+# Control characters left once whitespace is folded: a file's bytes quoted in a message (a NUL or an ESC in a CSV
+# header, a candump bus name) must not reach the terminal as they are, as the C readers escape them too.
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
 
 
 class InputError(Exception):
@@ -15,8 +20,10 @@ class InputError(Exception):
     exit_code: int = EXIT_BAD_INPUT
 
     def __init__(self, message: str) -> None:
-        # One line, always: the CLI contract is "one clear line naming the problem".
-        super().__init__(" ".join(message.split()))
+        # One line, always: the CLI contract is "one clear line naming the problem"; other control characters are
+        # shown as \xNN.
+        line = " ".join(message.split())
+        super().__init__(_CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}", line) or type(self).__name__)
 
 
 class ConfigError(InputError):

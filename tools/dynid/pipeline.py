@@ -21,6 +21,7 @@ import numpy as np
 from .detect.t2 import ALPHA, Detector, calibrate, calibration_residuals, detector_record
 from .identify.fit import FitResult, FitSettings, fit
 from .identify.model_file import IdentifiedModel, data_record, robot_record
+from .identify.plausibility import implausible
 from .identify.statistics import Statistics
 from .identify.supply import SupplyTracking
 from .errors import InputError
@@ -195,14 +196,17 @@ def identify(model: RobotModel, datasets: Sequence[Dataset], data_paths: Sequenc
                         residual_variance=result.residual_variance[result.chosen])
     total = time.perf_counter() - started
     built.model.record["fit_time_s"] = total
+    # Nothing keeps each body physical in the regression: say where the estimate is not (identify/plausibility.py)
+    built.model.record["plausibility"] = implausible(model, result.phi)
     return Identification(built.model, result, built.detectors, fit_time, total, model)
 
 
 def with_estimated_noise(model: RobotModel, result: FitResult) -> RobotModel:
-    """The model with each input or joint-torque channel's noise set to the fit's residual RMS on the rows that
-    move (the configuration's noise is a prior; a UR's current noise differs fivefold from base to wrist)."""
+    """The model with each channel's noise set to the fit's residual RMS on the rows that move (the configuration's
+    noise is a prior; a UR's current noise differs fivefold from base to wrist, an iCub leg sensor's axes
+    differ too)."""
     rms = np.sqrt(result.residual_variance[result.chosen])
-    per = {o.name: float(r) for o, r in zip(output_channels(model), rms) if o.kind != "ft" and np.isfinite(r) and r > 0}
+    per = {o.name: float(r) for o, r in zip(output_channels(model), rms) if np.isfinite(r) and r > 0}
     cfg = model.config
     noise = replace(cfg.noise, per_channel={**cfg.noise.per_channel, **per})
     return RobotModel(replace(cfg, noise=noise))

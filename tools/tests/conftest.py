@@ -8,6 +8,21 @@ import sys
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, Phase
+from hypothesis import settings as hypothesis_settings
+
+# The reader property tests (test_reader_properties*.py): CI runs the same examples every time (derandomized, no
+# example database), without a deadline (a loaded 2-core machine varies tenfold). DYNID_HYPOTHESIS_EXAMPLES=N
+# searches longer by hand, with new random examples each run (property_support.examples).
+hypothesis_settings.register_profile(
+    "dynid", derandomize=True, database=None, deadline=None, print_blob=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+hypothesis_settings.register_profile("dynid-search", parent=hypothesis_settings.get_profile("dynid"), derandomize=False)
+# `--hypothesis-profile dynid-regressions`: only the kept `@example`s (the inputs of the defects found).
+hypothesis_settings.register_profile("dynid-regressions", parent=hypothesis_settings.get_profile("dynid"),
+                                     phases=[Phase.explicit])
+hypothesis_settings.load_profile("dynid-search" if os.environ.get("DYNID_HYPOTHESIS_EXAMPLES") else "dynid")
 
 KINDS = ("identification", "validation", "contact")
 

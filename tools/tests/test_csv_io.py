@@ -14,7 +14,7 @@ from dynid.config.robot_config import load_config
 from dynid.errors import DataError
 from dynid.io.csv_format import read_csv, required_columns, write_csv
 from dynid.io.dataset import Dataset
-from dynid.io.load import load_data
+from dynid.io.load import MIN_SAMPLES, load_data
 
 CFG = load_config("icub_right_arm")
 JOINTS = CFG.joints
@@ -194,7 +194,9 @@ def test_current_and_torque_groups_are_required(tmp_path: Path) -> None:
 
 def test_load_data_dispatches_csv(tmp_path: Path) -> None:
     header, rows = base_table()
-    assert load_data(write(tmp_path, render(header, rows)), CFG).n_samples == N
+    # load_data wants a run a command can use (MIN_SAMPLES): the table's rows over again, 1 ms apart.
+    rows = [[repr(0.001 * i)] + rows[i % N][1:] for i in range(MIN_SAMPLES)]
+    assert load_data(write(tmp_path, render(header, rows)), CFG).n_samples == MIN_SAMPLES
 
 
 def test_read_speed(tmp_path: Path) -> None:

@@ -16,7 +16,7 @@ from dynid.errors import DataError
 from dynid.io import dataset as dataset_module
 from dynid.io.csv_format import write_csv
 from dynid.io.dataset import FORMAT_VERSION, Dataset
-from dynid.io.load import load_data
+from dynid.io.load import MIN_SAMPLES, load_data
 
 CFG = load_config("icub_right_arm")
 JOINTS = CFG.joints
@@ -249,10 +249,10 @@ def test_load_missing_file(tmp_path: Path) -> None:
 
 
 def test_load_data_reads_a_dataset_file_and_checks_it_against_the_config(tmp_path: Path) -> None:
-    make(20).save(tmp_path / "d.npz")
-    assert same(load_data(tmp_path / "d.npz", CFG), make(20))
+    make(MIN_SAMPLES).save(tmp_path / "d.npz")  # load_data wants a run a command can use
+    assert same(load_data(tmp_path / "d.npz", CFG), make(MIN_SAMPLES))
     (tmp_path / "d.npz").rename(tmp_path / "d.bin")  # told by content, not only by extension
-    assert load_data(tmp_path / "d.bin", CFG).n_samples == 20
+    assert load_data(tmp_path / "d.bin", CFG).n_samples == MIN_SAMPLES
 
 
 def test_load_data_names_joint_differences(tmp_path: Path) -> None:
@@ -275,7 +275,7 @@ def test_load_data_names_joint_differences(tmp_path: Path) -> None:
 def test_load_data_checks_channels_and_units_of_a_dataset_file(tmp_path: Path) -> None:
     make(20, pwm={"m7": np.zeros(20)}).save(tmp_path / "a.npz")
     assert "unknown motor 'm7' in column pwm.m7" in one_line_error(load_data, tmp_path / "a.npz", CFG)
-    make(20, ft={}).save(tmp_path / "b.npz")
+    make(MIN_SAMPLES, ft={}).save(tmp_path / "b.npz")
     assert "ft.r_arm_ft.fx is missing" in one_line_error(load_data, tmp_path / "b.npz", CFG)
     assert load_data(tmp_path / "b.npz", CFG, require_all=False).ft == {}
     make(20, pwm={m: np.full(20, 500.0) for m in CFG.motor_names}).save(tmp_path / "c.npz")
@@ -286,9 +286,9 @@ def test_load_data_checks_channels_and_units_of_a_dataset_file(tmp_path: Path) -
 
 
 def test_load_data_csv(tmp_path: Path) -> None:
-    write_csv(make(20), tmp_path / "d.csv")
+    write_csv(make(MIN_SAMPLES), tmp_path / "d.csv")
     ds = load_data(tmp_path / "d.csv", CFG)
-    assert ds.n_samples == 20 and ds.meta["source_format"] == "csv"
+    assert ds.n_samples == MIN_SAMPLES and ds.meta["source_format"] == "csv"
 
 
 CANDUMP = "(1700000000.000000) can0 123#DEADBEEF\n(1700000000.001000) can0 35D#0102\n"

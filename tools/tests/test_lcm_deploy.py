@@ -250,7 +250,7 @@ def test_spy_duration_on_a_silent_bus() -> None:
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout)["summary"] == {"stopped": "0.3 s", "messages": {c: 0 for c in
                                                   ("DYNID_CONTACT", "DYNID_STATUS", "DYNID_RESIDUAL")},
-                                                  "onsets": 0, "ends": 0, "last_status": None}
+                                                  "onsets": 0, "ends": 0, "last_status": None, "skipped": 0}
 
 
 @pytest.mark.parametrize("args, why", [

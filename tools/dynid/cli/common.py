@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -36,6 +38,48 @@ def write_json(result: dict[str, Any], target: str | None) -> None:
     atomic_write(Path(target), lambda f: f.write(text.encode()))
 
 
+# Where a command writes: files (atomically, by dynid.io.dataset.atomic_write) and the two directories.
+OUTPUT_OPTIONS: tuple[str, ...] = ("out", "json", "figures")
+DIRECTORY_OUTPUTS: frozenset[tuple[str, str]] = frozenset({("simulate", "out"), ("gaps", "figures")})
+INPUT_OPTIONS: tuple[str, ...] = ("data", "model", "validation", "contact", "truth")
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Refuse, before any work, an output the command could not write or should not: a missing directory, an
+    existing directory (or, for an output directory, an existing file), two outputs on one file, an output on one
+    of the command's inputs. Without this a fit ran a minute before its --out was refused, an import wrote its
+    dataset and then failed on --json (exit 2 with the dataset left behind), and `import --data x.csv --out x.csv`
+    replaced the CSV by the dataset."""
+    command = getattr(args, "command", "")
+    seen: dict[str, str] = {}
+    inputs: dict[str, str] = {}
+    for option in INPUT_OPTIONS:
+        given = getattr(args, option, None)
+        for value in given if isinstance(given, list) else [given]:
+            if isinstance(value, str) and value:
+                inputs.setdefault(os.path.realpath(value), option)
+    for option in OUTPUT_OPTIONS:
+        value = getattr(args, option, None)
+        if not isinstance(value, str) or (option == "json" and value == "-"):
+            continue
+        path = Path(value)
+        if (command, option) in DIRECTORY_OUTPUTS:
+            if path.exists() and not path.is_dir():
+                raise InputError(f"cannot write to '{value}' (--{option}): it exists and is not a directory")
+        elif not path.name:
+            raise InputError(f"cannot write '{value}' (--{option}): not a file name")
+        elif not path.parent.is_dir():
+            raise InputError(f"cannot write '{value}' (--{option}): the directory {path.parent} does not exist")
+        elif path.exists() and not path.is_file():
+            raise InputError(f"cannot write '{value}' (--{option}): it exists and is not a regular file")
+        real = os.path.realpath(value)
+        if real in inputs:
+            raise InputError(f"cannot write '{value}' (--{option}): it is the input --{inputs[real]}")
+        if real in seen:
+            raise InputError(f"--{seen[real]} and --{option} name the same file '{value}'")
+        seen[real] = option
+
+
 def positive_int(text: str) -> int:
     try:
         value = int(text)
@@ -44,6 +88,22 @@ def positive_int(text: str) -> int:
     if value <= 0:
         raise argparse.ArgumentTypeError(f"must be positive, got {value}")
     return value
+
+
+def int_in(lo: int, hi: int) -> Callable[[str], int]:
+    """An argument type: an integer from lo to hi (a value too large for what stores it is refused here, in one
+    line, not deep inside as a traceback)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"'{text}' is not an integer") from None
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"must be {lo} to {hi}, got {value}")
+        return value
+
+    return parse
 
 
 def positive_float(text: str) -> float:

@@ -17,7 +17,12 @@ from ..simulation import SimulationSettings, parse_effect, simulate
 from ..simulation.effects import CATALOG, catalog_text
 from ..simulation.output import write_simulation
 from .commands import COMMANDS
-from .common import json_arg, min_speed_arg, positive_float, positive_int, robot_arg, seed, window, window_args
+from .common import int_in, json_arg, min_speed_arg, positive_float, robot_arg, seed, window, window_args
+
+
+# `structure --samples`: 2000 random states give the structural rank; 10⁵ take about 0.7 GB, 10¹² ended in a
+# MemoryError traceback.
+MAX_STATES = 100_000
 
 
 def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
@@ -28,6 +33,7 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
     dataset.meta.setdefault("robot", config.name)
     dataset.meta.setdefault("config_digest", config.digest)
     dataset.save(Path(args.out))
+    skipped = int(dataset.meta.get("skipped_lines", 0)) if dataset.meta.get("source") == str(Path(args.data)) else 0
     channels = (
         [f"q.{j}" for j in dataset.joints]
         + [f"pwm.{m}" for m in dataset.pwm]
@@ -39,7 +45,15 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
         f"imported {dataset.n_samples} samples ({dataset.duration:.3f} s) of {config.name} from {args.data} -> {args.out}\n"
         f"  channels: {', '.join(channels)}"
         + ("" if dataset.dq is not None else "\n  no dq/ddq columns: derivatives will be estimated from q when needed")
+        + (f"\n  skipped {skipped} malformed line{'s' * (skipped != 1)} of the candump log" if skipped else "")
     )
+    yarp = dataset.meta.get("yarp")
+    if yarp:  # what aligning the ports did (dynid.io.yarp)
+        print(f"  yarp ports on one {yarp['rate_hz']:g} Hz time base (time 0 = Unix {yarp['origin_unix_s']:.3f} s):")
+        for port, p in yarp["ports"].items():
+            dropped = p["dropped_not_increasing"] + p["dropped_cut_last_line"]
+            print(f"    {port}: {p['messages']} messages, every {1e3 * p['median_interval_s']:.1f} ms (longest "
+                  f"{1e3 * p['max_interval_s']:.1f} ms)" + (f", {dropped} dropped" if dropped else ""))
     return {
         "robot": config.name,
         "samples": dataset.n_samples,
@@ -47,7 +61,9 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
         "channels": channels,
         "has_derivatives": dataset.dq is not None,
         "contact": dataset.contact is not None,
+        "skipped_lines": skipped,
         "out": args.out,
+        **({"yarp": dataset.meta["yarp"]} if "yarp" in dataset.meta else {}),
     }
 
 
@@ -96,6 +112,17 @@ def cmd_structure(args: argparse.Namespace) -> dict[str, Any]:
     }
 
 
+def tilt_degrees(text: str) -> float:
+    """--tilt DEG: 0 to 45 degrees (beyond, a robot does not stand)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of degrees") from None
+    if not 0.0 <= value <= 45.0:
+        raise argparse.ArgumentTypeError(f"{text} degrees is outside 0..45")
+    return value
+
+
 def cmd_simulate(args: argparse.Namespace) -> dict[str, Any]:
 
     if args.list_effects:
@@ -111,7 +138,7 @@ def cmd_simulate(args: argparse.Namespace) -> dict[str, Any]:
     settings = SimulationSettings(
         kind=args.kind, duration=args.duration, seed=args.seed, robot_seed=args.robot_seed,
         noise=args.noise == "realistic", disturbance=args.disturbance == "realistic", effects=effects,
-        rate_hz=args.rate,
+        rate_hz=args.rate, tilt_deg=args.tilt,
     )
     started = time.perf_counter()
     sim = simulate(config, settings)
@@ -159,8 +186,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     robot_arg(sp)
     sp.add_argument("--data", metavar="DATA", help="measure the rank on this experiment instead of random states")
     window_args(sp)
-    sp.add_argument("--samples", type=positive_int, default=2000, help="random states for the structural rank (default 2000)")
-    sp.add_argument("--seed", type=int, default=0, help="seed of the random states (default 0)")
+    sp.add_argument("--samples", type=int_in(1, MAX_STATES), default=2000,
+                    help=f"random states for the structural rank, at most {MAX_STATES} (default 2000)")
+    sp.add_argument("--seed", type=seed, default=0, help="seed of the random states, 0 or more (default 0)")
     sp.add_argument("--combinations", action="store_true", help="print every base-parameter combination")
     min_speed_arg(sp)
     json_arg(sp)
@@ -186,6 +214,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     help="switch on a hidden effect (repeatable); --list-effects shows them")
     sp.add_argument("--list-effects", action="store_true", help="list the hidden effects and their parameters")
     sp.add_argument("--rate", type=positive_float, default=1000.0, metavar="HZ", help="sample rate (default 1000)")
+    sp.add_argument("--tilt", type=tilt_degrees, default=0.0, metavar="DEG",
+                    help="a base that tilts by up to DEG degrees about the root's x and y (periods 17 s and 23 s), "
+                    "as a balancing humanoid's; the run records an accelerometer at the root (imu.ax, imu.ay, imu.az, "
+                    "m/s²) for a configuration with 'gravity: {imu: FRAME}' (default 0: a fixed base)")
     sp.add_argument("--out", metavar="DIR", help="the directory to write")
     json_arg(sp)
     sp.set_defaults(func=cmd_simulate)

@@ -13,6 +13,7 @@ from ..export.coefficients import (
     DEFAULT_DEBOUNCE_OFF,
     DEFAULT_DEBOUNCE_ON,
     DEFAULT_HYSTERESIS,
+    MAX_WINDOW,
     EventSettings,
     describe,
     read_coefficients,
@@ -21,8 +22,13 @@ from ..export.model_export import ExportSettings, export_cad, export_model
 from ..identify.model_file import load_model
 from .commands import COMMANDS
 from .common import confidence as alpha
-from .common import json_arg, positive_int
+from .common import int_in, json_arg
 from .common import non_negative_int as lag
+
+
+# Debounce counts are samples (an int32 in the file: a larger one ended `export` in a struct.error traceback); a
+# million is over 16 minutes at 1 kHz.
+MAX_DEBOUNCE = 1_000_000
 
 
 def _settings(args: argparse.Namespace) -> ExportSettings:
@@ -95,12 +101,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--data", action="append", metavar="DATA",
                     help="contact-free data for Λ and T²_α (default: the model's identification data); repeatable")
     sp.add_argument("--lag", type=lag, metavar="N", help="filter lag in samples, 0 = causal (default: window // 4)")
-    sp.add_argument("--window", type=positive_int, metavar="N", help="filter window in samples (default: the "
-                    "configuration's offline window)")
+    sp.add_argument("--window", type=int_in(3, MAX_WINDOW), metavar="N", help="filter window in samples, 3 to "
+                    f"{MAX_WINDOW} (the monitor's capacity; default: the configuration's offline window)")
     sp.add_argument("--alpha", type=alpha, help="confidence level (default: the model's)")
-    sp.add_argument("--debounce-on", type=positive_int, default=DEFAULT_DEBOUNCE_ON, metavar="N",
+    sp.add_argument("--debounce-on", type=int_in(1, MAX_DEBOUNCE), default=DEFAULT_DEBOUNCE_ON, metavar="N",
                     help=f"samples above T²_α for an onset (default {DEFAULT_DEBOUNCE_ON})")
-    sp.add_argument("--debounce-off", type=positive_int, default=DEFAULT_DEBOUNCE_OFF, metavar="N",
+    sp.add_argument("--debounce-off", type=int_in(1, MAX_DEBOUNCE), default=DEFAULT_DEBOUNCE_OFF, metavar="N",
                     help=f"samples below the hysteresis level for an end (default {DEFAULT_DEBOUNCE_OFF})")
     sp.add_argument("--hysteresis", type=fraction, default=DEFAULT_HYSTERESIS,
                     help=f"end level as a fraction of T²_α (default {DEFAULT_HYSTERESIS})")

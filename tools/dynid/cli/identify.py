@@ -97,6 +97,12 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         if undetermined:
             print("  not determined by this run (standard error above 10 %, or unseen by a jackknife fold; no value "
                   "given): " + ", ".join(undetermined))
+    warnings = record.get("plausibility", [])
+    if warnings:
+        print(f"  WARNING: {len(warnings)} physically implausible estimate(s) (a fit that keeps every body physical is "
+              "issue 21's; the data may not determine these bodies one by one):")
+        for w in warnings:
+            print(f"    {w['text']}")
     rms = np.sqrt(result.residual_variance[result.chosen])
     print("  residual RMS on the identification data (rows at rest left out) / channel noise:")
     print("   " + ", ".join(f"{o.name} {r:.3g} ({r / o.sigma:.2f}×)" for o, r in zip(outs, rms)))
@@ -107,7 +113,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
             "undetermined": undetermined, "unidentifiable": list(base.unidentifiable), "jackknife": result.jackknife,
             "estimators": record["estimators"],
             "base": record["base"], "residual_rms": dict(zip(record["outputs"]["channels"], rms.tolist())),
-            "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed}
+            "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed,
+            "plausibility": warnings}
 
 
 def input_words(config: RobotConfig) -> list[str]:
@@ -120,15 +127,20 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
     ev = evaluate(args.model, args.data, window=window(args), payload=args.payload)
     result = validation(ev, args.model, args.data)
     print(f"validation of {args.model} on {args.data} ({result['samples']} samples)")
-    if "table_ii" in result:
-        table = result["table_ii"]
-        paper = ev.config.name == PAPER_ROBOT  # the paper's figures describe its arm only
-        print("  F/T prediction error (norm), mean ± std:    identified            CAD (offsets fitted)"
-              + ("      paper (id / CAD)" if paper else ""))
+    paper = ev.config.name == PAPER_ROBOT  # the paper's figures describe its arm only
+    tables = result.get("table_ii_sensors", {})
+    if tables:
+        print("  F/T prediction error (norm), mean ± std:    identified            CAD (offsets fitted)   id. vs CAD"
+              + ("   paper (id / CAD)" if paper else ""))
+    for sensor, table in tables.items():
+        if len(tables) > 1:
+            print(f"   {sensor}")
         for what, unit, key in (("force", "N", "force_error"), ("torque", "Nm", "torque_error")):
             i, c = table["identified"][what], table["cad"][what]
+            change = f"{100 * (i['mean'] / c['mean'] - 1):+6.1f} %" if c["mean"] > 0 else "     -  "
             print(f"    {what:6s} {i['mean']:8.3f} ± {i['std']:.3f} {unit:2s}   {c['mean']:8.3f} ± {c['std']:.3f} {unit:2s}"
-                  + (f"        {PAPER[key][0]} ± {PAPER[key][1]} / {PAPER[key + '_cad'][0]} ± {PAPER[key + '_cad'][1]}"
+                  f"    {change}"
+                  + (f"   {PAPER[key][0]} ± {PAPER[key][1]} / {PAPER[key + '_cad'][0]} ± {PAPER[key + '_cad'][1]}"
                      if paper else ""))
     print("  per channel: RMS of e = y − ŷ, and against the channel's noise std")
     for o in ev.outputs:

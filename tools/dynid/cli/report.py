@@ -22,10 +22,13 @@ def cmd_report(args: argparse.Namespace) -> dict[str, Any]:
     print(f"report of {args.model} ({result['robot']}) -> {result['out']}")
     if "table_ii" in v:
         t = v["table_ii"]
-        print(f"  force error {t['identified']['force']['mean']:.3f} N identified, {t['cad']['force']['mean']:.3f} N CAD "
-              f"(paper {PAPER['force_error'][0]} / {PAPER['force_error_cad'][0]} N)")
-    for variant, s in dc["variants"].items():
-        print(f"  {variant:10s} contact run: {rates_text(s)}; validation FPR {100 * dv['variants'][variant]['fpr']:.2f} %")
+        paper = f" (paper {PAPER['force_error'][0]} / {PAPER['force_error_cad'][0]} N)" if result["paper"] else ""
+        for sensor, t in v.get("table_ii_sensors", {"": t}).items():
+            print(f"  force error{' of ' + sensor if sensor else ''} {t['identified']['force']['mean']:.3f} N "
+                  f"identified, {t['cad']['force']['mean']:.3f} N CAD{paper}")
+    for variant, s in (dc["variants"] if dc else dv["variants"]).items():
+        rates = f"contact run: {rates_text(s)}; " if dc else "no contact run; "
+        print(f"  {variant:10s} {rates}validation FPR {100 * dv['variants'][variant]['fpr']:.2f} %")
     determined = sum(r["determined"] for r in params)
     print(f"  {len(result['figures'])} figures, {len(params)} base parameters ({determined} determined)"
           + (f", truth from {result['truth']}" if result['truth'] else ", no truth found"))
@@ -39,7 +42,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         "identified against CAD against true, as one self-contained HTML file.")
     sp.add_argument("--model", required=True, metavar="MODEL", help="a model file of `dynid fit`")
     sp.add_argument("--validation", required=True, metavar="DATA", help="a contact-free validation run")
-    sp.add_argument("--contact", required=True, metavar="DATA", help="a run with the skin's 'contact' ground truth")
+    sp.add_argument("--contact", metavar="DATA", help="a run with 'contact' ground truth (the skin's, or a labelled "
+                    "column): TPR, ROC and delays; without it, the detection section shows false positives only")
     sp.add_argument("--out", required=True, metavar="REPORT.html", help="the page to write (atomically)")
     sp.add_argument("--truth", metavar="TRUTH.json", help="true parameters (default: the truth.json of `dynid "
                     "simulate` beside the identification data, else beside --validation or --contact)")

@@ -9,11 +9,14 @@ the rates the boards had. `--json` prints one JSON object per message instead (N
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
+import struct
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from typing import Any, Callable
 
 from ..errors import InputError
@@ -53,6 +56,28 @@ def open_lcm(url: str | None) -> Any:
         finally:
             os.dup2(saved, 2)
             os.close(saved)
+
+
+@contextlib.contextmanager
+def liblcm_stderr(capture: bool) -> Iterator[dict[str, Any]]:
+    """While reading a file:// log, what liblcm writes to fd 2 (e.g. "Invalid header after log data" at a damaged
+    spot) is kept, to go on the summary's line instead of a line of its own; `warn` writes to the real stderr."""
+    if not capture:
+        yield {"warn": lambda text: sys.stderr.write(text), "text": ""}
+        return
+    with tempfile.TemporaryFile() as err:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        os.dup2(err.fileno(), 2)
+        out: dict[str, Any] = {"warn": lambda text: os.write(saved, text.encode()), "text": ""}
+        try:
+            yield out
+        finally:
+            sys.stderr.flush()
+            os.dup2(saved, 2)
+            os.close(saved)
+            err.seek(0)
+            out["text"] = " ".join(err.read().decode(errors="replace").split())
 
 
 def message_dict(msg: Any) -> dict[str, Any]:
@@ -115,8 +140,9 @@ class View:
 
 
 def spy(lc: Any, count: int | None, duration: float | None, on_message: Callable[[str, Any], None],
-        end_of_log_ok: bool) -> str:
-    """Handle messages until `count` contact events, `duration` seconds, the end of a file:// log, or Ctrl-C."""
+        end_of_log_ok: bool, skipped: list[int], warn: Callable[[str], Any] = sys.stderr.write) -> str:
+    """Handle messages until `count` contact events, `duration` seconds, the end of a file:// log, or Ctrl-C;
+    `skipped[0]` counts the messages that do not decode (the first is said through `warn`)."""
     from ..export.lcm_messages import contact_event_t, monitor_status_t, residual_t
 
     types = {"DYNID_CONTACT": contact_event_t, "DYNID_STATUS": monitor_status_t, "DYNID_RESIDUAL": residual_t}
@@ -126,8 +152,14 @@ def spy(lc: Any, count: int | None, duration: float | None, on_message: Callable
         nonlocal events
         try:
             msg = types[channel].decode(data)
-        except ValueError:  # another type on our channel name (a fingerprint mismatch): say so, carry on
-            sys.stderr.write(f"dynid spy: {channel}: a message that is not a {types[channel].__name__}, skipped\n")
+        except (ValueError, struct.error):
+            # Another type on our channel name (a fingerprint mismatch), or a damaged message of ours (its arrays
+            # shorter than their counts: a struct.error traceback before). Said once, then counted: a log full of
+            # them printed a line each.
+            skipped[0] += 1
+            if skipped[0] == 1:
+                warn(f"dynid spy: {channel}: a message that is not a {types[channel].__name__}, skipped (any further "
+                     "ones are counted in the summary)\n")
             return
         events += channel == "DYNID_CONTACT"
         on_message(channel, msg)
@@ -177,14 +209,21 @@ def cmd_spy(args: argparse.Namespace) -> dict[str, Any]:
             view.status(msg)
 
     url = args.lcm_url or ""
-    why = spy(lc, args.count, args.duration, on_message, end_of_log_ok=url.startswith("file://"))
+    skipped = [0]
+    log = url.startswith("file://")
+    with liblcm_stderr(capture=log) as lib:
+        why = spy(lc, args.count, args.duration, on_message, end_of_log_ok=log, skipped=skipped, warn=lib["warn"])
+    if lib["text"]:
+        why += f" (liblcm: {lib['text']})"
     status = message_dict(last["status"]) if "status" in last else None
-    summary = {"stopped": why, "messages": counts, "onsets": onsets, "ends": ends, "last_status": status}
+    summary = {"stopped": why, "messages": counts, "onsets": onsets, "ends": ends, "last_status": status,
+               "skipped": skipped[0]}
     if view is not None:
         view.close()
         problems = [f"{k.replace('_', ' ')} {status[k]}" for k in PROBLEMS if status and status[k]]
         print(f"dynid spy: stopped ({why}): {counts['DYNID_CONTACT']} contact events ({onsets} onsets, {ends} ends), "
               f"{counts['DYNID_STATUS']} status, {counts['DYNID_RESIDUAL']} residual messages"
+              + (f", {skipped[0]} that do not decode skipped" if skipped[0] else "")
               + (f"; last status: frames {status['frames']}, samples {status['samples']}, evaluated "
                  f"{status['samples_evaluated']}" + (", " + ", ".join(problems) if problems else ", no problems counted")
                  + (f", {supply_text(status['supply_ratio'])}" if status["n_supply"] else "")

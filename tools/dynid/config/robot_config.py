@@ -21,12 +21,14 @@ import yaml
 
 from ..errors import ConfigError
 from .log_columns import LogColumn, parse_columns
+from .yarp_ports import YarpLayout, parse_yarp
 
 DEFAULT_ROBOT = "icub_right_arm"
 BUNDLED_DIR = Path(__file__).parent / "robots"
 
 InputKind = Literal["pwm", "current", "torque"]
 INPUT_KINDS: tuple[str, ...] = ("pwm", "current", "torque")
+FT_CHANNEL_NAMES: tuple[str, ...] = ("fx", "fy", "fz", "tx", "ty", "tz")
 
 
 @dataclass(frozen=True)
@@ -37,6 +39,13 @@ class FTSensorConfig:
     joint: str
     force_noise: float  # std of one force channel, N
     torque_noise: float  # std of one torque channel, Nm
+    channel_noise: tuple[float, ...] = ()  # std per channel fx fy fz tx ty tz (N, Nm), force/torque unless given
+
+    def noise_of(self, k: int) -> float:
+        """The noise std of channel k (0..5: fx fy fz tx ty tz)."""
+        if self.channel_noise:
+            return self.channel_noise[k]
+        return self.force_noise if k < 3 else self.torque_noise
 
 
 @dataclass(frozen=True)
@@ -92,7 +101,7 @@ class RobotConfig:
     digest: str  # sha256 of the file's bytes: models and datasets record it
     urdf: Path
     base_link: str
-    gravity: np.ndarray  # (3,) in the URDF root frame
+    gravity: np.ndarray  # (3,) in the model root's frame: the URDF root, or base_link when re-rooted there
     joints: tuple[str, ...]
     ft_sensors: tuple[FTSensorConfig, ...]
     actuation: tuple[ActuationGroup, ...]
@@ -106,6 +115,12 @@ class RobotConfig:
     columns: tuple[LogColumn, ...] = ()
     # The URDF frame a payload's centre of mass is given in (`--payload MASS@x,y,z`); "" = the last moving link.
     payload_frame: str = ""
+    # A yarpdatadumper folder: which port holds which joints and sensors (config/yarp_ports.py).
+    yarp: YarpLayout | None = None
+    # Gravity per sample for a base that tilts: the URDF frame of an accelerometer fixed to the base and its three
+    # data columns (m/s², the specific force it measures: −g at rest); "" = the constant `gravity`.
+    gravity_imu: str = ""
+    gravity_imu_columns: tuple[str, ...] = ()
 
     @property
     def motor_names(self) -> tuple[str, ...]:
@@ -185,8 +200,9 @@ class _Fields:
         value = self.raw(key, default)
         if value is None and default is None:
             return None  # type: ignore[return-value]
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise self.fail(key, f"must be a finite number, got {value!r}")
+        # float() first: math.isfinite raised OverflowError on an integer too large for a float (1 with 400 zeros).
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(_float(value)):
+            raise self.fail(key, f"must be a finite number, got {_shown(value)}")
         if positive and value <= 0:
             raise self.fail(key, f"must be positive, got {value!r}")
         return float(value)
@@ -195,11 +211,25 @@ class _Fields:
         value = self.raw(key)
         try:
             m = np.array(value, dtype=float)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):  # OverflowError: an integer too large for a float
             raise self.fail(key, f"must be a numeric matrix, got {value!r}") from None
         if m.shape != shape or not np.all(np.isfinite(m)):
             raise self.fail(key, f"must be a finite {shape[0]}x{shape[1]} matrix, got shape {m.shape}")
         return m
+
+
+def _float(value: int | float) -> float:
+    """`value` as a float; inf for an integer too large for one."""
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf
+
+
+def _shown(value: Any) -> str:
+    """A value for a message: its repr, cut to 60 characters (an integer of 400 digits, a long list)."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def resolve_config_path(robot: str | Path) -> Path:
@@ -312,11 +342,15 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         mark = getattr(e, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark else ""
         raise ConfigError(f"{path}: not valid YAML{where}") from None
+    # PyYAML's constructors let ValueError out (a date such as 2001-13-45, an integer of more than 4300 digits),
+    # and its composer recurses once per level of nesting.
+    except (ValueError, RecursionError) as e:
+        raise ConfigError(f"{path}: not valid YAML: {e.__class__.__name__}: {str(e)[:80]}") from None
     root = _Fields(path.stem, "", data)
     name = root.string("name")
     f = _Fields(name, "", data).only(
         "name", "urdf", "base_link", "gravity", "joints", "ft_sensors", "motors", "actuation", "noise", "can",
-        "derivatives", "columns", "payload_frame",
+        "derivatives", "columns", "payload_frame", "yarp",
     )
 
     joints = f.strings("joints")
@@ -326,13 +360,17 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     sensors = []
     for s in f.items("ft_sensors", []):
         s.only("name", "joint", "noise")
-        noise = s.sub("noise", {}).only("force", "torque")
+        noise = s.sub("noise", {}).only("force", "torque", *FT_CHANNEL_NAMES)
+        force, torque = noise.number("force", 0.1, positive=True), noise.number("torque", 0.005, positive=True)
+        # A channel may have its own value (a real sensor's axes differ: the iCub leg's fz is noisier than fx)
+        channels = tuple(noise.number(c, force if k < 3 else torque, positive=True) for k, c in enumerate(FT_CHANNEL_NAMES))
         sensors.append(
             FTSensorConfig(
                 name=s.string("name"),
                 joint=s.string("joint"),
-                force_noise=noise.number("force", 0.1, positive=True),
-                torque_noise=noise.number("torque", 0.005, positive=True),
+                force_noise=force,
+                torque_noise=torque,
+                channel_noise=channels if any(noise.has(c) for c in FT_CHANNEL_NAMES) else (),
             )
         )
     if len({s.name for s in sensors}) != len(sensors):
@@ -361,6 +399,8 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         if kind not in INPUT_KINDS:
             raise g.fail("input", f"must be one of {', '.join(INPUT_KINDS)}, got '{kind}'")
         gj = g.strings("joints")
+        if not gj:  # a group that drives nothing is a mistake, and a 0x0 coupling matrix
+            raise g.fail("joints", "must list at least one joint")
         for j in gj:
             if j not in joints:
                 raise g.fail("joints", f"names '{j}', which is not in 'joints'")
@@ -394,9 +434,17 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         raise f.fail("motors", f"defines {unused[0]}, which no actuation group uses")
 
     gravity = f.raw("gravity", [0.0, 0.0, -9.81])
+    imu_frame, imu_columns = "", ()
+    if isinstance(gravity, dict):  # per sample, from an accelerometer fixed to the base (a base that tilts)
+        spec = f.sub("gravity").only("imu", "columns", "magnitude")
+        imu_frame = spec.string("imu")
+        imu_columns = spec.strings("columns", ["imu.ax", "imu.ay", "imu.az"])
+        if len(imu_columns) != 3 or len(set(imu_columns)) != 3:
+            raise spec.fail("columns", f"must name three different columns (x, y, z), got {list(imu_columns)}")
+        gravity = [0.0, 0.0, -spec.number("magnitude", 9.81, positive=True)]  # the nominal: export, CAD checks
     try:
         g_arr = np.array(gravity, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise f.fail("gravity", f"must be three numbers, got {gravity!r}") from None
     if g_arr.shape != (3,) or not np.all(np.isfinite(g_arr)):
         raise f.fail("gravity", f"must be three finite numbers, got {gravity!r}")
@@ -412,6 +460,8 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         urdf=_resolve_urdf(f, path.parent, urdf),
         base_link=f.string("base_link"),
         gravity=g_arr,
+        gravity_imu=imu_frame,
+        gravity_imu_columns=tuple(imu_columns),
         joints=joints,
         ft_sensors=tuple(sensors),
         actuation=tuple(groups),
@@ -421,6 +471,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         derivatives=_derivatives(f),
         columns=parse_columns(name, f.raw("columns", None)),
         payload_frame=f.string("payload_frame") if f.has("payload_frame") else "",
+        yarp=parse_yarp(name, f.raw("yarp", None), joints, tuple(s.name for s in sensors)),
     )
 
 
@@ -474,7 +525,8 @@ def _validate_can(f: _Fields, joints: tuple[str, ...], motors: tuple[str, ...], 
         if sensor not in sensors:
             raise b.fail("sensor", f"names '{sensor}', which is not in ft_sensors")
         fs = b.raw("full_scale")
-        if not (isinstance(fs, list) and len(fs) == 6 and all(isinstance(x, (int, float)) and x > 0 for x in fs)):
+        if not (isinstance(fs, list) and len(fs) == 6 and all(  # finite: an inf full scale made every F/T value nan
+                not isinstance(x, bool) and isinstance(x, (int, float)) and 0 < _float(x) < math.inf for x in fs)):
             raise b.fail("full_scale", f"must be six positive numbers (N, N, N, Nm, Nm, Nm), got {fs!r}")
         strain.append(b.data)
     mc = []

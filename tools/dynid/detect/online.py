@@ -24,7 +24,7 @@ from ..io.derivatives import SavitzkyGolay
 from ..robot.effects import augmented_residuals
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
-from ..robot.regressors.stack import Signals
+from ..robot.regressors.stack import Signals, gravity_per_sample
 from .t2 import calibrate
 
 # Sample steps count as uniform within this fraction of the median step; the monitor's filter assumes them.
@@ -91,17 +91,22 @@ def estimator_for(model: RobotModel, t: np.ndarray, lag: int | None, window: int
 
 def online_signals(model: RobotModel, est: FixedLagSavitzkyGolay, t: np.ndarray, q: np.ndarray,
                    inputs: dict[str, np.ndarray], tau: dict[str, np.ndarray],
-                   ft: dict[str, np.ndarray]) -> Signals:
-    """What the monitor sees: every channel through the fixed-lag filter (estimates at k − lag, k ≥ window − 1)."""
+                   ft: dict[str, np.ndarray], gravity: np.ndarray | None = None) -> Signals:
+    """What the monitor sees: every channel through the fixed-lag filter (estimates at k − lag, k ≥ window − 1);
+    `gravity` (N, 3) per sample for a tilting base, filtered like the rest."""
     columns = [q] + [v[:, None] for v in inputs.values()] + [v[:, None] for v in tau.values()] + list(ft.values())
+    columns += [] if gravity is None else [gravity]
     x = np.hstack(columns)
     value, d1, d2 = est.apply(x)
     nj = q.shape[1]
     cut = np.cumsum([c.shape[1] for c in columns])[:-1]
     parts = iter(np.split(value, cut, axis=1))
     qf = next(parts)
-    return Signals(qf, d1[:, :nj], d2[:, :nj], {k: next(parts)[:, 0] for k in inputs},
-                   {k: next(parts)[:, 0] for k in tau}, {k: next(parts) for k in ft})
+    inputs_f = {k: next(parts)[:, 0] for k in inputs}
+    tau_f = {k: next(parts)[:, 0] for k in tau}
+    ft_f = {k: next(parts) for k in ft}
+    return Signals(qf, d1[:, :nj], d2[:, :nj], inputs_f, tau_f, ft_f, None,
+                   None if gravity is None else next(parts))
 
 
 def raw_signals(model: RobotModel, dataset) -> tuple[np.ndarray, np.ndarray, dict, dict, dict]:  # dataset: Dataset
@@ -153,7 +158,7 @@ def calibrate_online(model: RobotModel, phi: np.ndarray, datasets: list, est: Fi
     for ds in datasets:
         raw = raw_signals(model, ds)
         keep = slice(None, None, stride)
-        sig = online_signals(model, est, *raw).slice(keep)
+        sig = online_signals(model, est, *raw, gravity=gravity_per_sample(model, ds)).slice(keep)
         e = augmented_residuals(model, phi, effects or [], sig)
         es.append(tracked_residuals(model, tracking, min_speed, e, sig, online_times(est, raw[0])[keep]))
         dqs.append(sig.dq)

@@ -37,6 +37,9 @@ from .lcm_coefficients import coefficients_t
 MAGIC = b"DYNIDCOF"
 FILE_VERSION = 3  # 2: the effects of an augmented model (Stribeck, spring); 3: supply tracking; older files are refused
 HEADER = struct.Struct("<8sII")
+# The monitor's compile-time filter capacity (kMaxWindow, rt_monitor/include/rt_monitor/coefficients.hpp): a longer
+# window was exported without a word and the monitor then refused the file (exit 17).
+MAX_WINDOW = 64
 KIND = {"ft": 0, "input": 1, "torque": 2}
 JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
 # Events, not samples: the filtered residuals are autocorrelated over the filter window, so single samples above
@@ -136,6 +139,14 @@ class Provenance:
     estimator: str = ""
 
 
+def check_window(est: FixedLagSavitzkyGolay) -> None:
+    """Refuse a filter window the monitor cannot hold (`MAX_WINDOW`), before anything is calibrated or written."""
+    if est.window > MAX_WINDOW:
+        raise DataError(f"the monitor's filter holds at most {MAX_WINDOW} samples, this one {est.window} "
+                        f"({1e3 * est.window * est.sample_period:.3g} ms at {1 / est.sample_period:.6g} Hz): give "
+                        f"--window {MAX_WINDOW} or fewer")
+
+
 def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDetector, est: FixedLagSavitzkyGolay,
                        provenance: Provenance = Provenance(), effects: Sequence[Effect] = (),
                        tracking: SupplyTracking | None = None) -> coefficients_t:
@@ -144,6 +155,7 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDete
     exportable_effects(effects)
     if len(cfg.ft_sensors) != 1:
         raise DataError(f"the monitor needs exactly one F/T sensor; {cfg.name} has {len(cfg.ft_sensors)}")
+    check_window(est)
     c = coefficients_t()
     c.robot_name, c.config_digest, c.dynid_version = cfg.name, cfg.digest, __version__
     c.model_sha256, c.data_sha256, c.estimator = provenance.model_sha256, provenance.data_sha256, provenance.estimator
@@ -251,6 +263,12 @@ def exportable_effects(effects: Sequence[Effect]) -> None:
             raise DataError(f"stribeck on {e.where}: the Stribeck velocity must be positive")
 
 
+def _name(names: Sequence[str], i: int) -> str:
+    """names[i], or the index marked as out of range: a dump shows a file the monitor refuses (its indices past
+    its counts) instead of ending in an IndexError (issue 22's sweep)."""
+    return names[i] if 0 <= i < len(names) else f"#{i} (out of range)"
+
+
 def describe(c: coefficients_t) -> str:
     """A readable dump of every section."""
     f = lambda v: " ".join(f"{x:.6g}" for x in v)  # noqa: E731
@@ -258,10 +276,10 @@ def describe(c: coefficients_t) -> str:
     lines = [f"robot {c.robot_name} (config sha256 {c.config_digest[:16]}…), exported by dynid {c.dynid_version}",
              f"  model sha256 {c.model_sha256 or '-'}; data sha256 {c.data_sha256 or '-'}; estimator {c.estimator}",
              f"chain: {c.n_bodies} bodies, {c.n_joints} joints; gravity [{f(c.gravity)}] m/s²; "
-             f"F/T sensor {c.sensor_name} at body {c.body_names[c.sensor_body]}"]
+             f"F/T sensor {c.sensor_name} at body {_name(c.body_names, c.sensor_body)}"]
     for i in range(c.n_bodies):
-        j = c.joint_names[c.joint_index[i]] if c.joint_index[i] >= 0 else "-"
-        parent = c.body_names[c.parent[i]] if c.parent[i] >= 0 else "base"
+        j = _name(c.joint_names, c.joint_index[i]) if c.joint_index[i] >= 0 else "-"
+        parent = _name(c.body_names, c.parent[i]) if c.parent[i] >= 0 else "base"
         lines.append(f"  {c.body_names[i]:14s} parent {parent:14s} joint {j:18s} {kinds.get(c.joint_type[i], '?'):18s}"
                      f" axis [{f(c.axis[i])}] p [{f(c.translation[i])}]")
         lines.append(f"    φ = [{f(c.inertial[i])}]")
@@ -288,7 +306,7 @@ def describe(c: coefficients_t) -> str:
         lines.append("supply tracking: off (constant motor gains)")
     names = {1: "stribeck", 2: "spring"}
     for k in range(c.n_effects):
-        j, p = c.joint_names[c.effect_joint[k]], c.effect_param[k]
+        j, p = _name(c.joint_names, c.effect_joint[k]), c.effect_param[k]
         what = (f"extra static torque {p[0]:.6g} Nm, Stribeck velocity {p[1]:.6g} rad/s" if c.effect_kind[k] == 1
                 else f"stiffness {p[0]:.6g} Nm/rad, rest {p[1]:.6g} rad")
         lines.append(f"effect {names.get(c.effect_kind[k], '?')} on joint {j}: {what}")

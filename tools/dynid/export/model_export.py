@@ -28,6 +28,7 @@ from .coefficients import (
     MonitorDetector,
     Provenance,
     build_coefficients,
+    check_window,
     exportable_effects,
     write_coefficients,
 )
@@ -82,10 +83,15 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
     """Calibrate the monitor's T² on contact-free data through its fixed-lag filter and write the coefficient file
     atomically."""
     model = identified.robot_model
+    if model.config.gravity_imu:  # the coefficient file and the monitor's core hold one gravity vector
+        raise DataError(f"{model.config.name} takes gravity per sample from the accelerometer at "
+                        f"{model.config.gravity_imu}; the monitor takes it constant: export a configuration with a "
+                        "constant 'gravity' (the base held still) instead")
     effects = identified.effects
     exportable_effects(effects)  # before the (slow) calibration: an effect the monitor lacks is refused at once
     datasets, data_digest = calibration_data(identified, model, settings.data)
     est = estimator_for(model, datasets[0].t, settings.lag, settings.window)
+    check_window(est)  # before the calibration: a window the monitor cannot hold is refused at once
     for ds in datasets[1:]:
         if abs(estimator_for(model, ds.t, settings.lag, settings.window).sample_period - est.sample_period) > 1e-9:
             raise DataError("the calibration data have different sample rates")

@@ -147,6 +147,10 @@ class Design:
         return [self.inv_folds[b] @ (gt - gb[b]) / self.scale for b in range(self.n_blocks)]
 
 
+WORSE_TOLERANCE = 0.05  # a fix is refused when a channel's held-out RMS grows by over 5 % ...
+WORSE_NOISE = 1.0  # ... and by over its noise std (worse_channels)
+
+
 @dataclass
 class Trial:
     candidate: Candidate
@@ -180,6 +184,20 @@ def evaluate(design: Design, cand: Candidate, weights: np.ndarray, base_cv: np.n
             return Trial(cand, channels, before, before, float("nan"))
     cv = design.cv_sse(E)
     return Trial(cand, channels, before, cv[:, channels].sum(axis=1), float("nan"))
+
+
+def worse_channels(before_cv: np.ndarray, after_cv: np.ndarray, rows: np.ndarray) -> list[tuple[int, float]]:
+    """(row channel, relative increase) of every channel whose held-out error a fix makes worse.
+
+    Worse: the held-out RMS grows by over 5 % and by over the channel's noise std (the rows are in noise units).
+    A change smaller than the noise is not held against a fix: a true base tilt, refitted, moves a PWM channel at
+    1.3× its floor by 0.2× the noise, while a wrong F/T gain matrix moved the real iCub leg sensor's fy from 27× to
+    37×. `before_cv`, `after_cv`: (B, r) held-out SSE per block; `rows`: (B, r) rows per block. Returns the relative
+    growth of the RMS."""
+    n = np.maximum(rows.sum(axis=0), 1)
+    was, now = np.sqrt(before_cv.sum(axis=0) / n), np.sqrt(after_cv.sum(axis=0) / n)
+    grew = (now > (1 + WORSE_TOLERANCE) * was) & (now - was > WORSE_NOISE)
+    return [(int(c), float(now[c] / was[c] - 1)) for c in np.flatnonzero(grew) if was[c] > 0]
 
 
 def robust_p_value(design: Design, E: np.ndarray, batch: int) -> float:

@@ -28,9 +28,10 @@ from ..robot.effect_library import LIBRARY, NEEDS_GIVEN_MODEL, Candidate, Contex
 from ..robot.model import RobotModel
 from ..robot.outputs import divisors, output_channels
 from ..robot.regressors.stack import Signals, fill_rows, row_channels
+from .episodes import format_episode, residual_episodes
 from .profile import profile
 from .refit import reference_phi, refit
-from .selection import Design, Trial, evaluate, robust_p_value, weighted_columns
+from .selection import Design, Trial, evaluate, robust_p_value, weighted_columns, worse_channels
 
 MAX_SAMPLES = 6000  # decimated samples kept: the filtered signals are smooth, and selection stays seconds
 N_BLOCKS = 5
@@ -62,6 +63,9 @@ class Settings:
     supply: SupplyTracking | None = SupplyTracking()  # None: constant gains (one pass)
 
 
+MIN_SAMPLES = 2000
+
+
 def _collect(model: RobotModel, ds: Dataset, stride: int) -> tuple[Context, np.ndarray, np.ndarray, np.ndarray]:
     """(context, A (N, r, p) unweighted, b (N, r), weights (N, r)) of every `stride`-th sample."""
     source = SignalSource(model, ds, FitSettings(), instruments=False)
@@ -78,6 +82,8 @@ def _collect(model: RobotModel, ds: Dataset, stride: int) -> tuple[Context, np.n
         {k: np.concatenate([s.inputs[k] for s in sigs]) for k in sigs[0].inputs},
         {k: np.concatenate([s.tau[k] for s in sigs]) for k in sigs[0].tau},
         {k: np.vstack([s.ft[k] for s in sigs]) for k in sigs[0].ft},
+        None,  # a payload's known torques are already in b (_rows, per chunk)
+        None if sigs[0].gravity is None else np.vstack([s.gravity for s in sigs]),
     )
     t = np.concatenate(ts)
     full = {k: np.concatenate([d[k] for d in dus]) for k in dus[0]}
@@ -144,8 +150,11 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
     this is) analyses the run with the inputs corrected by it. The ratio is estimated after the effects, so a
     named effect is not learned as supply variation; a sample whose residual is past the gate never updates it."""
     started = time.perf_counter()
-    if ds.n_samples < 2000:
-        raise DataError(f"the run has {ds.n_samples} samples; the gap analysis needs at least 2000 (2 s at 1 kHz)")
+    if ds.n_samples < MIN_SAMPLES:
+        rate = (ds.n_samples - 1) / ds.duration if ds.duration > 0 else float("nan")
+        raise DataError(f"the run has {ds.n_samples} samples; the gap analysis needs at least {MIN_SAMPLES} "
+                        f"({MIN_SAMPLES / rate:.3g} s at this run's {rate:.4g} Hz): held-out blocks of fewer hold "
+                        "too little to compare")
     stride = max(1, int(np.ceil(ds.n_samples / settings.max_samples)))
     if not any(o.kind == "input" for o in output_channels(model)):  # torque-sensed joints only: no supply to track
         settings = replace(settings, supply=None)
@@ -169,6 +178,10 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
         result["supply"] = None
     result.pop("_residual")
     result["samples"], result["kept_every"] = ds.n_samples, stride
+    for ep in result["episodes"]:  # the data's own seconds, as --from/--to take them
+        ep["from_s"] += float(ds.t[0])
+        ep["to_s"] += float(ds.t[0])
+    result["t0_s"] = float(ds.t[0])  # the profile's time edges start from it
     result["seconds"] = time.perf_counter() - started
     return result
 
@@ -242,6 +255,21 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
         cur_cv = current.cv_sse(None)
         named.append({"trial": best})
 
+    # The fix is never accepted when it makes a channel worse on held-out blocks: the last-named effects are
+    # dropped until no channel is (a greedy round may hurt a channel that a later effect repairs, so this is
+    # judged on the whole fix, not per round).
+    refused: list[dict] = []
+    while accepted:
+        worse = worse_channels(base_cv, cur_cv, current.rows)
+        if not worse:
+            break
+        c, item = accepted.pop(), named.pop()
+        accepted_E.pop()
+        refused.append({"effect": c.key, "search": dict(c.nonlinear), "cv_gain": item["trial"].gain,
+                        "worse": {channels[k].name: rel for k, rel in worse}})
+        current = Design(np.concatenate([design.D] + accepted_E, axis=2), y, bounds) if accepted_E else design
+        cur_cv = current.cv_sse(None)
+
     # Final refit with every named effect; coefficients in row units (the columns were weighted like the rows).
     # Φ outside the run's identifiable subspace keeps the given model's (or CAD) values (dynid.gaps.refit).
     resid_after = y - current.D @ current.fit(None)[0]
@@ -285,9 +313,12 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
                 for ch, bf, af, gv in zip(channels, before, after, given if given is not None else before)],
         "given_model": reference[0] if reference is not None else None,
         "where": _where(model, ctx, resid0, w),
+        # when and where the residual left after the fix steps (what the library could not name)
+        "episodes": residual_episodes(model, ctx.t, ctx.sig.q, resid_after, np.asarray(after)),
         "profile": profile(model, ctx, resid0, resid_after, w),  # binned, before/after: what the figures plot
         "ruled_out": ruled_out[:12],
         "not_significant": not_significant,
+        "refused": refused,  # effects dropped because the fix with them made a channel worse on held-out blocks
         "not_tried": [] if reference is not None else list(NEEDS_GIVEN_MODEL),  # effects that need a given model
         "_residual": resid_after,  # weighted rows after the named effects: the supply estimate of a second pass
         # the augmented model (`dynid gaps --out`): not part of the --json result (see cli_gaps)
@@ -314,17 +345,25 @@ def format_report(result: dict) -> str:
     else:
         best = result["ruled_out"][0] if result["ruled_out"] else None
         weak = result.get("not_significant")
-        if weak is not None:
+        if result.get("refused"):
+            extra = "; what the selection found made a channel worse on held-out blocks (refused, below)"
+        elif weak is not None:
             extra = (f"; best candidate {weak['effect']} lowers the held-out error {100 * weak['cv_gain']:.1f} %, but not "
                      f"consistently over the run (robust p={weak['p_value']:.1e} > {weak['level']:.1e})")
         else:
             extra = f"; best candidate {best['effect']} lowers the held-out error only {100 * best['cv_gain']:.1f} %" if best else ""
         lines.append("named: nothing — no effect in the library explains a significant part of the residual" + extra)
+    for refused in result.get("refused", []):
+        worse = ", ".join(f"{ch} +{100 * rel:.0f} %" for ch, rel in refused["worse"].items())
+        lines.append(f"refused: {refused['effect']} (held-out error on its channels −{100 * refused['cv_gain']:.1f} %): "
+                     f"the fix with it makes {worse} worse on held-out blocks")
     high = sorted((g for g in result["gap"] if g["after_over_noise"] > 1.3), key=lambda g: -g["after_over_noise"])
     if high:
         listed = ", ".join(f"{g['channel']} {g['after_over_noise']:.2f}×" for g in high)
         untried = result["not_tried"] and f"; not tried without a given model (--model): {', '.join(result['not_tried'])}"
         lines.append(f"unexplained: {listed} its noise floor after the fix{untried or ''}")
+    for ep in result.get("episodes", []):
+        lines.append("  " + format_episode(ep))
     given = result.get("given_model")
     head = f"{'given':>10s} " if given else ""
     lines.append(f"{'channel':24s} {head}{'before':>10s} {'after':>10s}  {'(× noise)':>18s}")

@@ -97,7 +97,7 @@ def instrument_signals(sig: Signals, t: np.ndarray, window_s: float) -> Signals:
         smooth = SavitzkyGolay(window_s=window_s)(t, sig.q)
     except ValueError as e:
         raise DataError(f"cannot build the IV instruments: {e}") from None
-    return Signals(smooth.q, smooth.dq, smooth.ddq, sig.inputs, sig.tau, sig.ft)
+    return Signals(smooth.q, smooth.dq, smooth.ddq, sig.inputs, sig.tau, sig.ft, sig.payload, sig.gravity)
 
 
 @dataclass

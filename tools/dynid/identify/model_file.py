@@ -39,8 +39,9 @@ import numpy as np
 from ..config.robot_config import RobotConfig, load_config
 from ..errors import DataError, InputError
 from ..io.dataset import SIMULATION_DATASET, atomic_write
-from ..robot.effects import parse_effects
+from ..robot.effects import finite_number, parse_effects
 from ..robot.model import RobotModel
+from .model_schema import check_sections
 from .supply import SupplyTracking
 
 FORMAT_NAME = "dynid-model"
@@ -59,7 +60,10 @@ class IdentifiedModel:
     @property
     def config(self) -> RobotConfig:
         if self._config is None:
-            self._config = _config_from(self.robot)
+            try:
+                self._config = _config_from(self.robot)
+            except DataError as e:
+                raise DataError(f"{self.path}: {e}" if self.path else str(e)) from None
         return self._config
 
     @property
@@ -89,7 +93,7 @@ class IdentifiedModel:
             return None
         try:
             return SupplyTracking.from_dict(d)
-        except (KeyError, TypeError, ValueError, InputError) as e:
+        except (KeyError, TypeError, ValueError, OverflowError, InputError) as e:  # OverflowError: a huge integer
             raise DataError(f"{self.path or 'model file'}: bad supply_tracking section: {e}") from None
 
     @property
@@ -123,7 +127,16 @@ class IdentifiedModel:
 
 
 def _config_from(robot: dict[str, Any]) -> RobotConfig:
-    """The configuration the model was fitted for: its source if unchanged, else the embedded text."""
+    """The configuration the model was fitted for (its source if unchanged, else the embedded text), which must be
+    the robot the file names: an edited name used to pass, and export wrote another robot's monitor file."""
+    config = _config_of(robot)
+    if config.name != robot["name"]:
+        raise DataError(f"the model file names robot '{robot['name']}', but the configuration it embeds is "
+                        f"{config.name}'s")
+    return config
+
+
+def _config_of(robot: dict[str, Any]) -> RobotConfig:
     source = robot.get("config_source", "")
     urdf = robot.get("urdf")  # the URDF it was fitted with (a supplied one is not found again without it)
     urdf = urdf if urdf and Path(urdf).is_file() else None
@@ -167,21 +180,53 @@ def load_model(path: str | Path) -> IdentifiedModel:
         raise DataError(f"model file not found: {path}")
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+    # ValueError covers JSONDecodeError, UnicodeDecodeError and an integer of more than 4300 digits; RecursionError
+    # arrays nested thousands deep.
+    except (ValueError, RecursionError) as e:
         raise DataError(f"{path}: not a dynid model file (not JSON: {e.__class__.__name__})") from None
     if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
         raise DataError(f"{path}: not a dynid model file (no 'format: {FORMAT_NAME}')")
     version = data.get("format_version")
-    if not isinstance(version, int) or version > FORMAT_VERSION:
+    if isinstance(version, int) and not isinstance(version, bool) and version > FORMAT_VERSION:
         raise DataError(f"{path}: model format version {version!r} is newer than this dynid reads ({FORMAT_VERSION})")
+    if not isinstance(version, int) or isinstance(version, bool) or version < 1:
+        raise DataError(f"{path}: model format version {version!r} is not a version (1..{FORMAT_VERSION})")
     for key in ("robot", "parameters", "outputs"):
         if key not in data:
             raise DataError(f"{path}: model file lacks its '{key}' section")
     params = data["parameters"]
-    if not isinstance(params, dict) or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in params.values()):
+    if not isinstance(params, dict) or not all(finite_number(v) for v in params.values()):
         raise DataError(f"{path}: every parameter must be a finite number")
+    _check_sections(data, path)
+    check_sections(data, str(path))
     record = {k: v for k, v in data.items() if k not in ("format", "format_version", "robot", "parameters")}
     return IdentifiedModel(data["robot"], {k: float(v) for k, v in params.items()}, record, str(path))
+
+
+def _check_sections(data: dict[str, Any], path: Path) -> None:
+    """The types of what `IdentifiedModel`'s properties read, checked once at load: an edited or damaged section is
+    one line naming it here, not a KeyError or AttributeError in the middle of a command."""
+    robot = data["robot"]
+    if not isinstance(robot, dict) or not all(isinstance(robot.get(k), str) for k in ("name", "config_digest",
+                                                                                      "config_source")):
+        raise DataError(f"{path}: section 'robot' needs its name, config_digest and config_source as text")
+    for key in ("config_text", "urdf"):
+        if robot.get(key) is not None and not isinstance(robot[key], str):
+            raise DataError(f"{path}: robot.{key} must be text")
+    noise = robot.get("noise_per_channel")
+    if noise is not None and not (isinstance(noise, dict) and all(finite_number(v) for v in noise.values())):
+        raise DataError(f"{path}: robot.noise_per_channel must map channels to numbers")
+    outputs = data["outputs"]
+    channels = outputs.get("channels") if isinstance(outputs, dict) else None
+    variance = outputs.get("residual_variance") if isinstance(outputs, dict) else None
+    if not (isinstance(channels, list) and channels and all(isinstance(c, str) and c for c in channels)):
+        raise DataError(f"{path}: outputs.channels must be a list of channel names")
+    if not (isinstance(variance, list) and len(variance) == len(channels) and all(finite_number(v) for v in variance)):
+        raise DataError(f"{path}: outputs.residual_variance must hold one finite number per channel "
+                        f"({len(channels)})")
+    settings = data.get("settings", {})
+    if not isinstance(settings, dict) or not finite_number(settings.get("min_speed", 0.0)):
+        raise DataError(f"{path}: section 'settings' must be a mapping, its min_speed a number")
 
 
 def data_file(path: str | Path) -> Path:

@@ -118,8 +118,19 @@ def validation(ev: Evaluated, model_label: str, data_label: str,
                               "channels": {}}
     if ft:
         cad_e = cad_ft_residuals(ev) if cad_e is None else cad_e
-        result["table_ii"] = {"identified": {"force": _norm_stats(e[:, ft[:3]]), "torque": _norm_stats(e[:, ft[3:6]])},
-                              "cad": {"force": _norm_stats(cad_e[:, :3]), "torque": _norm_stats(cad_e[:, 3:6])}}
+        # Table II per F/T sensor, in the configuration's order (6 rows each); `table_ii` is the first sensor's,
+        # the paper's single-sensor table.
+        per_sensor = {}
+        for k, sensor in enumerate(ev.config.ft_sensors):
+            rows = ft[6 * k : 6 * k + 6]
+            per_sensor[sensor.name] = {
+                "identified": {"force": _norm_stats(e[:, rows[:3]]), "torque": _norm_stats(e[:, rows[3:]])},
+                "cad": {"force": _norm_stats(cad_e[:, 6 * k : 6 * k + 3]),
+                        "torque": _norm_stats(cad_e[:, 6 * k + 3 : 6 * k + 6])},
+            }
+        first = ev.config.ft_sensors[0].name
+        result["table_ii"] = {**per_sensor[first], "sensor": first}
+        result["table_ii_sensors"] = per_sensor
     rest = rows_at_rest(ev.model, ev.signals.dq, ev.identified.min_speed)
     for o in outs:
         rms = float(np.sqrt(np.mean(e[:, o.row] ** 2)))

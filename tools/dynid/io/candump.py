@@ -35,7 +35,9 @@ from .can_protocol import MESSAGE_NAMES, default_protocol, make_id
 from .dataset import Dataset
 
 PAIR_US = 500
-_LINE = re.compile(rb"^\((\d+)\.(\d{6})\)\s+(\S+)\s+([0-9A-Fa-f]{3})#([0-9A-Fa-f]{0,16})\s*$", re.M)
+# A frame line. At most 12 digits of seconds (31 700 years), so that the stamp in µs fits int64; whole bytes of
+# payload only (an odd hex digit would shift every later frame's bytes in the bulk decode). Any other line is skipped.
+_LINE = re.compile(rb"^\((\d{1,12})\.(\d{6})\)\s+(\S+)\s+([0-9A-Fa-f]{3})#((?:[0-9A-Fa-f]{2}){0,8})\s*$", re.M)
 
 
 def _signals(name: str, payload: np.ndarray) -> dict[str, np.ndarray]:
@@ -62,10 +64,15 @@ def read_candump(path: str | Path, config: RobotConfig) -> Dataset:
     except OSError as e:
         raise DataError(f"cannot read {path}: {e.strerror or e}") from None
     rows = _LINE.findall(text)
+    skipped = sum(1 for line in text.split(b"\n") if line.strip()) - len(rows)  # malformed lines, told by import
     if not rows:
         raise DataError(f"{path}: no classic-CAN candump -L frame in the file")
+    # In stamp order, as the monitor's frame sources hand frames over (rt_monitor/README.md): the pairing and the
+    # latest-value look-ups below search sorted stamps, and lines out of order made time run backwards.
+    rows.sort(key=lambda r: int(r[0]) * 1_000_000 + int(r[1]))
     t_us = np.array([int(a) * 1_000_000 + int(b) for a, b, *_ in rows], np.int64)
-    bus = np.array([r[2].decode() for r in rows])
+    # A bus name that is no UTF-8 is no configured bus: its frames are skipped like those of any other bus.
+    bus = np.array([r[2].decode("utf-8", "surrogateescape") for r in rows])
     can_id = np.array([int(r[3], 16) for r in rows], np.int64)
     hexes = [r[4] for r in rows]
     dlc = np.array([len(h) // 2 for h in hexes])
@@ -142,7 +149,7 @@ def read_candump(path: str | Path, config: RobotConfig) -> Dataset:
     return Dataset(t=tt, joints=tuple(config.joints), q=q[keep], pwm={m: v[keep] for m, v in pwm.items()},
                    ft={s["sensor"]: ft[keep]}, contact=contact[keep],
                    meta={"source": str(path), "source_format": "candump", "robot": config.name,
-                         "messages": sorted(MESSAGE_NAMES.values())})
+                         "messages": sorted(MESSAGE_NAMES.values()), "skipped_lines": skipped})
 
 
 # ---- writing ----

@@ -130,6 +130,7 @@ def required_columns(config: RobotConfig) -> list[tuple[str, str]]:
             needed += [(f"{g.input}.{m}", f"drives actuation group '{g.name}' by {g.input}") for m in g.motors]
     for s in config.ft_sensors:
         needed += [(f"ft.{s.name}.{c}", f"has the F/T sensor {s.name}") for c in FT_CHANNELS]
+    needed += [(c, f"takes gravity from the accelerometer at {config.gravity_imu}") for c in config.gravity_imu_columns]
     return needed
 
 
@@ -186,15 +187,30 @@ def check_columns(
 # Reading
 
 
+_LONE_CR = re.compile(rb"\r(?=[^\n])")
+
+
 def _read_bytes(path: Path) -> bytes:
     if not path.exists():
         raise DataError(f"CSV file not found: {path}")
     if not path.is_file():
         raise DataError(f"CSV path is not a file: {path}")
     try:
-        return path.read_bytes()
+        raw = path.read_bytes()
     except OSError as e:
         raise DataError(f"cannot read {path}: {e.strerror}") from None
+    # numpy's parser ends a line at a lone CR too, and skips blank lines: a row split by a CR and a blank line
+    # elsewhere kept the row count, and the file was read with its rows shifted. Lines end in LF or CRLF only.
+    first = raw.split(b"\n", 1)[0]
+    try:
+        first.decode("utf-8-sig")
+    except UnicodeDecodeError:  # not text at all: the header's own check says so, which means more than a CR
+        return raw
+    lone = _LONE_CR.search(raw)
+    if lone:
+        line = raw.count(b"\n", 0, lone.start()) + 1
+        raise DataError(f"{path}: line {line} holds a carriage return inside the line: lines must end in LF or CRLF")
+    return raw
 
 
 def _header(raw: bytes, path: Path) -> list[str]:

@@ -34,9 +34,11 @@ from __future__ import annotations
 import contextlib
 import inspect
 import json
+import math
 import os
 import tempfile
 import zipfile
+import zlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -274,9 +276,12 @@ class Dataset:
             if f.read(4) != _ZIP_MAGIC:
                 raise DataError(f"{path}: not a dynid dataset (.npz): the file is not a zip archive")
         try:
+            _check_members(path)
             with np.load(path, allow_pickle=False) as z:
                 members = {name: z[name] for name in z.files}
-        except (zipfile.BadZipFile, OSError, EOFError) as e:
+        # zlib.error: a corrupt deflated member; NotImplementedError, RuntimeError: a compression method zipfile
+        # does not have, an encrypted member (flipped bits in a member's flags).
+        except (zipfile.BadZipFile, zlib.error, NotImplementedError, RuntimeError, OSError, EOFError) as e:
             raise DataError(f"{path}: not a dynid dataset (.npz) or a corrupt one: {e}") from None
         except ValueError as e:  # object arrays (pickles) are refused
             raise DataError(f"{path}: not a dynid dataset: {e}") from None
@@ -284,7 +289,7 @@ class Dataset:
             raise DataError(f"{path}: not a dynid dataset (no '{FORMAT_NAME}' format marker)")
         try:
             version = int(members["format_version"])
-        except (KeyError, TypeError, ValueError):
+        except (KeyError, TypeError, ValueError, OverflowError):  # OverflowError: an infinite version
             raise DataError(f"{path}: dataset has no valid format_version") from None
         if version > FORMAT_VERSION or version < 1:
             raise DataError(
@@ -307,10 +312,14 @@ class Dataset:
                 raise DataError(f"member '{key}' is not numeric ({value.dtype})")
         try:
             meta = json.loads(str(m["meta"]))
-        except json.JSONDecodeError:
+        # ValueError: JSONDecodeError, or an integer of more than 4300 digits; RecursionError: arrays nested deep
+        except (ValueError, RecursionError):
             raise DataError("member 'meta' is not JSON") from None
         if not isinstance(meta, dict):
             raise DataError("member 'meta' is not a JSON object")
+        rows = meta.get("rows", [0, 0])  # what `slice` composes: text there ended a --from/--to in a TypeError
+        if not (isinstance(rows, list) and len(rows) == 2 and all(type(r) is int and r >= 0 for r in rows)):
+            raise DataError(f"member 'meta': rows must be [start, stop] sample numbers, got {str(rows)[:40]}")
         if m["joints"].ndim != 1 or m["joints"].dtype.kind != "U":
             raise DataError(f"member 'joints' must be a list of names, got {m['joints'].dtype} {m['joints'].shape}")
         families: dict[str, dict[str, np.ndarray]] = {f: {} for f in CHANNEL_FAMILIES}
@@ -330,6 +339,32 @@ class Dataset:
             meta=meta,
             **families,
         )
+
+
+_MAX_DEFLATE_RATIO = 1032  # what zlib's deflate can expand to at most, per compressed byte
+
+
+def _check_members(path: Path) -> None:
+    """Refuse a member whose array header claims more data than the member can hold, before numpy reads it.
+
+    numpy allocates the array an .npy header describes before it reads the data: one flipped bit in a shape asked
+    for terabytes (MemoryError). Object arrays are refused here too, unread. Raises ValueError naming the member.
+    """
+    on_disk = path.stat().st_size
+    with zipfile.ZipFile(path) as archive:
+        for info in archive.infolist():
+            ratio = 1 if info.compress_type == zipfile.ZIP_STORED else _MAX_DEFLATE_RATIO
+            room = min(info.file_size, ratio * min(info.compress_size, on_disk))
+            with archive.open(info.filename) as f:
+                version = np.lib.format.read_magic(f)
+                if version not in ((1, 0), (2, 0)):  # what np.savez writes for numeric and unicode arrays
+                    raise ValueError(f"member '{info.filename}' has an .npy header of version {version}")
+                read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+                shape, _, dtype = read(f)
+                if dtype.hasobject:
+                    raise ValueError(f"member '{info.filename}' holds Python objects, which are never loaded")
+                if math.prod(shape) * dtype.itemsize > room - f.tell():
+                    raise ValueError(f"member '{info.filename}' claims shape {shape} of {dtype}, more than it holds")
 
 
 # ----------------------------------------------------------------------------------------------------------

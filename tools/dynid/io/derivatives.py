@@ -219,7 +219,16 @@ class SavitzkyGolay:
                 savgol_filter(q2, w, self.polyorder, deriv=k, delta=dt, axis=0, mode="interp") for k in range(3)
             ]
         else:
-            out = list(_local_poly_fit(t, q2, w, self.polyorder))
+            try:
+                out = list(_local_poly_fit(t, q2, w, self.polyorder))
+            except np.linalg.LinAlgError:
+                # A gap in t many windows long leaves a window's samples in two tight clusters: the fit is singular.
+                # numpy's "Singular matrix" was all a user saw (issue 22's sweep); name the gap instead.
+                k = int(np.argmax(np.diff(t)))
+                raise ValueError(
+                    f"t jumps by {t[k + 1] - t[k]:.6g} s after sample {k + 1} ({(t[k + 1] - t[k]) / dt:.3g} median "
+                    "steps): the derivative filter cannot bridge the gap; cut the run there (--from/--to)"
+                ) from None
         return _shaped(squeeze, *out)
 
 

@@ -1,7 +1,7 @@
 """Experiment data in any supported form → a `Dataset` checked against the robot configuration.
 
-The one entry point of dynid.io (`load_data`): a dataset file, a `dynid simulate` directory, a candump log or a
-CSV, told apart by content first, then by extension.
+The one entry point of dynid.io (`load_data`): a dataset file, a `dynid simulate` directory, a yarpdatadumper
+folder, a candump log or a CSV, told apart by content first, then by extension.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from ..errors import DataError
 from .candump import read_candump
 from .csv_format import check_columns, read_csv
 from .headerless import looks_headerless, read_headerless
+from .yarp import is_dumper_folder, read_yarp
 from .dataset import _ZIP_MAGIC, SIMULATION_DATASET, Dataset, check_units
 
 # `(1700000000.000000) can0 123#DEADBEEF` : the `candump -L` line format.
@@ -59,12 +60,24 @@ def load_data(
     A directory written by `dynid simulate` stands for its dataset file. The form is told by content first, then by extension: a zip archive (or ``.npz``) is a dataset file, a
     ``.log`` or a file whose first line is a ``candump -L`` frame is a CAN log, a ``.csv`` is a CSV
     (`dynid.io.csv_format.read_csv`). Anything else raises `DataError`.
+    Every form then passes `check_plausible` (enough samples, a sample period in seconds).
     """
     path = Path(path)
+    dataset = _load(path, config, joint_limits, require_all)
+    headerless = dataset.meta.get("source_format") == "headerless csv" and dataset.meta.get("source") == str(path)
+    check_plausible(dataset, str(path), headerless=headerless)
+    return dataset
+
+
+def _load(
+    path: Path, config: RobotConfig, joint_limits: Mapping[str, tuple[float, float]] | None, require_all: bool
+) -> Dataset:
     if not path.exists():
         raise DataError(f"data file not found: {path}")
     if path.is_dir() and (path / SIMULATION_DATASET).is_file():  # the output directory of `dynid simulate`
         path = path / SIMULATION_DATASET
+    elif is_dumper_folder(path):  # a YARP robot's log: one folder per port
+        return read_yarp(path, config, joint_limits=joint_limits, require_all=require_all)
     if not path.is_file():
         raise DataError(f"data path is not a file: {path}")
     try:
@@ -96,7 +109,51 @@ def load_data(
     )
 
 
-MIN_WINDOW_SAMPLES = 100  # a `--from/--to` window with fewer samples is refused: no filter or fit can use it
+MIN_SAMPLES = 100  # fewer samples than this, in a file or a `--from/--to` window: no filter or fit can use them
+MIN_WINDOW_SAMPLES = MIN_SAMPLES
+# The sample period a dataset may have: the monitor's coefficient loader accepts 10 µs to 1 s (rt_monitor's
+# coefficients.cpp); one second itself is refused here, as it is t in milliseconds of a 1 kHz log.
+MIN_PERIOD_S, MAX_PERIOD_S = 1e-5, 1.0
+# No arm's sensor reads a million N, Nm, A, rad/s or rad/s²: a larger value is a wrong unit or a corrupt cell, and
+# near 1e154 its square overflows (a 1e308 N cell made the fit fail with a traceback and validate print inf).
+MAX_ABS_VALUE = 1e6
+_TIME_UNITS = (("ms", "milliseconds", 1e-3), ("us", "microseconds", 1e-6), ("ns", "nanoseconds", 1e-9))
+
+
+def check_plausible(dataset: Dataset, source: str = "", headerless: bool = False) -> None:
+    """Refuse data no command can use, before any command writes or fits anything (issue 22's sweep): fewer than
+    `MIN_SAMPLES` samples (a one-row CSV was imported as a dataset of 0 s), a measured value beyond
+    `MAX_ABS_VALUE`, or a median step of `t` outside `MIN_PERIOD_S` to below `MAX_PERIOD_S` (a time column in
+    milliseconds was imported as 3000 s of data). A `headerless` log is told where its unit is declared."""
+    where = f"{source}: " if source else ""
+    n = dataset.n_samples
+    if n < MIN_SAMPLES:
+        raise DataError(
+            f"{where}only {n} sample{'s' * (n != 1)}: a run needs at least {MIN_SAMPLES} (the derivative filters, "
+            "the fit and the monitor's calibration all need a stretch of samples)"
+        )
+    for name, values in dataset.columns():
+        if name == "t" or name == "contact" or name.startswith(("q.", "pwm.")) or name in dataset.extra:
+            continue  # time, labels, positions and duties have checks of their own; extra columns are not used
+        big = np.flatnonzero(np.abs(values) > MAX_ABS_VALUE)
+        if big.size:
+            i = int(big[0])
+            raise DataError(
+                f"{where}{name} is {values[i]:g} at row {i + 1}: beyond ±{MAX_ABS_VALUE:g}, which no sensor of an arm "
+                "reads (N, Nm, A, rad/s, rad/s²): a wrong unit or a corrupt value"
+            )
+    period = float(np.median(np.diff(dataset.t)))
+    if MIN_PERIOD_S <= period < MAX_PERIOD_S:
+        return
+    # The unit that makes it a period of 10 µs to 100 ms, if one does.
+    unit = next(((short, long) for short, long, scale in _TIME_UNITS if MIN_PERIOD_S <= period * scale < 0.1), None)
+    hint = f"is t in {unit[1]}? the t column must be in seconds" if unit else "is t in seconds?"
+    declare = (" (a headerless log declares its unit in the configuration's 'columns:' field, e.g. \"t "
+               f"{unit[0] if unit else 'ms'}\")" if headerless else "")
+    raise DataError(
+        f"{where}t steps by {period:.6g} s between samples (the median step), outside the sample periods a run may "
+        f"have ({MIN_PERIOD_S * 1e6:g} µs to under {MAX_PERIOD_S:g} s): {hint}{declare}"
+    )
 
 
 def apply_window(dataset: Dataset, start: float | None, stop: float | None, source: str = "") -> Dataset:

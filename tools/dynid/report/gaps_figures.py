@@ -82,7 +82,8 @@ def gap_figure(result: dict) -> Figure:
                 gid="given")
     ax.axhline(UNEXPLAINED, color="k", linestyle="--", linewidth=0.8, label=f"{UNEXPLAINED}× noise")
     ax.set_xticks(x, [n.replace("ft.", "").replace("r_arm_ft.", "") for n in names], rotation=30, fontsize=8)
-    named = "; ".join(f"{e['name']} on {e['where']}" for e in result.get("effects", [])) or "nothing named"
+    named = "; ".join(f"{e['name']} on {e['where']}" + ("" if e.get("confident") else " (tentative)")
+                      for e in result.get("effects", [])) or "nothing named"
     ax.set_title(f"gap per channel on held-out time blocks: {named}", fontsize=9, loc="left")
     ax.legend(fontsize=8)
     return fig
@@ -103,13 +104,16 @@ def finding_figure(result: dict, channel: str, joint: str, why: str) -> Figure:
     pe = np.asarray(j["position_edges"])
     _series(axes[1, 0], 0.5 * (pe[:-1] + pe[1:]), j["position"]["before"], j["position"]["after"], "line")
     axes[1, 0].set_xlabel(f"q of {joint} (rad)")
-    te = np.asarray(ch["time"]["edges_s"])
+    te = np.asarray(ch["time"]["edges_s"]) + result.get("t0_s", 0.0)  # the data's own seconds, as --from/--to
     _series(axes[1, 1], 0.5 * (te[:-1] + te[1:]), ch["time"]["before"], ch["time"]["after"], "line")
-    axes[1, 1].set_xlabel("time (s)")
+    axes[1, 1].set_xlabel("time (s, the data's own)")
     axes[0, 0].legend(fontsize=8)
     gap = next(g for g in result["gap"] if g["channel"] == channel)
-    fig.suptitle(f"{channel} ({why}): {gap['before_over_noise']:.2f}× → {gap['after_over_noise']:.2f}× noise; "
-                 f"where it grows against {joint}", fontsize=10)
+    # The title's figures are the held-out ones of the gap table; the panels bin the residual over the whole run
+    # (in sample): the title says both, so neither contradicts the other.
+    fig.suptitle(f"{channel} ({why}): held-out RMS {gap['before_over_noise']:.2f}× → {gap['after_over_noise']:.2f}× "
+                 f"noise\npanels: the residual over the run (in sample) against {joint}'s speed, its reversals, its "
+                 "position, and against time", fontsize=9)
     fig.tight_layout()
     return fig
 

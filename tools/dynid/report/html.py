@@ -65,14 +65,18 @@ def page(title: str, sections: list[str]) -> str:
 # The report's tables
 
 
-def table_ii(v: dict[str, Any], paper: dict[str, Any] | None) -> str:
-    """Table II; the paper's columns only when `paper` is given (the paper's own arm)."""
+def table_ii(v: dict[str, Any], paper: dict[str, Any] | None, sensor: str | None = None) -> str:
+    """Table II (of one F/T `sensor` of several, else the first's); the paper's columns only when `paper` is given
+    (the paper's own arm)."""
     rows = []
+    prefix = "validation/table_ii" if sensor is None else f"validation/table_ii_sensors/{sensor}"
+    if sensor is not None:
+        v = {"table_ii": v["table_ii_sensors"][sensor]}
     for what, unit, key in (("force", "N", "force_error"), ("torque", "Nm", "torque_error")):
         cells = [text(f"{what} error norm ({unit})")]
         for source in ("identified", "cad"):
             for stat in ("mean", "std"):
-                cells.append(num(v["table_ii"][source][what][stat], ".3f", f"validation/table_ii/{source}/{what}/{stat}"))
+                cells.append(num(v["table_ii"][source][what][stat], ".3f", f"{prefix}/{source}/{what}/{stat}"))
         if paper is not None:
             cells += [num(paper[k][i], ".2f", f"paper/{k}/{i}") for k in (key, key + "_cad") for i in (0, 1)]
         ident, cad = v["table_ii"]["identified"][what]["mean"], v["table_ii"]["cad"][what]["mean"]
@@ -116,6 +120,15 @@ def detection(det_val: dict[str, Any], det_con: dict[str, Any], paper: dict[str,
     return table(["variant", "threshold", f"FPR % validation (promise {100 * (1 - alpha):.0f} %)", "TPR % contact run",
                   "FPR % contact run", "AUC", "TPR % distal", "TPR % proximal", "episodes detected",
                   "delay median (ms)", "delay p90 (ms)"], rows)
+
+
+def false_positives(det_val: dict[str, Any], alpha: float) -> str:
+    """The detection table without a contact run: each variant's threshold and false positives on validation."""
+    rows = [f"<tr>{text(variant)}{num(v['threshold'], '.4g', f'detection/validation/variants/{variant}/threshold')}"
+            f"{num(v['fpr'], '.2f', f'detection/validation/variants/{variant}/fpr', 100)}</tr>"
+            for variant, v in det_val["variants"].items()]
+    return (table(["variant", "threshold", f"FPR % validation (promise {100 * (1 - alpha):.0f} %)"], rows)
+            + "<p class=\"note\">No run with contact ground truth was given (--contact): no TPR, ROC or delays.</p>")
 
 
 def gains(rows_in: list[dict[str, Any]], chosen: str) -> str:

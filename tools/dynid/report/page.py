@@ -68,11 +68,13 @@ def rates_text(s: dict[str, Any]) -> str:
 
 @dataclass(frozen=True)
 class ReportSettings:
-    """What a report is made of: the model file, a contact-free validation run and a contact run."""
+    """What a report is made of: the model file, a contact-free validation run and, where one exists, a run with
+    contact ground truth (a real robot's logs seldom have one: the detection section then shows the validation
+    run's false positives only)."""
 
     model: str
     validation: str
-    contact: str
+    contact: str | None
     out: str
     truth: str | None = None  # truth.json; default: the one `dynid simulate` wrote beside the data
     alpha: float = 0.99
@@ -96,11 +98,14 @@ def write_report(args: ReportSettings) -> dict[str, Any]:
     identified = load_model(args.model)
     model = identified.robot_model
     ds_val = load_run(args.validation, model)
-    ds_con = load_run(args.contact, model)
-    if ds_con.contact is None:
-        raise DataError(f"{args.contact} has no 'contact' column: the contact figure and TPR need the skin's "
-                        "ground truth (a `dynid simulate --kind contact` run has one)")
-    truth = find_truth(identified, [args.validation, args.contact], args.truth)
+    ds_con = None
+    if args.contact is not None:
+        ds_con = load_run(args.contact, model)
+        if ds_con.contact is None:
+            raise DataError(f"{args.contact} has no 'contact' column: the contact figure and TPR need the skin's "
+                            "ground truth (a `dynid simulate --kind contact` run has one); leave --contact out to "
+                            "report without them")
+    truth = find_truth(identified, [args.validation] + ([args.contact] if args.contact else []), args.truth)
     params = parameter_table(identified, truth)
     state: dict[str, Any] = {}
 
@@ -111,6 +116,9 @@ def write_report(args: ReportSettings) -> dict[str, Any]:
         state["det_val"] = detection(ev, args.model, args.validation, args.alpha, args.n_mode)
 
     def evaluate_contact() -> None:
+        if ds_con is None:
+            state["con"] = state["det_con"] = None
+            return
         ev = state["con"] = evaluate(args.model, args.contact, identified, ds_con)
         state["det_con"] = detection(ev, args.model, args.contact, args.alpha, args.n_mode)
 
@@ -127,7 +135,7 @@ def write_report(args: ReportSettings) -> dict[str, Any]:
     result: dict[str, Any] = {
         "model": args.model, "robot": identified.config.name, "estimator": record.get("estimator"),
         "out": str(out), "alpha": args.alpha, "n_mode": args.n_mode,
-        "validation": v, "detection": {"validation": dv.result, "contact": dc.result},
+        "validation": v, "detection": {"validation": dv.result, "contact": None if dc is None else dc.result},
         # The paper's figures describe its arm only: no reference rows for another robot.
         "paper": ({k: list(x) if isinstance(x, tuple) else x for k, x in PAPER.items()}
                   if identified.config.name == PAPER_ROBOT else None),
@@ -158,6 +166,8 @@ def _figures(state: dict[str, Any], args: ReportSettings) -> tuple[list[tuple[st
     out.append(("fig-t2-validation", f"T² on the contact-free validation run ({args.validation}) with the threshold "
                 f"at α = {alpha:g}, both variants (the paper's Fig. 3)",
                 figs.t2_validation(t - t[0], dv.t2, thresholds, fpr, alpha)))
+    if ev_con is None:  # no run with contact ground truth
+        return _trace_figures(out, state, args)
     tc = ev_con.dataset.t
     rates = {k: rates_text(s) for k, s in dc.result["variants"].items()}
     skin = bool(ev_con.config.can.get("skin"))
@@ -171,6 +181,15 @@ def _figures(state: dict[str, Any], args: ReportSettings) -> tuple[list[tuple[st
         auc = {k: s["auc"] for k, s in dc.result["variants"].items() if k in curves}
         out.append(("fig-roc", f"ROC on the contact run, the operating point at α = {alpha:g} marked "
                     "(the paper's Fig. 5); right: the same on a logarithmic FPR axis", figs.roc(curves, points, auc, alpha)))
+    return _trace_figures(out, state, args)
+
+
+def _trace_figures(out: list, state: dict[str, Any], args: ReportSettings) -> tuple[list[tuple[str, str, bytes]], list[float]]:
+    """`out` plus the predicted-against-measured traces of the validation run."""
+    from . import figures as figs
+
+    ev_val = state["val"]
+    t = ev_val.dataset.t
     names = [o.name for o in ev_val.outputs]
     sigma = np.array([o.sigma for o in ev_val.outputs])
     w = representative_window(t, ev_val.e, sigma, args.window)
@@ -199,24 +218,26 @@ def _page(r: dict[str, Any], identified: IdentifiedModel, units: dict[str, str],
         f"<p>Model <code>{H.esc(r['model'])}</code> of <b>{H.esc(r['robot'])}</b>, estimator "
         f"<b>{H.esc(r['estimator'])}</b>, fitted on {data}: base-parameter rank {H.esc(base.get('rank'))}, "
         f"{sum(base.get('identified', []))} combinations determined; PLS ν = {H.esc(record.get('n_components'))}. "
-        f"Validation run <code>{H.esc(v['data'])}</code> ({v['samples']} samples), contact run "
-        f"<code>{H.esc(r['detection']['contact']['data'])}</code>. "
+        f"Validation run <code>{H.esc(v['data'])}</code> ({v['samples']} samples), "
+        + (f"contact run <code>{H.esc(r['detection']['contact']['data'])}</code>. " if r["detection"]["contact"]
+           else "no run with contact ground truth. ")
         + (f"True parameters from <code>{H.esc(r['truth'])}</code>." if r["truth"] else "No true parameters known.")
         + "</p>",
         "<h2>Prediction error (the paper's Table II)</h2>",
-        H.table_ii(v, r["paper"]) if "table_ii" in v else "<p class=\"note\">No F/T sensor: no Table II.</p>",
+        _tables_ii(v, r["paper"]),
         "<p class=\"note\">Norm of the F/T prediction error on the validation run. CAD: the URDF inertia with the F/T "
         "offsets that fit it best on the identification data."
         + (" Paper: the real iCub arm (Traversaro et al. 2013)." if r["paper"] else "") + "</p>",
         "<h3>Per channel</h3>", H.channels(v, units),
         f"<p class=\"note\">The CAD model has no friction and no motor gains: its {words} prediction is undefined.</p>",
         "<h2>Contact detection</h2>",
-        H.detection(r["detection"]["validation"], r["detection"]["contact"], r["paper"], alpha),
+        H.detection(r["detection"]["validation"], r["detection"]["contact"], r["paper"], alpha)
+        if r["detection"]["contact"] else H.false_positives(r["detection"]["validation"], alpha),
         f"<p class=\"note\">α = {alpha:g}. <i>calibrated</i> (dynid's default): motor channels at rest left out, "
         "threshold the α-quantile of T² on the contact-free identification data. <i>paper</i>: diagonal Λ and the F "
         f"threshold with n = {'dim(e)' if r['n_mode'] == 'dim' else 'ν'}."
         + (f" Distal contacts show in the F/T, proximal ones only in the {words}." if "table_ii" in v else "") + "</p>",
-        shown["fig-t2-validation"], shown["fig-t2-contact"], shown.get("fig-roc", ""),
+        shown["fig-t2-validation"], shown.get("fig-t2-contact", ""), shown.get("fig-roc", ""),
         "<h2>Predicted against measured</h2>", shown["fig-traces"],
         "<h2>Motor gains by estimator</h2>", H.gains(r["motor_gains"], r["estimator"]),
         "<p class=\"note\">Closed-loop data bias least squares and PLS towards small gains; instrumental variables "
@@ -245,3 +266,13 @@ def _truth_note(check: dict[str, Any] | None) -> str:
             f"{check['rms_error_in_se']:.2f}</span> standard errors RMS; "
             f"<span data-key=\"truth_check/within_2se\" data-value=\"{check['within_2se']!r}\" data-scale=\"100.0\">"
             f"{100 * check['within_2se']:.0f}</span> % lie within 2 se (honest errors: about 1 and 95 %).</p>")
+
+
+def _tables_ii(v: dict[str, Any], paper: dict[str, Any] | None) -> str:
+    """Table II, one per F/T sensor when the configuration has several."""
+    sensors = list(v.get("table_ii_sensors", {}))
+    if not sensors:
+        return "<p class=\"note\">No F/T sensor: no Table II.</p>" if "table_ii" not in v else H.table_ii(v, paper)
+    if len(sensors) == 1:
+        return H.table_ii(v, paper)
+    return "\n".join(f"<h3>{H.esc(s)}</h3>" + H.table_ii(v, None, s) for s in sensors)

@@ -357,6 +357,49 @@ def ft_gain(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
 
         yield Candidate("ft_gain", f"sensor {s.name}", {}, values, tuple(f"E{k}" for k in range(P.shape[1])), interpret)
 
+LIMIT_TOLERANCE = np.deg2rad(1.0)  # a joint within this of its URDF limit sits at the limit
+LIMIT_MIN_SHARE = 0.02  # ... on at least this share of the samples, else it is no candidate
+
+
+def limit_step(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
+    """A constant wrench on an F/T sensor while a joint sits at one of its URDF position limits.
+
+    The rigid-body model cannot make one: a hard stop's force is internal to the sensor's distal subtree. A real
+    sensor shows one all the same when something else loads it at the limit (a cable or a hose pulled taut,
+    a cover touching): the iCub leg's hip sensor moves by about 25 N while the ankle rests at its 30° stop. The
+    effect names the joint and the limit (in degrees, the searched value: `grid` rebuilds the given limits on a
+    run where the joint may never reach them).
+    """
+    cfg = ctx.model.config
+    q = ctx.sig.q
+    for k, joint in enumerate(cfg.joints):
+        for limit in ctx.model.joint_limits[joint]:
+            if not np.isfinite(limit) or abs(limit) > 1e3:  # continuous joints: no limit
+                continue
+            limit_deg = float(np.round(np.rad2deg(limit), 6))
+            at = np.abs(q[:, k] - limit) <= LIMIT_TOLERANCE
+            if grid:
+                if not any(abs(limit_deg - g) < 1e-6 for g in grid):
+                    continue
+            elif at.mean() < LIMIT_MIN_SHARE or at.all():
+                continue
+            for i, s in enumerate(cfg.ft_sensors):
+                values = np.zeros((ctx.n, ctx.r, 6))
+                for c in range(6):
+                    values[:, 6 * i + c, c] = at
+                labels = tuple(f"d{c}" for c in ("fx", "fy", "fz", "tx", "ty", "tz"))
+
+                def interpret(th: np.ndarray, phi: np.ndarray, joint=joint, limit_deg=limit_deg) -> dict[str, float | str]:
+                    out: dict[str, float | str] = {"joint": joint, "limit_deg": limit_deg}
+                    out.update({label: float(v) for label, v in zip(labels, th)})
+                    out["force"] = float(np.linalg.norm(th[:3]))
+                    out["torque"] = float(np.linalg.norm(th[3:]))
+                    return out
+
+                yield Candidate("limit_step", f"sensor {s.name}", {"joint": joint, "limit_deg": limit_deg}, values,
+                                labels, interpret)
+
+
 LIBRARY: dict[str, Callable[..., Iterable[Candidate]]] = {
     "stribeck": stribeck,
     "spring": spring,
@@ -370,6 +413,7 @@ LIBRARY: dict[str, Callable[..., Iterable[Candidate]]] = {
     "base_tilt": base_tilt,
     "ft_gain": ft_gain,
     "payload": payload,
+    "limit_step": limit_step,
 }
 
 SEARCHED = {"stribeck": "velocity", "cogging": "period_deg", "ft_drift": "tau", "pwm_delay": "ms"}

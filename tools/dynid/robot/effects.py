@@ -70,11 +70,15 @@ def parse_effects(raw: Any, model: RobotModel, where: str = "model file") -> lis
         if not isinstance(e, dict) or not isinstance(e.get("kind"), str) or not isinstance(e.get("where"), str):
             raise DataError(f"{where}: effect {i} needs a 'kind' and a 'where'")
         params = e.get("parameters")
-        if not isinstance(params, dict) or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in params.values()):
+        if not isinstance(params, dict) or not all(finite_number(v) for v in params.values()):
             raise DataError(f"{where}: effect {i} ({e['kind']}): every parameter must be a finite number")
-        effect = Effect(e["kind"], e["where"], {k: float(v) for k, v in params.items()},
-                        dict(e.get("standard_errors") or {}), tuple(float(c) for c in e.get("coefficients") or ()),
-                        dict(e.get("search") or {}))
+        try:  # the optional parts too: a list for a mapping, text for a number, is one line, not a traceback
+            effect = Effect(e["kind"], e["where"], {k: float(v) for k, v in params.items()},
+                            dict(e.get("standard_errors") or {}), tuple(float(c) for c in e.get("coefficients") or ()),
+                            dict(e.get("search") or {}))
+        except (TypeError, ValueError, OverflowError):
+            raise DataError(
+                f"{where}: effect {i} ({e['kind']}): standard_errors, coefficients or search is malformed") from None
         missing = [p for p in REQUIRED.get(effect.kind, ()) if p not in effect.parameters]
         if missing:
             raise DataError(f"{where}: effect {i} ({effect.kind}) lacks parameter '{missing[0]}'")
@@ -86,6 +90,14 @@ def parse_effects(raw: Any, model: RobotModel, where: str = "model file") -> lis
     return out
 
 
+def finite_number(v: Any) -> bool:
+    """A finite JSON number: not a bool, not an integer too large for a float (np.isfinite raised TypeError)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return False
+    try:
+        return bool(np.isfinite(float(v)))
+    except OverflowError:
+        return False
 
 
 def joint_torques(model: RobotModel, effects: list[Effect], q: np.ndarray, dq: np.ndarray) -> np.ndarray:

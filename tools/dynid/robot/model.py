@@ -8,7 +8,9 @@ negative of the sensor measurement in the child-to-parent convention of docs/des
 `computeJointTorqueRegressor` per sample therefore yields both Y_τ and every Y_FT.
 
 Every URDF joint that is not a configured moving joint or an F/T sensor is locked at zero (the iCub torso,
-the hand's fingers, ...).
+the hand's fingers, ...). The fixed base is the configuration's `base_link`: where it hangs above every moving
+joint and sensor, the URDF is used as it is; anywhere else (a humanoid's stance sole), the tree is re-rooted
+there first (reroot.py), and gravity is given in the base link's frame.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import pinocchio as pin
 from ..config.robot_config import RobotConfig
 from ..errors import ConfigError
 from .parameters import ParameterLayout
+from .reroot import path_to_root, reroot
 
 _ONE_DOF = ("revolute", "continuous", "prismatic")
 
@@ -39,7 +42,10 @@ class RobotModel:
 
     def __init__(self, config: RobotConfig) -> None:
         self.config = config
-        tree = ET.parse(config.urdf)
+        try:
+            tree = ET.parse(config.urdf)
+        except ET.ParseError as e:  # named here: the CLI's fallback line did not say which file was not XML
+            raise ConfigError(f"{config.name}: the URDF {config.urdf} is not XML: {e}") from None
         urdf_joints = {j.get("name"): j for j in tree.getroot().findall("joint")}
         urdf_links = {lk.get("name") for lk in tree.getroot().findall("link")}
         for j in config.joints:
@@ -60,8 +66,19 @@ class RobotModel:
                     f"of {config.urdf.name}"
                 )
             self._check_sensor_tag(tree, config, s.name, s.joint)
-            joint.set("type", "floating")  # the split described in the module docstring
-        self._check_base_link(tree, config)
+        self.reversed_joints: tuple[str, ...] = ()  # joints turned over by re-rooting at base_link
+        if not self._base_link_is_above(tree, config):
+            tree, self.reversed_joints = reroot(tree, config.base_link)
+            for s in config.ft_sensors:
+                if s.joint in self.reversed_joints:
+                    raise ConfigError(
+                        f"{config.name}: field 'ft_sensors' puts '{s.name}' at '{s.joint}', between the base link "
+                        f"'{config.base_link}' and the URDF's root: re-rooted there, the sensor's sides would swap; "
+                        "choose a base link below the sensor, or leave the sensor out"
+                    )
+        urdf_joints = {j.get("name"): j for j in tree.getroot().findall("joint")}
+        for s in config.ft_sensors:
+            urdf_joints[s.joint].set("type", "floating")  # the split described in the module docstring
 
         full = pin.buildModelFromXML(ET.tostring(tree.getroot(), encoding="unicode"))
         keep = set(config.joints) | {s.joint for s in config.ft_sensors}
@@ -69,6 +86,18 @@ class RobotModel:
         self.pin_model: pin.Model = pin.buildReducedModel(full, lock, pin.neutral(full))
         self.pin_model.gravity = pin.Motion(np.asarray(config.gravity, float), np.zeros(3))
         m = self.pin_model
+
+        # root <- accelerometer: gravity per sample is −R a (config.gravity_imu); the frame must not move
+        self.imu_rotation: np.ndarray | None = None
+        if config.gravity_imu:
+            if not m.existFrame(config.gravity_imu):
+                raise ConfigError(f"{config.name}: field 'gravity.imu' names '{config.gravity_imu}', not a frame of "
+                                  f"{config.urdf.name}")
+            frame = m.frames[m.getFrameId(config.gravity_imu)]
+            if frame.parentJoint != 0:
+                raise ConfigError(f"{config.name}: field 'gravity.imu' names '{config.gravity_imu}', which a moving "
+                                  "joint carries: the accelerometer must be fixed to the base")
+            self.imu_rotation = frame.placement.rotation.copy()
 
         self.joint_ids = [int(m.getJointId(j)) for j in config.joints]
         self.v_index = np.array([m.idx_vs[i] for i in self.joint_ids])  # columns of q̇ in Pinocchio's v
@@ -116,32 +145,22 @@ class RobotModel:
                 )
 
     @staticmethod
-    def _check_base_link(tree: ET.ElementTree, config: RobotConfig) -> None:
-        """The base link must be an ancestor of every moving joint, with no moving joint above it."""
-        parent_of = {}
-        for j in tree.getroot().findall("joint"):
-            parent_of[j.find("child").get("link")] = (j.get("name"), j.find("parent").get("link"))
-        moving = set(config.joints)
-        for joint in tree.getroot().findall("joint"):
-            if joint.get("name") not in moving:
-                continue
-            link, found = joint.find("parent").get("link"), False
-            while True:
-                if link == config.base_link:
-                    found = True
-                if link not in parent_of:
-                    break
-                name, link = parent_of[link]
-                if found and name in moving:
-                    raise ConfigError(
-                        f"{config.name}: field 'base_link' is '{config.base_link}', but the moving joint '{name}' lies "
-                        "between it and the URDF root"
-                    )
-            if not found:
-                raise ConfigError(
-                    f"{config.name}: field 'base_link' is '{config.base_link}', which is not an ancestor of the joint "
-                    f"'{joint.get('name')}'"
-                )
+    def _base_link_is_above(tree: ET.ElementTree, config: RobotConfig) -> bool:
+        """Whether the base link is an ancestor of every moving joint and sensor, with no moving joint above it.
+
+        Then the tree is used as the URDF hangs it; otherwise it is re-rooted at the base link (reroot.py).
+        """
+        root = tree.getroot()
+        above = {j.get("name") for j in path_to_root(root, config.base_link)}
+        if above & set(config.joints):
+            return False
+        for name in [*config.joints, *(s.joint for s in config.ft_sensors)]:
+            joint = next(j for j in root.findall("joint") if j.get("name") == name)
+            parent = joint.find("parent").get("link")
+            ancestors = {parent} | {j.find("parent").get("link") for j in path_to_root(root, parent)}
+            if config.base_link not in ancestors:
+                return False
+        return True
 
     def _child_link(self, joint_id: int) -> str:
         m = self.pin_model

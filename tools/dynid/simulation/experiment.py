@@ -22,6 +22,7 @@ import pinocchio as pin
 from ..config.robot_config import RobotConfig
 from ..errors import InputError
 from ..io.dataset import Dataset
+from ..io.load import MIN_SAMPLES
 from ..progress import track
 from ..robot.model import RobotModel
 from ..robot.parameters import WRENCH_FIELDS
@@ -55,6 +56,9 @@ class SimulationSettings:
     effects: tuple[Effect, ...] = ()
     rate_hz: float = 1000.0
     substeps: int = 1
+    # A base that tilts (a humanoid balancing): its amplitude in degrees about the root frame's x and y axes, with
+    # periods TILT_PERIODS_S; the run then records an accelerometer fixed to the root (imu.ax, imu.ay, imu.az)
+    tilt_deg: float = 0.0
 
     @property
     def seconds(self) -> float:
@@ -79,6 +83,18 @@ def _supply(n: int, n_motors: int, dt: float, rng: np.random.Generator) -> np.nd
     return 1.0 + 0.8 * x[:, :1] + 0.6 * x[:, 1:]
 
 
+TILT_PERIODS_S = (17.0, 23.0)  # about x and y: slow against the arm's reaching motions
+IMU_NOISE = 0.02  # m/s², std per axis
+
+
+def tilted_gravity(gravity: np.ndarray, degrees: float, t: np.ndarray) -> np.ndarray:
+    """(N, 3) gravity in a root frame that tilts by up to `degrees` about x and y: R(t)ᵀ g."""
+    amp = np.deg2rad(degrees)
+    angles = np.column_stack([amp * np.sin(2 * np.pi * t / TILT_PERIODS_S[0]),
+                              amp * np.sin(2 * np.pi * t / TILT_PERIODS_S[1] + 0.7), np.zeros_like(t)])
+    return np.array([pin.exp3(w).T @ gravity for w in angles])
+
+
 def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
     if settings.kind not in KINDS:
         raise InputError(f"unknown experiment kind '{settings.kind}' (known: {', '.join(KINDS)})")
@@ -88,13 +104,17 @@ def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
             "controller runs at the sample rate"
         )
     dt = 1.0 / settings.rate_hz
-    n = int(round(settings.seconds * settings.rate_hz))
-    if n < 2:
-        raise InputError(f"duration {settings.seconds:g} s is shorter than two samples")
-    if n > MAX_SAMPLES:
+    samples = settings.seconds * settings.rate_hz
+    if samples > MAX_SAMPLES:  # before int(): `--duration 1e300` printed a 300-digit sample count
         raise InputError(
-            f"duration {settings.seconds:g} s at {settings.rate_hz:g} Hz is {n} samples; at most {MAX_SAMPLES} "
-            "(an hour at 1 kHz) fit in memory: simulate several experiments instead"
+            f"duration {settings.seconds:g} s at {settings.rate_hz:g} Hz is {samples:.3g} samples; at most "
+            f"{MAX_SAMPLES} (an hour at 1 kHz) fit in memory: simulate several experiments instead"
+        )
+    n = int(round(samples))
+    if n < MIN_SAMPLES:  # a shorter run was written, and then refused by every command that reads it
+        raise InputError(
+            f"duration {settings.seconds:g} s at {settings.rate_hz:g} Hz is {n} samples; a run needs at least "
+            f"{MIN_SAMPLES}"
         )
     model = RobotModel(config)
     streams = np.random.SeedSequence([settings.seed, _KIND_STREAM[settings.kind], settings.robot_seed]).spawn(5)
@@ -123,6 +143,9 @@ def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
             axis = np.eye(3)["xyz".index(str(e.params["axis"]))]
             gravity = pin.exp3(axis * np.deg2rad(float(e.params["degrees"]))) @ gravity
     plant = RigidBodyPlant(model, inertias, gravity)
+    # A tilting base: gravity in the root's frame turns slowly (R(t)ᵀ g); the base's own acceleration is left out,
+    # so the rigid-body model with gravity per sample is exact (the identification's model of a tilting base)
+    g_of_t = tilted_gravity(gravity, settings.tilt_deg, np.arange(n) * dt) if settings.tilt_deg else None
     cad_plant = RigidBodyPlant(model, truth.cad_inertias)
 
     limits = np.array([model.joint_limits[j] for j in joints])
@@ -172,6 +195,8 @@ def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
         if c >= 0:
             fext[sites[c].joint_id] = contact_model.contact_force(sites[c], contact_wrench[k])
             forces = fext
+        if g_of_t is not None:
+            plant.model.gravity = pin.Motion(g_of_t[k], np.zeros(3))
         for s in range(settings.substeps):
             tau0, law = actuators.drive(q, v, u, supply[k], tau_cmd)
             v_next, a = plant.step(q, v, tau0, law, h, forces, actuators.armature, mode)
@@ -186,12 +211,12 @@ def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
             raise RuntimeError(f"the plant diverged at t = {t[k]:.3f} s")
 
     # The sensors, from the true trajectory.
-    wrenches, at_sensor, tau_contact = plant.sensor_wrenches(Q, V, A, site_index, contact_wrench, sites)
+    wrenches, at_sensor, tau_contact = plant.sensor_wrenches(Q, V, A, site_index, contact_wrench, sites, g_of_t)
     ft_measured, ft_offsets, ft_saturated = {}, {}, {}
     for s in config.ft_sensors:
         offset = sensors.ft_offset_track(effects, s.name, t, truth.ft_offsets[s.name], rng_effects)
         gain = sensors.ft_gain_matrix(effects, s.name, np.random.default_rng([settings.robot_seed, 0xF7]))
-        std = np.array([s.force_noise] * 3 + [s.torque_noise] * 3)
+        std = np.array([s.noise_of(k) for k in range(6)])
         ft_measured[s.name], ft_saturated[s.name] = sensors.measure_ft(
             wrenches[s.name], offset, gain, std, sensors.ft_full_scale(config, s.name), settings.noise, rng_noise
         )
@@ -226,6 +251,9 @@ def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
     extra: dict[str, np.ndarray] = {}
     if contact is not None:
         extra = {"skin.side": side, "skin.patch": patch}
+    if g_of_t is not None:  # the accelerometer at the root: the specific force −g, with its noise
+        a = -g_of_t + (rng_effects.normal(0.0, IMU_NOISE, g_of_t.shape) if settings.noise else 0.0)
+        extra.update({f"imu.a{c}": a[:, i] for i, c in enumerate("xyz")})
     dataset = Dataset(
         t=t, joints=joints, q=q_recorded,
         pwm={m: inputs[m] for m in config.motors_with_input("pwm")}, current=current, tau=tau_measured,
@@ -263,6 +291,8 @@ def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
         "plant": {
             **truth.describe(model),
             "gravity": gravity.tolist(),
+            "tilt": None if g_of_t is None else {"degrees": settings.tilt_deg, "periods_s": list(TILT_PERIODS_S),
+                                                 "imu_noise": IMU_NOISE, "imu_frame": "the URDF root"},
             "integrator": f"semi-implicit Euler with implicit friction, {settings.substeps} step(s) per sample",
             "unconverged_friction_steps": plant.unconverged_steps,
             "torque_ripple": TORQUE_RIPPLE if disturbed else 0.0,

@@ -230,8 +230,9 @@ class RigidBodyPlant:
         contact_site: np.ndarray,
         contact_wrench: np.ndarray,
         sites: list[BodySite],
+        gravity: np.ndarray | None = None,
     ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], np.ndarray]:
-        """Measure every sample of a trajectory.
+        """Measure every sample of a trajectory (`gravity` (N, 3): per sample, for a tilting base).
 
         `contact_site[k]` indexes `sites` (−1: no contact); `contact_wrench[k]` is the contact wrench on that
         site's link, in the link frame, about its origin. Returns, per sensor, the wrench it measures (distal
@@ -247,6 +248,8 @@ class RigidBodyPlant:
         for _ in range(m.njoints):
             fext.append(pin.Force.Zero())
         for k in range(n):
+            if gravity is not None:
+                m.gravity = pin.Motion(gravity[k], np.zeros(3))
             c = int(contact_site[k])
             if c >= 0:
                 site = sites[c]

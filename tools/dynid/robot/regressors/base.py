@@ -130,7 +130,11 @@ def exciting_signals(model: RobotModel, n_samples: int = 2000, seed: int = 0) ->
     inputs = {m: rng.uniform(-0.5, 0.5, n_samples) for g in cfg.actuation if g.input != "torque" for m in g.motors}
     tau = {j: np.zeros(n_samples) for j in cfg.joints_with_input("torque")}
     ft = {s.name: np.zeros((n_samples, 6)) for s in cfg.ft_sensors}
-    return Signals(q, dq, ddq, inputs, tau, ft)
+    gravity = None
+    if cfg.gravity_imu:  # a tilting base: gravity takes any direction, which can make more parameters identifiable
+        g = rng.normal(size=(n_samples, 3))
+        gravity = g / np.linalg.norm(g, axis=1, keepdims=True) * np.linalg.norm(cfg.gravity)
+    return Signals(q, dq, ddq, inputs, tau, ft, None, gravity)
 
 
 def structural_base_parameters(model: RobotModel, n_samples: int = 2000, seed: int = 0) -> BaseParameters:

@@ -57,7 +57,8 @@ def row_channels(model: RobotModel) -> tuple[RowChannel, ...]:
     rows: list[RowChannel] = []
     for s in cfg.ft_sensors:
         for k, c in enumerate(WRENCH_FIELDS):
-            rows.append(RowChannel(f"ft.{s.name}.{c}", s.force_noise if k < 3 else s.torque_noise))
+            # an estimated value (`fit --noise estimate`) overrides the configuration's
+            rows.append(RowChannel(f"ft.{s.name}.{c}", cfg.noise.per_channel.get(f"ft.{s.name}.{c}", s.noise_of(k))))
     for g in cfg.actuation:
         if g.input == "torque":
             rows.extend(RowChannel(f"joint.{j}", cfg.noise.of("torque", j)) for j in g.joints)
@@ -115,6 +116,9 @@ class Signals:
     # body's slot, RobotModel.payload_parameters). Its torques are known, so they move to b: that fixes the
     # scale of a set-up with unknown gains and no F/T sensor (the loaded/unloaded runs of Gautier and Khalil).
     payload: np.ndarray | None = None
+    # (N, 3) gravity per sample in the model root's frame, for a base that tilts (config.gravity_imu); None: the
+    # configuration's constant gravity
+    gravity: np.ndarray | None = None
 
     def slice(self, s: slice) -> Signals:
         return Signals(
@@ -123,6 +127,7 @@ class Signals:
             {k: v[s] for k, v in self.tau.items()},
             {k: v[s] for k, v in self.ft.items()},
             self.payload,
+            None if self.gravity is None else self.gravity[s],
         )
 
 
@@ -169,9 +174,11 @@ def signals_from_dataset(model: RobotModel, dataset, filter_outputs: bool = Fals
     ft = {s.name: dataset.ft[s.name] for s in cfg.ft_sensors}
     payload = dataset.meta.get("payload")
     phi_payload = None if not payload else model.payload_parameters(float(payload["mass"]), payload.get("com"))
+    gravity = gravity_per_sample(model, dataset)
     if smoother is None:
-        return Signals(dataset.q, dataset.dq, dataset.ddq, inputs, tau, ft, phi_payload)
+        return Signals(dataset.q, dataset.dq, dataset.ddq, inputs, tau, ft, phi_payload, gravity)
     columns = [dataset.q] + [v[:, None] for v in inputs.values()] + [v[:, None] for v in tau.values()] + list(ft.values())
+    columns += [] if gravity is None else [gravity]  # a measured signal: filtered like the outputs
     smooth = smoother(dataset.t, np.hstack(columns)).q
     cut = np.cumsum([c.shape[1] for c in columns])[:-1]
     parts = iter(np.split(smooth, cut, axis=1))
@@ -179,7 +186,24 @@ def signals_from_dataset(model: RobotModel, dataset, filter_outputs: bool = Fals
     inputs = {k: next(parts)[:, 0] for k in inputs}
     tau = {k: next(parts)[:, 0] for k in tau}
     ft = {k: next(parts) for k in ft}
-    return Signals(q, dataset.dq, dataset.ddq, inputs, tau, ft, phi_payload)
+    gravity = None if gravity is None else next(parts)
+    return Signals(q, dataset.dq, dataset.ddq, inputs, tau, ft, phi_payload, gravity)
+
+
+def gravity_per_sample(model: RobotModel, dataset) -> np.ndarray | None:
+    """(N, 3) gravity in the model root's frame from the accelerometer's columns, or None for constant gravity.
+
+    At rest an accelerometer measures the specific force −g; the base of a balancing robot tilts slowly, so its
+    own acceleration (~0.1 m/s² against 9.81) is left in as noise."""
+    cfg = model.config
+    if not cfg.gravity_imu:
+        return None
+    missing = [c for c in cfg.gravity_imu_columns if c not in dataset.extra]
+    if missing:
+        raise DataError(f"the data have no column {missing[0]}, which the configuration's gravity.imu needs "
+                        f"(the accelerometer at {cfg.gravity_imu})")
+    a = np.column_stack([dataset.extra[c] for c in cfg.gravity_imu_columns])
+    return -a @ model.imu_rotation.T
 
 
 def motor_velocities(dq_joints: np.ndarray, coupling: np.ndarray) -> np.ndarray:
@@ -253,7 +277,7 @@ def fill_rows(model: RobotModel, sig: Signals, A: np.ndarray, b: np.ndarray) -> 
     cfg, layout = model.config, model.layout
     inertial = layout.span("inertial")
     joint_col = {j: i for i, j in enumerate(cfg.joints)}
-    rb = rigid_body_regressors(model, sig.q, sig.dq, sig.ddq)
+    rb = rigid_body_regressors(model, sig.q, sig.dq, sig.ddq, sig.gravity)
 
     for i, s in enumerate(cfg.ft_sensors):
         rows = slice(6 * i, 6 * i + 6)

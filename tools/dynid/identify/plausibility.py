@@ -1,0 +1,73 @@
+"""Warnings for physically implausible estimates: a negative mass, an inertia that no body has, a centre of mass far
+outside its link.
+
+The fit's full parameter vector Φ̂ reproduces the identified base parameters; the directions the data do not see
+keep the CAD values. Nothing in the regression keeps each body physical, so a real run can return a link of
+−6.1 kg. These checks say so in the output and the JSON instead of passing it on silently:
+
+- mass ≤ 0;
+- the rotational inertia about the centre of mass not positive definite, or violating the triangle inequality
+  (I₁ + I₂ ≥ I₃): equivalently, the pseudo-inertia J = [[½ tr(I)·1 − I, h], [hᵀ, m]] (Wensing, Kim and Slotine,
+  RA-L 2018) is not positive definite;
+- the centre of mass farther from the body's frame than 1.5 × the link's extent + 5 cm, the extent being the
+  farthest of its child joints, its fixed frames and its CAD centre of mass.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..robot.model import RobotModel
+
+COM_MARGIN_FACTOR = 1.5
+COM_MARGIN_M = 0.05
+
+
+def inertia_about_com(phi_body: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """(m, c, I_c) of one body's 10 parameters (Pinocchio's order: m, mc, Ixx, Ixy, Iyy, Ixz, Iyz, Izz at the
+    frame's origin); c and I_c are NaN for m ≤ 0."""
+    m, h = float(phi_body[0]), np.asarray(phi_body[1:4], float)
+    ixx, ixy, iyy, ixz, iyz, izz = phi_body[4:10]
+    i_o = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]], float)
+    if m <= 0:
+        return m, np.full(3, np.nan), np.full((3, 3), np.nan)
+    c = h / m
+    i_c = i_o - m * (np.dot(c, c) * np.eye(3) - np.outer(c, c))  # parallel axis theorem
+    return m, c, i_c
+
+
+def link_extent(model: RobotModel, body: int) -> float:
+    """How far the link reaches from its frame: its child joints, fixed frames and CAD centre of mass (m)."""
+    m = model.pin_model
+    jid = model.bodies[body].joint_id
+    reach = [float(np.linalg.norm(m.jointPlacements[j].translation)) for j in range(1, m.njoints) if m.parents[j] == jid]
+    reach += [float(np.linalg.norm(f.placement.translation)) for f in m.frames if f.parentJoint == jid]
+    reach.append(float(np.linalg.norm(model.cad_inertial_parameters[10 * body + 1 : 10 * body + 4]))
+                 / max(float(model.cad_inertial_parameters[10 * body]), 1e-9))
+    return max(reach)
+
+
+def implausible(model: RobotModel, phi: np.ndarray) -> list[dict[str, Any]]:
+    """One entry per problem found in the inertial part of Φ̂: body, problem, and the figures behind it."""
+    found: list[dict[str, Any]] = []
+    inertial = np.asarray(phi, float)[model.layout.span("inertial")]
+    for k, body in enumerate(model.bodies):
+        mass, c, i_c = inertia_about_com(inertial[10 * k : 10 * k + 10])
+        if not mass > 0:
+            found.append({"body": body.name, "problem": "mass", "mass_kg": mass,
+                          "text": f"{body.name}: mass {mass:.3g} kg"})
+            continue
+        eig = np.linalg.eigvalsh(i_c)
+        if eig[0] <= 0 or eig[0] + eig[1] < eig[2]:
+            what = "not positive definite" if eig[0] <= 0 else "breaks the triangle inequality (I1 + I2 < I3)"
+            found.append({"body": body.name, "problem": "inertia", "principal_moments_kgm2": eig.tolist(),
+                          "text": f"{body.name}: inertia about the centre of mass {what}: principal moments "
+                                  + ", ".join(f"{e:.3g}" for e in eig) + " kg m²"})
+        distance, extent = float(np.linalg.norm(c)), link_extent(model, k)
+        if distance > COM_MARGIN_FACTOR * extent + COM_MARGIN_M:
+            found.append({"body": body.name, "problem": "com", "distance_m": distance, "extent_m": extent,
+                          "text": f"{body.name}: centre of mass {distance:.3g} m from its frame, the link reaches "
+                                  f"{extent:.3g} m"})
+    return found

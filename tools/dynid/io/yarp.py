@@ -1,0 +1,199 @@
+"""A `yarpdatadumper` folder as the robot writes it, read through the configuration's `yarp:` field.
+
+Each port is a folder holding `data.log` (one message per line: `<sequence> <stamp, s> <payload>`) and
+`info.log`. A `stateExt:o` payload is ten parenthesised groups, each followed by `[ok]`; the first holds the joint
+positions. An `analog:o` payload is the sensor's six values. Every port has its own clock (about 100 Hz here, with
+5–17 ms between messages), so the ports are put on one time base:
+
+- the run's time origin is the earliest stamp of any port in the folder (so a window `--from/--to` means the same
+  seconds whatever the configuration reads), and the common span is where every configured port has data;
+- each channel is interpolated linearly onto a uniform grid at the configured `rate` over that span. Linear
+  interpolation between two messages 10 ms apart moves no value by more than their difference, and it neither
+  invents nor hides a silence: a port silent for longer than `max_gap` inside the span is refused, naming the
+  port, the time and the silence;
+- a message whose stamp does not increase (a port re-sending) is dropped and counted; a last line cut short (the
+  dumper stopped mid-write) is dropped and counted; any other malformed line is refused with its file and line.
+
+What was done is recorded in the dataset's `meta["yarp"]`: the time origin (Unix s) and, per port, the messages
+read, dropped, the median and largest interval.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..config.log_columns import SKIP
+from ..config.robot_config import RobotConfig
+from ..config.yarp_ports import YarpPort
+from ..errors import DataError
+from .csv_format import check_columns, table_dataset
+from .dataset import FT_CHANNELS, Dataset
+
+_GROUP = re.compile(r"\(([^()]*)\)")
+
+
+def is_dumper_folder(path: Path) -> bool:
+    """True for a directory that holds, at any depth, a port folder with `data.log` (and `info.log`)."""
+    return path.is_dir() and any(p.with_name("info.log").is_file() for p in path.glob("**/data.log"))
+
+
+@dataclass
+class _PortLog:
+    stamps: np.ndarray  # (M,) Unix s, strictly increasing
+    values: np.ndarray  # (M, K) in the project's units
+    dropped_stale: int
+    dropped_cut: int
+
+
+def _read_port(root: Path, spec: YarpPort) -> _PortLog:
+    path = root / spec.port / "data.log"
+    if not path.is_file():
+        raise DataError(f"{root}: no port '{spec.port}' (expected {path}); the configuration's yarp.ports names it")
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise DataError(f"{path}: not a text file (byte {e.start} is not UTF-8)") from None
+    except OSError as e:
+        raise DataError(f"cannot read {path}: {e.strerror or e}") from None
+    lines = text.split("\n")
+    if lines and lines[-1] == "":
+        lines.pop()
+    width = len(spec.joints) if spec.joints else 6
+    stamps: list[float] = []
+    rows: list[list[float]] = []
+    cut = 0
+    for k, line in enumerate(lines):
+        parsed = _parse_line(line, bool(spec.joints), width)
+        if isinstance(parsed, str):
+            if k == len(lines) - 1 and not text.endswith("\n"):
+                cut += 1  # the dumper stopped mid-line
+                continue
+            raise DataError(f"{path}: line {k + 1}: {parsed}")
+        stamps.append(parsed[0])
+        rows.append(parsed[1])
+    if len(stamps) < 2:
+        raise DataError(f"{path}: {len(stamps)} message(s): a port needs at least two")
+    t = np.asarray(stamps)
+    values = np.asarray(rows) * np.asarray(spec.scale)
+    keep = np.ones(t.size, bool)  # drop messages that do not move the port's clock forward
+    latest = t[0]
+    for i in range(1, t.size):
+        if t[i] <= latest:
+            keep[i] = False
+        else:
+            latest = t[i]
+    return _PortLog(t[keep], values[keep], int((~keep).sum()), cut)
+
+
+def _parse_line(line: str, state: bool, width: int) -> tuple[float, list[float]] | str:
+    """`(stamp, values)` of one message, or what is wrong with it."""
+    head = line.split(None, 2)
+    if len(head) < 3:
+        return "expected '<sequence> <stamp> <payload>'"
+    try:
+        stamp = float(head[1])
+    except ValueError:
+        return f"the stamp {head[1][:40]!r} is not a number"
+    if not np.isfinite(stamp) or stamp < 0:
+        return f"the stamp {head[1][:40]!r} is not a time"
+    payload = head[2]
+    if state:
+        groups = _GROUP.findall(payload)
+        if not groups:
+            return "no parenthesised group: not a stateExt:o message"
+        payload = groups[0]
+    cells = payload.split()
+    if len(cells) != width:
+        what = "joint positions" if state else "values (an F/T sensor's fx fy fz tx ty tz)"
+        return f"{len(cells)} {what}, the configuration's port has {width}"
+    try:
+        values = [float(c) for c in cells]
+    except ValueError:
+        return f"{payload.strip()[:60]!r} holds a value that is not a number"
+    if not all(np.isfinite(values)):
+        return "a value is not finite"
+    return stamp, values
+
+
+def _first_stamp(path: Path) -> float | None:
+    try:
+        with open(path, "rb") as f:
+            parts = f.readline().split(None, 2)
+        return float(parts[1])
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def read_yarp(path: str | Path, config: RobotConfig, joint_limits=None, require_all: bool = True) -> Dataset:
+    """Import a yarpdatadumper folder described by `config.yarp` as a `Dataset` (module docstring)."""
+    root = Path(path)
+    layout = config.yarp
+    if layout is None:
+        raise DataError(
+            f"{root}: a yarpdatadumper folder, but the configuration {config.name} has no 'yarp' field naming its "
+            "ports (docs/formats.md, Robot configuration)"
+        )
+    logs = {spec.port: _read_port(root, spec) for spec in layout.ports}
+    origin_candidates = [s for s in (_first_stamp(p) for p in root.glob("**/data.log")) if s is not None]
+    origin = min([*origin_candidates, *(log.stamps[0] for log in logs.values())])
+    start = max(log.stamps[0] for log in logs.values())
+    stop = min(log.stamps[-1] for log in logs.values())
+    if stop - start < 2.0 / layout.rate:
+        raise DataError(f"{root}: the configured ports share no common time span (each port's first and last stamps)")
+    for spec in layout.ports:  # a silence inside the common span is refused, not interpolated over
+        t = logs[spec.port].stamps
+        inside = (t[1:] > start) & (t[:-1] < stop)
+        gaps = np.diff(t)[inside]
+        if gaps.size and gaps.max() > layout.max_gap:
+            i = int(np.flatnonzero(inside)[np.argmax(gaps)])
+            raise DataError(
+                f"{root}: port {spec.port} is silent for {gaps.max():.3f} s from t = {t[i] - origin:.3f} s (the "
+                f"configuration's yarp.max_gap is {layout.max_gap:g} s)"
+            )
+    # Relative seconds before interpolating: Unix stamps (~1.5e9 s) keep only ~0.2 µs of float64 resolution.
+    grid = (start - origin) + np.arange(int(np.floor((stop - start) * layout.rate)) + 1) / layout.rate
+    for log in logs.values():
+        log.stamps = log.stamps - origin
+
+    names, columns_data = ["t"], [grid]
+    for spec in layout.ports:
+        log = logs[spec.port]
+        if spec.joints:
+            for k, joint in enumerate(spec.joints):
+                if joint != SKIP:
+                    names.append(f"q.{joint}")
+                    columns_data.append(np.interp(grid, log.stamps, log.values[:, k]))
+        else:
+            for k, channel in enumerate(FT_CHANNELS):
+                names.append(f"ft.{spec.sensor}.{channel}")
+                columns_data.append(np.interp(grid, log.stamps, log.values[:, k]))
+    data = np.column_stack(columns_data)
+    columns = check_columns(names, config, require_all=require_all, source=str(root))
+    digest = hashlib.sha256()
+    for spec in layout.ports:
+        digest.update((root / spec.port / "data.log").read_bytes())
+    dataset = table_dataset(
+        root, b"", names, columns, data, config, joint_limits, "yarp dumper", lambda i: f"sample {i + 1}"
+    )
+    dataset.meta["source_sha256"] = digest.hexdigest()
+    dataset.meta["yarp"] = {
+        "origin_unix_s": float(origin),
+        "rate_hz": layout.rate,
+        "ports": {
+            spec.port: {
+                "messages": int(logs[spec.port].stamps.size),
+                "dropped_not_increasing": logs[spec.port].dropped_stale,
+                "dropped_cut_last_line": logs[spec.port].dropped_cut,
+                "first_s": float(logs[spec.port].stamps[0]),
+                "median_interval_s": float(np.median(np.diff(logs[spec.port].stamps))),
+                "max_interval_s": float(np.max(np.diff(logs[spec.port].stamps))),
+            }
+            for spec in layout.ports
+        },
+    }
+    return dataset

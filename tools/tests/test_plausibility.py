@@ -1,0 +1,63 @@
+"""Warnings for implausible estimates (identify/plausibility.py) on analytic cases of the default arm's bodies."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from dynid.config.robot_config import load_config
+from dynid.identify.plausibility import implausible, inertia_about_com
+from dynid.robot.model import RobotModel
+
+
+@pytest.fixture(scope="module")
+def arm() -> RobotModel:
+    return RobotModel(load_config("icub_right_arm"))
+
+
+def _params(m: float, c, i_c) -> np.ndarray:
+    """Pinocchio's 10 parameters of (m, c, I about c), built by hand: pin.Inertia refuses the implausible ones."""
+    c, i_c = np.asarray(c, float), np.asarray(i_c, float)
+    i_o = i_c + m * (c @ c * np.eye(3) - np.outer(c, c))
+    return np.array([m, *(m * c), i_o[0, 0], i_o[0, 1], i_o[1, 1], i_o[0, 2], i_o[1, 2], i_o[2, 2]])
+
+
+def _with_body(arm: RobotModel, k: int, params: np.ndarray) -> np.ndarray:
+    phi = arm.cad_parameters()
+    phi[10 * k : 10 * k + 10] = params
+    return phi
+
+
+def test_cad_is_plausible(arm: RobotModel) -> None:
+    assert implausible(arm, arm.cad_parameters()) == []
+
+
+def test_parallel_axis_round_trip() -> None:
+    box = pin.Inertia.FromBox(2.0, 0.1, 0.2, 0.3)
+    shifted = pin.SE3(np.eye(3), np.array([0.05, -0.02, 0.1])).act(box)
+    m, c, i_c = inertia_about_com(shifted.toDynamicParameters())
+    assert m == pytest.approx(2.0) and np.allclose(c, [0.05, -0.02, 0.1])
+    np.testing.assert_allclose(i_c, box.inertia, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "inertia, problem",
+    [
+        (_params(-6.1, [0, 0, 0.1], np.eye(3) * 1e-3), "mass"),
+        (_params(1.0, [0, 0, 0.05], np.diag([1e-3, 1e-3, -1e-4])), "inertia"),
+        (_params(1.0, [0, 0, 0.05], np.diag([1e-4, 1e-4, 1e-3])), "inertia"),  # I1 + I2 < I3: no such body
+        (_params(1.0, [0.0, 0.0, 1.2], np.eye(3) * 1e-3), "com"),
+    ],
+)
+def test_each_implausible_body_is_named(arm: RobotModel, inertia: np.ndarray, problem: str) -> None:
+    k = [b.name for b in arm.bodies].index("r_forearm")
+    found = implausible(arm, _with_body(arm, k, inertia))
+    assert [(w["body"], w["problem"]) for w in found] == [("r_forearm", problem)]
+    assert "\n" not in found[0]["text"] and found[0]["text"].startswith("r_forearm: ")
+
+
+def test_a_thin_rod_is_plausible(arm: RobotModel) -> None:
+    k = [b.name for b in arm.bodies].index("r_forearm")
+    rod = pin.Inertia.FromCylinder(0.5, 0.005, 0.2)  # two large moments, one tiny: a body all the same
+    assert implausible(arm, _with_body(arm, k, rod.toDynamicParameters())) == []

@@ -1,0 +1,155 @@
+"""The yarpdatadumper importer (dynid.io.yarp, the configuration's `yarp:` field) on folders with known content.
+
+Each port's signals are linear in time, so interpolation onto the common grid is exact and every value can be
+checked; the ports tick at ~100 Hz with their own jitter, as the iCub's do.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dynid.config.robot_config import load_config
+from dynid.errors import ConfigError, DataError
+from dynid.io.load import load_data
+
+ARM = ["r_shoulder_pitch", "r_shoulder_roll", "r_shoulder_yaw", "r_elbow", "r_wrist_prosup", "r_wrist_pitch", "r_wrist_yaw"]
+UNIX0 = 1457614036.0
+
+CONFIG = """\
+name: yarp_arm
+urdf: {icub_models: iCubGenova04}
+base_link: chest
+joints: [%s]
+ft_sensors:
+  - {name: r_arm_ft, joint: r_arm_ft_sensor}
+yarp:
+%s
+"""
+PORTS = """\
+  ports:
+    - {port: icub/right_arm/stateExt:o, joints: [%s, _, _]}
+    - {port: icub/right_arm/analog:o, sensor: r_arm_ft}
+""" % ", ".join(ARM)
+
+
+def _config(tmp_path: Path, yarp: str = PORTS):
+    path = tmp_path / "arm.yaml"
+    path.write_text(CONFIG % (", ".join(ARM), yarp))
+    return load_config(path)
+
+
+def _q_deg(t: np.ndarray) -> np.ndarray:
+    return np.column_stack([10.0 * (k + 1) + (k - 3) * 2.0 * t for k in range(9)])
+
+
+def _ft(t: np.ndarray) -> np.ndarray:
+    return np.column_stack([5.0 - k + (0.5 + k) * t for k in range(6)])
+
+
+def _write_port(root: Path, port: str, stamps: np.ndarray, lines: list[str], cut: str = "") -> None:
+    folder = root / port
+    folder.mkdir(parents=True)
+    (folder / "info.log").write_text(f"Type: Bottle;\n[{stamps[0]:.6f}] /{port} [connected]\n")
+    body = "".join(f"{100 + i} {s:.6f} {line}\n" for i, (s, line) in enumerate(zip(stamps, lines)))
+    (folder / "data.log").write_text(body + cut)
+
+
+def _stamps(rng: np.random.Generator, start: float, n: int) -> np.ndarray:
+    return UNIX0 + start + np.cumsum(np.full(n, 0.01) + rng.uniform(-0.004, 0.006, n))
+
+
+def _dumper(tmp_path: Path, *, stale: bool = False, cut: bool = False, gap: float = 0.0) -> Path:
+    rng = np.random.default_rng(1)
+    root = tmp_path / "dump"
+    ts = _stamps(rng, 0.3, 600)
+    if gap:
+        ts[300:] += gap
+    q = _q_deg(ts - UNIX0)
+    groups = [" ".join(f"{v:.6f}" for v in row) for row in q]
+    state = [f"({g}) [ok] (0 0 0 0 0 0 0 0 0) [ok] (1 2 3) [ok]" for g in groups]
+    if stale:  # a port re-sending an old message: its stamp goes back
+        ts = np.insert(ts, 200, ts[150])
+        state.insert(200, "(" + " ".join(["999"] * 9) + ") [ok]")
+    _write_port(root, "icub/right_arm/stateExt:o", ts, state)
+    tf = _stamps(rng, 0.25, 610)
+    ft = [" ".join(f"{v:.6f}" for v in row) for row in _ft(tf - UNIX0)]
+    _write_port(root, "icub/right_arm/analog:o", tf, ft, cut="1234 1457614099.5 1.0 2.0" if cut else "")
+    other = root / "icub/head/stateExt:o"  # a port the configuration does not read: it sets the time origin
+    other.mkdir(parents=True)
+    (other / "info.log").write_text("Type: Bottle;\n")
+    (other / "data.log").write_text(f"1 {UNIX0 + 0.1:.6f} (0 0 0) [ok]\n2 {UNIX0 + 0.11:.6f} (0 0 0) [ok]\n")
+    return root
+
+
+def test_ports_on_one_time_base_in_radians(tmp_path: Path) -> None:
+    config = _config(tmp_path)
+    data = load_data(_dumper(tmp_path), config)
+    t_abs = data.t + UNIX0 + 0.1  # the origin is the earliest stamp of any port (the head's)
+    assert data.meta["yarp"]["origin_unix_s"] == pytest.approx(UNIX0 + 0.1)
+    assert np.allclose(np.diff(data.t), 0.01)
+    np.testing.assert_allclose(data.q, np.radians(_q_deg(t_abs - UNIX0)[:, :7]), atol=1e-7)
+    np.testing.assert_allclose(data.ft["r_arm_ft"], _ft(t_abs - UNIX0), atol=1e-5)
+    ports = data.meta["yarp"]["ports"]
+    assert ports["icub/right_arm/stateExt:o"]["messages"] == 600
+    assert 0.009 < ports["icub/right_arm/analog:o"]["median_interval_s"] < 0.012
+    assert data.meta["source_format"] == "yarp dumper"
+
+
+def test_a_stale_message_and_a_cut_last_line_are_dropped_and_counted(tmp_path: Path) -> None:
+    data = load_data(_dumper(tmp_path, stale=True, cut=True), _config(tmp_path))
+    ports = data.meta["yarp"]["ports"]
+    assert ports["icub/right_arm/stateExt:o"]["dropped_not_increasing"] == 1
+    assert ports["icub/right_arm/analog:o"]["dropped_cut_last_line"] == 1
+    assert np.degrees(data.q).max() < 200  # the stale 999° never reaches the data
+
+
+def test_a_silent_port_is_refused_with_where_and_how_long(tmp_path: Path) -> None:
+    with pytest.raises(DataError, match=r"port icub/right_arm/stateExt:o is silent for 0\.2\d\d s from t = 3\.\d+ s"):
+        load_data(_dumper(tmp_path, gap=0.2), _config(tmp_path))
+
+
+@pytest.mark.parametrize(
+    "damage, message",
+    [
+        (lambda p: p.write_text("1 2.5 (1 2 3) [ok]\n"), r"line 1: 3 joint positions, the configuration's port has 9"),
+        (lambda p: p.write_text("1 abc (1 2 3) [ok]\n"), r"line 1: the stamp 'abc' is not a number"),
+        (lambda p: p.write_bytes(b"\xff\xfe\x00"), r"not a text file"),
+        (lambda p: p.write_text("1 2.5 (" + "x " * 9 + ") [ok]\n2 2.6 (1) [ok]\n"), r"line 1: .* not a number"),
+        (lambda p: p.unlink(), r"no port 'icub/right_arm/stateExt:o'"),
+    ],
+)
+def test_a_damaged_port_is_one_line(tmp_path: Path, damage, message: str) -> None:
+    root = _dumper(tmp_path)
+    damage(root / "icub/right_arm/stateExt:o/data.log")
+    with pytest.raises(DataError, match=message) as info:
+        load_data(root, _config(tmp_path))
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize(
+    "yarp, message",
+    [
+        ("  ports: []", r"field 'yarp.ports' must be a list"),
+        ("  rate: 0\n" + PORTS, r"field 'yarp.rate' must be a number from 1"),
+        ("  ports:\n    - {port: a/b, joints: [r_elbow], sensor: r_arm_ft}", r"either 'joints'.*or 'sensor'"),
+        ("  ports:\n    - {port: a/b, joints: [nope]}", r"names 'nope', which is not in the configuration's 'joints'"),
+        ("  ports:\n    - {port: ../x, sensor: r_arm_ft}", r"'yarp.ports\[0\].port' must be the port's folder"),
+        ("  ports:\n    - {port: a/b, joints: [%s], unit: grad}" % ", ".join(ARM), r"'yarp.ports\[0\].unit' must be one of rad, deg"),
+        ("  ports:\n    - {port: a/b, joints: [r_elbow]}", r"gives no port for the joint 'r_shoulder_pitch'"),
+        ("  ports:\n    - {port: a/b, joints: [%s]}\n    - {port: c/d, joints: [r_elbow]}" % ", ".join(ARM),
+         r"names 'r_elbow', which a/b already gives"),
+    ],
+)
+def test_a_wrong_yarp_field_names_itself(tmp_path: Path, yarp: str, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        _config(tmp_path, yarp)
+
+
+def test_a_dumper_folder_without_a_yarp_field_says_so(tmp_path: Path) -> None:
+    root = _dumper(tmp_path)
+    with pytest.raises(DataError, match="yarpdatadumper folder, but the configuration icub_right_arm has no 'yarp'"):
+        load_data(root, load_config("icub_right_arm"))
+
