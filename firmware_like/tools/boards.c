@@ -19,6 +19,8 @@
  * the sender SCHED_FIFO so that its wake-ups keep the 1 kHz tick on a loaded machine (refused cleanly where
  * the system does not allow it). Paced runs print the CLOCK_REALTIME µs of sample 0 (the monitor's clock).
  * Bus load: worst-case bit stuffing at 1 Mbit/s (board_frame_bits_worst), over the run's duration.
+ * --sink candump:- streams the log to standard output (a pipe into a fault injector or a monitor: an hour of frames
+ * needs no 2 GB file); the summary then goes to stderr.
  */
 #define _GNU_SOURCE /* sched_setscheduler, CLOCK_REALTIME stamps */
 #include <errno.h>
@@ -70,7 +72,8 @@ static const char *const k_help[] = {
     "  --data RUN_DIR|data.csv   a run directory (its data.csv is read) or a CSV file; every row is checked",
     "                            before any frame is sent",
     "  --sink SINK               where the frames go:",
-    "                              candump:PATH  a candump -L log file (written beside PATH, renamed into place)",
+    "                              candump:PATH  a candump -L log file (written beside PATH, renamed into place);",
+    "                                            candump:- streams it to standard output (the summary to stderr)",
     "                              loopback:DIR  one struct can_frame datagram per frame to DIR/<bus>.can, the",
     "                                            sockets `rt_monitor --loopback DIR` binds",
     "                              socketcan     raw CAN sockets on the interfaces named as the configured buses",
@@ -377,17 +380,19 @@ int main(int argc, char **argv)
     }
 
     {
-        /* Duration: n sample periods (the mean period of the run). */
+        /* Duration: n sample periods (the mean period of the run). With the log on standard output, the summary
+         * goes to stderr. */
+        FILE *out = g_sink.to_stdout ? stderr : stdout;
         const double period = n > 1 ? (t_prev - t_first) / (double)(n - 1) : 1e-3;
         const double duration = period * (double)n * (double)repeat;
-        printf("boards: %ld samples, %llu frames, %.3f s of data in %.3f s (%.1fx real time)\n", k,
+        fprintf(out, "boards: %ld samples, %llu frames, %.3f s of data in %.3f s (%.1fx real time)\n", k,
                (unsigned long long)g_sink.sent, duration, wall, wall > 0.0 ? duration / wall : 0.0);
         if (realtime) {
-            printf("boards: sample 0 at CLOCK_REALTIME %lld us\n", real0_us);
+            fprintf(out, "boards: sample 0 at CLOCK_REALTIME %lld us\n", real0_us);
         }
         for (i = 0; i < g_conf.n_buses; ++i) {
             const double load = (double)g_bits[i] / (duration * BITRATE);
-            printf("boards: bus %s load %.1f %% (%llu frames; worst-case bit stuffing, 1 Mbit/s)\n", g_conf.buses[i],
+            fprintf(out, "boards: bus %s load %.1f %% (%llu frames; worst-case bit stuffing, 1 Mbit/s)\n", g_conf.buses[i],
                    100.0 * load, (unsigned long long)g_frames[i]);
             overloaded |= load >= LOAD_LIMIT;
         }

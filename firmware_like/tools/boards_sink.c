@@ -40,6 +40,12 @@ int boards_sink_open(boards_sink_t *s, const char *spec, const boards_conf_t *c,
             return BOARDS_EXIT_USAGE;
         }
         strcpy(s->path, path);
+        if (strcmp(path, "-") == 0) { /* standard output, streamed: nothing to rename (a pipe into a monitor) */
+            s->f = stdout;
+            s->to_stdout = 1;
+            s->kind = SINK_CANDUMP;
+            return 0;
+        }
         snprintf(s->tmp, sizeof s->tmp, "%s.XXXXXX", path); /* written beside, renamed into place: atomic */
         fd = mkstemp(s->tmp);
         if (fd < 0 || !(s->f = fdopen(fd, "w"))) {
@@ -146,7 +152,13 @@ int boards_sink_send(boards_sink_t *s, int bus, const board_frame_t *f, int64_t 
 int boards_sink_close(boards_sink_t *s, int ok, char err[BOARDS_ERR_LEN])
 {
     int i, rc = 0;
-    if (s->kind == SINK_CANDUMP && s->f) {
+    if (s->kind == SINK_CANDUMP && s->f && s->to_stdout) {
+        if (fflush(s->f) != 0 || ferror(s->f)) {
+            rc = BOARDS_EXIT_SINK;
+            snprintf(err, BOARDS_ERR_LEN, "standard output: write failed: %s", strerror(errno));
+        }
+        s->f = 0;
+    } else if (s->kind == SINK_CANDUMP && s->f) {
         if (fclose(s->f) != 0) {
             ok = 0;
             rc = BOARDS_EXIT_SINK;

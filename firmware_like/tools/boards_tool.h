@@ -94,10 +94,12 @@ int boards_csv_check_time(const boards_csv_t *csv, long n, double t, double t_fi
 /* A row's µs timestamp, as dynid.io.candump computes it (rint: half to even), for rows that passed the check. */
 int64_t boards_time_us(double t, double t_first, double t0, double shift);
 
-/* ---- sinks: "candump:PATH", "loopback:DIR", "socketcan" (interfaces named as the configured buses) ---- */
+/* ---- sinks: "candump:PATH" ("candump:-": standard output), "loopback:DIR", "socketcan" (interfaces named as
+ * the configured buses) ---- */
 typedef struct {
     int kind;
     FILE *f;
+    int to_stdout; /* candump:- : the log streams to standard output (the summary then goes to stderr) */
     char path[4096];
     char tmp[4096];
     int fd;

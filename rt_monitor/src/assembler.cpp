@@ -373,6 +373,7 @@ bool Assembler::push(const RxFrame& f, Sample& out) noexcept {
             ++n_.bad_length;
             return false;
         }
+        ++n_.strain_frames;
         if (flags) ++n_.saturated;
         const int base = type == ICUB_CAN_STRAIN_FORCE ? 0 : 3;
         // A force half opens a sample: the strain frame before it closed the previous one (or tried to).
@@ -431,6 +432,7 @@ bool Assembler::push(const RxFrame& f, Sample& out) noexcept {
             ++n_.bad_length;
             return false;
         }
+        ++n_.position_frames;
         for (size_t a = 0; a < cfg_->axes.size(); ++a) {
             const AxisMap& m = cfg_->axes[a];
             if (m.bus != f.bus || m.address != src) continue;
@@ -445,6 +447,7 @@ bool Assembler::push(const RxFrame& f, Sample& out) noexcept {
             ++n_.bad_length;
             return false;
         }
+        ++n_.pid_frames;
         for (size_t p = 0; p < cfg_->pwms.size(); ++p) {
             const PwmMap& m = cfg_->pwms[p];
             if (m.bus != f.bus || m.address != src) continue;
@@ -459,10 +462,14 @@ bool Assembler::push(const RxFrame& f, Sample& out) noexcept {
             ++n_.bad_length;
             return false;
         }
+        ++n_.status_frames;
         if (f0 | f1) ++n_.board_faults;
         int& last = status_seq_[size_t(f.bus * 16 + src)];
-        // A restart: the flag, or the counter back at 0 when it was not due to wrap.
-        if ((b & ICUB_CAN_MC_BOARD_RESTARTED) || (last >= 0 && seq == 0 && last != 255)) {
+        // A restart: the flag, or the counter back at 0 when it was not due to wrap. Not a restart: the same frame
+        // again (a duplicate: CAN retransmits a frame whose end was disturbed; seq 0 twice), a wrap with the frame of
+        // 255 lost (254 then 0), and a duplicate of the flagged frame (its counter is 0 again, as it was).
+        const bool repeated = seq == last;
+        if (((b & ICUB_CAN_MC_BOARD_RESTARTED) && !repeated) || (last >= 0 && seq == 0 && last < 254 && last != 0)) {
             ++n_.board_restarts;
             // Values from before the restart are not to be trusted: the next sample waits for fresh ones.
             for (size_t a = 0; a < cfg_->axes.size(); ++a)

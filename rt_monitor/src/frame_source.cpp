@@ -160,6 +160,9 @@ std::unique_ptr<CandumpReplay> CandumpReplay::open(const std::string& path, std:
     }
     std::unique_ptr<CandumpReplay> r(new CandumpReplay());
     r->f_ = f;
+    // The stream's buffer is ours, made here: stdio would allocate its own on the first read, inside the loop.
+    r->buffer_.assign(size_t(1) << 16, '\0');
+    std::setvbuf(f, r->buffer_.data(), _IOFBF, r->buffer_.size());
     r->buses_ = std::move(buses);
     r->realtime_ = realtime;
     return r;
@@ -220,10 +223,10 @@ namespace {
 
 enum class Got { kFrame, kNone, kBad, kError };
 
-// One non-blocking read of one socket.
-Got read_one(int fd, RxFrame& out, std::string& error) noexcept {
+// One non-blocking read of one socket; `drops`: the socket's SO_RXQ_OVFL count, updated when the message has one.
+Got read_one(int fd, RxFrame& out, uint32_t& drops, std::string& error) noexcept {
     can_frame f{};
-    alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timeval))];
+    alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timeval)) + CMSG_SPACE(sizeof(uint32_t))];
     iovec iov{&f, sizeof f};
     msghdr msg{};
     msg.msg_iov = &iov;
@@ -243,6 +246,8 @@ Got read_one(int fd, RxFrame& out, std::string& error) noexcept {
             timeval tv{};
             std::memcpy(&tv, CMSG_DATA(c), sizeof tv);
             out.t_us = int64_t(tv.tv_sec) * 1000000 + tv.tv_usec;
+        } else if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_RXQ_OVFL) {
+            std::memcpy(&drops, CMSG_DATA(c), sizeof drops);
         }
     }
     if (out.t_us == 0) out.t_us = realtime_us();
@@ -260,7 +265,9 @@ ReadStatus read_datagram(const std::vector<int>& fds, DatagramQueue& q, int time
         // Top up: a frame ahead from every socket that has one queued (bad datagrams are counted and skipped).
         for (size_t i = 0; i < n; ++i) {
             while (!q.has[i]) {
-                const Got g = read_one(fds[i], q.ahead[i], error);
+                const uint32_t before = q.drops[i];
+                const Got g = read_one(fds[i], q.ahead[i], q.drops[i], error);
+                counters.kernel_drops += uint32_t(q.drops[i] - before);  // the kernel's count wraps at 2^32
                 if (g == Got::kError) return ReadStatus::kError;
                 if (g == Got::kNone) break;
                 if (g == Got::kBad) {

@@ -35,8 +35,13 @@ void SampleClock::commit(const Sample& s, int64_t idx) noexcept {
     const double late = (double(s.t_us - base_t_) - offset_) - double(idx) * period_;
     if (late < 0) offset_ += late;
     else if (late < kLeakBelow * period_) offset_ += kLeak * late;
+    ++n_.taken;
+    n_.lost += idx - last_idx_ - 1;  // last_idx_ is -1 at an anchor, whose sample is slot 0
     last_idx_ = idx;
-    if (s.held) return;  // not evaluated: bridged when the next good sample comes (or the filter restarts)
+    if (s.held) {  // not evaluated: bridged when the next good sample comes (or the filter restarts)
+        ++n_.held;
+        return;
+    }
     const int64_t missing = have_good_ ? idx - good_idx_ - 1 : 0;
     if (missing > kMaxBridge) {
         restart_next_ = true;

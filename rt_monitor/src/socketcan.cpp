@@ -49,8 +49,9 @@ std::unique_ptr<SocketCanSource> SocketCanSource::open(const std::vector<std::st
         if (setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FILTER, filters.data(),
                        socklen_t(filters.size() * sizeof(can_filter))) != 0 ||
             setsockopt(fd, SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &errs, sizeof errs) != 0 ||
-            setsockopt(fd, SOL_SOCKET, SO_TIMESTAMP, &on, sizeof on) != 0) {
-            error = name + ": setsockopt (CAN filters, timestamps): " + std::strerror(errno);
+            setsockopt(fd, SOL_SOCKET, SO_TIMESTAMP, &on, sizeof on) != 0 ||
+            setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on) != 0) {  // frames dropped by the kernel, counted
+            error = name + ": setsockopt (CAN filters, timestamps, drop count): " + std::strerror(errno);
             return nullptr;
         }
         const unsigned index = if_nametoindex(name.c_str());

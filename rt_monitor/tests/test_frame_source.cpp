@@ -303,6 +303,38 @@ TEST(SocketCan, VcanRoundTrip) {
     ::close(tx);
 }
 
+TEST(SocketCan, FramesTheKernelDroppedAreCounted) {
+    // A monitor that does not read while the bus runs on: its socket's receive queue fills and the kernel drops the
+    // frames after that (SO_RXQ_OVFL reports how many, on the next frame queued once there is room again).
+    const int probe = socket(PF_CAN, SOCK_RAW, CAN_RAW);
+    if (probe < 0) GTEST_SKIP() << "AF_CAN unsupported by this kernel (" << std::strerror(errno) << "): no SocketCAN";
+    ::close(probe);
+    if (if_nametoindex("vcan0") == 0) GTEST_SKIP() << "no vcan0 interface (ip link add dev vcan0 type vcan)";
+    std::string err;
+    auto src = SocketCanSource::open({"vcan0"}, socketcan_filters({3}), err);
+    ASSERT_TRUE(src) << err;
+    const int tx = socket(PF_CAN, SOCK_RAW, CAN_RAW);
+    sockaddr_can a{};
+    a.can_family = AF_CAN;
+    a.can_ifindex = int(if_nametoindex("vcan0"));
+    ASSERT_EQ(bind(tx, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+    can_frame out{};
+    out.can_id = 0x3DA;
+    out.len = 6;
+    const int sent = 20000;  // far more than a default receive buffer holds
+    for (int i = 0; i < sent; ++i) ASSERT_EQ(write(tx, &out, sizeof out), ssize_t(sizeof out)) << i;
+    RxFrame f;
+    int got = 0;
+    while (src->read(f, 200) == ReadStatus::kFrame) ++got;
+    ASSERT_GT(got, 0);
+    ASSERT_LT(got, sent);
+    ASSERT_EQ(write(tx, &out, sizeof out), ssize_t(sizeof out));  // one more, queued with the count
+    ASSERT_EQ(src->read(f, 1000), ReadStatus::kFrame);
+    EXPECT_EQ(src->counters().kernel_drops, uint64_t(sent - got));
+    EXPECT_EQ(src->counters().frames, uint64_t(got + 1));
+    ::close(tx);
+}
+
 TEST(SocketCan, OpenFailsWithOneLineNamingTheProblem) {
     std::string err;
     auto src = SocketCanSource::open({"nosuchcan7"}, socketcan_filters({1}), err);

@@ -130,6 +130,36 @@ TEST(SampleClock, ALostSampleIsBridgedByExactlyOneInterpolatedOne) {
     EXPECT_TRUE(ev[100].interpolated);
     EXPECT_EQ(std::count_if(ev.begin(), ev.end(), [](const Evaluated& e) { return e.interpolated; }), 1);
     EXPECT_EQ(clock.counters().restarts, 1);
+    // The accounting: 299 taken, one empty slot, evaluated = taken − held + interpolated.
+    EXPECT_EQ(clock.counters().taken, 299);
+    EXPECT_EQ(clock.counters().lost, 1);
+    EXPECT_EQ(clock.counters().held, 0);
+}
+
+TEST(SampleClock, AHeldSampleIsTakenNotEvaluatedAndBridged) {
+    // The assembler marks a sample held (an encoder value not renewed): it keeps its slot, is not evaluated, and is
+    // bridged from its neighbours; no slot is empty.
+    SampleClock clock(kP);
+    const auto t = sender_stamps(std::vector<int64_t>(300, 0));
+    std::vector<Evaluated> ev;
+    auto take = [&](int n) {
+        for (int i = 0; i < n; ++i) ev.push_back({clock.step(i).sample.q[0], 0, clock.step(i).interpolated, false});
+    };
+    for (int64_t k = 0; k < 300; ++k) {
+        Sample s = sample(k, t[size_t(k)]);
+        s.held = k == 100 || k == 200 || k == 201;
+        take(clock.push(s));
+    }
+    take(clock.flush());
+    ASSERT_EQ(ev.size(), 300u);
+    for (size_t k = 0; k < ev.size(); ++k) EXPECT_NEAR(ev[k].k, double(k), 1e-9) << k;
+    EXPECT_TRUE(ev[100].interpolated && ev[200].interpolated && ev[201].interpolated);
+    const ClockCounters& c = clock.counters();
+    EXPECT_EQ(c.taken, 300);
+    EXPECT_EQ(c.held, 3);
+    EXPECT_EQ(c.lost, 0);
+    EXPECT_EQ(c.interpolated, 3);
+    EXPECT_EQ(int64_t(ev.size()), c.taken - c.held + c.interpolated);
 }
 
 TEST(SampleClock, LossesNextToLateSamplesAreStillCounted) {
@@ -171,6 +201,8 @@ TEST(SampleClock, AGapLongerThanTheBridgeRestartsTheFilter) {
     EXPECT_TRUE(ev[100].restart);
     EXPECT_EQ(ev[100].k, 120.0);
     EXPECT_EQ(ev[100].t_us, kT0 + 120 * kP);
+    EXPECT_EQ(clock.counters().lost, 20);  // counted, though not bridged
+    EXPECT_EQ(clock.counters().taken, 280);
 }
 
 TEST(SampleClock, StaleSamplesAreNotEvaluatedAndTheFilterRestartsAfterThem) {
@@ -186,6 +218,8 @@ TEST(SampleClock, StaleSamplesAreNotEvaluatedAndTheFilterRestartsAfterThem) {
     EXPECT_EQ(clock.counters().restarts, 2);
     EXPECT_TRUE(ev[100].restart);
     EXPECT_EQ(ev[100].k, 130.0);
+    EXPECT_EQ(clock.counters().taken, 270);  // stale samples are not taken: no slot of the grid is theirs
+    EXPECT_EQ(clock.counters().lost, 0);
 }
 
 TEST(SampleClock, AHeldSampleBetweenAGapAndAStaleOneIsDecidedByTheStaleOnesStamp) {
@@ -276,6 +310,8 @@ TEST(SampleClock, RandomLatenessAndLossesOverManySamples) {
                 (long long)misplaced);
     EXPECT_LT(misplaced, n / 1000);
     EXPECT_EQ(clock.counters().interpolated, int64_t(lost.size()));
+    EXPECT_EQ(clock.counters().lost, int64_t(lost.size()));
+    EXPECT_EQ(clock.counters().taken, n - int64_t(lost.size()));
     EXPECT_GT(lost.size(), 500u);
     EXPECT_GT(clock.counters().late, 1000);
     EXPECT_EQ(clock.counters().restarts, 1);

@@ -1,5 +1,5 @@
 // rt_monitor --model COEF --config CONFIG [--replay CANDUMP.log [--realtime]] [--loopback DIR] [--lcm-url URL]
-//            [--mlockall] [--priority N] [--cpu LIST] [--latency-out FILE] [--help]
+//            [--mlockall] [--priority N] [--cpu LIST] [--latency-out FILE] [--stats-out FILE] [--help]
 //
 // Frames in (SocketCAN on the configured buses, a candump -L replay, or the loopback transport), samples
 // assembled, the core stepped, contact events / status (10 Hz) / decimated residuals out on LCM.
@@ -8,6 +8,9 @@
 // on stderr says what the process runs with.
 // --latency-out (benchmarks): per contact onset, CLOCK_MONOTONIC µs from the return of the read of the frame
 // that completed the onset sample to the return of its LCM publish, one per line, written at exit.
+// --stats-out (soak, docs/benchmarks.md "Soak"): at exit, a JSON object with every counter (frames by kind, the sample
+// clock's taken/held/lost), the heap allocations made after start-up (all, and those inside lcm_publish), the
+// samples' processing and response times (loop overruns, missed deadlines), the messages published, the resident set.
 // Exit codes: 0 done, 2 bad arguments or configuration, 1 a source or LCM failure, 3 mlockall refused, 4 SCHED_FIFO
 // refused, 5 CPU affinity refused, 10+ a refused coefficient file.
 #include <sys/stat.h>
@@ -34,6 +37,7 @@
 #include "rt_monitor/assembler.hpp"
 #include "rt_monitor/core.hpp"
 #include "rt_monitor/rt_settings.hpp"
+#include "rt_monitor/run_stats.hpp"
 #include "rt_monitor/sample_clock.hpp"
 #include "rt_monitor/status.hpp"
 
@@ -46,7 +50,7 @@ void on_signal(int) { g_stop = 1; }
 
 constexpr const char* kSynopsis =
     "usage: rt_monitor --model COEF --config CONFIG [--replay CANDUMP.log [--realtime]] [--loopback DIR] "
-    "[--lcm-url URL] [--mlockall] [--priority N] [--cpu LIST] [--latency-out FILE] [--help]\n";
+    "[--lcm-url URL] [--mlockall] [--priority N] [--cpu LIST] [--latency-out FILE] [--stats-out FILE] [--help]\n";
 
 constexpr const char* kHelp = R"(
 The real-time contact monitor: reads the boards' CAN frames, assembles samples (one per F/T strain pair),
@@ -71,6 +75,11 @@ output:
                         tests use file://PATH?mode=w or memq://
   --latency-out FILE    benchmarks: per contact onset, the CLOCK_MONOTONIC microseconds from the read of the
                         frame completing the onset sample to the return of its publish, written at exit
+  --stats-out FILE      soak and benchmarks: at exit, a JSON object with every counter (frames by kind, the
+                        sample clock's), the heap allocations after start-up, each sample's processing time
+                        (from the read of its completing frame to the end of its processing and publishing)
+                        and response time (from that frame's kernel stamp; live sources), their p50, p99, max
+                        and how many exceeded one sample period, the messages published and the resident set
 
 real time (applied once before the loop; a refusal has its own exit code):
   --mlockall            lock the process's memory (mlockall MCL_CURRENT|MCL_FUTURE)
@@ -149,10 +158,41 @@ double mono_us() {
     return double(ts.tv_sec) * 1e6 + double(ts.tv_nsec) * 1e-3;
 }
 
+double real_us() {  // CLOCK_REALTIME, the clock of the kernel's SO_TIMESTAMP stamps
+    timespec ts{};
+    clock_gettime(CLOCK_REALTIME, &ts);
+    return double(ts.tv_sec) * 1e6 + double(ts.tv_nsec) * 1e-3;
+}
+
+struct Allocations {
+    long long in_loop, in_publish;
+};
+
+// --stats-out: the JSON object (the body's keys, then the allocations and the resident set), written beside the path
+// and renamed into place.
+template <class Body>
+bool write_stats(const std::string& path, Allocations a, Body body) {
+    long long rss = 0, hwm = 0;
+    resident_kb(rss, hwm);
+    const std::string tmp = path + ".tmp";
+    std::FILE* f = std::fopen(tmp.c_str(), "w");
+    if (!f) return false;
+    JsonOut j(f);
+    body(j);
+    j.open("allocations")  // after start-up: from the first read to the last publish
+        .num("after_startup", a.in_loop).num("in_lcm_publish", a.in_publish)
+        .num("elsewhere", a.in_loop - a.in_publish).flag("malloc_counted", allocations_count_malloc())
+        .close();
+    j.num("rss_kb", rss).num("hwm_kb", hwm);
+    j.end();
+    const bool ok = std::fclose(f) == 0;
+    return ok && std::rename(tmp.c_str(), path.c_str()) == 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-    std::string model, config, replay, loopback, url, latency_out;
+    std::string model, config, replay, loopback, url, latency_out, stats_out;
     std::string priority, cpu;
     bool have_url = false, have_cpu = false, realtime = false;
     RtSettings rts;
@@ -172,6 +212,7 @@ int main(int argc, char** argv) {
         else if (a == "--loopback") ok = path(loopback);
         else if (a == "--lcm-url") ok = have_url = value(url);
         else if (a == "--latency-out") ok = path(latency_out);
+        else if (a == "--stats-out") ok = path(stats_out);
         else if (a == "--realtime") realtime = true;
         else if (a == "--mlockall") rts.mlockall = true;
         else if (a == "--priority") ok = rts.fifo = value(priority);
@@ -190,9 +231,10 @@ int main(int argc, char** argv) {
 
     // The latency file is written at exit: an unwritable one was found only after the whole run (and left its
     // temporary file behind when it named a directory).
-    if (!latency_out.empty()) {
-        if (!writable_file(latency_out)) {  // one line, no synopsis: the arguments were well formed
-            std::fprintf(stderr, "rt_monitor: error: --latency-out %s: %s\n", latency_out.c_str(), std::strerror(errno));
+    for (const auto& [flag, out] : {std::pair<const char*, const std::string*>{"--latency-out", &latency_out},
+                                    {"--stats-out", &stats_out}}) {
+        if (!out->empty() && !writable_file(*out)) {  // one line, no synopsis: the arguments were well formed
+            std::fprintf(stderr, "rt_monitor: error: %s %s: %s\n", flag, out->c_str(), std::strerror(errno));
             return 2;
         }
     }
@@ -273,17 +315,30 @@ int main(int argc, char** argv) {
     for (int i = 0; i < n_out; ++i) sigma[size_t(i)] = std::sqrt(coef->variance[size_t(i)]);
     // One encode buffer for every message (their sizes are fixed from here on), so a publish does not allocate
     // the way lcm::LCM::publish(channel, const T*) does; channel names built once too.
-    const std::string kContact = "DYNID_CONTACT", kResidual = "DYNID_RESIDUAL", kStatus = "DYNID_STATUS";
+    enum { kContact, kResidual, kStatus };
+    const std::string channels[3] = {"DYNID_CONTACT", "DYNID_RESIDUAL", "DYNID_STATUS"};
     std::vector<uint8_t> wire(size_t(std::max({ev.getEncodedSize(), res.getEncodedSize(), st.getEncodedSize()})));
-    auto send = [&](const std::string& channel, const auto& msg) {
+    // Per channel: messages published, and refused (lcm_publish's error); allocations made inside lcm_publish (the
+    // provider's: liblcm's file:// provider mallocs an event record per message, its udpm provider nothing).
+    int64_t published[3] = {}, publish_failed = 0, unencoded = 0;
+    long long publish_allocations = 0;
+    auto send = [&](int channel, const auto& msg) {
         const int n = msg.encode(wire.data(), 0, int(wire.size()));  // < 0 only if a size changed: not sent
-        if (n > 0) lcm.publish(channel, wire.data(), unsigned(n));
+        if (n <= 0) {
+            ++unencoded;
+            return;
+        }
+        const long long a0 = allocations();
+        const int rc = lcm.publish(channels[channel], wire.data(), unsigned(n));
+        publish_allocations += allocations() - a0;
+        if (rc == 0) ++published[channel];
+        else ++publish_failed;
     };
 
     const int64_t status_period_us = dynid::rt::status_period_us(cfg);
     const double period_us = coef->sample_period * 1e6;
     int64_t next_status = -1, evaluated = 0, onset_utime = 0, overruns = 0, events = 0;
-    double loop_sum = 0, loop_max = 0;
+    double loop_sum = 0, loop_max = 0, loop_max_run = 0;
     int64_t loop_n = 0;
     SampleClock clock(period_us);
     Sample s;
@@ -291,6 +346,18 @@ int main(int argc, char** argv) {
     double rx_mono = 0;  // when the read of the current frame returned
     std::vector<double> latency;
     if (!latency_out.empty()) latency.reserve(size_t(1) << 20);  // allocated once: no allocation in the loop
+    // Each completed sample's processing time: from the return of the read of the frame that completed it to the end
+    // of its processing (the sample clock, the core steps it released, every message published for them); above
+    // one period, a loop overrun. Its response time (live sources): from the kernel's stamp of that frame
+    // (CLOCK_REALTIME) to the same end, the wait for the monitor to be woken and read it included; above one period,
+    // a missed deadline. A replay has no stamps of its own: its response time is its processing time.
+    const bool live = replay.empty();
+    LatencyHistogram response, processing;
+    if (!stats_out.empty()) {
+        response.init(period_us);
+        processing.init(period_us);
+    }
+    int64_t onsets = 0, ends = 0;
     int rc = 0;
 
     auto fill_residual = [&](std::vector<double>& r, const Output& o) {
@@ -333,11 +400,13 @@ int main(int argc, char** argv) {
         const double dt = mono_us() - t0;
         loop_sum += dt;
         loop_max = dt > loop_max ? dt : loop_max;
+        loop_max_run = dt > loop_max_run ? dt : loop_max_run;
         ++loop_n;
         if (dt > period_us) ++overruns;
         ++evaluated;
         if (o.event != Event::kNone) {
             ++events;
+            ++(o.event == Event::kOnset ? onsets : ends);
             if (o.event == Event::kOnset) onset_utime = x.t_us;
             ev.utime = x.t_us;
             ev.kind = int8_t(o.event);
@@ -358,11 +427,17 @@ int main(int argc, char** argv) {
         }
     };
 
+    // A filter restart (stale data, a long gap) resets the detector: a contact open then gets no end event.
+    int64_t contacts_cut = 0;
     auto evaluate = [&](const ClockStep& c) {
-        if (c.restart) core->reset();
+        if (c.restart) {
+            contacts_cut += core->output().in_contact;
+            core->reset();
+        }
         step(c.sample);
     };
 
+    const long long allocations_at_start = allocations();  // start-up is over: from here on, the loop
     while (!g_stop) {
         const ReadStatus r = src->read(f, 100);
         if (r == ReadStatus::kEnd) break;
@@ -383,21 +458,74 @@ int main(int argc, char** argv) {
             next_status += status_period_us;
             if (next_status <= s.t_us) next_status = s.t_us + status_period_us;
         }
+        const double done = mono_us();
+        processing.add(done - rx_mono, s.t_us);
+        response.add(live ? real_us() - double(f.t_us) : done - rx_mono, s.t_us);
     }
     for (int i = 0, n = clock.flush(); i < n; ++i) evaluate(clock.step(i));
     publish_status(s.t_us);
+    const long long allocations_in_loop = allocations() - allocations_at_start;
     const ClockCounters& cc = clock.counters();
     const MonitorCounters& c = asm_.counters();
     const SourceCounters& sc = src->counters();
     std::printf("rt_monitor: %s; frames %lld, samples %lld, evaluated %lld, stale %lld, events %lld, unknown id %lld, "
                 "bad length %lld, error frames %lld, unpaired strain %lld, saturated %lld, board faults %lld, "
-                "board restarts %lld, bad source input %llu, interpolated %lld, late %lld, filter restarts %lld, overruns %lld\n",
+                "board restarts %lld, bad source input %llu, interpolated %lld, late %lld, filter restarts %lld, overruns %lld, "
+                "kernel drops %llu\n",
                 g_stop ? "stopped by signal" : (rc ? "failed" : "end of input"), (long long)c.frames,
                 (long long)c.samples, (long long)evaluated, (long long)c.stale_samples, (long long)events,
                 (long long)c.unknown_id, (long long)c.bad_length, (long long)c.error_frames,
                 (long long)c.unpaired_strain, (long long)c.saturated, (long long)c.board_faults,
                 (long long)c.board_restarts, (unsigned long long)(sc.bad_lines + sc.unknown_bus + sc.bad_size),
-                (long long)cc.interpolated, (long long)cc.late, (long long)cc.restarts, (long long)overruns);
+                (long long)cc.interpolated, (long long)cc.late, (long long)cc.restarts, (long long)overruns,
+                (unsigned long long)sc.kernel_drops);
+    if (!stats_out.empty() && !write_stats(stats_out, {allocations_in_loop, publish_allocations}, [&](JsonOut& j) {
+            j.str("source", !replay.empty() ? (realtime ? "replay, real time" : "replay")
+                            : !loopback.empty() ? "loopback" : "socketcan")
+                .str("stopped", g_stop ? "signal" : (rc ? "failed" : "end of input"))
+                .real("period_us", period_us);
+            j.open("frames")  // frames = error + unknown_id + bad_length + strain + position + pid + status + skin
+                .num("total", c.frames).num("error", c.error_frames).num("unknown_id", c.unknown_id)
+                .num("bad_length", c.bad_length).num("strain", c.strain_frames).num("position", c.position_frames)
+                .num("pid", c.pid_frames).num("status", c.status_frames).num("skin", c.skin_frames)
+                .num("saturated", c.saturated).num("unpaired_strain", c.unpaired_strain)
+                .num("pending_strain", asm_.pending_strain()).num("board_faults", c.board_faults)
+                .num("board_restarts", c.board_restarts)
+                .close();
+            j.open("source_counters")
+                .num("frames", (long long)sc.frames).num("bad_lines", (long long)sc.bad_lines)
+                .num("unknown_bus", (long long)sc.unknown_bus).num("bad_size", (long long)sc.bad_size)
+                .num("kernel_drops", (long long)sc.kernel_drops)
+                .close();
+            j.open("samples")  // evaluated = taken − held + interpolated; taken = assembled − stale
+                .num("assembled", c.samples).num("stale", c.stale_samples).num("taken", cc.taken).num("held", cc.held)
+                .num("lost", cc.lost).num("interpolated", cc.interpolated).num("late", cc.late)
+                .num("evaluated", evaluated).num("filter_restarts", cc.restarts)
+                .close();
+            // onsets = ends + cut (open at a filter restart) + in_contact (open at the end)
+            j.open("events").num("total", events).num("onsets", onsets).num("ends", ends).num("cut", contacts_cut)
+                .num("in_contact", core->output().in_contact).close();
+            j.open("published")
+                .num("contact", published[kContact]).num("residual", published[kResidual])
+                .num("status", published[kStatus]).num("failed", publish_failed).num("unencoded", unencoded)
+                .close();
+            j.open("core_step_us").real("max", loop_max_run).num("over_period", overruns).close();
+            auto histogram = [&](const char* name, const char* from, const LatencyHistogram& h) {
+                j.open(name).str("from", from).num("samples", h.count()).real("p50", h.quantile(0.5))
+                    .real("p99", h.quantile(0.99)).real("p999", h.quantile(0.999)).real("max", h.max())
+                    .num("over_period", h.over());
+                j.list("worst");  // the largest, with their samples' CAN time (s)
+                for (int i = 0; i < h.worst_count(); ++i) j.item(h.worst_us(i));
+                j.close_list().list("worst_at_s");
+                for (int i = 0; i < h.worst_count(); ++i) j.item(double(h.worst_tag(i)) * 1e-6);
+                j.close_list().close();
+            };
+            histogram("processing_us", "return of the read of the completing frame", processing);
+            histogram("response_us", live ? "kernel stamp of the completing frame" : "return of the read", response);
+        })) {
+        std::fprintf(stderr, "rt_monitor: error: cannot write %s\n", stats_out.c_str());
+        rc = rc ? rc : 1;
+    }
     if (!latency_out.empty()) {
         const std::string tmp = latency_out + ".tmp";
         bool written = false;

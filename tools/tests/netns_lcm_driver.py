@@ -1,6 +1,6 @@
 """Run inside a private network namespace (test_lcm_udpm.py starts it with `ip netns exec`): set up multicast on
 lo, subscribe with LCM's default URL (UDP multicast, ttl=0), run rt_monitor with that same default, and print
-what arrived as JSON on stdout.
+what arrived as JSON on stdout. SIGTERM is passed on to the monitor (tools/benchmarks/soak.py ends its paced run so).
 
 Refuses (exit 3, before any socket is opened) unless it is in a network namespace other than HOST_NS whose only
 interface is lo: nothing it sends can leave that namespace.
@@ -13,6 +13,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -55,11 +56,18 @@ def main() -> None:
 
     proc = subprocess.Popen(monitor, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={k: v for k, v in os.environ.items() if k != "LCM_DEFAULT_URL"})
+    signal.signal(signal.SIGTERM, lambda *_: proc.send_signal(signal.SIGTERM))
+    def handle(ms: int) -> int:
+        try:
+            return lc.handle_timeout(ms)
+        except OSError:  # interrupted by the SIGTERM passed on
+            return 0
+
     while proc.poll() is None:
-        lc.handle_timeout(50)
+        handle(50)
     quiet_since = time.monotonic()
     while time.monotonic() - quiet_since < 0.5:  # drain what is still queued
-        if lc.handle_timeout(100) > 0:
+        if handle(100) > 0:
             quiet_since = time.monotonic()
     out, err = proc.communicate()
     last = got["DYNID_STATUS"][-1] if got["DYNID_STATUS"] else None

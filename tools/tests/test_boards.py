@@ -59,6 +59,17 @@ def _frames(log: Path) -> list[tuple[int, str, int, bytes]]:
     return out
 
 
+def test_candump_to_standard_output_is_the_log_file(part: dict) -> None:
+    """--sink candump:- streams the same log to stdout (a pipe into the soak's fault injector) and the summary to stderr."""
+    log = part["root"] / "file.log"
+    assert boards("--config", str(part["conf"]), "--data", str(part["csv"]), "--sink", f"candump:{log}").returncode == 0
+    done = boards("--config", str(part["conf"]), "--data", str(part["csv"]), "--sink", "candump:-", "--repeat", "2")
+    assert done.returncode == 0, done.stderr
+    lines, once = done.stdout.splitlines(), log.read_text().splitlines()
+    assert lines[:len(once)] == once and len(lines) == 2 * len(once)
+    assert f"{2 * N} samples, {2 * len(once)} frames" in done.stderr and "bus can0 load" in done.stderr
+
+
 def test_frames_match_the_python_writer_and_decode_to_the_csv(part: dict) -> None:
     log = part["root"] / "c.log"
     done = boards("--config", str(part["conf"]), "--data", str(part["csv"]), "--sink", f"candump:{log}")

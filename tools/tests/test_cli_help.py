@@ -21,7 +21,7 @@ OPTIONS = {
     "boards": {"--config", "--data", "--sink", "--realtime", "--rt-priority", "--t0", "--sensor", "--strain-sat",
                "--restart", "--repeat", "--help"},
     "rt_monitor": {"--model", "--config", "--replay", "--realtime", "--loopback", "--lcm-url", "--mlockall",
-                   "--priority", "--cpu", "--latency-out", "--help"},
+                   "--priority", "--cpu", "--latency-out", "--stats-out", "--help"},
 }
 
 

@@ -133,6 +133,7 @@ def test_socketcan_gtests_run_in_the_guest(guest: dict, build: str) -> None:
     out = guest["files"][f"gtest-{build}.out"]
     assert guest["files"][f"gtest-{build}.rc"].strip() == "0", out
     assert "[       OK ] SocketCan.VcanRoundTrip" in out and "SKIPPED" not in out, out
+    assert "[       OK ] SocketCan.FramesTheKernelDroppedAreCounted" in out, out  # SO_RXQ_OVFL
 
 
 def test_boards_to_monitor_over_vcan_gives_the_replays_events(guest: dict, replay: dict) -> None:
@@ -168,4 +169,5 @@ def test_error_frames_on_the_bus_are_counted(guest: dict) -> None:
     assert any(0 < m.error_frames < N_ERRORS for m in msgs["DYNID_STATUS"])  # counted live, while the boards played
     assert f"error frames {N_ERRORS}," in files["monitor.out"]
     assert files["monitor.out"].startswith("rt_monitor: stopped by signal;")  # SIGTERM, exit 0: no crash
+    assert files["monitor.out"].rstrip().endswith(", kernel drops 0")  # no frame dropped by the kernel (SO_RXQ_OVFL)
 

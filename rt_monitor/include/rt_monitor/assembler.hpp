@@ -71,9 +71,13 @@ bool parse_monitor_config(const std::string& text, const std::string& path, Moni
 // The same, read from the file at `path`.
 bool load_monitor_config(const std::string& path, MonitorConfig& out, std::string& error);
 
+// Every frame pushed is counted once in `frames` and once in exactly one of: error_frames, unknown_id, bad_length,
+// strain_frames, position_frames, pid_frames, status_frames, skin_frames. Strain halves: strain_frames =
+// 2 samples + unpaired_strain + (a force half still waiting for its torque half: pending_strain()).
 struct MonitorCounters {
     int64_t frames = 0, samples = 0, stale_samples = 0, unknown_id = 0, bad_length = 0, error_frames = 0,
             unpaired_strain = 0, saturated = 0, board_faults = 0, board_restarts = 0, skin_frames = 0;
+    int64_t strain_frames = 0, position_frames = 0, pid_frames = 0, status_frames = 0;  // decoded, by kind
 };
 
 struct Sample {
@@ -93,6 +97,8 @@ public:
     // One frame in; true when it completed a sample (then `out` holds it).
     bool push(const RxFrame& f, Sample& out) noexcept;
     const MonitorCounters& counters() const noexcept { return n_; }
+    // 1 while a force half waits for its torque half (the input ended or stopped between the two), else 0.
+    int pending_strain() const noexcept { return t_force_ >= 0 ? 1 : 0; }
 
 private:
     static constexpr int kMaxBus = kMaxBuses;

@@ -32,6 +32,7 @@ struct SourceCounters {
     uint64_t bad_lines = 0;    // replay: lines that are not a classic-CAN candump -L frame
     uint64_t unknown_bus = 0;  // replay: frames of an interface not in the bus list (skipped)
     uint64_t bad_size = 0;     // loopback: datagrams that are not one struct can_frame
+    uint64_t kernel_drops = 0; // SocketCAN: frames the kernel dropped, the socket's receive queue full (SO_RXQ_OVFL)
 };
 
 class FrameSource {
@@ -55,6 +56,7 @@ struct DatagramQueue {
     static constexpr size_t kMaxFds = 16;
     std::array<RxFrame, kMaxFds> ahead{};
     std::array<bool, kMaxFds> has{};
+    std::array<uint32_t, kMaxFds> drops{};  // each socket's drop count (SO_RXQ_OVFL) as last reported
 };
 
 // ---- candump -L ---------------------------------------------------------------------------------------
@@ -77,6 +79,7 @@ public:
 private:
     CandumpReplay() = default;
     std::FILE* f_ = nullptr;
+    std::vector<char> buffer_;  // the stream's buffer (setvbuf), allocated at open
     std::vector<std::string> buses_;
     bool realtime_ = false;
     int64_t t0_log_ = -1, t0_wall_ = 0;
@@ -137,7 +140,8 @@ private:
 };
 
 // Reads one datagram of struct can_frame: the earliest-stamped of those queued on `fds` (waiting up to
-// timeout_ms for one). Timestamp: SO_TIMESTAMP's control message if present, else now.
+// timeout_ms for one). Timestamp: SO_TIMESTAMP's control message if present, else now. A socket's SO_RXQ_OVFL
+// message (its frames dropped so far, the receive queue full) adds what it grew by to counters.kernel_drops.
 ReadStatus read_datagram(const std::vector<int>& fds, DatagramQueue& q, int timeout_ms, RxFrame& out,
                          SourceCounters& counters, std::string& error) noexcept;
 

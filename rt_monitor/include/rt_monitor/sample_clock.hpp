@@ -34,8 +34,13 @@ struct ClockStep {
     bool restart = false;       // restart the filter before this one (after stale data, a long gap, time backwards)
 };
 
+// Every sample pushed that is not stale is taken onto the grid once, in order: as evaluated, or as `held` (an encoder
+// value not renewed: bridged, not evaluated). So steps evaluated = taken − held + interpolated, with taken = pushed −
+// stale. `lost`: empty slots of the grid between two samples taken (samples that never came); interpolated ≤ held +
+// lost, the rest left out where a gap was longer than kMaxBridge or held samples were followed by stale data or the end.
 struct ClockCounters {
     int64_t interpolated = 0, restarts = 0, late = 0;  // late: samples past a gap that later stamps showed were late
+    int64_t taken = 0, held = 0, lost = 0;
 };
 
 class SampleClock {
