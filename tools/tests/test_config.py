@@ -100,7 +100,8 @@ MODEL_BAD = [
     ("joint not in urdf", lambda d: (d.pop("can"), d["joints"].__setitem__(6, "r_wrist_yw")),
      "'r_wrist_yw', which is not a joint"),
     ("sensor joint not fixed", _set(["ft_sensors", 0, "joint"], "r_elbow"), "not a fixed joint"),
-    ("base link not ancestor", _set(["base_link"], "r_hand"), "base_link"),
+    # a base below the sensor: the tree is re-rooted at r_hand, which would swap the sensor's sides (robot/reroot.py)
+    ("sensor between base link and root", _set(["base_link"], "r_hand"), "between the base link 'r_hand' and the URDF's root"),
     ("base link unknown", _set(["base_link"], "torso_99"), "'torso_99', not a link"),
     ("sensor named unlike the URDF", lambda d: (d.pop("can"), d["ft_sensors"][0].__setitem__("name", "r_arm_ftt")),
      "the URDF names this sensor 'r_arm_ft'"),
