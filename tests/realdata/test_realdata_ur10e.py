@@ -9,6 +9,7 @@ import json
 import os
 import subprocess
 import sys
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -123,8 +124,9 @@ def test_every_command_over_every_file_without_a_traceback(tmp_path: Path) -> No
             ("validate", "--model", str(model), *data, "--payload", "heavy"),
             ("fit", "--robot", "ur10e", *urdf(), *data, *data, "--payload", "2.8", "--out", str(tmp_path / "y.json")),
         ]
-        for args in calls:
-            done = run(*args)
+        with ThreadPoolExecutor(max_workers=2) as pool:  # two cores: the calls are independent processes
+            finished = list(pool.map(lambda args: (args, run(*args)), calls))
+        for args, done in finished:
             call = f"{' '.join(args)}"
             if "Traceback" in done.stderr:
                 tracebacks.append((call, done.stderr))

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
@@ -38,26 +39,31 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     d = tmp_path_factory.mktemp("tilt")
     imu = _imu_config(d)
     out = {"imu": imu}
-    for name, robot, kind, duration, tilt in (
+    plan = (
         ("tilted", str(imu), "identification", "30", TILT), ("tilted_val", str(imu), "validation", "15", TILT),
         ("fixed", "icub_right_arm", "identification", "30", "0"), ("fixed_val", "icub_right_arm", "validation", "15", "0"),
         ("tilted_const", "icub_right_arm", "identification", "30", TILT),
         ("tilted_const_val", "icub_right_arm", "validation", "15", TILT),
-    ):
-        dynid("simulate", "--robot", robot, "--kind", kind, "--duration", duration, "--tilt", tilt, "--out", str(d / name))
-        out[name] = d / name
-    return out
+    )
+    with ThreadPoolExecutor(max_workers=2) as pool:  # independent processes on two cores
+        list(pool.map(lambda r: dynid("simulate", "--robot", r[1], "--kind", r[2], "--duration", r[3], "--tilt", r[4],
+                                      "--out", str(d / r[0])), plan))
+    return {**out, **{r[0]: d / r[0] for r in plan}}
 
 
 @pytest.fixture(scope="module")
 def errors(runs) -> dict[str, float]:
     """Table II force error on each run's validation: one fit per case, same lengths and seeds."""
-    out = {}
-    for name, robot in (("tilted", str(runs["imu"])), ("fixed", "icub_right_arm"), ("tilted_const", "icub_right_arm")):
+    def error(case: tuple[str, str]) -> float:
+        name, robot = case
         model = runs["imu"].parent / f"{name}.json"
         dynid("fit", "--robot", robot, "--data", str(runs[name]), "--out", str(model))
         v = dynid("validate", "--model", str(model), "--data", str(runs[f"{name}_val"]))
-        out[name] = v["table_ii"]["identified"]["force"]["mean"]
+        return v["table_ii"]["identified"]["force"]["mean"]
+
+    cases = (("tilted", str(runs["imu"])), ("fixed", "icub_right_arm"), ("tilted_const", "icub_right_arm"))
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        out: dict = dict(zip([c[0] for c in cases], pool.map(error, cases)))
     out["tilted_model"] = runs["imu"].parent / "tilted.json"
     return out
 
