@@ -11,6 +11,7 @@ over time, before and after the fix. DIR also gets gaps.json (the result) and fi
 from __future__ import annotations
 
 import json
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -84,8 +85,10 @@ def gap_figure(result: dict) -> Figure:
     ax.set_xticks(x, [n.replace("ft.", "").replace("r_arm_ft.", "") for n in names], rotation=30, fontsize=8)
     named = "; ".join(f"{e['name']} on {e['where']}" + ("" if e.get("confident") else " (tentative)")
                       for e in result.get("effects", [])) or "nothing named"
-    ax.set_title(f"gap per channel on held-out time blocks: {named}", fontsize=9, loc="left")
+    # Several named effects make a long line: wrapped, it stays inside the figure.
+    ax.set_title(textwrap.fill(f"gap per channel on held-out time blocks: {named}", 110), fontsize=9, loc="left")
     ax.legend(fontsize=8)
+    fig.tight_layout()
     return fig
 
 
