@@ -160,3 +160,53 @@ def test_bad_input_is_one_line_and_writes_nothing(exportable: tuple[Path, bool],
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert "the robot's URDF cannot be found" in done.stderr and "DYNID_URDF_PATH" in done.stderr
     assert set(tmp_path.iterdir()) == before
+
+
+def test_a_rerooted_configuration_is_written_in_the_original_tree(tmp_path: Path) -> None:
+    """The iCub standing on its left sole (the URDF re-rooted there, tests/test_reroot.py's set-up): the exported
+    URDF keeps the original tree (root_link the root), and re-rooted again by the configuration it reproduces the
+    model's joint torques and both right-leg F/T wrenches. The model is synthetic: every body's CAD set scaled by
+    its own factor (physical), with the structural base parameters of the chain."""
+    from dataclasses import replace
+
+    from test_reroot import _config
+
+    from dynid.export.urdf import export_urdf
+    from dynid.identify.model_file import IdentifiedModel, robot_record
+    from dynid.robot.model import RobotModel
+    from dynid.robot.regressors.base import base_parameters_from_factor, exciting_signals, triangular_factor
+    from dynid.robot.regressors.rigid_body import rigid_body_regressors
+
+    config = _config(tmp_path)
+    robot = RobotModel(config)
+    assert robot.reversed_joints  # re-rooted at l_sole
+    span = robot.layout.span("inertial")
+    phi = np.zeros(len(robot.layout))
+    factors = np.linspace(0.8, 1.2, len(robot.bodies))
+    phi[span] = robot.cad_inertial_parameters * np.repeat(factors, 10)
+    # The base parameters of everything the rigid bodies predict: every joint torque and both sensors' wrenches
+    # (the configuration has no actuation, so its own stacked system holds the F/T rows alone).
+    sig = exciting_signals(robot, n_samples=300, seed=0)
+    reg = rigid_body_regressors(robot, sig.q, sig.dq, sig.ddq)
+    A = np.concatenate([reg.tau.reshape(-1, span.stop)] + [f.reshape(-1, span.stop) for f in reg.ft.values()])
+    names = robot.layout.names
+    base = base_parameters_from_factor(triangular_factor([(A, np.zeros(A.shape[0]))], span.stop), names[span])
+    record = {"base": {"independent": [names[i] for i in base.independent],
+                       "dependent": [names[i] for i in base.dependent], "K": base.K.tolist(),
+                       "values": base.base(phi[span]).tolist(), "standard_errors": [1.0] * base.rank}}
+    identified = IdentifiedModel(robot_record(config), dict(zip(names, phi.tolist())), record)
+    identified._config, identified._model = config, robot
+    out = tmp_path / "standing.urdf"
+    done = export_urdf(identified, out)
+    assert done.rerooted and done.base_relative_error < 1e-12
+    tree = ET.parse(out).getroot()
+    children = {j.find("child").get("link") for j in tree.findall("joint")}
+    assert [lk.get("name") for lk in tree.findall("link") if lk.get("name") not in children] == ["root_link"]
+    sig = exciting_signals(robot, n_samples=200, seed=3)  # other states than the base parameters were found on
+    errors = round_trip(identified, out, sig.q, sig.dq, sig.ddq)
+    assert not any(k.startswith("plain.") for k in errors)  # the plain reading needs the URDF's own root
+    assert {"split.ft.r_leg_ft.fz", "split.ft.r_foot_ft.tz"} <= set(errors)
+    assert max(errors.values()) < TOLERANCE, errors
+    # Re-rooted again by the configuration, the URDF as written carries the model's base parameters.
+    again = RobotModel(replace(config, urdf=out)).cad_inertial_parameters
+    assert np.abs(base.base(again) - base.base(phi[span])).max() < 1e-9 * np.abs(base.base(phi[span])).max()
