@@ -210,3 +210,29 @@ def test_a_rerooted_configuration_is_written_in_the_original_tree(tmp_path: Path
     # Re-rooted again by the configuration, the URDF as written carries the model's base parameters.
     again = RobotModel(replace(config, urdf=out)).cad_inertial_parameters
     assert np.abs(base.base(again) - base.base(phi[span])).max() < 1e-9 * np.abs(base.base(phi[span])).max()
+
+
+def test_a_physical_model_on_the_cone_s_boundary_still_reproduces_exactly(
+        exportable: tuple[Path, bool], default_model: Path, default_experiments: dict[str, Path],
+        tmp_path: Path) -> None:
+    """A consistent fit may leave a body on the boundary of J ⪰ 0 (a point mass: the hand's ten parameters all
+    identified). Its own full set is physical, so the export must take it and reproduce it to round-off, though the
+    solver finds no strict interior there."""
+    from dynid.export.urdf import base_map, export_urdf
+
+    identified = physical_model(load_model(default_model))
+    layout = identified.robot_model.layout
+    for body in ("r_hand", "r_forearm"):
+        names = layout.block("inertial", body).names
+        m, h = identified.parameters[names[0]], np.array([identified.parameters[n] for n in names[1:4]])
+        c = h / m
+        inertia = m * (c @ c * np.eye(3) - np.outer(c, c))  # a point mass at the centre of mass
+        point = [m, *h, inertia[0, 0], inertia[0, 1], inertia[1, 1], inertia[0, 2], inertia[1, 2], inertia[2, 2]]
+        identified.parameters.update(zip(names, point))
+    B = base_map(identified)[0]
+    identified.record["base"]["values"] = (B @ identified.phi).tolist()
+    done = export_urdf(identified, tmp_path / "point.urdf")
+    assert done.base_relative_error < 1e-12 and done.physical.min_eigenvalue > -1e-12
+    _, q, dq, ddq = signals(exportable[0], default_experiments["validation"])
+    errors = round_trip(identified, tmp_path / "point.urdf", q[::10], dq[::10], ddq[::10])
+    assert max(errors.values()) < TOLERANCE, errors

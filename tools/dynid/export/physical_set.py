@@ -19,7 +19,10 @@ The equality is built in, not left to the solver's tolerance: the full sets that
 φ = φ₀ + S N z, with φ₀ the model file's own full set (carried by the body's frame link, the other links at CAD)
 and N an orthonormal basis of the null space of the scaled constraint. So a model whose full Φ is physical keeps
 reproducing its base parameters to round-off, whatever the solver does with z; the solver (cvxpy with Clarabel)
-only moves along directions the data cannot see.
+only moves along directions the data cannot see. A model whose own set is physical is never refused: on the
+cone's boundary (a point mass, a flat body: no strict interior for an interior-point solver) the problem is solved
+relaxed by RELAXED, and the set moves from the model's own towards that optimum only as far as every link stays at
+least as physical as the model's own (a bisection on the step).
 
 When no physical full set reproduces β̂ (the unconstrained fit may give such β̂), `nearest_physical_set` raises
 `NotReproducible`, unless `allow_residual` is set: then it finds the physical set whose base parameters are
@@ -34,10 +37,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 
-from ..robot.pseudo_inertia import PSEUDO_INERTIA_BASIS, pseudo_inertia
+from ..robot.pseudo_inertia import PSEUDO_INERTIA_BASIS, parameters_of, pseudo_inertia
 
 MIN_LENGTH = 0.01  # m: the smallest length scale of a link (a point mass at its frame's origin has none)
 MARGIN = 1e-9  # scaled pseudo-inertias are kept ⪰ MARGIN·1, so every written link is strictly physical
+PHYSICAL_TOL = 1e-7  # a scaled pseudo-inertia eigenvalue above −PHYSICAL_TOL counts as physical (solver round-off)
+RELAXED = 1e-6  # the relaxation used when the model's own set sits on the cone's boundary
 RESIDUAL_TIE = 1e-4  # with --nearest-physical: the weight of the distance to CAD beside the base residual
 
 
@@ -73,8 +78,6 @@ class PhysicalSet:
 
 def transform_matrix(placement: np.ndarray) -> np.ndarray:
     """(10, 10): φ in a frame F ↦ φ in the frame where F sits at `placement` (4×4 homogeneous), via J' = T J Tᵀ."""
-    from ..robot.pseudo_inertia import parameters_of
-
     T = np.asarray(placement, float)
     return np.column_stack([parameters_of(T @ PSEUDO_INERTIA_BASIS[k] @ T.T) for k in range(10)])
 
@@ -173,9 +176,26 @@ def nearest_physical_set(
         status = _solve(problem)
         if status in ("optimal", "optimal_inaccurate") and z.value is not None:
             u = N @ z.value
-            if min_eig(u) >= -1e-7:
+            if min_eig(u) >= -PHYSICAL_TOL:
                 break
             u = None
+    if u is None and min_eig(np.zeros(n)) >= -PHYSICAL_TOL:
+        # The model's own full set is physical but on the cone's boundary (a consistent fit's active constraint: a
+        # point mass, a flat body), where an interior-point solver finds no strict interior. Solve slightly relaxed,
+        # then step back from the model's own set towards that optimum only as far as every link stays physical.
+        problem = cp.Problem(cp.Minimize(cp.sum_squares(d0 + N @ z)), psd(N @ z, -RELAXED))
+        status = _solve(problem)
+        target = N @ z.value if z.value is not None else np.zeros(n)
+        floor = min(0.0, min_eig(np.zeros(n)))  # never less physical than the model's own set
+        lo, hi = 0.0, 1.0
+        if min_eig(target) < floor:
+            for _ in range(60):
+                mid = (lo + hi) / 2
+                lo, hi = (mid, hi) if min_eig(mid * target) >= floor else (lo, mid)
+        else:
+            lo = 1.0
+        u = lo * target
+        status = f"{status} (relaxed by {RELAXED:g}, then {lo:.3g} of the way from the model's own set)"
     residual = np.zeros(base_map.shape[0])
     if u is None:
         if not allow_residual:

@@ -22,7 +22,6 @@ original tree: inertias are per link, in the link's original frame, so they do n
 
 from __future__ import annotations
 
-import hashlib
 import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
@@ -402,7 +401,3 @@ def _canonical(text: str) -> str:
 
 def _floats(text: str) -> np.ndarray:
     return np.array([float(v) for v in text.split()])
-
-
-def digest_text(text: str) -> str:
-    return hashlib.sha256(text.encode()).hexdigest()
