@@ -236,3 +236,38 @@ def test_a_physical_model_on_the_cone_s_boundary_still_reproduces_exactly(
     _, q, dq, ddq = signals(exportable[0], default_experiments["validation"])
     errors = round_trip(identified, tmp_path / "point.urdf", q[::10], dq[::10], ddq[::10])
     assert max(errors.values()) < TOLERANCE, errors
+
+
+def test_the_splice_keeps_every_other_byte_and_falls_back_to_the_tree_when_the_text_is_unusual() -> None:
+    from dynid.export.urdf import _splice
+
+    inertial = {"mass": 2.0, "com": np.array([0.1, 0.0, -0.2]), "inertia": np.diag([0.01, 0.02, 0.03])}
+    text = """<?xml version="1.0"?>
+<!-- a comment the splice keeps -->
+<robot name="r">
+  <link name="a"/>
+  <link name='b'>
+    <visual><geometry><box size="1 1 1"/></geometry></visual>
+  </link>
+  <link name="c">
+    <inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial>
+  </link>
+  <joint name="j1" type="revolute"><parent link="a"/><child link="b"/><dynamics damping="0.0"/></joint>
+  <joint name="j2" type="revolute">
+    <parent link="b"/><child link="c"/>
+  </joint>
+</robot>
+"""
+    out = _splice(text, {"a": inertial, "b": inertial, "c": inertial}, {"j1": (0.5, 0.25), "j2": (1.0, 2.0)})
+    assert out.startswith('<?xml version="1.0"?>\n<!-- a comment the splice keeps -->\n<robot name="r">\n')
+    root = ET.fromstring(out)
+    for link in root.findall("link"):
+        assert float(link.find("inertial/mass").get("value")) == 2.0
+        assert link.find("inertial/origin").get("xyz") == "0.1 0 -0.2"
+    assert root.find("link[@name='b']/visual/geometry/box") is not None
+    assert [(j.find("dynamics").get("damping"), j.find("dynamics").get("friction")) for j in root.findall("joint")] \
+        == [("0.5", "0.25"), ("1.0", "2.0")]
+    # A comment that looks like the element: the text is not spliced blindly; the tree is edited instead.
+    tricky = text.replace("<!-- a comment the splice keeps -->", '<!-- <link name="c"><inertial/></link> -->')
+    root = ET.fromstring(_splice(tricky, {"c": inertial}, {}))
+    assert float(root.find("link[@name='c']/inertial/mass").get("value")) == 2.0
