@@ -271,3 +271,13 @@ def test_the_splice_keeps_every_other_byte_and_falls_back_to_the_tree_when_the_t
     tricky = text.replace("<!-- a comment the splice keeps -->", '<!-- <link name="c"><inertial/></link> -->')
     root = ET.fromstring(_splice(tricky, {"c": inertial}, {}))
     assert float(root.find("link[@name='c']/inertial/mass").get("value")) == 2.0
+
+
+def test_the_api_writes_the_same_urdf(exportable: tuple[Path, bool], tmp_path: Path) -> None:
+    import dynid as api
+
+    done = api.export_urdf(api.load_model(exportable[0]), tmp_path / "api.urdf")
+    assert done.base_relative_error < 1e-12 and (tmp_path / "api.dynamics.yaml").is_file()
+    cli = tmp_path / "cli.urdf"
+    assert dynid("export", "--model", str(exportable[0]), "--urdf", str(cli)).returncode == 0
+    assert (tmp_path / "api.urdf").read_text() == cli.read_text()

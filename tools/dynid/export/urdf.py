@@ -180,8 +180,14 @@ def export_urdf(identified: IdentifiedModel, out: str | Path, allow_residual: bo
     record = _side_record(identified, Path(out), source, physical, relative, identified_links, cad_links,
                           joint_rows, robot, notes)
     side_text = yaml.safe_dump(record, sort_keys=False, width=120)
+    had_side = side.exists()
     atomic_write(side, lambda f: f.write(side_text.encode()))
-    atomic_write(Path(out), lambda f: f.write(urdf_text.encode()))
+    try:
+        atomic_write(Path(out), lambda f: f.write(urdf_text.encode()))
+    except BaseException:
+        if not had_side:  # no side file without its URDF
+            side.unlink(missing_ok=True)
+        raise
     return UrdfExport(Path(out), side, physical, identified_links, cad_links, relative,
                       bool(robot.reversed_joints), notes)
 
