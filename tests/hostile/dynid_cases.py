@@ -348,6 +348,12 @@ FLAGS = [
           says="it exists and is not a regular file"),
     dynid("export-out-onto-the-model", "export", "--model", "{in}/m.json", "--out", "{in}/m.json",
           says="(--out): it is the input --model", make=spoiled("model", "m.json", lambda b: b)),
+    dynid("export-urdf-into-missing-directory", "export", "--model", "{model}", "--urdf", "{out}/no/a.urdf",
+          says="the directory {out}/no does not exist"),
+    dynid("export-urdf-onto-the-model", "export", "--model", "{in}/m.json", "--urdf", "{in}/m.json",
+          says="(--urdf): it is the input --model", make=spoiled("model", "m.json", lambda b: b)),
+    dynid("export-nearest-physical-without-urdf", "export", "--model", "{model}", "--out", "{out}/c.dcoef",
+          "--nearest-physical", says="--nearest-physical goes with --model MODEL --urdf OUT.urdf"),
     dynid("export-window-one", "export", "--model", "{model}", "--out", "{out}/c.dcoef", "--window", "1", says="must be 3 to 64"),
     # Found by this sweep: a window above the monitor's capacity was exported, and the monitor refused the file.
     dynid("export-window-above-capacity", "export", "--model", "{model}", "--out", "{out}/c.dcoef", "--window", "100",

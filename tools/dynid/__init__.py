@@ -16,7 +16,8 @@ The API (scikit-learn's manner; the command line `dynid` runs the same code):
 - `load_robot`, `read_data`: a robot configuration's model; a run of data (CSV, candump, dataset, simulation).
 - `DynamicsModel`: fit / predict / score / validate / save / load.
 - `ContactDetector`: fit (recalibrate) / decision_function (T²) / predict / score / evaluate.
-- `export_coefficients`: the monitor's coefficient file. `find_gaps`: the model-gap workflow.
+- `export_coefficients`: the monitor's coefficient file. `export_urdf`: the identified robot as a URDF.
+  `find_gaps`: the model-gap workflow.
 
 The package's layers follow the data's path (tools/README.md): config → io → robot (and simulation) → identify
 → detect → pipeline → export → gaps → report → api → cli.
@@ -33,7 +34,7 @@ from .version import __version__
 # and `dynid --help` need not load scikit-learn and Pinocchio for the API's sake.
 _EXPORTS = {
     "ContactDetector": "api", "DynamicsModel": "api", "ExportSettings": "api", "Gaps": "api",
-    "export_coefficients": "api", "find_gaps": "api", "load_model": "api", "load_robot": "api", "read_data": "api",
+    "export_coefficients": "api", "export_urdf": "api", "find_gaps": "api", "load_model": "api", "load_robot": "api", "read_data": "api",
     "RobotConfig": "config", "bundled_configs": "config",
     "ConfigError": "errors", "DataError": "errors", "InputError": "errors",
     "Dataset": "io", "RobotModel": "robot",
@@ -52,6 +53,7 @@ __all__ = [
     "__version__",
     "bundled_configs",
     "export_coefficients",
+    "export_urdf",
     "find_gaps",
     "load_model",
     "load_robot",

@@ -311,6 +311,16 @@ def export_coefficients(model: DynamicsModel, path: str | Path, settings: Export
     return export_model(model.model_, path, settings)
 
 
+def export_urdf(model: DynamicsModel, path: str | Path, nearest_physical: bool = False):  # -> export.urdf.UrdfExport
+    """The identified robot as a URDF, and its side file `<path without .urdf>.dynamics.yaml` (`dynid export
+    --urdf`, docs/formats.md): the physical full set nearest CAD that reproduces the identified base parameters in
+    every link; `nearest_physical` writes the nearest physical set where none reproduces them (else InputError)."""
+    from .export.urdf import export_urdf as write
+
+    check_is_fitted(model, "model_")
+    return write(model.model_, path, nearest_physical)
+
+
 def find_gaps(X: Data, robot: str | Path = "icub_right_arm", model: DynamicsModel | None = None,
               supply_tracking: bool = True, verbose: bool = False) -> Gaps:
     """Where the model and the run disagree, the missing effects that explain it and the gap after the fix
@@ -335,6 +345,7 @@ __all__ = [
     "ExportSettings",
     "Gaps",
     "export_coefficients",
+    "export_urdf",
     "find_gaps",
     "load_model",
     "load_robot",

@@ -22,7 +22,7 @@ COMMANDS: dict[str, Command] = {
     "validate": Command("identify", "the paper's Table II on a validation experiment"),
     "detect": Command("identify", "offline T² contact detection against the skin's ground truth"),
     "report": Command("report", "the identification report: one HTML page with figures and tables"),
-    "export": Command("export", "write the real-time monitor's coefficient file (or --print one)"),
+    "export": Command("export", "write the real-time monitor's coefficient file (or --print one), or the identified robot as a URDF (--urdf)"),
     "gaps": Command(
         "gaps", "where model and data disagree, which missing effect explains it, and the gap after the fix"
     ),

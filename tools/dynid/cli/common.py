@@ -44,12 +44,13 @@ DIRECTORY_OUTPUTS: frozenset[tuple[str, str]] = frozenset({("simulate", "out"), 
 INPUT_OPTIONS: tuple[str, ...] = ("data", "model", "validation", "contact", "truth")
 
 
-def check_outputs(args: argparse.Namespace) -> None:
+def check_outputs(args: argparse.Namespace, extra: dict[str, str] | None = None) -> None:
     """Refuse, before any work, an output the command could not write or should not: a missing directory, an
     existing directory (or, for an output directory, an existing file), two outputs on one file, an output on one
     of the command's inputs. Without this a fit ran a minute before its --out was refused, an import wrote its
     dataset and then failed on --json (exit 2 with the dataset left behind), and `import --data x.csv --out x.csv`
-    replaced the CSV by the dataset."""
+    replaced the CSV by the dataset. `extra` names outputs of a command's own (option or description -> path),
+    checked the same way."""
     command = getattr(args, "command", "")
     seen: dict[str, str] = {}
     inputs: dict[str, str] = {}
@@ -58,8 +59,8 @@ def check_outputs(args: argparse.Namespace) -> None:
         for value in given if isinstance(given, list) else [given]:
             if isinstance(value, str) and value:
                 inputs.setdefault(os.path.realpath(value), option)
-    for option in OUTPUT_OPTIONS:
-        value = getattr(args, option, None)
+    outputs = [(option, getattr(args, option, None)) for option in OUTPUT_OPTIONS] + list((extra or {}).items())
+    for option, value in outputs:
         if not isinstance(value, str) or (option == "json" and value == "-"):
             continue
         path = Path(value)

@@ -21,6 +21,7 @@ from ..export.coefficients import (
 from ..export.model_export import ExportSettings, export_cad, export_model
 from ..identify.model_file import load_model
 from .commands import COMMANDS
+from .common import check_outputs
 from .common import confidence as alpha
 from .common import int_in, json_arg
 from .common import non_negative_int as lag
@@ -51,9 +52,50 @@ def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
         print(f"exported the CAD model of {config.name} (uncalibrated: for tests and benchmarks) -> {args.out} "
               f"({size} bytes)")
         return {"out": args.out, "bytes": size, "robot": config.name, "cad": True}
+    if args.nearest_physical and not (args.model and args.urdf):
+        raise InputError("--nearest-physical goes with --model MODEL --urdf OUT.urdf")
+    if args.model and args.urdf:
+        return _export_urdf(args)
     if not args.model or not args.out:
-        raise InputError("export needs --model MODEL and --out COEF_FILE (or --print COEF_FILE)")
+        raise InputError("export needs --model MODEL and --out COEF_FILE, or --urdf OUT.urdf (or --print COEF_FILE)")
+    return _export_coefficients(args)
 
+
+def _export_urdf(args: argparse.Namespace) -> dict[str, Any]:
+    """--model MODEL --urdf OUT.urdf [--out COEF_FILE]: the identified robot as a URDF and its side file."""
+    from ..export.urdf import export_urdf, side_file
+
+    side = side_file(args.urdf)
+    check_outputs(args, {"urdf": args.urdf, "urdf's side file": str(side)})
+    identified = load_model(args.model)
+    try:
+        identified.robot_model  # noqa: B018 - the robot and its URDF, found before any work
+    except InputError as e:
+        raise InputError(f"{args.model}: the robot's URDF cannot be found or read (the model file names "
+                         f"{identified.robot.get('urdf') or 'none'}); put its folder in DYNID_URDF_PATH ({e})") from None
+    done = export_urdf(identified, args.urdf, allow_residual=args.nearest_physical)
+    ps = done.physical
+    print(f"exported {identified.config.name} -> {args.urdf} (the identified robot) and {done.side}")
+    print(f"  inertial: {len(done.identified_links)} links identified ({', '.join(done.identified_links)}), "
+          f"{len(done.cad_links)} keep CAD; distance to CAD {ps.distance:.4g} (scaled), smallest scaled "
+          f"pseudo-inertia eigenvalue {ps.min_eigenvalue:.3g}; base parameters reproduced to {done.base_relative_error:.2g} "
+          "(relative)")
+    if done.rerooted:
+        print(f"  written in the URDF's original tree (the configuration re-roots it at {identified.config.base_link})")
+    for note in done.notes:
+        print(f"  note: {note}")
+    result: dict[str, Any] = {
+        "model": args.model, "urdf": args.urdf, "side_file": str(done.side), "robot": identified.config.name,
+        "identified_links": done.identified_links, "cad_links": len(done.cad_links), "distance_to_cad": ps.distance,
+        "min_scaled_pseudo_inertia_eigenvalue": ps.min_eigenvalue, "base_relative_error": done.base_relative_error,
+        "nearest_physical": bool(args.nearest_physical), "rerooted": done.rerooted, "notes": done.notes,
+    }
+    if args.out:
+        result["coefficients"] = _export_coefficients(args)
+    return result
+
+
+def _export_coefficients(args: argparse.Namespace) -> dict[str, Any]:
     identified = load_model(args.model)
     done = export_model(identified, args.out, _settings(args))
     est, cal, tracking, alpha = done.filter, done.calibration, done.tracking, done.alpha
@@ -90,14 +132,23 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp = sub.add_parser("export", help=COMMANDS["export"].help,
                         description="Write the coefficient file rt_monitor loads (rt_monitor/README.md): the chain, "
                         "the identified parameters, the channels, Λ and T²_α computed through the monitor's own "
-                        "fixed-lag derivative filter on the contact-free identification data, and the filter.")
+                        "fixed-lag derivative filter on the contact-free identification data, and the filter. "
+                        "With --urdf OUT.urdf: the robot's URDF with the identified inertial parameters in every link "
+                        "(the physically consistent full set nearest CAD that reproduces the identified base "
+                        "parameters), the symmetric friction in <dynamics>, and the rest in OUT.dynamics.yaml "
+                        "(docs/formats.md).")
     sp.add_argument("--model", metavar="MODEL", help="the model file of `dynid fit`")
     sp.add_argument("--out", metavar="COEF_FILE", help="the coefficient file to write (atomically)")
     sp.add_argument("--print", metavar="COEF_FILE", help="print a coefficient file readably instead")
     sp.add_argument("--cad", action="store_true", help="export the CAD model of --robot, uncalibrated (for tests "
                     "and benchmarks: nominal gains, no friction, Λ = the noise σ², the F threshold, 1 kHz)")
     sp.add_argument("--robot", default="icub_right_arm", metavar="CFG", help="robot of --cad (default icub_right_arm)")
-    sp.add_argument("--urdf", metavar="FILE", help="the URDF of --robot, replacing the configuration's")
+    sp.add_argument("--urdf", metavar="FILE", help="with --model: the URDF to write, the identified robot (and its "
+                    "side file FILE.dynamics.yaml: asymmetric friction, motor gains, coupling, F/T offsets); with "
+                    "--cad: the URDF of --robot, replacing the configuration's")
+    sp.add_argument("--nearest-physical", action="store_true", help="with --urdf: where no physically consistent "
+                    "full set reproduces the identified base parameters, write the nearest one and state its residual "
+                    "(default: exit 2 and say so)")
     sp.add_argument("--data", action="append", metavar="DATA",
                     help="contact-free data for Λ and T²_α (default: the model's identification data); repeatable")
     sp.add_argument("--lag", type=lag, metavar="N", help="filter lag in samples, 0 = causal (default: window // 4)")
