@@ -11,7 +11,7 @@ The method (Swevers et al. 1997, as FloBaRoID, BIRDy and FIGAROH do it):
    q̈ are linear in the coefficients, so on the design grid the limits are linear inequalities, held by SLSQP.
 3. Start: many random coefficient vectors, each scaled joint by joint to touch its tightest limit, about the
    middle of the position range; the best few start SLSQP (objective: log10 of the condition number on the
-   design grid, finite-difference gradient), one after the other while time remains.
+   design grid; its gradient through every sample's state, objective.py), one after the other while time remains.
 4. Time is bounded (`max_time_s`): when it runs out, the best feasible point seen so far is kept.
 5. Last, the trajectory is checked on a fine grid (1 kHz) and any joint that the design grid let slightly past
    a limit is scaled back about q0 (its rest at both ends unchanged).
@@ -31,11 +31,11 @@ from ..robot.model import RobotModel
 from .fourier import FourierTrajectory, Parametrisation
 from .objective import ConditionObjective
 
-DEFAULT_HARMONICS = 5
-DEFAULT_PERIOD_S = 10.0  # the base frequency's default: the nearest whole number of periods of about 10 s
+DEFAULT_HARMONICS = 10  # with the default period, up to 0.5 Hz: Swevers' band (5 harmonics of 0.1 Hz)
+DEFAULT_PERIOD_S = 20.0  # the base frequency's default: the nearest whole number of periods of about 20 s
 MAX_HARMONIC_HZ = 5.0  # beyond the highest harmonic a position controller follows (the simulated arm: 4 Hz)
 DEFAULT_MAX_TIME_S = 80.0  # keeps a 60 s design, set-up included, under 2 minutes on a shared 2-core machine
-DESIGN_RATE_HZ = 20.0  # design-grid samples per second of one period (at least 40 per cycle of the top harmonic)
+DESIGN_RATE_HZ = 10.0  # design-grid samples per second of one period (at least 20 per cycle of the top harmonic)
 CHECK_RATE_HZ = 1000.0
 RANDOM_STARTS = 60
 
@@ -141,7 +141,7 @@ def design(model: RobotModel, duration: float, base_frequency: float | None = No
     J = model.n_joints
     par = Parametrisation(J, harmonics, f, duration)
     period = 1.0 / f
-    n_grid = int(max(40 * harmonics, round(DESIGN_RATE_HZ * period)))
+    n_grid = int(max(20 * harmonics, round(DESIGN_RATE_HZ * period)))
     t = np.arange(n_grid) * period / n_grid
     Mq, Mv, Ma = par.grid_maps(t)
     # Linear inequalities G z <= h on the design grid: q within the box, |q̇|, |q̈| within their limits.
@@ -154,17 +154,25 @@ def design(model: RobotModel, duration: float, base_frequency: float | None = No
 
     state = {"evaluations": 0, "best": np.inf, "best_z": None}
 
+    def keep(z: np.ndarray, f_val: float) -> None:
+        state["evaluations"] += 1
+        if f_val < state["best"] and np.all(G @ z <= h + 1e-6):
+            state["best"], state["best_z"] = f_val, np.array(z, copy=True)
+
     def value(z: np.ndarray) -> float:
         if time.monotonic() - started > max_time_s:
             raise _OutOfTime
-        traj = par.trajectory(z)
-        q, dq, ddq = traj.evaluate(t)
-        c = obj.report_condition(q, dq, ddq)
-        state["evaluations"] += 1
+        c = obj.report_condition(*par.trajectory(z).evaluate(t))
         f_val = float(np.log10(c)) if np.isfinite(c) else 20.0
-        if f_val < state["best"] and np.all(G @ z <= h + 1e-6):
-            state["best"], state["best_z"] = f_val, np.array(z, copy=True)
+        keep(z, f_val)
         return f_val
+
+    def value_and_gradient(z: np.ndarray) -> tuple[float, np.ndarray]:
+        if time.monotonic() - started > max_time_s:
+            raise _OutOfTime
+        f_val, (gq, gv, ga) = obj.log_condition_and_gradient(*par.trajectory(z).evaluate(t))
+        keep(z, f_val)
+        return f_val, Mq.T @ gq.ravel() + Mv.T @ gv.ravel() + Ma.T @ ga.ravel()
 
     rng = np.random.default_rng(seed)
     middle = (limits.lower + limits.upper) / 2
@@ -191,8 +199,8 @@ def design(model: RobotModel, duration: float, base_frequency: float | None = No
             break
         runs += 1
         try:
-            minimize(value, z0, method="SLSQP", constraints=[constraint],
-                     options={"maxiter": 500, "ftol": 1e-7, "eps": 1e-6})
+            minimize(value_and_gradient, z0, jac=True, method="SLSQP", constraints=[constraint],
+                     options={"maxiter": 500, "ftol": 1e-7})
         except _OutOfTime:
             stopped = True
         history.append(10 ** state["best"])
