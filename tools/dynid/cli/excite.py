@@ -66,7 +66,8 @@ def cmd_excite(args: argparse.Namespace) -> dict[str, Any]:
     model = RobotModel(config)
     limits = joint_limits(model)
     objective = ConditionObjective.of(model)
-    result = design(model, args.duration, f, args.harmonics, args.max_time, args.seed, objective, _say)
+    result = design(model, args.duration, f, args.harmonics, args.max_time, args.seed, objective, _say,
+                    args.max_evaluations)
     traj = result.trajectory
 
     # The file: t from 0 to the duration inclusive (at rest at both ends), at --rate.
@@ -91,7 +92,7 @@ def cmd_excite(args: argparse.Namespace) -> dict[str, Any]:
     print(f"designed an excitation trajectory for {config.name}: {args.duration:g} s = {periods} period(s) of "
           f"{1 / f:g} s, {args.harmonics} harmonics of {f:g} Hz, in {result.seconds:.1f} s "
           f"({result.evaluations} evaluations, {result.starts} SLSQP run(s)"
-          f"{', stopped by --max-time' if result.stopped_by_time else ''}) -> {args.out}")
+          f"{', stopped by its budget' if result.stopped_by_time else ''}) -> {args.out}")
     print(f"  condition number of the weighted, column-scaled base regressor (rank {objective.rank}): designed "
           f"{designed:.4g}, today's identification trajectory over the same {args.duration:g} s "
           + (f"{today:.4g} (ratio {ratio:.3f})" if np.isfinite(today) else "inf (it leaves a base direction unexcited)"))
@@ -113,7 +114,8 @@ def cmd_excite(args: argparse.Namespace) -> dict[str, Any]:
                         "q_min": float(reached["q_min"][i]), "q_max": float(reached["q_max"][i])}
                     for i, j in enumerate(joints)},
         "design": {"seconds": result.seconds, "evaluations": result.evaluations, "slsqp_runs": result.starts,
-                   "stopped_by_time": result.stopped_by_time, "max_time_s": args.max_time, "seed": args.seed,
+                   "stopped_by_time": result.stopped_by_time, "max_time_s": args.max_time,
+                   "max_evaluations": args.max_evaluations, "seed": args.seed,
                    "comparison_seconds": time.perf_counter() - started},
         "fourier": traj.as_dict(joints),
     }
@@ -138,6 +140,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--max-time", type=positive_float, default=DEFAULT_MAX_TIME_S, metavar="S",
                     help=f"seconds the optimiser may take; the best trajectory found by then is kept (default "
                     f"{DEFAULT_MAX_TIME_S:g})")
+    sp.add_argument("--max-evaluations", type=int_in(1, 10**7), metavar="N",
+                    help="stop after N evaluations of the objective (with its gradient): the same trajectory whatever "
+                    "the machine's load (default: --max-time alone)")
     sp.add_argument("--seed", type=seed, default=0, metavar="N", help="seed of the random starts (default 0)")
     sp.add_argument("--rate", type=positive_float, default=100.0, metavar="HZ",
                     help="samples per second in the CSV (default 100; `dynid simulate` interpolates)")

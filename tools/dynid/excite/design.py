@@ -132,8 +132,11 @@ def fit_to_limits(traj: FourierTrajectory, limits: JointLimits, rate_hz: float =
 def design(model: RobotModel, duration: float, base_frequency: float | None = None,
            harmonics: int = DEFAULT_HARMONICS, max_time_s: float = DEFAULT_MAX_TIME_S, seed: int = 0,
            objective: ConditionObjective | None = None,
-           progress: Callable[[str], None] | None = None) -> Design:
-    """The designed trajectory for `duration` seconds (a whole number of periods of the base frequency)."""
+           progress: Callable[[str], None] | None = None, max_evaluations: int | None = None) -> Design:
+    """The designed trajectory for `duration` seconds (a whole number of periods of the base frequency).
+
+    The search stops at `max_time_s` (wall clock) or after `max_evaluations` objective evaluations, whichever
+    comes first: an evaluation budget gives the same trajectory whatever the machine's load."""
     started = time.monotonic()
     periods, f = whole_periods(duration, base_frequency)
     limits = joint_limits(model)
@@ -159,8 +162,12 @@ def design(model: RobotModel, duration: float, base_frequency: float | None = No
         if f_val < state["best"] and np.all(G @ z <= h + 1e-6):
             state["best"], state["best_z"] = f_val, np.array(z, copy=True)
 
+    def out_of_time() -> bool:
+        return time.monotonic() - started > max_time_s or (
+            max_evaluations is not None and state["evaluations"] >= max_evaluations)
+
     def value(z: np.ndarray) -> float:
-        if time.monotonic() - started > max_time_s:
+        if out_of_time():
             raise _OutOfTime
         c = obj.report_condition(*par.trajectory(z).evaluate(t))
         f_val = float(np.log10(c)) if np.isfinite(c) else 20.0
@@ -168,7 +175,7 @@ def design(model: RobotModel, duration: float, base_frequency: float | None = No
         return f_val
 
     def value_and_gradient(z: np.ndarray) -> tuple[float, np.ndarray]:
-        if time.monotonic() - started > max_time_s:
+        if out_of_time():
             raise _OutOfTime
         f_val, (gq, gv, ga) = obj.log_condition_and_gradient(*par.trajectory(z).evaluate(t))
         keep(z, f_val)
@@ -194,7 +201,7 @@ def design(model: RobotModel, duration: float, base_frequency: float | None = No
     runs, stopped = 0, False
     constraint = {"type": "ineq", "fun": lambda z: h - G @ z, "jac": lambda z: -G}
     for _, z0 in starts:
-        if time.monotonic() - started > max_time_s:
+        if out_of_time():
             stopped = True
             break
         runs += 1
@@ -210,7 +217,8 @@ def design(model: RobotModel, duration: float, base_frequency: float | None = No
         if stopped:
             break
     if state["best_z"] is None:
-        raise InputError(f"no feasible trajectory was found in {max_time_s:g} s: give --max-time more time")
+        raise InputError(f"no feasible trajectory was found in {time.monotonic() - started:.0f} s and "
+                         f"{state['evaluations']} evaluations: give --max-time (or --max-evaluations) more")
     final = fit_to_limits_down(par.trajectory(state["best_z"]), limits)
     q, dq, ddq = final.evaluate(t)
     return Design(final, obj.report_condition(q, dq, ddq), runs, state["evaluations"], time.monotonic() - started, stopped,
