@@ -87,13 +87,14 @@ def main() -> None:
         truth = json.loads((run / "truth.json").read_text())
         validate = json.loads((w / f"{name}.validate.json").read_text())
         structure = json.loads((w / f"{name}.structure.json").read_text())
-        rows[name] = {**errors(model, fitted, truth), "determined": len(fit["determined"]) if isinstance(
-            fit["determined"], list) else fit["determined"], "validate": validate,
-            "condition_on_run": structure["condition_number"]}
+        rows[name] = {**errors(model, fitted, truth), "determined": len(fit["determined"]), "validate": validate,
+                      "condition_on_run": structure["condition_number"]}
     design = json.loads((w / "design.json").read_text())
     print(json.dumps({"times_s": times, "design": {k: design[k] for k in ("condition_number", "design")},
                       "rows": {k: {x: y for x, y in v.items() if x != "validate"} for k, v in rows.items()}}, indent=1))
-    print(json.dumps({k: v["validate"].get("table_ii") for k, v in rows.items()}, indent=1))
+    print(json.dumps({k: {"table_ii": v["validate"].get("table_ii"),
+                          "input_relative_error": v["validate"].get("relative_error", {}).get("overall")}
+                      for k, v in rows.items()}, indent=1))
 
 
 if __name__ == "__main__":

@@ -23,9 +23,10 @@ from dynid.io.csv_format import read_csv
 from dynid.robot.model import RobotModel
 from dynid.simulation.experiment import identification_reference
 
-# An evaluation budget, not a time: the same design whatever the machine's load (the 60 s design of
-# docs/excitation.md reached a ratio of 0.475 within --max-time 80 s on the shared machine)
-BUDGET = 160
+# An evaluation budget, not a time: the same design whatever the machine's load. 40 s (two periods of 20 s; today's
+# trajectory: 70.3): the 60 s design of docs/excitation.md (ratio 0.475) takes longer than a test should.
+DURATION = 40.0
+BUDGET = 120
 
 
 def dynid(*args: str) -> subprocess.CompletedProcess:
@@ -48,8 +49,8 @@ def test_rest_basis_holds_rest_and_the_series_derivatives_are_exact() -> None:
     q, dq, ddq = traj.evaluate(t)
     assert np.allclose(dq[[0, -1]], 0, atol=1e-12) and np.allclose(ddq[[0, -1]], 0, atol=1e-12)
     assert np.allclose(q[0], q[-1])
-    assert np.allclose(np.gradient(q, t, axis=0)[1:-1], dq[1:-1], atol=1e-5)
-    assert np.allclose(np.gradient(dq, t, axis=0)[1:-1], ddq[1:-1], atol=1e-5)
+    assert np.abs(np.gradient(q, t, axis=0) - dq)[1:-1].max() < 1e-5 * np.abs(dq).max()
+    assert np.abs(np.gradient(dq, t, axis=0) - ddq)[1:-1].max() < 1e-5 * np.abs(ddq).max()
     Mq, Mv, Ma = par.grid_maps(t[:50])
     assert np.allclose(Mq @ z, q[:50].ravel()) and np.allclose(Mv @ z, dq[:50].ravel())
     assert np.allclose(Ma @ z, ddq[:50].ravel())
@@ -58,10 +59,10 @@ def test_rest_basis_holds_rest_and_the_series_derivatives_are_exact() -> None:
 
 def test_gradient_matches_finite_differences(arm) -> None:
     model, objective = arm
-    par = Parametrisation(model.n_joints, 3, 0.2, 5.0)
+    par = Parametrisation(model.n_joints, 5, 0.1, 20.0)
     lim = joint_limits(model)
-    z = np.concatenate([(lim.lower + lim.upper) / 2, 0.15 * np.random.default_rng(1).normal(size=par.size - 7)])
-    t = np.arange(100) * 0.05
+    z = np.concatenate([(lim.lower + lim.upper) / 2, 0.1 * np.random.default_rng(1).normal(size=par.size - 7)])
+    t = np.arange(200) * 0.05
     Mq, Mv, Ma = par.grid_maps(t)
 
     def f(x: np.ndarray) -> tuple[float, tuple[np.ndarray, ...]]:
@@ -69,27 +70,27 @@ def test_gradient_matches_finite_differences(arm) -> None:
 
     _, (gq, gv, ga) = f(z)
     grad = Mq.T @ gq.ravel() + Mv.T @ gv.ravel() + Ma.T @ ga.ravel()
-    for i in (0, 5, 9, 20, 40):
+    for i in (0, 3, 7, 10, 30, 50):
         e = np.zeros_like(z)
         e[i] = 1e-6
         numeric = (f(z + e)[0] - f(z - e)[0]) / 2e-6
-        assert grad[i] == pytest.approx(numeric, rel=2e-3, abs=1e-4)
+        assert grad[i] == pytest.approx(numeric, rel=1e-2, abs=1e-4)
 
 
 def test_design_is_within_every_limit_at_rest_and_twice_as_well_conditioned(arm) -> None:
     model, objective = arm
-    result = design(model, 60.0, max_time_s=600.0, objective=objective, max_evaluations=BUDGET)
+    result = design(model, DURATION, max_time_s=600.0, objective=objective, max_evaluations=BUDGET)
     traj = result.trajectory
     lim = joint_limits(model)
-    t = np.arange(0.0, 60.0 + 1e-9, 1e-3)
+    t = np.arange(0.0, DURATION + 1e-9, 1e-3)
     q, dq, ddq = traj.evaluate(t)
     assert np.all(q >= lim.lower - 1e-9) and np.all(q <= lim.upper + 1e-9)
     assert np.all(np.abs(dq) <= lim.velocity + 1e-9) and np.all(np.abs(ddq) <= lim.acceleration + 1e-9)
     assert np.allclose(dq[[0, -1]], 0, atol=1e-9) and np.allclose(ddq[[0, -1]], 0, atol=1e-9)
     assert np.allclose(q[0], q[-1], atol=1e-9)
-    grid = np.arange(0.0, 60.0, 0.05)
+    grid = np.arange(0.0, DURATION, 0.05)
     designed = objective.report_condition(*traj.evaluate(grid))
-    _, q_ref, dq_ref, ddq_ref = identification_reference(model.config, 60.0)
+    _, q_ref, dq_ref, ddq_ref = identification_reference(model.config, DURATION)
     today = objective.report_condition(q_ref[::50], dq_ref[::50], ddq_ref[::50])
     assert np.isfinite(designed) and designed <= 0.5 * today, (designed, today)
 
@@ -161,14 +162,14 @@ def test_simulate_refuses_a_trajectory_without_velocities_or_beyond_the_limits(t
     t = np.arange(0, 2.0, 0.01)
     mid = np.array([sum(model.joint_limits[j]) / 2 for j in config.joints])
     header = "t," + ",".join(f"q.{j}" for j in config.joints)
-    rows = "\n".join(",".join(map(repr, [x, *mid])) for x in t)
+    rows = "\n".join(",".join(repr(float(v)) for v in [x, *mid]) for x in t)
     (tmp_path / "noq.csv").write_text(f"{header}\n{rows}\n")
     r = dynid("simulate", "--trajectory", str(tmp_path / "noq.csv"), "--out", str(tmp_path / "run"))
     assert r.returncode == 2 and "dq" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     high = mid.copy()
     high[3] = model.joint_limits[config.joints[3]][1] + 0.05
     header2 = header + "," + ",".join(f"dq.{j}" for j in config.joints)
-    rows = "\n".join(",".join(map(repr, [x, *high, *np.zeros(7)])) for x in t)
+    rows = "\n".join(",".join(repr(float(v)) for v in [x, *high, *np.zeros(7)]) for x in t)
     (tmp_path / "out.csv").write_text(f"{header2}\n{rows}\n")
     r = dynid("simulate", "--trajectory", str(tmp_path / "out.csv"), "--out", str(tmp_path / "run"))
     assert r.returncode == 2 and "limits" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr

@@ -23,10 +23,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
 from ..robot.model import RobotModel
 from ..robot.regressors.base import structural_base_parameters
-from ..robot.regressors.rigid_body import rigid_body_regressors
 from ..robot.regressors.stack import DEFAULT_MIN_SPEED, Signals, fill_rows, row_channels, row_weights
 
 
@@ -54,6 +54,17 @@ class ConditionObjective:
             out.append((g.name, [cfg.joints.index(j) for j in g.joints], np.linalg.pinv(g.coupling.T) / gains[:, None]))
         return out
 
+    def _cad_torques(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
+        """(N, J) joint torques of the CAD model (RNEA: a tenth of a regressor's cost)."""
+        model = self.model
+        m = model.pin_model
+        data = m.createData()
+        Q, V, A = model.pinocchio_configuration(q), model.pinocchio_velocity(dq), model.pinocchio_velocity(ddq)
+        out = np.empty((q.shape[0], m.nv))
+        for k in range(q.shape[0]):
+            out[k] = pin.rnea(m, data, Q[k], V[k], A[k])
+        return out[:, model.v_index]
+
     def signals(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> Signals:
         """The signals of a trajectory, with the inputs and measured channels the regressor's A needs."""
         cfg, model = self.model.config, self.model
@@ -61,8 +72,7 @@ class ConditionObjective:
         inputs: dict[str, np.ndarray] = {}
         groups = self._input_map()
         if groups:
-            phi = model.cad_inertial_parameters
-            tau = rigid_body_regressors(model, q, dq, ddq).tau @ phi  # (N, J) CAD joint torques
+            tau = self._cad_torques(q, dq, ddq)
             for name, cols, to_inputs in groups:
                 g = next(x for x in cfg.actuation if x.name == name)
                 u = tau[:, cols] @ to_inputs.T
