@@ -174,3 +174,14 @@ def test_simulate_refuses_a_trajectory_without_velocities_or_beyond_the_limits(t
     r = dynid("simulate", "--trajectory", str(tmp_path / "out.csv"), "--out", str(tmp_path / "run"))
     assert r.returncode == 2 and "limits" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert not (tmp_path / "run").exists()
+
+
+def test_todays_reference_is_the_one_simulate_follows() -> None:
+    """The comparison's 'today' is exactly the reaching reference of `dynid simulate --kind identification`."""
+    from dynid.simulation import SimulationSettings, simulate
+
+    config = load_config()
+    sim = simulate(config, SimulationSettings(kind="identification", duration=2.0, seed=0))
+    _, q, dq, _ = identification_reference(config, 2.0)
+    recorded = np.column_stack([sim.truth_signals.extra[f"reference.q.{j}"] for j in config.joints])
+    assert np.array_equal(recorded, q)
