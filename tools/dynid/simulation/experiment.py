@@ -29,7 +29,8 @@ from ..robot.parameters import WRENCH_FIELDS
 from . import contacts as contact_model
 from . import sensors
 from .actuation import Actuators
-from .controller import BANDWIDTH_HZ, GivenTrajectory, ImpedanceController, Reference, followed_reference, reaching_reference
+from .controller import (BANDWIDTH_HZ, GivenTrajectory, ImpedanceController, Reference, followed_reference,
+                         reaching_reference)
 from .effects import Effect
 from .plant import RigidBodyPlant
 from .true_robot import draw_true_robot
