@@ -46,7 +46,8 @@ def _check(args: argparse.Namespace) -> tuple[int, float]:
     periods, f_used = whole_periods(args.duration, f)
     if args.harmonics * f_used > MAX_HARMONIC_HZ:
         raise InputError(f"--base-frequency {f_used:g} Hz with {args.harmonics} harmonics reaches "
-                         f"{args.harmonics * f_used:g} Hz, above the {MAX_HARMONIC_HZ:g} Hz a position controller follows")
+                         f"{args.harmonics * f_used:g} Hz, above the {MAX_HARMONIC_HZ:g} Hz a position controller follows "
+                         "(give a lower --base-frequency, fewer --harmonics or a longer --duration)")
     return periods, f_used
 
 
