@@ -185,3 +185,25 @@ def test_todays_reference_is_the_one_simulate_follows() -> None:
     _, q, dq, _ = identification_reference(config, 2.0)
     recorded = np.column_stack([sim.truth_signals.extra[f"reference.q.{j}"] for j in config.joints])
     assert np.array_equal(recorded, q)
+
+
+def test_limits_field_per_joint_and_refused_when_wrong(tmp_path: Path) -> None:
+    from dynid.config.robot_config import BUNDLED_DIR
+    from dynid.errors import ConfigError
+
+    text = (BUNDLED_DIR / "icub_right_arm.yaml").read_text()
+    good = tmp_path / "arm.yaml"
+    good.write_text(text + "limits: {position_margin: 0.05, velocity: {r_elbow: 0.5}, acceleration: 2.0}\n")
+    model = RobotModel(load_config(good))
+    lim = joint_limits(model)
+    elbow = model.config.joints.index("r_elbow")
+    assert lim.velocity[elbow] == 0.5 and lim.velocity[0] == 1.5 and np.all(lim.acceleration == 2.0)
+    span = lim.range_upper - lim.range_lower
+    assert np.allclose(lim.lower, lim.range_lower + 0.05 * span)
+    for wrong, words in (("limits: {position_margin: 0.6}", "position_margin"),
+                         ("limits: {velocity: {r_elbo: 1.0}}", "r_elbo"),
+                         ("limits: {acceleration: -1}", "positive"), ("limits: {speed: 1}", "speed")):
+        bad = tmp_path / "bad.yaml"
+        bad.write_text(text + wrong + "\n")
+        with pytest.raises(ConfigError, match=words):
+            load_config(bad)
