@@ -13,6 +13,7 @@ import importlib.metadata
 import math
 import os
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any, Literal
 
@@ -69,7 +70,7 @@ class ActuationGroup:
     motors: tuple[str, ...]
     coupling: np.ndarray  # (n_motors, n_joints); identity when directly driven
 
-    @property
+    @cached_property  # asked for every chunk of rows (the excitation designer builds thousands)
     def coupled(self) -> bool:
         """Motor friction is a separate parameter only when motors and joints are not one-to-one."""
         n = len(self.joints)

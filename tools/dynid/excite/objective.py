@@ -21,13 +21,13 @@ gradient cannot follow; a designed trajectory is rarely at rest).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
-import pinocchio as pin
 
 from ..robot.model import RobotModel
 from ..robot.regressors.base import structural_base_parameters
-from ..robot.regressors.stack import DEFAULT_MIN_SPEED, Signals, fill_rows, row_channels, row_weights
+from ..robot.regressors.stack import DEFAULT_MIN_SPEED, Signals, fill_rows, group_row_maps, row_channels, row_weights
 
 
 @dataclass
@@ -43,40 +43,31 @@ class ConditionObjective:
         base = structural_base_parameters(model)
         return cls(model, base.independent, base.rank)
 
-    def _input_map(self) -> list[tuple[str, list[int], np.ndarray]]:
-        """Per motor-driven group: its motors, its joints' columns, and the map joint torques -> motor inputs."""
-        cfg = self.model.config
+    @cached_property
+    def _input_map(self) -> list[tuple[slice, np.ndarray, np.ndarray, np.ndarray, list[tuple[int, int]]]]:
+        """Per motor-driven group: its rows, L⁻¹ (rows -> joint torques), C (each motor's share of each row, stack.py),
+        joint torques -> inputs, and for each motor whose gain is unknown (its index in the group, its gain's column)."""
+        cfg, layout = self.model.config, self.model.layout
         out = []
+        start = 6 * len(cfg.ft_sensors)
         for g in cfg.actuation:
+            rows = slice(start, start + len(g.joints))
+            start = rows.stop
             if g.input == "torque":
                 continue
+            L, C = group_row_maps(g)
             gains = np.array([cfg.motor(m).known_gain or cfg.motor(m).nominal_gain for m in g.motors])
-            out.append((g.name, [cfg.joints.index(j) for j in g.joints], np.linalg.pinv(g.coupling.T) / gains[:, None]))
+            unknown = [(i, layout.block("motor_gain", m).start) for i, m in enumerate(g.motors)
+                       if cfg.motor(m).known_gain is None]
+            out.append((rows, np.linalg.inv(L), C, np.linalg.pinv(g.coupling.T) / gains[:, None], unknown))
         return out
 
-    def _cad_torques(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
-        """(N, J) joint torques of the CAD model (RNEA: a tenth of a regressor's cost)."""
-        model = self.model
-        m = model.pin_model
-        data = m.createData()
-        Q, V, A = model.pinocchio_configuration(q), model.pinocchio_velocity(dq), model.pinocchio_velocity(ddq)
-        out = np.empty((q.shape[0], m.nv))
-        for k in range(q.shape[0]):
-            out[k] = pin.rnea(m, data, Q[k], V[k], A[k])
-        return out[:, model.v_index]
-
     def signals(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> Signals:
-        """The signals of a trajectory, with the inputs and measured channels the regressor's A needs."""
-        cfg, model = self.model.config, self.model
+        """The signals of a trajectory, with the channels the regressor's A needs; inputs zero (`regressor` puts the
+        predicted ones into the gains' columns)."""
+        cfg = self.model.config
         n = q.shape[0]
-        inputs: dict[str, np.ndarray] = {}
-        groups = self._input_map()
-        if groups:
-            tau = self._cad_torques(q, dq, ddq)
-            for name, cols, to_inputs in groups:
-                g = next(x for x in cfg.actuation if x.name == name)
-                u = tau[:, cols] @ to_inputs.T
-                inputs.update({m: u[:, i] for i, m in enumerate(g.motors)})
+        inputs = {m: np.zeros(n) for g in cfg.actuation if g.input != "torque" for m in g.motors}
         tau_measured = {j: np.zeros(n) for j in cfg.joints_with_input("torque")}
         ft = {s.name: np.zeros((n, 6)) for s in cfg.ft_sensors}
         gravity = None
@@ -84,13 +75,28 @@ class ConditionObjective:
             gravity = np.tile(np.asarray(cfg.gravity, float), (n, 1))
         return Signals(q, dq, ddq, inputs, tau_measured, ft, None, gravity)
 
+    def regressor(self, sig: Signals) -> np.ndarray:
+        """(N, r, p): A along the signals, the gains' columns holding the predicted inputs: the CAD joint torques
+        (the rows' own inertial part times the CAD parameters, L⁻¹ back to joint torques) through the coupling and
+        the gains. One regressor build per sample: the torques come out of the rows already built."""
+        model = self.model
+        n, r, p = sig.q.shape[0], len(row_channels(model)), len(model.layout)
+        A, b = np.zeros((n, r, p)), np.zeros((n, r))
+        fill_rows(model, sig, A, b)
+        inertial, phi = model.layout.span("inertial"), model.cad_inertial_parameters
+        for rows, L_inv, C, to_inputs, unknown in self._input_map:
+            tau = (A[:, rows, inertial] @ phi) @ L_inv.T  # (N, joints of the group)
+            u = tau @ to_inputs.T  # (N, motors)
+            for i, col in unknown:
+                A[:, rows, col] = -C[None, :, i] * u[:, i, None]
+        return A
+
     def base_regressor(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
                        min_speed: float | None = None) -> np.ndarray:
         """(rows, rank): the weighted base regressor, columns not yet scaled; rows at rest dropped with min_speed."""
         sig = self.signals(q, dq, ddq)
-        n, r, p = q.shape[0], len(row_channels(self.model)), len(self.model.layout)
-        A, b = np.zeros((n, r, p)), np.zeros((n, r))
-        fill_rows(self.model, sig, A, b)
+        n, r = q.shape[0], len(row_channels(self.model))
+        A = self.regressor(sig)
         w = row_weights(self.model, sig, min_speed)
         Ab = (A[:, :, self.independent] * w[:, :, None]).reshape(n * r, self.rank)
         return Ab[(w > 0).ravel()]
@@ -109,10 +115,7 @@ class ConditionObjective:
 
     def _weighted(self, sig: Signals, w: np.ndarray) -> np.ndarray:
         """(N, r, rank): the base columns of A, rows weighted by `w` (N, r)."""
-        n, r, p = sig.q.shape[0], len(row_channels(self.model)), len(self.model.layout)
-        A, b = np.zeros((n, r, p)), np.zeros((n, r))
-        fill_rows(self.model, sig, A, b)
-        return A[:, :, self.independent] * w[:, :, None]
+        return self.regressor(sig)[:, :, self.independent] * w[:, :, None]
 
     def log_condition_and_gradient(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
                                    min_speed: float | None = DEFAULT_MIN_SPEED, step: float = 1e-6
