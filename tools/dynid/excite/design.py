@@ -112,21 +112,33 @@ def margins(traj: FourierTrajectory, limits: JointLimits, rate_hz: float = CHECK
     }
 
 
+def _room(traj: FourierTrajectory, limits: JointLimits, rate_hz: float) -> np.ndarray:
+    """Per joint, the factor its motion about q0 may be scaled by before it touches its tightest limit, on a grid
+    of one period at `rate_hz` (inf or nan for a joint that does not move)."""
+    t = np.arange(int(np.ceil(traj.period * rate_hz)) + 1) / rate_hz
+    q, dq, ddq = traj.evaluate(t)
+    dev = q - traj.q0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        up = np.where(dev > 0, (limits.upper - traj.q0) / dev, np.inf).min(axis=0)
+        down = np.where(dev < 0, (limits.lower - traj.q0) / dev, np.inf).min(axis=0)
+        vel = limits.velocity / np.abs(dq).max(axis=0)
+        acc = limits.acceleration / np.abs(ddq).max(axis=0)
+    return np.minimum.reduce([up, down, vel, acc])
+
+
 def fit_to_limits(traj: FourierTrajectory, limits: JointLimits, rate_hz: float = CHECK_RATE_HZ) -> FourierTrajectory:
     """Scale each joint's motion about q0 (inside the position box) so that it touches, never passes, its tightest
     limit on a fine grid; a joint already within all of them is scaled up to touch one."""
-    q0 = np.clip(traj.q0, limits.lower, limits.upper)
-    traj = FourierTrajectory(q0, traj.a, traj.b, traj.base_frequency, traj.duration)
-    t = np.arange(int(np.ceil(traj.period * rate_hz)) + 1) / rate_hz
-    q, dq, ddq = traj.evaluate(t)
-    dev = q - q0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        up = np.where(dev > 0, (limits.upper - q0) / dev, np.inf).min(axis=0)
-        down = np.where(dev < 0, (limits.lower - q0) / dev, np.inf).min(axis=0)
-        vel = limits.velocity / np.abs(dq).max(axis=0)
-        acc = limits.acceleration / np.abs(ddq).max(axis=0)
-    factor = np.nan_to_num(np.minimum.reduce([up, down, vel, acc]), nan=0.0, posinf=0.0)
+    traj = FourierTrajectory(np.clip(traj.q0, limits.lower, limits.upper), traj.a, traj.b, traj.base_frequency,
+                             traj.duration)
+    factor = np.nan_to_num(_room(traj, limits, rate_hz), nan=0.0, posinf=0.0)
     return traj.scaled(factor * (1 - 1e-9))
+
+
+def fit_to_limits_down(traj: FourierTrajectory, limits: JointLimits) -> FourierTrajectory:
+    """Scale back, about q0, any joint that passes a limit between the constraint grid's samples (never up)."""
+    factor = np.nan_to_num(_room(traj, limits, CHECK_RATE_HZ), nan=1.0, posinf=1.0)
+    return traj.scaled(np.where(factor < 1.0, factor * (1 - 1e-9), 1.0))
 
 
 def design(model: RobotModel, duration: float, base_frequency: float | None = None,
@@ -228,16 +240,3 @@ def design(model: RobotModel, duration: float, base_frequency: float | None = No
     return Design(final, obj.report_condition(q, dq, ddq), runs, state["evaluations"], time.monotonic() - started, stopped,
                   history)
 
-
-def fit_to_limits_down(traj: FourierTrajectory, limits: JointLimits) -> FourierTrajectory:
-    """Scale back, about q0, any joint that passes a limit between the design grid's samples (never up)."""
-    t = np.arange(int(np.ceil(traj.period * CHECK_RATE_HZ)) + 1) / CHECK_RATE_HZ
-    q, dq, ddq = traj.evaluate(t)
-    dev = q - traj.q0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        up = np.where(dev > 0, (limits.upper - traj.q0) / dev, np.inf).min(axis=0)
-        down = np.where(dev < 0, (limits.lower - traj.q0) / dev, np.inf).min(axis=0)
-        vel = limits.velocity / np.abs(dq).max(axis=0)
-        acc = limits.acceleration / np.abs(ddq).max(axis=0)
-    factor = np.minimum(1.0, np.nan_to_num(np.minimum.reduce([up, down, vel, acc]), nan=1.0, posinf=1.0))
-    return traj.scaled(np.where(factor < 1.0, factor * (1 - 1e-9), 1.0))
