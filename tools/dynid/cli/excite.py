@@ -86,7 +86,7 @@ def cmd_excite(args: argparse.Namespace) -> dict[str, Any]:
     t_ref, q_ref, dq_ref, ddq_ref = identification_reference(config, args.duration)
     step = max(1, int(round((t_ref[1] - t_ref[0]) ** -1 / COMPARE_RATE_HZ)))
     today = objective.report_condition(q_ref[::step], dq_ref[::step], ddq_ref[::step])
-    ratio = designed / today  # 0 when today's trajectory leaves a base direction unexcited (inf)
+    ratio = designed / today if np.isfinite(today) else None  # today's leaves a base direction unexcited (inf)
     reached = margins(traj, limits)
     write_csv(dataset, Path(args.out))  # last: a failure before leaves nothing behind
     joints = config.joints
@@ -105,7 +105,8 @@ def cmd_excite(args: argparse.Namespace) -> dict[str, Any]:
     return {
         "robot": config.name, "out": args.out, "duration_s": args.duration, "rate_hz": args.rate, "samples": n,
         "base_frequency_hz": f, "periods": periods, "harmonics": args.harmonics,
-        "condition_number": {"designed": _finite(designed), "today": _finite(today), "ratio": ratio,
+        "condition_number": {"designed": _finite(designed), "today": _finite(today),
+                             "ratio": None if ratio is None else _finite(ratio),
                              "rank": objective.rank, "grid_hz": COMPARE_RATE_HZ,
                              "today_source": f"dynid simulate --kind identification --duration {args.duration:g} "
                                              "--seed 0 (its reference)"},
