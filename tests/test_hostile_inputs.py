@@ -68,7 +68,8 @@ def error_prefix(case: Case) -> str:
     if case.program != "dynid":
         return f"{case.program}: error: "
     command = next((a for a in case.args if not a.startswith("-")), "")
-    parsed = command in ("import", "structure", "simulate", "fit", "validate", "detect", "report", "export", "gaps", "spy")
+    parsed = command in ("import", "structure", "simulate", "excite", "fit", "validate", "detect", "report", "export", "gaps",
+                         "spy")
     # argparse refuses an unknown flag or command for the program as a whole
     return f"dynid {command}: error: " if parsed and "--bogus" not in case.args else "dynid: error: "
 

@@ -18,6 +18,7 @@ COMMANDS: dict[str, Command] = {
     "import": Command("data", "CSV (or dataset) -> dataset file, validated against the robot configuration"),
     "structure": Command("data", "parameter layout, numerical rank and identifiable combinations"),
     "simulate": Command("data", "simulate an experiment of the arm, with known truth"),
+    "excite": Command("excite", "design an excitation trajectory for the fit (Fourier series, well conditioned)"),
     "fit": Command("identify", "identify inertia, F/T offsets, friction and motor gains in one regression"),
     "validate": Command("identify", "the paper's Table II on a validation experiment"),
     "detect": Command("identify", "offline T² contact detection against the skin's ground truth"),

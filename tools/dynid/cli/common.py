@@ -41,7 +41,7 @@ def write_json(result: dict[str, Any], target: str | None) -> None:
 # Where a command writes: files (atomically, by dynid.io.dataset.atomic_write) and the two directories.
 OUTPUT_OPTIONS: tuple[str, ...] = ("out", "json", "figures")
 DIRECTORY_OUTPUTS: frozenset[tuple[str, str]] = frozenset({("simulate", "out"), ("gaps", "figures")})
-INPUT_OPTIONS: tuple[str, ...] = ("data", "model", "validation", "contact", "truth")
+INPUT_OPTIONS: tuple[str, ...] = ("data", "model", "validation", "contact", "truth", "trajectory")
 
 
 def check_outputs(args: argparse.Namespace, extra: dict[str, str] | None = None) -> None:

@@ -9,11 +9,13 @@ from typing import Any
 
 from ..config.robot_config import load_config
 from ..errors import InputError
+from ..io.csv_format import read_csv
 from ..io.load import apply_window, load_data
 from ..robot.model import RobotModel
 from ..robot.regressors.base import data_base_parameters, exciting_signals
 from ..robot.regressors.stack import row_channels, rows_at_rest, signals_from_dataset
 from ..simulation import SimulationSettings, parse_effect, simulate
+from ..simulation.controller import GivenTrajectory
 from ..simulation.effects import CATALOG, catalog_text
 from ..simulation.output import write_simulation
 from .commands import COMMANDS
@@ -123,6 +125,20 @@ def tilt_degrees(text: str) -> float:
     return value
 
 
+def _trajectory(path: str | None, config) -> GivenTrajectory | None:  # config: RobotConfig
+    """--trajectory TRAJ.csv: an experiment CSV with t, q and dq of every joint (ddq optional, unused), t from 0."""
+    if path is None:
+        return None
+    model = RobotModel(config)
+    data = read_csv(path, config, joint_limits=model.joint_limits, require_all=False)
+    if data.dq is None:
+        raise InputError(f"{path}: the trajectory has no dq.<joint> columns; the controller follows q and dq "
+                         "(dynid excite writes both)")
+    if abs(float(data.t[0])) > 1e-9:
+        raise InputError(f"{path}: the trajectory's time starts at {data.t[0]:g} s, not 0")
+    return GivenTrajectory(data.t - data.t[0], data.q, data.dq, str(path))
+
+
 def cmd_simulate(args: argparse.Namespace) -> dict[str, Any]:
 
     if args.list_effects:
@@ -138,7 +154,7 @@ def cmd_simulate(args: argparse.Namespace) -> dict[str, Any]:
     settings = SimulationSettings(
         kind=args.kind, duration=args.duration, seed=args.seed, robot_seed=args.robot_seed,
         noise=args.noise == "realistic", disturbance=args.disturbance == "realistic", effects=effects,
-        rate_hz=args.rate, tilt_deg=args.tilt,
+        rate_hz=args.rate, tilt_deg=args.tilt, trajectory=_trajectory(args.trajectory, config),
     )
     started = time.perf_counter()
     sim = simulate(config, settings)
@@ -158,7 +174,8 @@ def cmd_simulate(args: argparse.Namespace) -> dict[str, Any]:
         print(f"  contacts: {len(sides)} ({sides.count('distal')} distal, {sides.count('proximal')} proximal of the F/T sensor)")
     print(
         f"  PWM within ±1: {100 * realism['pwm_within_limits']:.3f} % of samples; joint limits respected: "
-        f"{100 * realism['joint_limits_respected']:.2f} %; {realism['reaching_targets']} reaching targets"
+        f"{100 * realism['joint_limits_respected']:.2f} %; "
+        + (f"{realism['reaching_targets']} reaching targets" if args.trajectory is None else f"following {args.trajectory}")
     )
     return {
         "robot": config.name, "kind": args.kind, "duration_s": settings.seconds, "rate_hz": args.rate,
@@ -218,6 +235,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     help="a base that tilts by up to DEG degrees about the root's x and y (periods 17 s and 23 s), "
                     "as a balancing humanoid's; the run records an accelerometer at the root (imu.ax, imu.ay, imu.az, "
                     "m/s²) for a configuration with 'gravity: {imu: FRAME}' (default 0: a fixed base)")
+    sp.add_argument("--trajectory", metavar="TRAJ.csv",
+                    help="follow this reference instead of the reaching moves: a CSV of t (from 0), q and dq of every "
+                    "joint, e.g. from `dynid excite`; the arm starts at its first sample, at rest; the duration "
+                    "defaults to the trajectory's")
     sp.add_argument("--out", metavar="DIR", help="the directory to write")
     json_arg(sp)
     sp.set_defaults(func=cmd_simulate)

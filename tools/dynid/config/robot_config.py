@@ -13,6 +13,7 @@ import importlib.metadata
 import math
 import os
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any, Literal
 
@@ -69,7 +70,7 @@ class ActuationGroup:
     motors: tuple[str, ...]
     coupling: np.ndarray  # (n_motors, n_joints); identity when directly driven
 
-    @property
+    @cached_property  # asked for every chunk of rows (the excitation designer builds thousands)
     def coupled(self) -> bool:
         """Motor friction is a separate parameter only when motors and joints are not one-to-one."""
         n = len(self.joints)
@@ -92,6 +93,24 @@ class NoiseConfig:
         """The noise std of one input channel: kind 'pwm', 'current' or 'torque', a motor or joint name."""
         key = f"{'tau' if kind == 'torque' else kind}.{name}"
         return self.per_channel.get(key, float(getattr(self, kind)))
+
+
+@dataclass(frozen=True)
+class MotionLimits:
+    """How fast a designed trajectory may move each joint (`limits` in the configuration; `dynid excite`).
+
+    Positions come from the URDF, kept `position_margin` of each joint's range inside both ends; velocities are the
+    smaller of the URDF's `<limit velocity>` and these (many URDFs, the iCub's among them, carry placeholders such as
+    50000 rad/s); accelerations are these alone (a URDF has none).
+    """
+
+    position_margin: float = 0.1  # fraction of each joint's range kept free at both ends
+    velocity: dict[str, float] = field(default_factory=dict)  # joint -> rad/s (m/s)
+    acceleration: dict[str, float] = field(default_factory=dict)  # joint -> rad/s² (m/s²)
+
+
+DEFAULT_VELOCITY_LIMIT = 1.5  # rad/s: the fastest joint's peak speed in the simulated reaching moves (1.48)
+DEFAULT_ACCELERATION_LIMIT = 4.0  # rad/s²: about the peak of the simulated reaching moves (4.1)
 
 
 @dataclass(frozen=True)
@@ -121,6 +140,8 @@ class RobotConfig:
     # data columns (m/s², the specific force it measures: −g at rest); "" = the constant `gravity`.
     gravity_imu: str = ""
     gravity_imu_columns: tuple[str, ...] = ()
+    # What a designed excitation trajectory may do (dynid excite): position margin, velocity, acceleration.
+    limits: MotionLimits = field(default_factory=MotionLimits)
 
     @property
     def motor_names(self) -> tuple[str, ...]:
@@ -350,7 +371,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     name = root.string("name")
     f = _Fields(name, "", data).only(
         "name", "urdf", "base_link", "gravity", "joints", "ft_sensors", "motors", "actuation", "noise", "can",
-        "derivatives", "columns", "payload_frame", "yarp",
+        "derivatives", "columns", "payload_frame", "yarp", "limits",
     )
 
     joints = f.strings("joints")
@@ -472,7 +493,25 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         columns=parse_columns(name, f.raw("columns", None)),
         payload_frame=f.string("payload_frame") if f.has("payload_frame") else "",
         yarp=parse_yarp(name, f.raw("yarp", None), joints, tuple(s.name for s in sensors)),
+        limits=_limits(f, joints),
     )
+
+
+def _limits(f: _Fields, joints: tuple[str, ...]) -> MotionLimits:
+    """`limits`: {position_margin, velocity, acceleration}; each rate one number or a value per joint."""
+    spec = f.sub("limits", {}).only("position_margin", "velocity", "acceleration")
+    margin = spec.number("position_margin", 0.1)
+    if not 0.0 <= margin < 0.5:
+        raise spec.fail("position_margin", f"must be a fraction of the range from 0 to under 0.5, got {margin!r}")
+    rates: dict[str, dict[str, float]] = {}
+    for kind, default in (("velocity", DEFAULT_VELOCITY_LIMIT), ("acceleration", DEFAULT_ACCELERATION_LIMIT)):
+        value = spec.raw(kind, default)
+        if not isinstance(value, dict):
+            rates[kind] = dict.fromkeys(joints, spec.number(kind, default, positive=True))
+            continue
+        per = spec.sub(kind).only(*joints)
+        rates[kind] = {j: per.number(j, default, positive=True) for j in joints}
+    return MotionLimits(margin, rates["velocity"], rates["acceleration"])
 
 
 _DERIVATIVE_OPTIONS: dict[str, type] = {

@@ -1,4 +1,5 @@
-"""What the robot is told to do: reach pseudo-random Cartesian points under joint-impedance control.
+"""What the robot is told to do: reach pseudo-random Cartesian points under joint-impedance control (or follow a
+given trajectory, `followed_reference`: `dynid simulate --trajectory`).
 
 The reference: the hand (the last body) goes to random points of its workspace, one after the other, each
 reached by damped-least-squares inverse kinematics whose null space pulls toward a random posture, so every
@@ -17,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
+from scipy.interpolate import CubicHermiteSpline
 
 from ..config.robot_config import RobotConfig
 from .plant import RigidBodyPlant
@@ -86,6 +88,29 @@ def reaching_reference(
         filled += move + dwell
         q = goal
     return Reference(np.concatenate(qs)[:n], np.concatenate(dqs)[:n], np.array(targets), np.array(times))
+
+
+@dataclass(frozen=True)
+class GivenTrajectory:
+    """A reference the user gives (`dynid simulate --trajectory`, e.g. a `dynid excite` design): time from 0, s;
+    q and q̇ per joint (N, J), in the configuration's joint order."""
+
+    t: np.ndarray
+    q: np.ndarray
+    dq: np.ndarray
+    source: str = ""
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1])
+
+
+def followed_reference(traj: GivenTrajectory, n: int, dt: float) -> Reference:
+    """The given trajectory on the controller's grid: cubic Hermite interpolation of (q, q̇), so a reference
+    written at 100 Hz is followed at 1 kHz with the velocity it was designed with."""
+    t = np.arange(n) * dt
+    spline = CubicHermiteSpline(traj.t, traj.q, traj.dq, axis=0)
+    return Reference(spline(t), spline(t, 1), np.zeros((0, 3)), np.zeros(0))
 
 
 class ImpedanceController:

@@ -29,7 +29,8 @@ from ..robot.parameters import WRENCH_FIELDS
 from . import contacts as contact_model
 from . import sensors
 from .actuation import Actuators
-from .controller import BANDWIDTH_HZ, ImpedanceController, reaching_reference
+from .controller import (BANDWIDTH_HZ, GivenTrajectory, ImpedanceController, Reference, followed_reference,
+                         reaching_reference)
 from .effects import Effect
 from .plant import RigidBodyPlant
 from .true_robot import draw_true_robot
@@ -59,10 +60,29 @@ class SimulationSettings:
     # A base that tilts (a humanoid balancing): its amplitude in degrees about the root frame's x and y axes, with
     # periods TILT_PERIODS_S; the run then records an accelerometer fixed to the root (imu.ax, imu.ay, imu.az)
     tilt_deg: float = 0.0
+    # A reference to follow instead of the reaching moves (`--trajectory`); the duration defaults to its length
+    trajectory: GivenTrajectory | None = None
 
     @property
     def seconds(self) -> float:
-        return KINDS[self.kind] if self.duration is None else float(self.duration)
+        if self.duration is not None:
+            return float(self.duration)
+        return self.trajectory.duration if self.trajectory is not None else KINDS[self.kind]
+
+
+def identification_reference(config: RobotConfig, duration: float, seed: int = 0, robot_seed: int = 0,
+                             rate_hz: float = 1000.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(t, q, q̇, q̈) of the reaching moves `dynid simulate --kind identification --duration D --seed N` is told to
+    follow (the same streams as `simulate`): today's identification trajectory, for `dynid excite`'s comparison."""
+    model = RobotModel(config)
+    streams = np.random.SeedSequence([seed, _KIND_STREAM["identification"], robot_seed]).spawn(5)
+    truth = draw_true_robot(model, robot_seed)
+    cad_plant = RigidBodyPlant(model, truth.cad_inertias)
+    limits = np.array([model.joint_limits[j] for j in config.joints])
+    n, dt = int(round(duration * rate_hz)), 1.0 / rate_hz
+    ref = reaching_reference(cad_plant, model.bodies[-1].name, limits, limits.mean(axis=1), n, dt,
+                             np.random.default_rng(streams[0]))
+    return np.arange(n) * dt, ref.q, ref.dq, np.gradient(ref.dq, dt, axis=0)
 
 
 @dataclass
@@ -93,6 +113,19 @@ def tilted_gravity(gravity: np.ndarray, degrees: float, t: np.ndarray) -> np.nda
     angles = np.column_stack([amp * np.sin(2 * np.pi * t / TILT_PERIODS_S[0]),
                               amp * np.sin(2 * np.pi * t / TILT_PERIODS_S[1] + 0.7), np.zeros_like(t)])
     return np.array([pin.exp3(w).T @ gravity for w in angles])
+
+
+def _given(traj: GivenTrajectory, joints: tuple[str, ...], limits: np.ndarray, seconds: float, n: int,
+           dt: float) -> Reference:
+    """The given trajectory on the run's grid, refused when it is too short or leaves the URDF's joint limits."""
+    if seconds > traj.duration + 1e-9:
+        raise InputError(f"--duration {seconds:g} s is longer than the trajectory {traj.source} ({traj.duration:g} s)")
+    outside = (traj.q < limits[:, 0]) | (traj.q > limits[:, 1])
+    if outside.any():
+        k, j = (int(x[0]) for x in np.nonzero(outside))
+        raise InputError(f"the trajectory {traj.source} leaves {joints[j]}'s limits [{limits[j, 0]:.4g}, "
+                         f"{limits[j, 1]:.4g}] rad at t = {traj.t[k]:g} s (q = {traj.q[k, j]:.4g})")
+    return followed_reference(traj, n, dt)
 
 
 def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
@@ -150,7 +183,10 @@ def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
 
     limits = np.array([model.joint_limits[j] for j in joints])
     q_rest = limits.mean(axis=1)
-    ref = reaching_reference(cad_plant, bodies[-1], limits, q_rest, n, dt, rng_ref)
+    ref: Reference = reaching_reference(cad_plant, bodies[-1], limits, q_rest, n, dt, rng_ref)
+    if settings.trajectory is not None:  # drawn all the same: the controller's gains take the stream after it
+        ref = _given(settings.trajectory, config.joints, limits, settings.seconds, n, dt)
+        q_rest = ref.q[0]  # the arm starts where the trajectory does, at rest
     controller = ImpedanceController(config, cad_plant, limits, dt, rng_ref, bodies[-1], contact_model.FORCE_RANGE_N[1])
     disturbed = settings.disturbance and settings.noise
     # Phases of ripple and cogging belong to the motors: drawn from the robot seed, like the arm itself.
@@ -297,6 +333,7 @@ def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
             "unconverged_friction_steps": plant.unconverged_steps,
             "torque_ripple": TORQUE_RIPPLE if disturbed else 0.0,
             "supply_std": SUPPLY_STD if disturbed else 0.0,
+            "reference": "reaching moves" if settings.trajectory is None else f"given: {settings.trajectory.source}",
             "controller": {"bandwidth_hz": BANDWIDTH_HZ, "stiffness": controller.K.tolist(), "damping": controller.D.tolist()},
             "pwm_delay_samples": delay,
         },
