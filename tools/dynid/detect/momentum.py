@@ -24,7 +24,8 @@ Discretely, per sample k (Δt_k its step; exact for a residual held over the ste
 
 with β = τ_meas + Cᵀq̇ − g at sample k (only q, q̇ and the inputs: no q̈).
 
-**q̇** comes from a causal estimator (`causal_velocity`: a quadratic fitted by least squares to the last
+**q̇** is the data's measured joint velocity where they carry one for every joint (extra columns
+`velocity.<joint>`, rad/s: a controller's own, as the UR10e logs hold it; `measured_velocity`), else a causal estimator (`causal_velocity`: a quadratic fitted by least squares to the last
 `window` samples at their own time stamps, evaluated at the newest: on uniform samples the monitor's
 fixed-lag Savitzky-Golay filter with lag 0, dynid.detect.online).
 
@@ -84,6 +85,17 @@ def causal_velocity(t: np.ndarray, q: np.ndarray, window_s: float = VELOCITY_WIN
         V = np.column_stack([np.ones_like(s), s])
         out[k] = np.linalg.lstsq(V, q[: k + 1], rcond=None)[0][1]
     return out
+
+
+def measured_velocity(model: RobotModel, dataset) -> np.ndarray | None:
+    """(N, n_joints) the data's `velocity.<joint>` extra columns, when every joint has one; else None."""
+    cols = [dataset.extra.get(f"velocity.{j}") for j in model.config.joints]
+    if any(c is None for c in cols):
+        return None
+    dq = np.column_stack([np.asarray(c, float) for c in cols])
+    if not np.all(np.isfinite(dq)):
+        raise DataError("the data's velocity.<joint> columns hold a value that is not a finite number")
+    return dq
 
 
 def identified_pinocchio(model: RobotModel, phi: np.ndarray) -> pin.Model:
@@ -172,7 +184,8 @@ def momentum_residuals(model: RobotModel, phi: np.ndarray, t: np.ndarray, q: np.
                        inputs: dict[str, np.ndarray], tau: dict[str, np.ndarray], ft: dict[str, np.ndarray],
                        gravity: np.ndarray | None = None, *, bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ,
                        min_speed: float = 0.01, band: dict | None = None,
-                       velocity_window_s: float = VELOCITY_WINDOW_S, tracking=None) -> MomentumResiduals:
+                       velocity_window_s: float = VELOCITY_WINDOW_S, tracking=None,
+                       dq: np.ndarray | None = None) -> MomentumResiduals:
     """The observer over one run of raw signals (as the monitor receives them: dynid.detect.online.raw_signals);
     with `tracking` (dynid.identify.supply.SupplyTracking) each PWM row's drive torque is re-scaled by the monitor's
     causal supply estimate, fitted on the low-passed input against the low-passed prediction (`_tracked`)."""
@@ -180,7 +193,7 @@ def momentum_residuals(model: RobotModel, phi: np.ndarray, t: np.ndarray, q: np.
         raise DataError(f"the observer's bandwidth must be positive, got {bandwidth_hz} Hz")
     cfg, layout = model.config, model.layout
     t = np.asarray(t, float)
-    dq = causal_velocity(t, q, velocity_window_s)
+    dq = causal_velocity(t, q, velocity_window_s) if dq is None else np.asarray(dq, float)
     terms = momentum_terms(model, phi, q, dq, gravity)
     n = t.size
     outs = output_channels(model)

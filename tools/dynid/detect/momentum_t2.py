@@ -23,14 +23,16 @@ from ..errors import DataError, InputError
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from ..robot.regressors.stack import gravity_per_sample
-from .momentum import DEFAULT_BANDWIDTH_HZ, MomentumResiduals, friction_band, momentum_residuals
+from .momentum import (DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S, MomentumResiduals, friction_band, measured_velocity,
+                       momentum_residuals)
 from .online import raw_signals
 from .t2 import QUANTILE_LEVELS, score
 
 ISOLATION_SIGMAS = 3.0
-BAND_SIGMAS = 2.0  # the static-friction band is widened by this many standard errors of the Coulomb terms
+BAND_SIGMAS = 1.0  # the static-friction band is widened by this many standard errors of the Coulomb terms
 SETTLE_TIME_CONSTANTS = 5  # the observer starts at rest: its first 5 time constants are not calibrated on
-MERGE_GAP_S = 0.02  # alarms closer than this form one event
+MERGE_GAP_S = 0.02
+CONTACT_MARGIN_S = 0.5  # a calibration run's labelled contacts are left out with this margin on each side  # alarms closer than this form one event
 
 
 @dataclass(frozen=True)
@@ -44,10 +46,24 @@ class MomentumDetector:
     band_sigmas: float
     ft_thresholds: dict[str, float]  # sensor -> α-quantile of its channels' share of T²
     samples: int
+    velocity_window_s: float = VELOCITY_WINDOW_S
     quantiles: dict = field(default_factory=dict)  # {levels, values} of the calibration T²
 
     def t2(self, e: np.ndarray) -> np.ndarray:
         return np.sum(e**2 / self.variance, axis=1)
+
+    @property
+    def rest_threshold(self) -> float:
+        """T²_α where every row rests: χ²(n_out) at α (on contact-free runs T² is 0 there by construction)."""
+        from scipy import stats
+
+        return float(stats.chi2.ppf(self.alpha, self.variance.size))
+
+    def statistic(self, e: np.ndarray, at_rest: np.ndarray) -> np.ndarray:
+        """T² / T²_α per sample, T²_α the calibrated threshold, or `rest_threshold` where every row rests:
+        a contact is a value above 1."""
+        all_rest = at_rest.all(axis=1)
+        return self.t2(e) / np.where(all_rest, self.rest_threshold, self.threshold)
 
     def at_alpha(self, alpha: float) -> MomentumDetector:
         if alpha == self.alpha:
@@ -57,32 +73,37 @@ class MomentumDetector:
             raise InputError(f"--alpha {alpha} is outside the calibrated range {levels[0]:.4g}..{levels[-1]:.4g}")
         return MomentumDetector(self.bandwidth_hz, self.variance, self.tau_variance,
                                 float(np.interp(alpha, levels, values)), alpha, self.min_speed, self.band_sigmas,
-                                self.ft_thresholds, self.samples, self.quantiles)
+                                self.ft_thresholds, self.samples, self.velocity_window_s, self.quantiles)
 
     def as_dict(self) -> dict:
         return {"variant": "momentum", "bandwidth_hz": self.bandwidth_hz, "variance": self.variance.tolist(),
-                "tau_variance": self.tau_variance.tolist(), "threshold": self.threshold, "alpha": self.alpha,
+                "tau_variance": self.tau_variance.tolist(), "threshold": self.threshold,
+                "rest_threshold": self.rest_threshold, "alpha": self.alpha,
                 "min_speed": self.min_speed, "band_sigmas": self.band_sigmas, "ft_thresholds": self.ft_thresholds,
-                "calibration_samples": self.samples}
+                "calibration_samples": self.samples, "velocity_window_s": self.velocity_window_s}
 
 
 def run_residuals(model: RobotModel, phi: np.ndarray, dataset, bandwidth_hz: float, min_speed: float,
-                  band: dict, tracking=None) -> MomentumResiduals:
+                  band: dict, tracking=None, velocity_window_s: float = VELOCITY_WINDOW_S) -> MomentumResiduals:
     t, q, inputs, tau, ft = raw_signals(model, dataset)
     return momentum_residuals(model, phi, t, q, inputs, tau, ft, gravity_per_sample(model, dataset),
-                              bandwidth_hz=bandwidth_hz, min_speed=min_speed, band=band, tracking=tracking)
+                              bandwidth_hz=bandwidth_hz, min_speed=min_speed, band=band, tracking=tracking,
+                              velocity_window_s=velocity_window_s, dq=measured_velocity(model, dataset))
 
 
 def calibrate_momentum(model: RobotModel, phi: np.ndarray, record: dict | None, datasets: Sequence,
                        alpha: float, min_speed: float, bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ,
-                       band_sigmas: float = BAND_SIGMAS, tracking=None) -> MomentumDetector:
+                       band_sigmas: float = BAND_SIGMAS, tracking=None,
+                       velocity_window_s: float = VELOCITY_WINDOW_S) -> MomentumDetector:
     """Λ and T²_α of the momentum residuals on contact-free runs (their first 5 time constants left out)."""
     band = friction_band(model, phi, record, band_sigmas)
     es, rests, taus = [], [], []
     settle = SETTLE_TIME_CONSTANTS / (2 * np.pi * bandwidth_hz)
     for ds in datasets:
-        res = run_residuals(model, phi, ds, bandwidth_hz, min_speed, band, tracking)
+        res = run_residuals(model, phi, ds, bandwidth_hz, min_speed, band, tracking, velocity_window_s)
         keep = res.t - res.t[0] >= settle
+        if ds.contact is not None:  # a labelled run: its contacts, widened by CONTACT_MARGIN_S, are left out
+            keep &= ~_widened(res.t, np.asarray(ds.contact) != 0, CONTACT_MARGIN_S)
         es.append(res.e[keep])
         rests.append(res.at_rest[keep])
         taus.append(res.tau_ext[keep])
@@ -101,17 +122,26 @@ def calibrate_momentum(model: RobotModel, phi: np.ndarray, record: dict | None, 
         rows = slice(6 * i, 6 * i + 6)
         ft_thresholds[s.name] = float(np.quantile(np.sum(e[:, rows] ** 2 / variance[rows], axis=1), alpha))
     return MomentumDetector(bandwidth_hz, variance, tau_variance, float(np.quantile(t2, alpha)), alpha, min_speed,
-                            band_sigmas, ft_thresholds, int(e.shape[0]),
+                            band_sigmas, ft_thresholds, int(e.shape[0]), velocity_window_s,
                             {"levels": QUANTILE_LEVELS.tolist(), "values": np.quantile(t2, QUANTILE_LEVELS).tolist()})
 
 
-def contact_events(model: RobotModel, det: MomentumDetector, res: MomentumResiduals, t2: np.ndarray,
+def _widened(t: np.ndarray, mask: np.ndarray, margin_s: float) -> np.ndarray:
+    from ..io.dataset import contact_episodes
+
+    out = np.zeros(t.size, dtype=bool)
+    for a, b in contact_episodes(mask):
+        out[(t >= t[a] - margin_s) & (t <= t[b - 1] + margin_s)] = True
+    return out
+
+
+def contact_events(model: RobotModel, det: MomentumDetector, res: MomentumResiduals, stat: np.ndarray,
                    limit: int = 200) -> list[dict]:
     """Alarm runs (gaps under MERGE_GAP_S merged): onset, end, peak T², and at the peak the isolation (side of
     each F/T sensor, the most distal joint with a significant external torque) and the estimates: external joint
     torques (Nm) and, per sensor, the contact's wrench at the sensor (w − ŵ low-passed: N, Nm)."""
     cfg = model.config
-    alarm = t2 > det.threshold
+    alarm = stat > 1.0
     idx = np.flatnonzero(alarm)
     if idx.size == 0:
         return []
@@ -119,7 +149,7 @@ def contact_events(model: RobotModel, det: MomentumDetector, res: MomentumResidu
     starts, stops = np.r_[idx[0], idx[breaks + 1]], np.r_[idx[breaks], idx[-1]]
     events = []
     for a, b in zip(starts[:limit], stops[:limit]):
-        k = a + int(np.argmax(t2[a : b + 1]))
+        k = a + int(np.argmax(stat[a : b + 1]))
         z = res.tau_ext[k] / np.sqrt(det.tau_variance)
         significant = np.flatnonzero(np.abs(z) > ISOLATION_SIGMAS)
         sides, wrenches = {}, {}
@@ -129,7 +159,8 @@ def contact_events(model: RobotModel, det: MomentumDetector, res: MomentumResidu
             sides[s.name] = "distal" if share > det.ft_thresholds[s.name] else "proximal"
             wrenches[s.name] = res.r[k, rows].tolist()
         events.append({"onset_s": float(res.t[a]), "end_s": float(res.t[b]), "peak_s": float(res.t[k]),
-                       "peak_t2": float(t2[k]),
+                       "peak_t2": float(det.t2(res.e[k : k + 1])[0]),
+                       "peak_ratio": float(stat[k]),
                        "joint": cfg.joints[int(significant[-1])] if significant.size else None,
                        "largest": cfg.joints[int(np.argmax(np.abs(z)))],
                        "side": sides, "tau_ext_nm": dict(zip(cfg.joints, res.tau_ext[k].tolist())),
@@ -181,13 +212,14 @@ class MomentumDetection:
     result: dict
     detector: MomentumDetector
     residuals: MomentumResiduals
-    t2: np.ndarray
+    statistic: np.ndarray  # T²/T²_α per sample
     events: list
 
 
 def momentum_detection(identified, dataset, calibration: Sequence, alpha: float,
                        bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ, shift_s: float = 0.0,
-                       side: np.ndarray | None = None) -> MomentumDetection:
+                       side: np.ndarray | None = None,
+                       velocity_window_s: float = VELOCITY_WINDOW_S) -> MomentumDetection:
     """Calibrate on the contact-free `calibration` runs, then T², events and scores on `dataset`."""
     model, phi = identified.robot_model, identified.phi
     if identified.effects:
@@ -195,11 +227,13 @@ def momentum_detection(identified, dataset, calibration: Sequence, alpha: float,
                         "--residual acceleration")
     tracking = identified.supply_tracking
     det = calibrate_momentum(model, phi, identified.record, calibration, alpha, identified.min_speed, bandwidth_hz,
-                             tracking=tracking)
+                             tracking=tracking, velocity_window_s=velocity_window_s)
     band = friction_band(model, phi, identified.record, det.band_sigmas)
-    res = run_residuals(model, phi, dataset, bandwidth_hz, identified.min_speed, band, tracking)
-    t2 = det.t2(res.e)
-    result = score_with_delays(dataset.t, t2, det.threshold, dataset.contact, side, shift_s)
+    res = run_residuals(model, phi, dataset, bandwidth_hz, identified.min_speed, band, tracking, velocity_window_s)
+    stat = det.statistic(res.e, res.at_rest)
+    result = score_with_delays(dataset.t, stat, 1.0, dataset.contact, side, shift_s)
+    result["threshold"] = det.threshold
+    result["statistic"] = "T²/T²_α (T²_α: calibrated, or rest_threshold where every row rests); a contact above 1"
     result["detector"] = det.as_dict()
-    events = contact_events(model, det, res, t2)
-    return MomentumDetection(result, det, res, t2, events)
+    events = contact_events(model, det, res, stat)
+    return MomentumDetection(result, det, res, stat, events)
