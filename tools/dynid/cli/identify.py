@@ -11,6 +11,7 @@ import numpy as np
 from ..config.robot_config import RobotConfig, load_config
 from ..detect.evaluation import detection
 from ..detect.momentum import DEFAULT_BANDWIDTH_HZ
+from ..errors import DataError
 from ..detect.momentum_t2 import calibration_runs, momentum_detection, score_with_delays
 from ..detect.t2 import ALPHA
 from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, FitSettings
@@ -184,21 +185,32 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
     if labels is not None:
         found.result["episodes_file"] = {"path": args.episodes, "episodes": int(len(labels)),
                                          "in_data": len(contact_episodes(ev.dataset.contact))}
-    momentum = None
-    if args.residual == "momentum":
-        runs, paths = calibration_runs(ev.identified, args.calibration, (args.calibration_from, args.calibration_to))
-        momentum = momentum_detection(ev.identified, ev.dataset, runs, args.alpha, args.bandwidth,
-                                      args.label_widening, side)
+    momentum, skipped = None, None
+    if args.residual in (None, "momentum"):
+        try:
+            runs, paths = calibration_runs(ev.identified, args.calibration,
+                                           (args.calibration_from, args.calibration_to))
+            momentum = momentum_detection(ev.identified, ev.dataset, runs, args.alpha, args.bandwidth,
+                                          args.label_widening, side)
+        except DataError as e:
+            if args.residual == "momentum":  # asked for by name: its failure is the command's
+                raise
+            skipped = str(e)  # the default: say why, and report the acceleration-based variants
+    if momentum is not None:
         found.result["variants"] = {"momentum": momentum.result, **found.result["variants"]}
         found.result["events"] = momentum.events
         found.result["calibration"] = paths
-    found.result["residual"] = args.residual
+    found.result["residual"] = "momentum" if momentum is not None else "acceleration"
+    if skipped:
+        found.result["momentum_skipped"] = skipped
     print(f"T² contact detection with {args.model} on {args.data} ({ev.dataset.n_samples} samples), α = {args.alpha}")
     if labels is not None:
         print(f"  contact labels: {args.episodes} ({len(labels)} episodes, "
               f"{found.result['episodes_file']['in_data']} in the data)")
     elif ev.dataset.contact is None:
         print("  no contact ground truth in the data: FPR assumes the run is contact-free")
+    if skipped:
+        print(f"  momentum residual skipped: {skipped}")
     if momentum is not None:
         print(f"  momentum: observer bandwidth {args.bandwidth:g} Hz, calibrated on {momentum.detector.samples} "
               f"contact-free samples; {len(momentum.events)} contact events")
@@ -282,10 +294,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     payload_arg(sp, repeatable=False)
     sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"confidence level (default {ALPHA})")
     sp.add_argument("--n-mode", choices=["dim", "nu"], default="dim", help="n of the paper's F threshold")
-    sp.add_argument("--residual", choices=["momentum", "acceleration"], default="momentum",
-                    help="momentum (default): T² on the generalized-momentum observer's residuals, which need no q̈ "
-                    "(docs/detection.md), reported beside the two acceleration-based variants; acceleration: "
-                    "those two only")
+    sp.add_argument("--residual", choices=["momentum", "acceleration"], default=None,
+                    help="momentum (the default where it can be calibrated): T² on the generalized-momentum "
+                    "observer's residuals, which need no q̈ (docs/detection.md), reported beside the two "
+                    "acceleration-based variants; acceleration: those two only")
     sp.add_argument("--bandwidth", type=positive_float, default=DEFAULT_BANDWIDTH_HZ, metavar="HZ",
                     help=f"the momentum observer's bandwidth K_O/2π (default {DEFAULT_BANDWIDTH_HZ:g} Hz: "
                     f"a {1e3 / (2 * np.pi * DEFAULT_BANDWIDTH_HZ):.1f} ms time constant)")

@@ -15,6 +15,7 @@ and the estimated external torque and wrench, scoring against labels (`dynid det
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -32,6 +33,7 @@ ISOLATION_SIGMAS = 3.0
 BAND_SIGMAS = 1.0  # the static-friction band is widened by this many standard errors of the Coulomb terms
 SETTLE_TIME_CONSTANTS = 5  # the observer starts at rest: its first 5 time constants are not calibrated on
 MERGE_GAP_S = 0.02
+CALIBRATION_MAX_S = 150.0  # each calibration run's first 150 s
 CONTACT_MARGIN_S = 0.5  # a calibration run's labelled contacts are left out with this margin on each side  # alarms closer than this form one event
 
 
@@ -196,15 +198,22 @@ def score_with_delays(t: np.ndarray, t2: np.ndarray, threshold: float, contact: 
 def calibration_runs(identified, paths: Sequence[str] | None, window=(None, None)) -> tuple[list, list[str]]:
     """The contact-free runs to calibrate on: `paths` (cut to `window`), or the runs the model was fitted on."""
     from ..identify.validation import load_run
+    from ..io.load import apply_window
 
     model = identified.robot_model
     if not paths:
         paths = [d["path"] for d in identified.record.get("data", [])]
-        missing = [p for p in paths if not __import__("pathlib").Path(p).exists()]
+        missing = [p for p in paths if not Path(p).exists()]
         if not paths or missing:
             raise DataError(f"{identified.path}: the runs it was fitted on are not at hand ({(missing or ['none'])[0]}); "
                             "give contact-free runs to calibrate the momentum detector with --calibration DATA")
-    return [load_run(str(p), model, window) for p in paths], [str(p) for p in paths]
+    runs = []
+    for p in paths:
+        ds = load_run(str(p), model, window)
+        if ds.duration > CALIBRATION_MAX_S:  # the observer runs every sample: a bounded time
+            ds = apply_window(ds, None, float(ds.t[0]) + CALIBRATION_MAX_S, source=str(p))
+        runs.append(ds)
+    return runs, [str(p) for p in paths]
 
 
 @dataclass(frozen=True)
