@@ -208,7 +208,7 @@ def test_episodes_labels_end_to_end(default_experiments: dict[str, Path], defaul
 
     run = default_experiments["contact"]
     ds = load_data(run, load_config("icub_right_arm"))
-    rows = [(ds.t[a], ds.t[b - 1]) for a, b in contact_episodes(ds.contact)]
+    rows = [(float(ds.t[a]), float(ds.t[b - 1])) for a, b in contact_episodes(ds.contact)]
     labels = tmp_path / "episodes.csv"
     labels.write_text("t_start,t_end\n" + "".join(f"{a!r},{b!r}\n" for a, b in rows))
     args = ("detect", "--model", str(default_model), "--data", str(run), "--residual", "acceleration")
