@@ -201,6 +201,7 @@ def calibration_runs(identified, paths: Sequence[str] | None, window=(None, None
     from ..io.load import apply_window
 
     model = identified.robot_model
+    given = bool(paths)
     if not paths:
         paths = [d["path"] for d in identified.record.get("data", [])]
         missing = [p for p in paths if not Path(p).exists()]
@@ -208,8 +209,14 @@ def calibration_runs(identified, paths: Sequence[str] | None, window=(None, None
             raise DataError(f"{identified.path}: the runs it was fitted on are not at hand ({(missing or ['none'])[0]}); "
                             "give contact-free runs to calibrate the momentum detector with --calibration DATA")
     runs = []
+    records = {} if given else {d["path"]: d for d in identified.record.get("data", [])}
     for p in paths:
         ds = load_run(str(p), model, window)
+        fitted = records.get(p, {}).get("samples")
+        if fitted is not None and fitted != ds.n_samples:  # the fit saw a window the model file does not name
+            raise DataError(f"{identified.path} was fitted on {fitted} of the {ds.n_samples} samples of {p} (a --from/--to "
+                            "window); give the contact-free runs to calibrate the momentum detector with --calibration "
+                            "DATA --calibration-from S --calibration-to S")
         if ds.duration > CALIBRATION_MAX_S:  # the observer runs every sample: a bounded time
             ds = apply_window(ds, None, float(ds.t[0]) + CALIBRATION_MAX_S, source=str(p))
         runs.append(ds)
