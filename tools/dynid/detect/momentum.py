@@ -135,17 +135,18 @@ def momentum_terms(model: RobotModel, phi: np.ndarray, q: np.ndarray, dq: np.nda
 
 
 def first_order(t: np.ndarray, x: np.ndarray, bandwidth_hz: float) -> np.ndarray:
-    """y_k = a_k y_{k−1} + (1 − a_k) x_k, a_k = exp(−2π f Δt_k): the causal first-order low-pass, y_0 = 0·x_0...
-    started at rest (y_{-1} = 0) as the observer is."""
-    k_o = 2.0 * np.pi * bandwidth_hz
-    dt = np.diff(np.asarray(t, float), prepend=t[0] - (t[1] - t[0]) if len(t) > 1 else t[0] - 1e-3)
-    a = np.exp(-k_o * dt)
+    """The causal first-order low-pass the observer is: y_k = a_k y_{k−1} + (1 − a_k) x_k, a_k = exp(−2π f Δt_k),
+    started at rest (y_{−1} = 0); the first step is taken as long as the second."""
+    t = np.asarray(t, float)
     x = np.asarray(x, float)
-    y = np.empty_like(x)
+    k_o = 2.0 * np.pi * bandwidth_hz
+    dt = np.diff(t, prepend=t[0] - (t[1] - t[0]) if t.size > 1 else t[0] - 1e-3)
+    a = np.exp(-k_o * dt)
     if np.allclose(dt, dt[0], rtol=1e-9, atol=0):
         from scipy.signal import lfilter  # uniform steps: one IIR pass
 
         return lfilter([1.0 - a[0]], [1.0, -a[0]], x, axis=0)
+    y = np.empty_like(x)
     prev = np.zeros(x.shape[1:])
     for k in range(x.shape[0]):
         prev = a[k] * prev + (1.0 - a[k]) * x[k]
@@ -154,19 +155,22 @@ def first_order(t: np.ndarray, x: np.ndarray, bandwidth_hz: float) -> np.ndarray
 
 
 def friction_band(model: RobotModel, phi: np.ndarray, record: dict | None, band_sigmas: float) -> dict:
-    """{(kind, name): (fc_pos, fc_neg)} of every friction block, each widened by `band_sigmas` standard errors
-    where the model file's base section gives the Coulomb coefficient as an identified combination of its own."""
+    """{(kind, owner): (fc_pos, fc_neg)} of every friction block, each widened by `band_sigmas` standard errors
+    where the model file's base section identifies the Coulomb coefficient alone (a base combination with no
+    dependent part: its standard error is the coefficient's own)."""
     se: dict[str, float] = {}
     base = (record or {}).get("base", {})
-    for name, s in zip(base.get("independent", []), base.get("standard_errors", [])):
-        se[name] = float(s) if s is not None and np.isfinite(s) else 0.0
+    K = np.asarray(base.get("K", []), float)
+    for i, (name, s) in enumerate(zip(base.get("independent", []), base.get("standard_errors", []))):
+        alone = K.ndim != 2 or K.shape[0] <= i or not np.any(K[i])
+        if alone and s is not None and np.isfinite(s):
+            se[name] = float(s)
     out = {}
     names = model.layout.names
     for b in model.layout.blocks_of("joint_friction") + model.layout.blocks_of("motor_friction"):
-            block, who, sl = b.kind, b.owner, b.slice
-            fc_pos, fc_neg = (float(x) for x in phi[sl][:2])
-            d_pos, d_neg = (band_sigmas * se.get(names[i], 0.0) for i in range(sl.start, sl.start + 2))
-            out[(block, who)] = (max(fc_pos, 0.0) + d_pos, max(fc_neg, 0.0) + d_neg)
+        fc_pos, fc_neg = (float(v) for v in phi[b.slice][:2])
+        d_pos, d_neg = (band_sigmas * se.get(names[i], 0.0) for i in (b.start, b.start + 1))
+        out[(b.kind, b.owner)] = (max(fc_pos, 0.0) + d_pos, max(fc_neg, 0.0) + d_neg)
     return out
 
 
