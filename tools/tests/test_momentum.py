@@ -234,3 +234,14 @@ def test_episodes_labels_end_to_end(default_experiments: dict[str, Path], defaul
         assert words in done.stderr
     done = dynid(*args, "--episodes", str(tmp_path / "missing.csv"))
     assert done.returncode == 2 and "does not exist" in done.stderr
+
+
+def test_the_api_detector_uses_the_momentum_residual(default_experiments: dict[str, Path], default_model: Path) -> None:
+    import dynid
+
+    detector = dynid.ContactDetector(dynid.load_model(default_model), variant="momentum")
+    run = str(default_experiments["validation"])
+    result = detector.evaluate(run)  # calibrated on the model's identification run (its first 150 s)
+    assert result["fpr"] <= 0.015  # measured 0.83 %
+    assert detector.predict(run).mean() == pytest.approx(result["fpr"])
+    assert detector.momentum_.bandwidth_hz == 15.0 and detector.momentum_.threshold > 0
