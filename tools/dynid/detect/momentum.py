@@ -53,6 +53,11 @@ from ..robot.regressors.stack import friction_coordinates, group_row_maps
 DEFAULT_BANDWIDTH_HZ = 15.0  # K_O = 2π·15 rad/s: a 10.6 ms time constant (chosen by measurement: docs/detection.md)
 VELOCITY_WINDOW_S = 0.02  # the causal q̇ estimator's window (s); at least 5 samples
 MIN_VELOCITY_SAMPLES = 5
+# After a coordinate leaves rest, r still carries the static friction it held and follows the moving friction law
+# with the observer's lag; its row may keep the band for this many time constants. Off by default: measured on the
+# simulated arm (docs/detection.md), 3 time constants lower T²_α (57.8 -> 42.3) and raise the proximal TPR (23 ->
+# 40 %), but the contact-free FPR rises (0.83 -> 1.27 %) and the slowest onsets slow (p90 96 -> 243 ms).
+HOLD_TIME_CONSTANTS = 0.0
 
 
 def causal_velocity(t: np.ndarray, q: np.ndarray, window_s: float = VELOCITY_WINDOW_S) -> np.ndarray:
@@ -96,6 +101,17 @@ def measured_velocity(model: RobotModel, dataset) -> np.ndarray | None:
     if not np.all(np.isfinite(dq)):
         raise DataError("the data's velocity.<joint> columns hold a value that is not a finite number")
     return dq
+
+
+def _held(t: np.ndarray, mask: np.ndarray, hold_s: float) -> np.ndarray:
+    """mask, and the samples up to hold_s after each stretch of it ends (causal: only the past decides)."""
+    if hold_s <= 0 or not mask.any():
+        return mask
+    idx = np.flatnonzero(mask)
+    last = np.full(t.size, -np.inf)
+    last[idx] = t[idx]
+    last = np.maximum.accumulate(last)  # the time the mask last held, at every sample
+    return mask | (t - last <= hold_s)
 
 
 def identified_pinocchio(model: RobotModel, phi: np.ndarray) -> pin.Model:
@@ -189,7 +205,8 @@ def momentum_residuals(model: RobotModel, phi: np.ndarray, t: np.ndarray, q: np.
                        gravity: np.ndarray | None = None, *, bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ,
                        min_speed: float = 0.01, band: dict | None = None,
                        velocity_window_s: float = VELOCITY_WINDOW_S, tracking=None,
-                       dq: np.ndarray | None = None) -> MomentumResiduals:
+                       dq: np.ndarray | None = None, hold_time_constants: float = HOLD_TIME_CONSTANTS
+                       ) -> MomentumResiduals:
     """The observer over one run of raw signals (as the monitor receives them: dynid.detect.online.raw_signals);
     with `tracking` (dynid.identify.supply.SupplyTracking) each PWM row's drive torque is re-scaled by the monitor's
     causal supply estimate, fitted on the low-passed input against the low-passed prediction (`_tracked`)."""
@@ -243,10 +260,10 @@ def momentum_residuals(model: RobotModel, phi: np.ndarray, t: np.ndarray, q: np.
             x[:, rows] -= np.outer(F @ coeffs, c.share)
             fc_pos, fc_neg = band[c.block]
             ends = np.stack([c.share * fc_pos, -c.share * fc_neg])
-            sl = slow[:, None] & (c.share != 0)[None, :]
-            at_rest[:, rows] |= sl
-            lo[:, rows] += np.where(slow[:, None], ends.min(axis=0), 0.0)
-            hi[:, rows] += np.where(slow[:, None], ends.max(axis=0), 0.0)
+            banded = _held(t, slow, hold_time_constants / (2.0 * np.pi * bandwidth_hz))
+            at_rest[:, rows] |= banded[:, None] & (c.share != 0)[None, :]
+            lo[:, rows] += np.where(banded[:, None], ends.min(axis=0), 0.0)
+            hi[:, rows] += np.where(banded[:, None], ends.max(axis=0), 0.0)
     r = first_order(t, x, bandwidth_hz)
     if tracking is not None and inputs:  # the monitor's causal supply tracking, on the low-passed rows
         r = _tracked(model, phi, tracking, min_speed, t, q, dq, inputs, r, bandwidth_hz)
