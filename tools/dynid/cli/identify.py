@@ -11,9 +11,9 @@ import numpy as np
 from ..config.robot_config import RobotConfig, load_config
 from ..detect.evaluation import detection
 from ..detect.momentum import DEFAULT_BANDWIDTH_HZ
-from ..errors import DataError
 from ..detect.momentum_t2 import calibration_runs, momentum_detection, score_with_delays
 from ..detect.t2 import ALPHA
+from ..errors import DataError
 from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, FitSettings
 from ..identify.supply import SupplyTracking
 from ..identify.validation import evaluate, load_run, validation

@@ -15,12 +15,12 @@ and the estimated external torque and wrench, scoring against labels (`dynid det
 from __future__ import annotations
 
 from collections.abc import Sequence
-from pathlib import Path
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
-from ..errors import DataError, InputError
+from ..errors import DataError
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from ..robot.regressors.stack import gravity_per_sample
@@ -32,9 +32,9 @@ from .t2 import QUANTILE_LEVELS, score
 ISOLATION_SIGMAS = 3.0
 BAND_SIGMAS = 1.0  # the static-friction band is widened by this many standard errors of the Coulomb terms
 SETTLE_TIME_CONSTANTS = 5  # the observer starts at rest: its first 5 time constants are not calibrated on
-MERGE_GAP_S = 0.02
+MERGE_GAP_S = 0.02  # alarms closer than this form one event
 CALIBRATION_MAX_S = 150.0  # each calibration run's first 150 s
-CONTACT_MARGIN_S = 0.5  # a calibration run's labelled contacts are left out with this margin on each side  # alarms closer than this form one event
+CONTACT_MARGIN_S = 0.5  # a calibration run's labelled contacts are left out with this margin on each side
 
 
 @dataclass(frozen=True)
@@ -66,16 +66,6 @@ class MomentumDetector:
         a contact is a value above 1."""
         all_rest = at_rest.all(axis=1)
         return self.t2(e) / np.where(all_rest, self.rest_threshold, self.threshold)
-
-    def at_alpha(self, alpha: float) -> MomentumDetector:
-        if alpha == self.alpha:
-            return self
-        levels, values = np.asarray(self.quantiles["levels"]), np.asarray(self.quantiles["values"])
-        if not levels[0] <= alpha <= levels[-1]:
-            raise InputError(f"--alpha {alpha} is outside the calibrated range {levels[0]:.4g}..{levels[-1]:.4g}")
-        return MomentumDetector(self.bandwidth_hz, self.variance, self.tau_variance,
-                                float(np.interp(alpha, levels, values)), alpha, self.min_speed, self.band_sigmas,
-                                self.ft_thresholds, self.samples, self.velocity_window_s, self.quantiles)
 
     def as_dict(self) -> dict:
         return {"variant": "momentum", "bandwidth_hz": self.bandwidth_hz, "variance": self.variance.tolist(),
