@@ -226,6 +226,7 @@ MODELS = [
 ]
 
 D = "{run}"  # good data: the session's contact run directory
+EPISODES = ("detect", "--model", "{model}", "--data", D, "--episodes", "{in}/e.csv")
 FLAGS = [
     # Values: negative and absurd durations, --from after --to, windows past the end, unknown names.
     dynid("simulate-negative-duration", "simulate", "--duration", "-1", "--out", "{out}/s",
@@ -357,6 +358,27 @@ FLAGS = [
     dynid("detect-unknown-n-mode", "detect", "--model", "{model}", "--data", D, "--n-mode", "x", says="invalid choice: 'x'"),
     dynid("detect-json-into-missing-directory", "detect", "--model", "{model}", "--data", D, "--json", "{out}/no/d.json",
           says="the directory {out}/no does not exist"),
+    # --episodes: contact labels (dynid.io.episodes), read and checked before any work
+    dynid("detect-episodes-binary", *EPISODES, says="is not UTF-8 text",
+          make=raw("e.csv", b"\xff\xfe\x00garbage" + garbage(3000, 5))),
+    dynid("detect-episodes-wrong-header", *EPISODES, says="expected 't_start,t_end'",
+          make=raw("e.csv", b"start,end\n1,2\n")),
+    dynid("detect-episodes-empty", *EPISODES, says="is empty", make=raw("e.csv", b"")),
+    dynid("detect-episodes-reversed", *EPISODES, says="t_end 1 is not after t_start 2",
+          make=raw("e.csv", b"t_start,t_end\n2,1\n")),
+    dynid("detect-episodes-overlapping", *EPISODES, says="overlaps or precedes the one before",
+          make=raw("e.csv", b"t_start,t_end\n1,3\n2,4\n")),
+    dynid("detect-episodes-nan", *EPISODES, says="times must be finite", make=raw("e.csv", b"t_start,t_end\n1,nan\n")),
+    dynid("detect-episodes-three-fields", *EPISODES, says="3 fields, expected 2",
+          make=raw("e.csv", b"t_start,t_end\n1,2,3\n")),
+    dynid("detect-episodes-text", *EPISODES, says="is not two numbers",
+          make=raw("e.csv", b"t_start,t_end\nsoon,later\n")),
+    dynid("detect-episodes-missing", *EPISODES, says="does not exist or is not a file"),
+    dynid("detect-episodes-a-directory", *EPISODES, says="does not exist or is not a file", make=directory("e.csv")),
+    dynid("detect-bandwidth-negative", "detect", "--model", "{model}", "--data", D, "--bandwidth", "-5",
+          says="argument --bandwidth"),
+    dynid("detect-unknown-residual", "detect", "--model", "{model}", "--data", D, "--residual", "jerk",
+          says="invalid choice: 'jerk'"),
     dynid("export-no-out", "export", "--model", "{model}", says="export needs --model MODEL and --out COEF_FILE"),
     dynid("export-out-onto-a-directory", "export", "--model", "{model}", "--out", "{out}",
           says="it exists and is not a regular file"),

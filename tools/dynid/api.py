@@ -24,6 +24,8 @@ from sklearn.utils.validation import check_is_fitted
 
 from .config import RobotConfig, load_config
 from .detect.evaluation import detectors
+from .detect.momentum_t2 import (MomentumDetector, calibrate_momentum, calibration_runs, friction_band, run_residuals,
+                                 score_with_delays)
 from .detect.t2 import ALPHA, VARIANTS, Detector, calibrate, calibration_residuals
 from .detect.t2 import score as score_t2
 from .errors import InputError
@@ -222,22 +224,27 @@ class ContactDetector(BaseEstimator):
     ----------
     model : DynamicsModel
         A fitted model.
-    variant : {"calibrated", "paper"}
-        "calibrated" (the default: Λ and T²_α from contact-free data, so α keeps its promise) or "paper"
-        (diagonal Λ and the F threshold, as published).
+    variant : {"calibrated", "paper", "momentum"}
+        "calibrated" (the default: Λ and T²_α from contact-free data, so α keeps its promise), "paper"
+        (diagonal Λ and the F threshold, as published) or "momentum" (T² on the generalized-momentum observer's
+        residuals, no q̈, calibrated like "calibrated": docs/detection.md; its decision function is T²/T²_α).
+    bandwidth_hz : float
+        The momentum observer's bandwidth (variant "momentum" only).
     alpha : float or None
         Confidence level; None takes the model's.
     """
 
-    def __init__(self, model: DynamicsModel, variant: str = "calibrated", alpha: float | None = None) -> None:
+    def __init__(self, model: DynamicsModel, variant: str = "calibrated", alpha: float | None = None,
+                 bandwidth_hz: float = 15.0) -> None:
         self.model = model
         self.variant = variant
         self.alpha = alpha
+        self.bandwidth_hz = bandwidth_hz
 
     def _check(self) -> None:
         check_is_fitted(self.model, "model_")
-        if self.variant not in VARIANTS:
-            raise InputError(f"variant must be one of {', '.join(VARIANTS)}, got {self.variant!r}")
+        if self.variant not in (*VARIANTS, "momentum"):
+            raise InputError(f"variant must be one of {', '.join(VARIANTS)}, momentum, got {self.variant!r}")
         if self.alpha is not None and not 0.5 <= self.alpha < 1:
             raise InputError(f"alpha must be in [0.5, 1), got {self.alpha!r}")
 
@@ -252,12 +259,37 @@ class ContactDetector(BaseEstimator):
         n_mode = str(self.model.model_.record.get("settings", {}).get("n_mode", "dim"))
         return detectors(self.model.model_, self._alpha(), n_mode)[self.variant]
 
+    def _momentum_detector(self, runs: list | None = None) -> MomentumDetector:
+        if runs is None and hasattr(self, "momentum_"):
+            return self.momentum_
+        identified = self.model.model_
+        if runs is None:
+            runs, _ = calibration_runs(identified, None)
+        det = calibrate_momentum(identified.robot_model, identified.phi, identified.record, runs, self._alpha(),
+                                 identified.min_speed, self.bandwidth_hz, tracking=identified.supply_tracking)
+        self.momentum_ = det
+        return det
+
+    def _momentum_statistic(self, X: Data) -> tuple[Dataset, np.ndarray]:
+        identified = self.model.model_
+        robot = identified.robot_model
+        det = self._momentum_detector()
+        ds = _runs(X, robot)[0][0]
+        band = friction_band(robot, identified.phi, identified.record, det.band_sigmas)
+        res = run_residuals(robot, identified.phi, ds, det.bandwidth_hz, det.min_speed, band,
+                            identified.supply_tracking, det.velocity_window_s)
+        return ds, det.statistic(res.e, res.at_rest)
+
     def fit(self, X: Data | Sequence[Data], y: None = None) -> ContactDetector:
-        """Recalibrate Λ and T²_α on contact-free runs, with the offline derivatives and supply estimate."""
+        """Recalibrate Λ and T²_α on contact-free runs, with the offline derivatives and supply estimate (the
+        momentum variant: through its observer)."""
         self._check()
         identified = self.model.model_
         robot = identified.robot_model
         runs, _ = _runs(X, robot)
+        if self.variant == "momentum":
+            self._momentum_detector(runs)
+            return self
         phi, effects = identified.phi, identified.effects
         settings = FitSettings(min_speed=identified.min_speed)
 
@@ -271,14 +303,18 @@ class ContactDetector(BaseEstimator):
         return self
 
     def decision_function(self, X: Data) -> np.ndarray:
-        """T² per sample (NaN where the detector is gated off)."""
+        """T² per sample (NaN where the detector is gated off); T²/T²_α for the momentum variant."""
+        self._check()
+        if self.variant == "momentum":
+            return self._momentum_statistic(X)[1]
         ev = self.model._evaluated(X)
         e = ev.e_constant if self.variant == "paper" else ev.e  # the paper's model has constant gains
         return self._detector().t2(ev.model, e, ev.signals.dq, ev.identified.phi)
 
     def predict(self, X: Data) -> np.ndarray:
         """Contact (True) where T² exceeds T²_α."""
-        return np.nan_to_num(self.decision_function(X), nan=0.0) > self._detector().threshold
+        threshold = 1.0 if self.variant == "momentum" else self._detector().threshold
+        return np.nan_to_num(self.decision_function(X), nan=0.0) > threshold
 
     def score(self, X: Data, y: np.ndarray | None = None) -> float:
         """Balanced accuracy, (TPR + 1 − FPR) / 2, against `y` or the run's own contact ground truth."""
@@ -297,6 +333,10 @@ class ContactDetector(BaseEstimator):
     def evaluate(self, X: Data) -> dict[str, Any]:
         """TPR, FPR, ROC/AUC, episodes found and onset delays against the run's ground truth: this variant's
         part of `dynid detect --json`."""
+        self._check()
+        if self.variant == "momentum":
+            ds, stat = self._momentum_statistic(X)
+            return score_with_delays(ds.t, stat, 1.0, ds.contact, ds.extra.get("skin.side"))
         ev = self.model._evaluated(X)
         e = ev.e_constant if self.variant == "paper" else ev.e
         det = self._detector()

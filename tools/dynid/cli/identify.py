@@ -3,24 +3,30 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from ..config.robot_config import RobotConfig, load_config
 from ..detect.evaluation import detection
+from ..detect.momentum import DEFAULT_BANDWIDTH_HZ
+from ..detect.momentum_t2 import calibration_runs, momentum_detection, score_with_delays
 from ..detect.t2 import ALPHA
+from ..errors import DataError
 from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, FitSettings
 from ..identify.supply import SupplyTracking
 from ..identify.validation import evaluate, load_run, validation
+from ..io.dataset import contact_episodes
+from ..io.episodes import episodes_mask, read_episodes
 from ..paper import PAPER, PAPER_ROBOT
 from ..pipeline import DetectorSettings, IdentifySettings, identify
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from .commands import COMMANDS
 from .common import confidence as alpha
-from .common import (json_arg, min_speed_arg, non_negative_float, payload_arg, payloads, positive_int, robot_arg,
-                     window, window_args)
+from .common import (finite_float, json_arg, min_speed_arg, non_negative_float, payload_arg, payloads, positive_float,
+                     positive_int, robot_arg, window, window_args)
 
 INPUT_WORD = {"pwm": "PWM", "current": "current", "tau": "joint torque"}
 GAIN_UNIT = {"pwm": "Nm per unit duty", "current": "Nm per A"}
@@ -166,11 +172,48 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
+    labels = read_episodes(args.episodes) if args.episodes else None  # a bad file: exit 2 before any work
     ev = evaluate(args.model, args.data, window=window(args), payload=args.payload)
+    if labels is not None:
+        ds = replace(ev.dataset, contact=episodes_mask(ev.dataset.t, labels))
+        ev = replace(ev, dataset=ds)
     found = detection(ev, args.model, args.data, args.alpha, args.n_mode)
+    side = found.side
+    for variant, t2 in found.t2.items():  # every episode's onset delay, and against the labels' start + shift
+        found.result["variants"][variant] = score_with_delays(ev.dataset.t, t2, found.detectors[variant].threshold,
+                                                              ev.dataset.contact, side, args.label_widening)
+    if labels is not None:
+        found.result["episodes_file"] = {"path": args.episodes, "episodes": int(len(labels)),
+                                         "in_data": len(contact_episodes(ev.dataset.contact))}
+    momentum, skipped = None, None
+    if args.residual in (None, "momentum"):
+        try:
+            runs, paths = calibration_runs(ev.identified, args.calibration,
+                                           (args.calibration_from, args.calibration_to))
+            momentum = momentum_detection(ev.identified, ev.dataset, runs, args.alpha, args.bandwidth,
+                                          args.label_widening, side)
+        except DataError as e:
+            if args.residual == "momentum":  # asked for by name: its failure is the command's
+                raise
+            skipped = str(e)  # the default: say why, and report the acceleration-based variants
+    if momentum is not None:
+        found.result["variants"] = {"momentum": momentum.result, **found.result["variants"]}
+        found.result["events"] = momentum.events
+        found.result["calibration"] = paths
+    found.result["residual"] = "momentum" if momentum is not None else "acceleration"
+    if skipped:
+        found.result["momentum_skipped"] = skipped
     print(f"T² contact detection with {args.model} on {args.data} ({ev.dataset.n_samples} samples), α = {args.alpha}")
-    if ev.dataset.contact is None:
+    if labels is not None:
+        print(f"  contact labels: {args.episodes} ({len(labels)} episodes, "
+              f"{found.result['episodes_file']['in_data']} in the data)")
+    elif ev.dataset.contact is None:
         print("  no contact ground truth in the data: FPR assumes the run is contact-free")
+    if skipped:
+        print(f"  momentum residual skipped: {skipped}")
+    if momentum is not None:
+        print(f"  momentum: observer bandwidth {args.bandwidth:g} Hz, calibrated on {momentum.detector.samples} "
+              f"contact-free samples; {len(momentum.events)} contact events")
     for variant, s in found.result["variants"].items():
         tpr = "n/a" if s.get("tpr") is None else f"{100 * s['tpr']:.1f} %"
         line = f"  {variant:10s} threshold {s['threshold']:9.3g}: TPR {tpr}, FPR {100 * s['fpr']:.2f} %"
@@ -178,8 +221,14 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
             line += f", AUC {s['auc']:.3f}"
         if s.get("episodes"):
             delay = s["delay_s"]
-            line += (f", episodes {s['episodes_detected']}/{s['episodes']}, delay median "
-                     f"{1e3 * delay['median']:.0f} ms p90 {1e3 * delay['p90']:.0f} ms") if delay["median"] is not None else ""
+            line += f", episodes {s['episodes_detected']}/{s['episodes']}"
+            if delay["median"] is not None:
+                line += f", delay median {1e3 * delay['median']:.0f} ms p90 {1e3 * delay['p90']:.0f} ms"
+                line += f" max {1e3 * delay['max']:.0f} ms"
+            if "delay_s_shifted" in s:
+                d = s["delay_s_shifted"]
+                line += (f" (against start + {d['shift_s']:g} s: median {1e3 * d['median']:.0f} ms, "
+                         f"max {1e3 * d['max']:.0f} ms)")
         print(line)
         if s.get("tpr_by_side"):
             print("             TPR by side of the F/T sensor: " + ", ".join(
@@ -245,6 +294,23 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     payload_arg(sp, repeatable=False)
     sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"confidence level (default {ALPHA})")
     sp.add_argument("--n-mode", choices=["dim", "nu"], default="dim", help="n of the paper's F threshold")
+    sp.add_argument("--residual", choices=["momentum", "acceleration"], default=None,
+                    help="momentum (the default where it can be calibrated): T² on the generalized-momentum "
+                    "observer's residuals, which need no q̈ (docs/detection.md), reported beside the two "
+                    "acceleration-based variants; acceleration: those two only")
+    sp.add_argument("--bandwidth", type=positive_float, default=DEFAULT_BANDWIDTH_HZ, metavar="HZ",
+                    help=f"the momentum observer's bandwidth K_O/2π (default {DEFAULT_BANDWIDTH_HZ:g} Hz: "
+                    f"a {1e3 / (2 * np.pi * DEFAULT_BANDWIDTH_HZ):.1f} ms time constant)")
+    sp.add_argument("--calibration", action="append", metavar="DATA",
+                    help="a contact-free run to calibrate the momentum detector on (repeatable; default: the runs "
+                    "the model was fitted on)")
+    sp.add_argument("--calibration-from", type=finite_float, metavar="S", help="calibrate on --calibration from S on")
+    sp.add_argument("--calibration-to", type=finite_float, metavar="S", help="calibrate on --calibration up to S")
+    sp.add_argument("--episodes", metavar="EPISODES.csv",
+                    help="contact labels, a CSV 't_start,t_end' one episode a row in the data's seconds; "
+                    "replaces the data's contact column")
+    sp.add_argument("--label-widening", type=non_negative_float, default=0.0, metavar="S",
+                    help="the labels were widened by S on each side: also report onset delays against start + S")
     json_arg(sp)
     sp.set_defaults(func=cmd_detect)
 

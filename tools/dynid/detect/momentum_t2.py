@@ -1,0 +1,245 @@
+"""T² on the generalized-momentum residuals (dynid.detect.momentum): calibration, contact events with isolation
+and the estimated external torque and wrench, scoring against labels (`dynid detect --residual momentum`).
+
+- **Calibration** as dynid's calibrated detector does it (dynid.detect.t2): Λ per channel from contact-free runs
+  through the same observer (the rows of resting coordinates left out of Λ, where the band-clipped residual is
+  zero by construction), and T²_α the empirical α-quantile of T² on those runs, so α keeps its promise on data
+  like them. Every channel enters T² at every sample: at rest a row's residual is its distance outside the
+  static-friction band, so a resting arm can be pushed and seen.
+- **Isolation**: per F/T sensor, the share of T² on its six channels against that share's α-quantile on the
+  calibration runs: above it, the contact is on the sensor's distal side, else proximal; the joint: the most
+  distal joint whose external torque estimate exceeds `ISOLATION_SIGMAS` of its calibration noise (its link or
+  one beyond it carries the contact).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataError
+from ..robot.model import RobotModel
+from ..robot.outputs import output_channels
+from ..robot.regressors.stack import gravity_per_sample
+from .momentum import (DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S, MomentumResiduals, friction_band, measured_velocity,
+                       momentum_residuals)
+from .online import raw_signals
+from .t2 import QUANTILE_LEVELS, score
+
+ISOLATION_SIGMAS = 3.0
+BAND_SIGMAS = 1.0  # the static-friction band is widened by this many standard errors of the Coulomb terms
+SETTLE_TIME_CONSTANTS = 5  # the observer starts at rest: its first 5 time constants are not calibrated on
+MERGE_GAP_S = 0.02  # alarms closer than this form one event
+CALIBRATION_MAX_S = 150.0  # each calibration run's first 150 s
+CONTACT_MARGIN_S = 0.5  # a calibration run's labelled contacts are left out with this margin on each side
+
+
+@dataclass(frozen=True)
+class MomentumDetector:
+    bandwidth_hz: float
+    variance: np.ndarray  # Λ (n_out,) of the band-clipped observer residuals
+    tau_variance: np.ndarray  # (n_joints,) of the external joint torque estimate, for isolation
+    threshold: float
+    alpha: float
+    min_speed: float
+    band_sigmas: float
+    ft_thresholds: dict[str, float]  # sensor -> α-quantile of its channels' share of T²
+    samples: int
+    velocity_window_s: float = VELOCITY_WINDOW_S
+    quantiles: dict = field(default_factory=dict)  # {levels, values} of the calibration T²
+
+    def t2(self, e: np.ndarray) -> np.ndarray:
+        return np.sum(e**2 / self.variance, axis=1)
+
+    @property
+    def rest_threshold(self) -> float:
+        """T²_α where every row rests: χ²(n_out) at α (on contact-free runs T² is 0 there by construction)."""
+        from scipy import stats
+
+        return float(stats.chi2.ppf(self.alpha, self.variance.size))
+
+    def statistic(self, e: np.ndarray, at_rest: np.ndarray) -> np.ndarray:
+        """T² / T²_α per sample, T²_α the calibrated threshold, or `rest_threshold` where every row rests:
+        a contact is a value above 1."""
+        all_rest = at_rest.all(axis=1)
+        return self.t2(e) / np.where(all_rest, self.rest_threshold, self.threshold)
+
+    def as_dict(self) -> dict:
+        return {"variant": "momentum", "bandwidth_hz": self.bandwidth_hz, "variance": self.variance.tolist(),
+                "tau_variance": self.tau_variance.tolist(), "threshold": self.threshold,
+                "rest_threshold": self.rest_threshold, "alpha": self.alpha,
+                "min_speed": self.min_speed, "band_sigmas": self.band_sigmas, "ft_thresholds": self.ft_thresholds,
+                "calibration_samples": self.samples, "velocity_window_s": self.velocity_window_s}
+
+
+def run_residuals(model: RobotModel, phi: np.ndarray, dataset, bandwidth_hz: float, min_speed: float,
+                  band: dict, tracking=None, velocity_window_s: float = VELOCITY_WINDOW_S) -> MomentumResiduals:
+    t, q, inputs, tau, ft = raw_signals(model, dataset)
+    return momentum_residuals(model, phi, t, q, inputs, tau, ft, gravity_per_sample(model, dataset),
+                              bandwidth_hz=bandwidth_hz, min_speed=min_speed, band=band, tracking=tracking,
+                              velocity_window_s=velocity_window_s, dq=measured_velocity(model, dataset))
+
+
+def calibrate_momentum(model: RobotModel, phi: np.ndarray, record: dict | None, datasets: Sequence,
+                       alpha: float, min_speed: float, bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ,
+                       band_sigmas: float = BAND_SIGMAS, tracking=None,
+                       velocity_window_s: float = VELOCITY_WINDOW_S) -> MomentumDetector:
+    """Λ and T²_α of the momentum residuals on contact-free runs (their first 5 time constants left out)."""
+    band = friction_band(model, phi, record, band_sigmas)
+    es, rests, taus = [], [], []
+    settle = SETTLE_TIME_CONSTANTS / (2 * np.pi * bandwidth_hz)
+    for ds in datasets:
+        res = run_residuals(model, phi, ds, bandwidth_hz, min_speed, band, tracking, velocity_window_s)
+        keep = res.t - res.t[0] >= settle
+        if ds.contact is not None:  # a labelled run: its contacts, widened by CONTACT_MARGIN_S, are left out
+            keep &= ~_widened(res.t, np.asarray(ds.contact) != 0, CONTACT_MARGIN_S)
+        es.append(res.e[keep])
+        rests.append(res.at_rest[keep])
+        taus.append(res.tau_ext[keep])
+    e, rest, tau = np.vstack(es), np.vstack(rests), np.vstack(taus)
+    if e.shape[0] < 100:
+        raise DataError(f"{e.shape[0]} calibration samples for the momentum detector: too few")
+    moving = (~rest).sum(axis=0)
+    variance = np.where(rest, 0.0, e**2).sum(axis=0) / np.maximum(moving, 1)
+    variance = np.where((moving > 0) & (variance > 0), variance, np.mean(e**2, axis=0))
+    noise = np.array([o.sigma for o in output_channels(model)]) ** 2
+    variance = np.where(variance > 0, variance, noise)
+    tau_variance = np.maximum(np.mean(tau**2, axis=0), 1e-12)
+    t2 = np.sum(e**2 / variance, axis=1)
+    ft_thresholds = {}
+    for i, s in enumerate(model.config.ft_sensors):
+        rows = slice(6 * i, 6 * i + 6)
+        ft_thresholds[s.name] = float(np.quantile(np.sum(e[:, rows] ** 2 / variance[rows], axis=1), alpha))
+    return MomentumDetector(bandwidth_hz, variance, tau_variance, float(np.quantile(t2, alpha)), alpha, min_speed,
+                            band_sigmas, ft_thresholds, int(e.shape[0]), velocity_window_s,
+                            {"levels": QUANTILE_LEVELS.tolist(), "values": np.quantile(t2, QUANTILE_LEVELS).tolist()})
+
+
+def _widened(t: np.ndarray, mask: np.ndarray, margin_s: float) -> np.ndarray:
+    from ..io.dataset import contact_episodes
+
+    out = np.zeros(t.size, dtype=bool)
+    for a, b in contact_episodes(mask):
+        out[(t >= t[a] - margin_s) & (t <= t[b - 1] + margin_s)] = True
+    return out
+
+
+def contact_events(model: RobotModel, det: MomentumDetector, res: MomentumResiduals, stat: np.ndarray,
+                   limit: int = 200) -> list[dict]:
+    """Alarm runs (gaps under MERGE_GAP_S merged): onset, end, peak T², and at the peak the isolation (side of
+    each F/T sensor, the most distal joint with a significant external torque) and the estimates: external joint
+    torques (Nm) and, per sensor, the contact's wrench at the sensor (w − ŵ low-passed: N, Nm)."""
+    cfg = model.config
+    alarm = stat > 1.0
+    idx = np.flatnonzero(alarm)
+    if idx.size == 0:
+        return []
+    breaks = np.flatnonzero(np.diff(res.t[idx]) > MERGE_GAP_S)
+    starts, stops = np.r_[idx[0], idx[breaks + 1]], np.r_[idx[breaks], idx[-1]]
+    events = []
+    for a, b in zip(starts[:limit], stops[:limit]):
+        k = a + int(np.argmax(stat[a : b + 1]))
+        z = res.tau_ext[k] / np.sqrt(det.tau_variance)
+        significant = np.flatnonzero(np.abs(z) > ISOLATION_SIGMAS)
+        sides, wrenches = {}, {}
+        for i, s in enumerate(cfg.ft_sensors):
+            rows = slice(6 * i, 6 * i + 6)
+            share = float(np.sum(res.e[k, rows] ** 2 / det.variance[rows]))
+            sides[s.name] = "distal" if share > det.ft_thresholds[s.name] else "proximal"
+            wrenches[s.name] = res.r[k, rows].tolist()
+        events.append({"onset_s": float(res.t[a]), "end_s": float(res.t[b]), "peak_s": float(res.t[k]),
+                       "peak_t2": float(det.t2(res.e[k : k + 1])[0]),
+                       "peak_ratio": float(stat[k]),
+                       "joint": cfg.joints[int(significant[-1])] if significant.size else None,
+                       "largest": cfg.joints[int(np.argmax(np.abs(z)))],
+                       "side": sides, "tau_ext_nm": dict(zip(cfg.joints, res.tau_ext[k].tolist())),
+                       "wrench": wrenches})
+    return events
+
+
+def score_with_delays(t: np.ndarray, t2: np.ndarray, threshold: float, contact: np.ndarray | None,
+                      side: np.ndarray | None = None, shift_s: float = 0.0) -> dict:
+    """dynid.detect.t2.score plus every episode's onset delay (None: missed) and, with `shift_s`, the delays
+    against the labels' start + shift_s (labels widened by shift_s, as the UR10e folder's are)."""
+    from ..io.dataset import contact_episodes
+
+    out = score(t, t2, threshold, contact, side)
+    if contact is None:
+        return out
+    alarm = t2 > threshold
+    delays = []
+    for a, b in contact_episodes(contact):
+        hits = np.flatnonzero(alarm[a:b])
+        delays.append(float(t[a + hits[0]] - t[a]) if hits.size else None)
+    out["onset_delays_s"] = delays
+    found = [d for d in delays if d is not None]
+    if found:
+        out["delay_s"]["max"] = float(max(found))
+    if shift_s and found:
+        shifted = [d - shift_s for d in found]
+        out["delay_s_shifted"] = {"shift_s": shift_s, "median": float(np.median(shifted)),
+                                  "p90": float(np.percentile(shifted, 90)), "max": float(max(shifted))}
+    return out
+
+
+def calibration_runs(identified, paths: Sequence[str] | None, window=(None, None)) -> tuple[list, list[str]]:
+    """The contact-free runs to calibrate on: `paths` (cut to `window`), or the runs the model was fitted on."""
+    from ..identify.validation import load_run
+    from ..io.load import apply_window
+
+    model = identified.robot_model
+    given = bool(paths)
+    if not paths:
+        paths = [d["path"] for d in identified.record.get("data", [])]
+        missing = [p for p in paths if not Path(p).exists()]
+        if not paths or missing:
+            raise DataError(f"{identified.path}: the runs it was fitted on are not at hand ({(missing or ['none'])[0]}); "
+                            "give contact-free runs to calibrate the momentum detector with --calibration DATA")
+    runs = []
+    records = {} if given else {d["path"]: d for d in identified.record.get("data", [])}
+    for p in paths:
+        ds = load_run(str(p), model, window)
+        fitted = records.get(p, {}).get("samples")
+        if fitted is not None and fitted != ds.n_samples:  # the fit saw a window the model file does not name
+            raise DataError(f"{identified.path} was fitted on {fitted} of the {ds.n_samples} samples of {p} (a --from/--to "
+                            "window); give the contact-free runs to calibrate the momentum detector with --calibration "
+                            "DATA --calibration-from S --calibration-to S")
+        if ds.duration > CALIBRATION_MAX_S:  # the observer runs every sample: a bounded time
+            ds = apply_window(ds, None, float(ds.t[0]) + CALIBRATION_MAX_S, source=str(p))
+        runs.append(ds)
+    return runs, [str(p) for p in paths]
+
+
+@dataclass(frozen=True)
+class MomentumDetection:
+    result: dict
+    detector: MomentumDetector
+    residuals: MomentumResiduals
+    statistic: np.ndarray  # T²/T²_α per sample
+    events: list
+
+
+def momentum_detection(identified, dataset, calibration: Sequence, alpha: float,
+                       bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ, shift_s: float = 0.0,
+                       side: np.ndarray | None = None,
+                       velocity_window_s: float = VELOCITY_WINDOW_S) -> MomentumDetection:
+    """Calibrate on the contact-free `calibration` runs, then T², events and scores on `dataset`."""
+    model, phi = identified.robot_model, identified.phi
+    if identified.effects:
+        raise DataError(f"{identified.path}: an augmented model (named effects) has no momentum residual yet; use "
+                        "--residual acceleration")
+    tracking = identified.supply_tracking
+    det = calibrate_momentum(model, phi, identified.record, calibration, alpha, identified.min_speed, bandwidth_hz,
+                             tracking=tracking, velocity_window_s=velocity_window_s)
+    band = friction_band(model, phi, identified.record, det.band_sigmas)
+    res = run_residuals(model, phi, dataset, bandwidth_hz, identified.min_speed, band, tracking, velocity_window_s)
+    stat = det.statistic(res.e, res.at_rest)
+    result = score_with_delays(dataset.t, stat, 1.0, dataset.contact, side, shift_s)
+    result["threshold"] = det.threshold
+    result["statistic"] = "T²/T²_α (T²_α: calibrated, or rest_threshold where every row rests); a contact above 1"
+    result["detector"] = det.as_dict()
+    events = contact_events(model, det, res, stat)
+    return MomentumDetection(result, det, res, stat, events)
