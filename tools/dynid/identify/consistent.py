@@ -4,7 +4,7 @@ body has a mass distribution, whose friction is dissipative and whose motor gain
 The problem is a semidefinite programme (Wensing, Kim and Slotine, RA-L 2018; Sousa and Cortesão, IJRR 2014),
 solved by Clarabel through cvxpy (docs/consistency.md says why):
 
-    minimise    ‖F (Φ − Φ̂)‖²  +  λ · Σ_inertial ((Φ_i − Φ_CAD,i) / σ_i)² · c  +  λ₀ · Σ_all ((Φ_i − Φ_prior,i) / σ_i)² · c
+    minimise    ‖F (Φ − Φ̂)‖²  +  λ·c · Σ_inertial ((Φ_i − Φ_CAD,i) / σ_i)²  +  λ₀·c · Σ_all ((Φ_i − Φ_prior,i) / σ_i)²
     subject to  J(φ_b) ⪰ ε · J(φ_b,CAD)                  every body b (the pseudo-inertia, robot/pseudo_inertia.py)
                 m_b − tr Σ_b / R_b² ≥ ε · m_b,CAD         every body: density-realizable inside a sphere of radius R_b
                 fc±, fv± ≥ 0                              every joint and motor friction coefficient
@@ -30,6 +30,7 @@ solved by Clarabel through cvxpy (docs/consistency.md says why):
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -45,7 +46,7 @@ LAMBDA_FLOOR = 1e-9  # λ₀: uniqueness in the directions the data do not see
 EPSILON = 1e-3  # J ⪰ ε·J_CAD: strictly inside the cone, so rounding never shows a body on the wrong side
 GAIN_FLOOR = 0.1  # a gain below a tenth of its nominal value is no motor's
 CV_TIE = 1e-3  # a larger λ must lower the held-out residual by more than this (relative) to be chosen
-ACTIVE_RTOL = 1e-5  # a constraint binds when its slack is below this, relative to its scale
+ACTIVE_RTOL = 1e-6  # a constraint binds when its slack is below this, relative to its scale (the solver's ends near 1e-10)
 
 
 @dataclass
@@ -65,9 +66,11 @@ class ConsistentResult:
     folds: list[np.ndarray] = field(default_factory=list)  # the fold solutions at the chosen λ (for the jackknife)
     solve_time_s: float = 0.0
     solver: str = ""
+    solver_status: str = ""
 
     def record(self) -> dict:
         return {"lambda": self.lam, "active": self.active, "cv": self.cv, "solver": self.solver,
+                "solver_status": self.solver_status,
                 "solve_time_s": self.solve_time_s, "epsilon": EPSILON, "gain_floor": GAIN_FLOOR}
 
 
@@ -97,14 +100,15 @@ def _bodies(model: RobotModel, cad: np.ndarray) -> _Bodies:
     for k, body in enumerate(model.bodies):
         s = start + 10 * k
         phi = cad[s:s + 10]
-        extent = max(link_extent(model, k), 0.02)
+        reach = link_extent(model, k)
+        extent = max(reach, 0.02)  # the scales' length (a link that reaches nowhere still has a size)
         m = max(float(phi[0]), 1e-3)
         out.starts.append(s)
         out.names.append(body.name)
         out.j_cad.append(pseudo_inertia(phi) if phi[0] > 0 else np.zeros((4, 4)))
         out.scale.append(np.array([1 / extent, 1 / extent, 1 / extent, 1.0]) / np.sqrt(m))
         out.mass.append(m)
-        out.radius.append(COM_MARGIN_FACTOR * extent + COM_MARGIN_M)
+        out.radius.append(COM_MARGIN_FACTOR * reach + COM_MARGIN_M)
         out.length.append(extent)
     return out
 
@@ -149,7 +153,9 @@ class ConsistentProblem:
         d = np.diag(gram)
         self.c = float(np.mean(d[inertial] * S[inertial] ** 2)) if inertial.any() else float(np.mean(d * S**2))
         self.c = self.c if self.c > 0 else 1.0
-        self.F = cp.Parameter((p, p))  # the Gram's factor, times diag(σ), divided by √c
+        # the Gram's factor times diag(σ): the objective stays in the rows' noise units (rows are weighted by 1/σ),
+        # where a change below 1 is below the noise, and the solver's tolerances mean the same on every robot
+        self.F = cp.Parameter((p, p))
         self.target = cp.Parameter(p)  # Φ̂ (the unconstrained estimate)
         # λ enters as √λ·(z + (Φ̂ − Φ_CAD)/σ) on the inertial entries, with √λ and √λ·(Φ̂ − Φ_CAD)/σ as parameters: a
         # product of two parameters would not be DPP, and every solve would compile the problem anew
@@ -160,7 +166,8 @@ class ConsistentProblem:
         phi = self.target + cp.multiply(S, z)
         to_cad = self.root_lam * z[inertial] + self.cad_offset
         to_prior = z + cp.multiply(1 / S, self.target - prior)
-        objective = cp.sum_squares(self.F @ z) + cp.sum_squares(to_cad) + LAMBDA_FLOOR * cp.sum_squares(to_prior)
+        objective = (cp.sum_squares(self.F @ z) + cp.sum_squares(to_cad)
+                     + LAMBDA_FLOOR * self.c * cp.sum_squares(to_prior))
         cons, self.tags = [], []
         eps = settings.epsilon
         for b, s in enumerate(self.bodies.starts):
@@ -194,20 +201,23 @@ class ConsistentProblem:
     def solve(self, gram: np.ndarray, target: np.ndarray, lam: float) -> np.ndarray:
         """Φ for the Gram `gram` (AᵀW²A, p×p) and the unconstrained estimate `target`."""
         cp = self.cp
-        self.F.value = _factor(gram) * self.sigma[None, :] / np.sqrt(self.c)
+        self.F.value = _factor(gram) * self.sigma[None, :]
         self.target.value = target
-        self.root_lam.value = np.sqrt(lam)
-        self.cad_offset.value = np.sqrt(lam) * (target - self.cad)[self.inertial] / self.sigma[self.inertial]
+        root = np.sqrt(lam * self.c)
+        self.root_lam.value = root
+        self.cad_offset.value = root * (target - self.cad)[self.inertial] / self.sigma[self.inertial]
         solvers = [self.settings.solver] + [s for s in ("CLARABEL", "SCS") if s != self.settings.solver]
         last = ""
         for solver in solvers:
             try:
-                self.problem.solve(solver=solver)
+                with warnings.catch_warnings():  # "may be inaccurate": the status says so, and the record keeps it
+                    warnings.simplefilter("ignore")
+                    self.problem.solve(solver=solver)
             except (cp.error.SolverError, cp.error.DCPError, ValueError, ArithmeticError) as e:
                 last = f"{solver}: {str(e).splitlines()[0] if str(e) else e.__class__.__name__}"
                 continue
             if self.problem.status in ("optimal", "optimal_inaccurate") and self.z.value is not None:
-                self.solver = solver
+                self.solver, self.status = solver, self.problem.status
                 return target + self.sigma * np.asarray(self.z.value)
             last = f"{solver}: {self.problem.status}"
         raise DataError(f"the physically consistent fit failed ({last}); rerun with --consistent off")
@@ -272,4 +282,4 @@ def consistent_fit(model: RobotModel, gram_blocks: np.ndarray, target: np.ndarra
     active = problem.active(phi)
     cv = {"lambdas": lambdas, "press": press.tolist(), "chosen": lam}
     return ConsistentResult(phi, lam, active, cv, fold_solutions[best], time.perf_counter() - started,
-                            problem.solver)
+                            problem.solver, problem.status)
