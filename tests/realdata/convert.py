@@ -13,6 +13,7 @@ reported, never silently (the README beside this file lists what happened on the
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,7 +24,8 @@ from dynid.io.csv_format import write_csv
 from dynid.io.dataset import Dataset
 
 # CI clones the repository with shared/ beside it: <parent>/main/tests/realdata/convert.py, <parent>/shared.
-REALDATA = Path(__file__).resolve().parents[2].parent / "shared" / "realdata"
+# DYNID_REALDATA=DIR points elsewhere (a git worktree that does not sit beside shared/).
+REALDATA = Path(os.environ.get("DYNID_REALDATA") or Path(__file__).resolve().parents[2].parent / "shared" / "realdata")
 # The URDFs of the bundled configurations that the user supplies (`--urdf`): they live beside the runs.
 TIAGO_URDF = REALDATA / "tiago_wrist_ft" / "urdf" / "tiago_48_hey5.urdf"
 UR10E_URDF = REALDATA / "ur10e_mamedov" / "ur10e.urdf"

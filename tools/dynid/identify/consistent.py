@@ -19,7 +19,8 @@ solved by Clarabel through cvxpy (docs/consistency.md says why):
   part) are free, and that is what the LMIs use first, at no cost to the fit. λ₀ (tiny, fixed) keeps them at the
   prior where no constraint needs them, so the solution is unique.
 - λ pulls the inertial parameters towards CAD, and is chosen by cross-validation over the fit's time blocks
-  (held-out weighted residual; λ = 0 is a candidate and wins ties).
+  (held-out weighted residual; λ = 0 is a candidate, and a λ > 0 must beat it by more than one standard error of
+  the folds' paired differences: `choose_lambda`).
 - σ_i are natural scales: per body m, m·ℓ, m·ℓ² (CAD mass, ℓ the link's extent); other parameters by their
   column of the Gram. c normalises the objective so that λ = 1 weighs a natural unit of each inertial parameter
   as much as the data do on average.
@@ -45,7 +46,7 @@ LAMBDAS: tuple[float, ...] = (0.0, 1e-4, 1e-3, 1e-2, 1e-1)  # candidates for the
 LAMBDA_FLOOR = 1e-9  # λ₀: uniqueness in the directions the data do not see
 EPSILON = 1e-3  # J ⪰ ε·J_CAD: strictly inside the cone, so rounding never shows a body on the wrong side
 GAIN_FLOOR = 0.1  # a gain below a tenth of its nominal value is no motor's
-CV_TIE = 1e-3  # a larger λ must lower the held-out residual by more than this (relative) to be chosen
+CV_TIE = 1e-3  # … and by more than this, relative, whatever the spread
 ACTIVE_RTOL = 1e-6  # a constraint binds when its slack is below this, relative to its scale (the solver's ends near 1e-10)
 
 
@@ -250,6 +251,19 @@ class ConsistentProblem:
         return out
 
 
+def choose_lambda(press: np.ndarray) -> int:
+    """The column of `press` (folds × λ, λ = 0 first) to keep: the λ of least held-out residual, if it beats λ = 0 by
+    more than the folds' own spread (one standard error of the paired difference summed over folds); else λ = 0. A
+    pull towards CAD biases every parameter it touches, so it has to earn its place."""
+    total = press.sum(axis=0)
+    best = int(np.argmin(total))
+    if best == 0:
+        return 0
+    diff = press[:, best] - press[:, 0]
+    se = np.sqrt(diff.size) * diff.std(ddof=1) if diff.size > 1 else 0.0
+    return best if -diff.sum() > max(se, CV_TIE * total[0]) else 0
+
+
 def consistent_fit(model: RobotModel, gram_blocks: np.ndarray, target: np.ndarray, fold_targets: list[np.ndarray],
                    prior: np.ndarray, settings: ConsistentSettings = ConsistentSettings()) -> ConsistentResult:
     """The consistent Φ on the whole run, λ chosen by cross-validation over its time blocks.
@@ -263,7 +277,7 @@ def consistent_fit(model: RobotModel, gram_blocks: np.ndarray, target: np.ndarra
     problem = ConsistentProblem(model, prior, cad, total[:p, :p], settings)
     B = gram_blocks.shape[0]
     lambdas = list(settings.lambdas)
-    press = np.zeros(len(lambdas))
+    press = np.zeros((B, len(lambdas)))  # held-out weighted residual, per fold and λ
     fold_solutions: list[list[np.ndarray]] = [[] for _ in lambdas]
     for k in range(B):
         train = total - gram_blocks[k]
@@ -271,15 +285,12 @@ def consistent_fit(model: RobotModel, gram_blocks: np.ndarray, target: np.ndarra
         for j, lam in enumerate(lambdas):
             phi = problem.solve(train[:p, :p], fold_targets[k], lam)
             x = np.append(phi, -1.0)
-            press[j] += float(x @ held @ x)
+            press[k, j] = float(x @ held @ x)
             fold_solutions[j].append(phi)
-    best = 0
-    for j in range(1, len(lambdas)):
-        if press[j] < press[best] * (1 - CV_TIE):
-            best = j
+    best = choose_lambda(press)
     lam = lambdas[best]
     phi = problem.solve(total[:p, :p], target, lam)
     active = problem.active(phi)
-    cv = {"lambdas": lambdas, "press": press.tolist(), "chosen": lam}
+    cv = {"lambdas": lambdas, "press": press.sum(axis=0).tolist(), "chosen": lam}
     return ConsistentResult(phi, lam, active, cv, fold_solutions[best], time.perf_counter() - started,
                             problem.solver, problem.status)
