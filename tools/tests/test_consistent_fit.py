@@ -195,4 +195,7 @@ def test_a_poor_run_is_unphysical_unconstrained_and_physical_consistent(default_
     on = fitmod.fit_statistics(model, off.statistics, fitmod.FitSettings(consistent=True), off.samples)
     assert on.chosen == "consistent" and on.consistent["status"] == "solved"
     assert implausible(model, on.phi) == []
-    assert on.consistent["active"]["pseudo_inertia"] or on.consistent["active"]["sphere"]
+    # physical at little cost to the fit: the channels' residual variance on the identification data, relative to
+    # the unconstrained fit's, is no larger on average (measured: F/T torques +5…+10 %, the PWMs −11…−55 %)
+    ratio = on.residual_variance["consistent"] / off.residual_variance["iv"]
+    assert np.mean(ratio) <= 1.0, ratio

@@ -4,7 +4,7 @@ body has a mass distribution, whose friction is dissipative and whose motor gain
 The problem is a semidefinite programme (Wensing, Kim and Slotine, RA-L 2018; Sousa and Cortesão, IJRR 2014),
 solved by Clarabel through cvxpy (docs/consistency.md says why):
 
-    minimise    ‖F (Φ − Φ̂)‖²  +  λ·c · Σ_inertial ((Φ_i − Φ_CAD,i) / σ_i)²  +  λ₀·c · Σ_all ((Φ_i − Φ_prior,i) / σ_i)²
+    minimise    ‖F (Φ − Φ̂)‖²  +  λ·c · Σ_inertial ((Φ_i − Φ_CAD,i) / σ_i)²  +  λ₀·c · ‖P_null ((Φ − Φ_prior) / σ)‖²
     subject to  J(φ_b) ⪰ ε · J(φ_b,CAD)                  every body b (the pseudo-inertia, robot/pseudo_inertia.py)
                 m_b − tr Σ_b / R_b² ≥ ε · m_b,CAD         every body: density-realizable inside a sphere of radius R_b
                 fc±, fv± ≥ 0                              every joint and motor friction coefficient
@@ -17,7 +17,8 @@ solved by Clarabel through cvxpy (docs/consistency.md says why):
   constraint binds.
 - The Gram sees only the base combinations: the directions the data cannot see (the full Φ's non-identifiable
   part) are free, and that is what the LMIs use first, at no cost to the fit. λ₀ (tiny, fixed) keeps them at the
-  prior where no constraint needs them, so the solution is unique.
+  prior where no constraint needs them, so the solution is unique; it acts on those directions only (`null`), so
+  the combinations the data determine are never pulled.
 - λ pulls the inertial parameters towards CAD, and is chosen by cross-validation over the fit's time blocks
   (held-out weighted residual; λ = 0 is a candidate, and a λ > 0 must beat it by more than one standard error of
   the folds' paired differences: `choose_lambda`).
@@ -43,7 +44,7 @@ from ..robot.pseudo_inertia import PSEUDO_INERTIA_BASIS, pseudo_inertia
 from .plausibility import COM_MARGIN_FACTOR, COM_MARGIN_M, link_extent
 
 LAMBDAS: tuple[float, ...] = (0.0, 1e-4, 1e-3, 1e-2, 1e-1)  # candidates for the pull towards CAD
-LAMBDA_FLOOR = 1e-9  # λ₀: uniqueness in the directions the data do not see
+LAMBDA_FLOOR = 1e-12  # λ₀: uniqueness in the directions the data do not see
 EPSILON = 1e-3  # J ⪰ ε·J_CAD: strictly inside the cone, so rounding never shows a body on the wrong side
 GAIN_FLOOR = 0.1  # a gain below a tenth of its nominal value is no motor's
 CV_TIE = 1e-3  # … and by more than this, relative, whatever the spread
@@ -136,7 +137,9 @@ class ConsistentProblem:
     """The SDP, built once (cvxpy parameters for the Gram factor, the target and λ) and solved per fold and λ."""
 
     def __init__(self, model: RobotModel, prior: np.ndarray, cad: np.ndarray, gram: np.ndarray,
-                 settings: ConsistentSettings = ConsistentSettings()) -> None:
+                 settings: ConsistentSettings = ConsistentSettings(), null: np.ndarray | None = None) -> None:
+        """`null` (p, k): a basis of the directions of Φ the data cannot see (the base parameters' [−K; 1] columns);
+        λ₀ acts on those only, so the combinations the data determine are never pulled. None: on every direction."""
         import cvxpy as cp  # noqa: PLC0415 - only a consistent fit needs it
 
         self.cp = cp
@@ -167,6 +170,9 @@ class ConsistentProblem:
         phi = self.target + cp.multiply(S, z)
         to_cad = self.root_lam * z[inertial] + self.cad_offset
         to_prior = z + cp.multiply(1 / S, self.target - prior)
+        if null is not None:  # the orthogonal projection on the unseen directions, in z's coordinates (σ-scaled)
+            U = np.linalg.qr(null / S[:, None])[0] if null.shape[1] else np.zeros((p, 0))
+            to_prior = U.T @ to_prior
         objective = (cp.sum_squares(self.F @ z) + cp.sum_squares(to_cad)
                      + LAMBDA_FLOOR * self.c * cp.sum_squares(to_prior))
         cons, self.tags = [], []
@@ -265,16 +271,18 @@ def choose_lambda(press: np.ndarray) -> int:
 
 
 def consistent_fit(model: RobotModel, gram_blocks: np.ndarray, target: np.ndarray, fold_targets: list[np.ndarray],
-                   prior: np.ndarray, settings: ConsistentSettings = ConsistentSettings()) -> ConsistentResult:
+                   prior: np.ndarray, settings: ConsistentSettings = ConsistentSettings(),
+                   null: np.ndarray | None = None) -> ConsistentResult:
     """The consistent Φ on the whole run, λ chosen by cross-validation over its time blocks.
 
     gram_blocks: (B, p+1, p+1) per time block, the weighted [A b]ᵀ[A b]; target: the unconstrained Φ̂ on the whole
-    run; fold_targets[k]: the unconstrained Φ̂ without block k (the jackknife's)."""
+    run; fold_targets[k]: the unconstrained Φ̂ without block k (the jackknife's); null: the unseen directions (see
+    `ConsistentProblem`)."""
     started = time.perf_counter()
     p = len(model.layout)
     total = gram_blocks.sum(axis=0)
     cad = np.nan_to_num(model.cad_parameters(), nan=0.0)
-    problem = ConsistentProblem(model, prior, cad, total[:p, :p], settings)
+    problem = ConsistentProblem(model, prior, cad, total[:p, :p], settings, null)
     B = gram_blocks.shape[0]
     lambdas = list(settings.lambdas)
     press = np.zeros((B, len(lambdas)))  # held-out weighted residual, per fold and λ

@@ -304,8 +304,11 @@ def _consistent(model: RobotModel, stats: Statistics, base: BaseParameters, unco
     """The consistent estimate from the unconstrained one (its fold estimates are the CV's targets), or, when the
     solver fails, the reason (the model then keeps the unconstrained estimate: docs/consistency.md)."""
     try:
+        null = np.zeros((stats.p, base.dependent.size))  # Φ_ind = −K Φ_dep: what the data do not see
+        null[base.dependent, np.arange(base.dependent.size)] = 1.0
+        null[base.independent] = -base.K
         done = consistent_fit(model, stats.gram.sum(axis=1), unconstrained.phi,
-                              [expand(base, b, prior) for b in jack], prior, ConsistentSettings())
+                              [expand(base, b, prior) for b in jack], prior, ConsistentSettings(), null)
     except DataError as e:
         return {"status": "failed", "reason": str(e), "from": unconstrained.name}, None
     record = {"status": "solved", "from": unconstrained.name, **done.record()}
