@@ -47,7 +47,7 @@ LAMBDAS: tuple[float, ...] = (0.0, 1e-4, 1e-3, 1e-2, 1e-1)  # candidates for the
 LAMBDA_FLOOR = 1e-12  # λ₀: uniqueness in the directions the data do not see
 EPSILON = 1e-3  # J ⪰ ε·J_CAD: strictly inside the cone, so rounding never shows a body on the wrong side
 GAIN_FLOOR = 0.1  # a gain below a tenth of its nominal value is no motor's
-CV_TIE = 1e-3  # … and by more than this, relative, whatever the spread
+CV_TIE = 1e-3  # a λ > 0 must also lower the held-out residual by this much (relative) to be chosen
 ACTIVE_RTOL = 1e-6  # a constraint binds when its slack is below this, relative to its scale (the solver's ends near 1e-10)
 
 
@@ -69,14 +69,16 @@ class ConsistentResult:
     solve_time_s: float = 0.0
     solver: str = ""
     solver_status: str = ""
+    settings: ConsistentSettings = field(default_factory=ConsistentSettings)
 
     def record(self) -> dict:
         return {"lambda": self.lam, "active": self.active, "cv": self.cv, "solver": self.solver,
-                "solver_status": self.solver_status,
-                "solve_time_s": self.solve_time_s, "epsilon": EPSILON, "gain_floor": GAIN_FLOOR}
+                "solver_status": self.solver_status, "solve_time_s": self.solve_time_s,
+                "epsilon": self.settings.epsilon, "gain_floor": self.settings.gain_floor}
 
 
 def _factor(gram: np.ndarray) -> np.ndarray:
+    """F with FᵀF = G (as dynid.identify.fit's, which imports this module)."""
     d = np.sqrt(np.clip(np.diag(gram), 0.0, None))
     d = np.where(d > 0, d, 1.0)
     lam, V = np.linalg.eigh(gram / np.outer(d, d))
@@ -301,4 +303,4 @@ def consistent_fit(model: RobotModel, gram_blocks: np.ndarray, target: np.ndarra
     active = problem.active(phi)
     cv = {"lambdas": lambdas, "press": press.sum(axis=0).tolist(), "chosen": lam}
     return ConsistentResult(phi, lam, active, cv, fold_solutions[best], time.perf_counter() - started,
-                            problem.solver, problem.status)
+                            problem.solver, problem.status, settings)
