@@ -62,8 +62,8 @@ def test_leg_table_ii_at_least_as_good(leg: dict, sensor: str, what: str) -> Non
     assert on <= off * 1.001, (sensor, what, off, on)
 
 
-@pytest.mark.xfail(strict=True, reason="measured: the consistent leg's r_leg_ft_sensor torque error is 0.159 Nm "
-                   "against the unconstrained 0.141 Nm (+13 %): the unphysical bodies were fitting something a rigid "
+@pytest.mark.xfail(strict=True, reason="measured: the consistent leg's r_leg_ft_sensor torque error is 0.158 Nm "
+                   "against the unconstrained 0.141 Nm (+12 %): the unphysical bodies were fitting something a rigid "
                    "body cannot (docs/consistency.md)")
 def test_leg_table_ii_torque_of_the_leg_sensor_at_least_as_good(leg: dict) -> None:
     off, on = error(leg["off"][1], "r_leg_ft_sensor", "torque"), error(leg["on"][1], "r_leg_ft_sensor", "torque")
