@@ -199,3 +199,35 @@ def test_a_poor_run_is_unphysical_unconstrained_and_physical_consistent(default_
     # the unconstrained fit's, is no larger on average (measured: F/T torques +5…+10 %, the PWMs −11…−55 %)
     ratio = on.residual_variance["consistent"] / off.residual_variance["iv"]
     assert np.mean(ratio) <= 1.0, ratio
+
+
+def test_a_solver_failure_is_one_line_and_the_fit_keeps_the_unconstrained_estimate(arm: RobotModel, monkeypatch) -> None:
+    import cvxpy as cp
+
+    from dynid.errors import DataError
+
+    truth = physical_truth(arm)
+    A, b = synthetic(arm, truth, rows=500)
+    prior = fitmod.prior_parameters(arm)
+    problem = ConsistentProblem(arm, prior, np.nan_to_num(arm.cad_parameters(), nan=0.0), A.T @ A)
+
+    def broken(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+        raise cp.error.SolverError("Solver 'X' failed. Try another solver")
+
+    monkeypatch.setattr(problem.problem, "solve", broken)
+    with pytest.raises(DataError) as e:
+        problem.solve(A.T @ A, ols(A, b), 0.0)
+    assert "\n" not in str(e.value) and "--consistent off" in str(e.value)
+
+    def failing(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+        raise DataError("the physically consistent fit failed (SCS: infeasible); rerun with --consistent off")
+
+    monkeypatch.setattr(fitmod, "consistent_fit", failing)
+    from types import SimpleNamespace
+
+    p = len(arm.layout)
+    stats = SimpleNamespace(p=p, gram=np.zeros((2, 1, p + 1, p + 1)))
+    base = SimpleNamespace(dependent=np.zeros(0, int), independent=np.arange(p), K=np.zeros((p, 0)))
+    estimate = fitmod.Estimate("iv", np.zeros(p), np.zeros(p), truth, {})
+    record, consistent = fitmod._consistent(arm, stats, base, estimate, np.zeros((0, p)), prior)
+    assert consistent is None and record["status"] == "failed" and record["from"] == "iv"
