@@ -272,7 +272,12 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
     variance = {name: channel_variance(stats, e.phi, model) for name, e in estimates.items()}
     chosen = estimates[chosen_name]
     cad = np.abs(base.base(np.nan_to_num(model.cad_parameters(), nan=0.0)))
-    identified = (chosen.se <= IDENTIFIED_RSE * np.abs(chosen.beta)) | (chosen.se <= IDENTIFIED_SCALE * cad)
+    determined = lambda e: (e.se <= IDENTIFIED_RSE * np.abs(e.beta)) | (e.se <= IDENTIFIED_SCALE * cad)  # noqa: E731
+    identified = determined(chosen)
+    if chosen_name == CONSISTENT:
+        # The constraints narrow the folds' spread, but they do not make the run determine a combination: it must be
+        # determined without them too, and not rest on a bound (a gain at its floor is the same in every fold)
+        identified &= determined(estimates[settings.estimator]) & ~_at_bound(base, model, consistent)
     identified &= ~unseen.any(axis=0)  # a fold cannot see them: the jackknife has no error to give
     step = chosen.detail.get("last_step", 0.0)
     settled = step is not None and step <= IV_SETTLED
@@ -289,6 +294,17 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
         for k in range(B) if unseen[k].any()]}
     return FitResult(model, base, estimates, chosen_name, cv, variance, identified, stats, samples, rows_used,
                      jackknife, consistent)
+
+
+def _at_bound(base: BaseParameters, model: RobotModel, consistent: dict) -> np.ndarray:
+    """(rank,) bool: the base combinations that involve a friction coefficient or a gain at its bound."""
+    names = model.layout.names
+    bound = {names.index(n) for n in consistent["active"]["friction"] + consistent["active"]["gain"]}
+    out = np.array([i in bound for i in base.independent])
+    for j, d in enumerate(base.dependent):
+        if d in bound:
+            out |= base.K[:, j] != 0
+    return out
 
 
 def _jackknife_se(jack: np.ndarray) -> np.ndarray:
