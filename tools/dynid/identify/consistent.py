@@ -177,33 +177,29 @@ class ConsistentProblem:
             to_prior = U.T @ to_prior
         objective = (cp.sum_squares(self.F @ z) + cp.sum_squares(to_cad)
                      + LAMBDA_FLOOR * self.c * cp.sum_squares(to_prior))
-        cons, self.tags = [], []
+        cons = []
         eps = settings.epsilon
         for b, s in enumerate(self.bodies.starts):
             T = self.bodies.scale[b]
             TT = np.outer(T, T)
             J = sum(phi[s + k] * (PSEUDO_INERTIA_BASIS[k] * TT) for k in range(10)) - eps * self.bodies.j_cad[b] * TT
             cons.append(0.5 * (J + J.T) >> 0)
-            self.tags.append(("lmi", b))
             R = self.bodies.radius[b]
             m_cad = self.bodies.mass[b]
             trace_sigma = 0.5 * (phi[s + 4] + phi[s + 6] + phi[s + 9])  # tr Σ = ½ tr I
             cons.append((phi[s] - trace_sigma / R**2 - eps * float(cad[s] > 0) * m_cad) / m_cad >= 0)
-            self.tags.append(("sphere", b))
         layout = model.layout
         self.friction = [blk.start + i for kind in ("joint_friction", "motor_friction") for blk in layout.blocks_of(kind)
                          for i, f in enumerate(blk.names) if f.split(".")[-1] in FRICTION_FIELDS]
         if self.friction:
             idx = np.array(self.friction)
             cons.append(cp.multiply(1 / S[idx], phi[idx]) >= 0)
-            self.tags.append(("friction", None))
         self.gains = [blk.start for blk in layout.blocks_of("motor_gain")]
         if self.gains:
             idx = np.array(self.gains)
             nominal = prior[idx]
             sign = np.where(nominal < 0, -1.0, 1.0)
             cons.append(cp.multiply(sign / S[idx], phi[idx]) >= settings.gain_floor * np.abs(nominal) / S[idx])
-            self.tags.append(("gain", None))
         self.constraints = cons
         self.problem = cp.Problem(cp.Minimize(objective), cons)
 
