@@ -23,8 +23,8 @@ import numpy as np
 from dynid.io.csv_format import write_csv
 from dynid.io.dataset import Dataset
 
-# CI clones the repository with shared/ beside it: <parent>/main/tests/realdata/convert.py, <parent>/shared;
-# DYNID_REALDATA names the directory elsewhere (a git worktree one level deeper).
+# CI clones the repository with shared/ beside it: <parent>/main/tests/realdata/convert.py, <parent>/shared.
+# DYNID_REALDATA=DIR points elsewhere (a git worktree that does not sit beside shared/).
 REALDATA = Path(os.environ.get("DYNID_REALDATA") or Path(__file__).resolve().parents[2].parent / "shared" / "realdata")
 # The URDFs of the bundled configurations that the user supplies (`--urdf`): they live beside the runs.
 TIAGO_URDF = REALDATA / "tiago_wrist_ft" / "urdf" / "tiago_48_hey5.urdf"

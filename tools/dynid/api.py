@@ -91,6 +91,10 @@ class DynamicsModel(BaseEstimator):
         n of the paper's F threshold: dim(e), or ν as the paper writes.
     supply_time_constant : float
         Time constant (s) of each motor's supply tracking; 0 keeps the gains constant.
+    consistent : bool
+        Physically consistent estimation (docs/consistency.md): the estimator's parameters projected onto physical
+        ones (every pseudo-inertia positive semidefinite, friction ≥ 0, gains of their sign), kept as the
+        estimator "consistent".
 
     Attributes
     ----------
@@ -106,7 +110,7 @@ class DynamicsModel(BaseEstimator):
 
     def __init__(self, robot: str | Path = "icub_right_arm", estimator: str = "iv", n_components: int | None = None,
                  blocks: int = 10, min_speed: float = 0.01, alpha: float = ALPHA, n_mode: str = "dim",
-                 supply_time_constant: float = SupplyTracking.time_constant_s) -> None:
+                 supply_time_constant: float = SupplyTracking.time_constant_s, consistent: bool = True) -> None:
         self.robot = robot
         self.estimator = estimator
         self.n_components = n_components
@@ -115,6 +119,7 @@ class DynamicsModel(BaseEstimator):
         self.alpha = alpha
         self.n_mode = n_mode
         self.supply_time_constant = supply_time_constant
+        self.consistent = consistent
 
     def _check_params(self) -> None:
         if self.estimator not in ESTIMATORS:
@@ -131,6 +136,8 @@ class DynamicsModel(BaseEstimator):
             raise InputError(f"n_mode must be 'dim' or 'nu', got {self.n_mode!r}")
         if not (np.isfinite(self.supply_time_constant) and self.supply_time_constant >= 0):
             raise InputError(f"supply_time_constant must be 0 or more, got {self.supply_time_constant!r}")
+        if not isinstance(self.consistent, (bool, np.bool_)):
+            raise InputError(f"consistent must be True or False, got {self.consistent!r}")
 
     def fit(self, X: Data | Sequence[Data], y: None = None) -> DynamicsModel:
         """Identify the model on one or more contact-free runs (stacked into one regression).
@@ -146,7 +153,7 @@ class DynamicsModel(BaseEstimator):
         robot = load_robot(self.robot)
         runs, labels = _runs(X, robot)
         fit = FitSettings(estimator=self.estimator, n_components=self.n_components, min_speed=self.min_speed,
-                          blocks=self.blocks)
+                          blocks=self.blocks, consistent=bool(self.consistent))
         done = identify(robot, runs, labels, IdentifySettings(fit, DetectorSettings(self.alpha, self.n_mode),
                                                               self.supply_time_constant))
         self._set_fitted(done.model)

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from .detect.t2 import ALPHA, Detector, calibrate, calibration_residuals, detector_record
-from .identify.fit import FitResult, FitSettings, fit
+from .identify.fit import CONSISTENT, FitResult, FitSettings, fit
 from .identify.model_file import IdentifiedModel, data_record, robot_record
 from .identify.plausibility import implausible
 from .identify.statistics import Statistics
@@ -114,13 +114,15 @@ def fit_record(model: RobotModel, result: FitResult, settings: FitSettings, dete
     base = result.base
     names = model.layout.names
     return {
-        "estimator": result.chosen,
-        "settings": {"estimator": result.chosen, "n_components": n_components, "min_speed": settings.min_speed,
+        # the regression; with `consistent` solved, `parameters` are its physically consistent projection
+        "estimator": settings.estimator if result.chosen == CONSISTENT else result.chosen,
+        "settings": {"estimator": settings.estimator, "consistent": settings.consistent, "n_components": n_components, "min_speed": settings.min_speed,
                      "blocks": result.statistics.n_blocks, "instrument_window_s": settings.instrument_window_s,
                      "alpha": detector.alpha, "n_mode": detector.n_mode},
         "n_components": result.cv["n_components"],
         "cv": result.cv,
         "jackknife": result.jackknife,
+        "consistent": result.consistent,
         "base": {"rank": base.rank, "combinations": list(base.combinations()),
                  "independent": [names[i] for i in base.independent],
                  "dependent": [names[i] for i in base.dependent], "K": base.K.tolist(),
@@ -196,7 +198,7 @@ def identify(model: RobotModel, datasets: Sequence[Dataset], data_paths: Sequenc
                         residual_variance=result.residual_variance[result.chosen])
     total = time.perf_counter() - started
     built.model.record["fit_time_s"] = total
-    # Nothing keeps each body physical in the regression: say where the estimate is not (identify/plausibility.py)
+    # With --consistent off nothing keeps each body physical: say where the estimate is not (identify/plausibility.py)
     built.model.record["plausibility"] = implausible(model, result.phi)
     return Identification(built.model, result, built.detectors, fit_time, total, model)
 

@@ -39,7 +39,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     model = RobotModel(config)
     datasets = [load_run(p, model, window(args), w) for p, w in zip(args.data, payloads(args, len(args.data)))]
     settings = FitSettings(estimator=args.estimator, n_components=args.n_components, min_speed=args.min_speed,
-                           blocks=args.blocks)
+                           blocks=args.blocks, consistent=args.consistent == "on")
     detector = DetectorSettings(args.alpha, args.n_mode)
     done = identify(model, datasets, args.data, IdentifySettings(settings, detector, args.supply_time_constant,
                                                                  estimate_noise=args.noise == "estimate"))
@@ -103,24 +103,45 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         if undetermined:
             print("  not determined by this run (standard error above 10 %, or unseen by a jackknife fold; no value "
                   "given): " + ", ".join(undetermined))
+    print_consistent(result.consistent)
     warnings = record.get("plausibility", [])
     if warnings:
-        print(f"  WARNING: {len(warnings)} physically implausible estimate(s) (a fit that keeps every body physical is "
-              "issue 21's; the data may not determine these bodies one by one):")
+        print(f"  WARNING: {len(warnings)} physically implausible estimate(s) (--consistent on keeps every body "
+              "physical; the data may not determine these bodies one by one):")
         for w in warnings:
             print(f"    {w['text']}")
     rms = np.sqrt(result.residual_variance[result.chosen])
     print("  residual RMS on the identification data (rows at rest left out) / channel noise:")
     print("   " + ", ".join(f"{o.name} {r:.3g} ({r / o.sigma:.2f}×)" for o, r in zip(outs, rms)))
     return {"robot": config.name, "out": args.out, "samples": result.samples, "rank": base.rank,
-            "n_components": result.cv["n_components"], "estimator": result.chosen,
+            "n_components": result.cv["n_components"], "estimator": record["estimator"],
             "identified": int(result.identified.sum()), "determined": {c: {"value": v, "standard_error": e}
                                                                      for c, (v, e) in determined.items()},
             "undetermined": undetermined, "unidentifiable": list(base.unidentifiable), "jackknife": result.jackknife,
             "estimators": record["estimators"],
             "base": record["base"], "residual_rms": dict(zip(record["outputs"]["channels"], rms.tolist())),
             "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed,
-            "plausibility": warnings}
+            "plausibility": warnings, "consistent": result.consistent}
+
+
+def print_consistent(done: dict[str, Any] | None) -> None:
+    """The consistent fit's lines: λ, the constraints that bind (docs/consistency.md), or why it failed."""
+    if done is None:
+        return
+    if done["status"] != "solved":
+        print(f"  WARNING: {done['reason']}; the model keeps the unconstrained {done['from']} estimate")
+        return
+    active = done["active"]
+    print(f"  physically consistent ({done['solver']}, from {done['from']}, {done['solve_time_s']:.1f} s): pull to CAD "
+          f"λ = {done['lambda']:g} (cross-validated over {', '.join(f'{x:g}' for x in done['cv']['lambdas'])})")
+    binding = [(what, active[key]) for what, key in (("pseudo-inertia at its bound", "pseudo_inertia"),
+                                                      ("mass inside its sphere at the bound", "sphere"),
+                                                      ("friction at 0", "friction"),
+                                                      ("gain at its floor", "gain")) if active[key]]
+    if not binding:
+        print("    no constraint binds")
+    for what, names in binding:
+        print(f"    {what}: {', '.join(names)}")
 
 
 def input_words(config: RobotConfig) -> list[str]:
@@ -258,6 +279,13 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     payload_arg(sp, repeatable=True)
     sp.add_argument("--estimator", choices=ESTIMATORS, default=DEFAULT_ESTIMATOR,
                     help=f"whose parameters the model keeps (default {DEFAULT_ESTIMATOR}); all three are reported")
+    sp.add_argument("--consistent", choices=["on", "off"], default="on",
+                    help="physically consistent estimation (default on; docs/consistency.md): the estimator's "
+                    "parameters moved the least the data allow so that every body's pseudo-inertia is positive "
+                    "semidefinite and its mass inside a sphere about its frame, friction is non-negative and gains "
+                    "keep their sign (a semidefinite programme, Clarabel through cvxpy), with a pull to CAD whose "
+                    "weight is cross-validated; the model keeps it as estimator 'consistent' and the active "
+                    "constraints are printed. off: the unconstrained estimate")
     sp.add_argument("--n-components", type=positive_int, metavar="NU", help="PLS latent variables (default: by CV)")
     sp.add_argument("--blocks", type=positive_int, default=10, help="time blocks for CV and jackknife (default 10)")
     sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"T² confidence level (default {ALPHA})")

@@ -35,6 +35,7 @@ from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from ..robot.regressors.base import BaseParameters, base_parameters_from_factor
 from ..robot.regressors.stack import DEFAULT_MIN_SPEED, Signals, row_weights, signals_from_dataset
+from .consistent import ConsistentSettings, consistent_fit
 from .regression import InputColumns, base_least_squares, instrumental_variables, pls_path, unseen_directions
 from .statistics import MIN_BLOCK_SAMPLES, Statistics, accumulate
 
@@ -61,6 +62,9 @@ class FitSettings:
     instrument_window_s: float = INSTRUMENT_WINDOW_S
     iv_iterations: int = 30
     workers: int | None = None
+    # Physically consistent estimation (dynid.identify.consistent, docs/consistency.md): the chosen estimator's Φ̂
+    # projected onto physical parameters; the model keeps that one (estimate "consistent"), all others are reported
+    consistent: bool = True
 
 
 @dataclass
@@ -85,6 +89,7 @@ class FitResult:
     samples: int
     rows_used: np.ndarray  # per row channel
     jackknife: dict = field(default_factory=dict)  # folds, and the rank-deficient ones with what they do not see
+    consistent: dict | None = None  # the consistent fit's λ, active constraints, CV, solver; or its failure; None: off
 
     @property
     def phi(self) -> np.ndarray:
@@ -251,15 +256,28 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
     folds = [np.arange(B) != k for k in range(B)]
     unseen = np.array([_unseen(stats.system(f), base) for f in folds])  # (B, rank)
     estimates: dict[str, Estimate] = {}
+    folds_of: dict[str, np.ndarray] = {}
     for name in names:
         beta, detail = _estimate(name, stats, None, base, settings, nu, inputs, None, beta_prior)
         jack = np.array([_estimate(name, stats, f, base, settings, nu, inputs, beta, beta_prior)[0] for f in folds])
-        se = np.sqrt((B - 1) / B * np.sum((jack - jack.mean(axis=0)) ** 2, axis=0))
-        estimates[name] = Estimate(name, beta, se, expand(base, beta, prior), detail)
+        folds_of[name] = jack
+        estimates[name] = Estimate(name, beta, _jackknife_se(jack), expand(base, beta, prior), detail)
+    chosen_name = settings.estimator
+    consistent = None
+    if settings.consistent:
+        consistent, est = _consistent(model, stats, base, estimates[chosen_name], folds_of[chosen_name], prior)
+        if est is not None:
+            estimates[est.name] = est
+            chosen_name = est.name
     variance = {name: channel_variance(stats, e.phi, model) for name, e in estimates.items()}
-    chosen = estimates[settings.estimator]
+    chosen = estimates[chosen_name]
     cad = np.abs(base.base(np.nan_to_num(model.cad_parameters(), nan=0.0)))
-    identified = (chosen.se <= IDENTIFIED_RSE * np.abs(chosen.beta)) | (chosen.se <= IDENTIFIED_SCALE * cad)
+    determined = lambda e: (e.se <= IDENTIFIED_RSE * np.abs(e.beta)) | (e.se <= IDENTIFIED_SCALE * cad)  # noqa: E731
+    identified = determined(chosen)
+    if chosen_name == CONSISTENT:
+        # The constraints narrow the folds' spread, but they do not make the run determine a combination: it must be
+        # determined without them too, and not rest on a bound (a gain at its floor is the same in every fold)
+        identified &= determined(estimates[settings.estimator]) & ~_at_bound(base, model, consistent)
     identified &= ~unseen.any(axis=0)  # a fold cannot see them: the jackknife has no error to give
     step = chosen.detail.get("last_step", 0.0)
     settled = step is not None and step <= IV_SETTLED
@@ -274,8 +292,48 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
         {"block": k, "samples": [int(edges[k]), int(edges[k + 1])],
          "unseen": [combinations[i] for i in np.flatnonzero(unseen[k])]}
         for k in range(B) if unseen[k].any()]}
-    return FitResult(model, base, estimates, settings.estimator, cv, variance, identified, stats, samples, rows_used,
-                     jackknife)
+    return FitResult(model, base, estimates, chosen_name, cv, variance, identified, stats, samples, rows_used,
+                     jackknife, consistent)
+
+
+def _at_bound(base: BaseParameters, model: RobotModel, consistent: dict) -> np.ndarray:
+    """(rank,) bool: the base combinations that involve a friction coefficient or a gain at its bound."""
+    names = model.layout.names
+    bound = {names.index(n) for n in consistent["active"]["friction"] + consistent["active"]["gain"]}
+    out = np.array([i in bound for i in base.independent])
+    for j, d in enumerate(base.dependent):
+        if d in bound:
+            out |= base.K[:, j] != 0
+    return out
+
+
+def _jackknife_se(jack: np.ndarray) -> np.ndarray:
+    B = jack.shape[0]
+    return np.sqrt((B - 1) / B * np.sum((jack - jack.mean(axis=0)) ** 2, axis=0))
+
+
+CONSISTENT = "consistent"
+
+
+def _consistent(model: RobotModel, stats: Statistics, base: BaseParameters, unconstrained: Estimate,
+                jack: np.ndarray, prior: np.ndarray) -> tuple[dict, Estimate | None]:
+    """The consistent estimate from the unconstrained one (its fold estimates are the CV's targets), or, when the
+    solver fails, the reason (the model then keeps the unconstrained estimate: docs/consistency.md)."""
+    try:
+        null = np.zeros((stats.p, base.dependent.size))  # Φ_ind = −K Φ_dep: what the data do not see
+        null[base.dependent, np.arange(base.dependent.size)] = 1.0
+        null[base.independent] = -base.K
+        done = consistent_fit(model, stats.gram.sum(axis=1), unconstrained.phi,
+                              [expand(base, b, prior) for b in jack], prior, ConsistentSettings(), null)
+    except DataError as e:
+        return {"status": "failed", "reason": str(e), "from": unconstrained.name}, None
+    record = {"status": "solved", "from": unconstrained.name, **done.record()}
+    fold_betas = np.array([base.base(phi) for phi in done.folds])
+    detail = dict(record)
+    if "last_step" in unconstrained.detail:  # the IV iterate it starts from: settled or not
+        detail["last_step"] = unconstrained.detail["last_step"]
+        detail["iterations"] = unconstrained.detail.get("iterations")
+    return record, Estimate(CONSISTENT, base.base(done.phi), _jackknife_se(fold_betas), done.phi, detail)
 
 
 def _unseen(gram: np.ndarray, base: BaseParameters) -> np.ndarray:

@@ -11,7 +11,10 @@ JSON (``format: dynid-model``, ``format_version: 1``), written atomically:
                       base parameters β = Φ[independent] + K Φ[dependent] of the run, with jackknife standard
                       errors; `identified` is false where the run cannot determine the combination
     estimators        {ols|pls|iv: {base values, standard errors, detail}}: all three, side by side
-    estimator         the one `parameters` comes from; `settings` the fit's settings
+    estimator         the regression `parameters` comes from; `settings` the fit's settings
+    consistent        null (--consistent off), or the physically consistent fit's record: status, λ, the active
+                      constraints, CV, solver (dynid.identify.consistent); when solved, `parameters` are its
+                      projection of the estimator's, also under estimators.consistent
     n_components      PLS ν (cross-validated unless given); `cv` the held-out error for every ν
     jackknife         {folds, rank_deficient: [{block, samples [start, end), unseen}]}: the folds (one time block
                       left out) whose data miss base directions the whole run sees, and the combinations

@@ -1,0 +1,89 @@
+"""Physically consistent estimation on the real robots (docs/consistency.md): the iCub leg standing on one foot and
+the UR10e. With `--consistent on` no body is implausible; its validation error against the unconstrained fit's:
+Table II per sensor for the leg, the K-weighted relative current error on `ptp_10_points` (samples 700–4200) for the
+UR10e. Skipped, with the reason, where the data are absent."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from . import convert
+
+LEG = convert.REALDATA / "icub_leg_insitu"
+DUMP = LEG / "dumperLeftLegNoIMU"
+UR = convert.REALDATA / "ur10e_mamedov"
+SENSORS = ("r_leg_ft_sensor", "r_foot_ft_sensor")
+
+
+def dynid(*args: str) -> dict:
+    env = {k: v for k, v in os.environ.items() if k != "DYNID_URDF_PATH"}
+    done = subprocess.run([sys.executable, "-m", "dynid.cli", *args, "--json", "-"], capture_output=True, text=True,
+                          timeout=900, env=env)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout)
+
+
+@pytest.fixture(scope="module")
+def leg(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    if not DUMP.is_dir():
+        pytest.skip(f"no real iCub leg data at {LEG}")
+    out = {}
+    for mode in ("off", "on"):
+        path = tmp_path_factory.mktemp("leg") / f"{mode}.json"
+        fit = dynid("fit", "--robot", "icub_right_leg_standing", "--urdf", str(LEG / "iCubGenova02.urdf"), "--data",
+                    str(DUMP), "--from", "23", "--to", "47", "--consistent", mode, "--out", str(path))
+        val = dynid("validate", "--model", str(path), "--data", str(DUMP), "--from", "47", "--to", "58.5")
+        out[mode] = (fit, val["table_ii_sensors"])
+    return out
+
+
+def test_leg_consistent_has_no_implausible_body(leg: dict) -> None:
+    assert leg["off"][0]["plausibility"], "the unconstrained leg used to be implausible (docs/robots/icub_leg.md)"
+    fit = leg["on"][0]
+    assert fit["consistent"]["status"] == "solved"
+    assert fit["plausibility"] == [], [w["text"] for w in fit["plausibility"]]
+
+
+def error(tables: dict, sensor: str, what: str) -> float:
+    return tables[sensor]["identified"][what]["mean"]
+
+
+@pytest.mark.parametrize("sensor,what", [("r_leg_ft_sensor", "force"), ("r_foot_ft_sensor", "force"),
+                                         ("r_foot_ft_sensor", "torque")])
+def test_leg_table_ii_at_least_as_good(leg: dict, sensor: str, what: str) -> None:
+    off, on = error(leg["off"][1], sensor, what), error(leg["on"][1], sensor, what)
+    print(f"{sensor} {what}: unconstrained {off:.4g}, consistent {on:.4g}")
+    assert on <= off * 1.001, (sensor, what, off, on)
+
+
+@pytest.mark.xfail(strict=True, reason="measured: the consistent leg's r_leg_ft_sensor torque error is 0.158 Nm "
+                   "against the unconstrained 0.141 Nm (+12 %): the unphysical bodies were fitting something a rigid "
+                   "body cannot (docs/consistency.md)")
+def test_leg_table_ii_torque_of_the_leg_sensor_at_least_as_good(leg: dict) -> None:
+    off, on = error(leg["off"][1], "r_leg_ft_sensor", "torque"), error(leg["on"][1], "r_leg_ft_sensor", "torque")
+    assert on <= off * 1.001, (off, on)
+
+
+def test_ur10e_consistent_is_physical_and_as_good_on_ptp(tmp_path: Path) -> None:
+    if not UR.is_dir():
+        pytest.skip(f"no real UR10e data at {UR}")
+    robot = ("--robot", "ur10e_known_gains", "--urdf", str(UR / "ur10e.urdf"))
+    errors, fits = {}, {}
+    for mode in ("off", "on"):
+        path = tmp_path / f"{mode}.json"
+        fits[mode] = dynid("fit", *robot, "--data", str(UR / "identification/ur-20_02_19_14harm50sec.csv"),
+                           "--consistent", mode, "--out", str(path))
+        val = dynid("validate", "--model", str(path), "--data", str(UR / "validation/ur-20_01_17-ptp_10_points.csv"),
+                    "--from", "1148.579", "--to", "1185.038")
+        errors[mode] = val["relative_error"]["overall"]
+    print(f"ptp relative error: unconstrained {100 * errors['off']:.3f} %, consistent {100 * errors['on']:.3f} %")
+    assert fits["off"]["plausibility"], "the unconstrained UR10e used to have implausible bodies"
+    assert fits["on"]["plausibility"] == []
+    # at least as good to the figure's printed precision (0.01 percentage point)
+    assert errors["on"] <= errors["off"] + 1e-4
