@@ -48,7 +48,7 @@ from ..errors import DataError
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from ..robot.regressors.friction import friction_regressor
-from ..robot.regressors.stack import friction_coordinates, group_row_maps
+from ..robot.regressors.stack import friction_coordinates, group_row_maps, group_rows
 
 DEFAULT_BANDWIDTH_HZ = 15.0  # K_O = 2π·15 rad/s: a 10.6 ms time constant (chosen by measurement: docs/detection.md)
 VELOCITY_WINDOW_S = 0.02  # the causal q̇ estimator's window (s); at least 5 samples
@@ -231,13 +231,8 @@ def momentum_residuals(model: RobotModel, phi: np.ndarray, t: np.ndarray, q: np.
         offset = phi[layout.block("ft_offset", s.name).slice]
         # the sensor coordinate's τ_meas is −(w − w_O); its row channel is w − ŵ = −(τ_meas − τ_model)
         x[:, 6 * i : 6 * i + 6] = (np.asarray(ft[s.name], float) - offset) - x_rb[:, v0 : v0 + 6]
-    joint_col = {j: c for c, j in enumerate(cfg.joints)}
     x_joint = x_rb[:, model.v_index]  # (N, n_joints), still without the joint's τ_meas
-    start = 6 * len(cfg.ft_sensors)
-    for g in cfg.actuation:
-        gj = [joint_col[j] for j in g.joints]
-        rows = slice(start, start + len(gj))
-        start = rows.stop
+    for g, gj, rows in group_rows(model):
         L, C = group_row_maps(g)
         x[:, rows] = x_joint[:, gj] @ L.T
         if g.input == "torque":
@@ -270,11 +265,7 @@ def momentum_residuals(model: RobotModel, phi: np.ndarray, t: np.ndarray, q: np.
     # r ≈ friction held − external torque on a resting row: outside the band only
     e = np.where(at_rest, r - np.clip(r, lo, hi), r)
     tau_ext = np.zeros((n, len(cfg.joints)))
-    start = 6 * len(cfg.ft_sensors)
-    for g in cfg.actuation:
-        gj = [joint_col[j] for j in g.joints]
-        rows = slice(start, start + len(gj))
-        start = rows.stop
+    for g, gj, rows in group_rows(model):
         L, _ = group_row_maps(g)
         tau_ext[:, gj] = -np.linalg.solve(L, r[:, rows].T).T
     return MomentumResiduals(t, r, e, dq, at_rest, tau_ext)

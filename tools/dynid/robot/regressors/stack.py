@@ -215,6 +215,17 @@ def motor_velocities(dq_joints: np.ndarray, coupling: np.ndarray) -> np.ndarray:
     return v
 
 
+def group_rows(model: RobotModel) -> Iterator[tuple[ActuationGroup, list[int], slice]]:
+    """Each actuation group with its joints' columns in q and its rows of the stacked system (after the F/T rows)."""
+    cfg = model.config
+    joint_col = {j: i for i, j in enumerate(cfg.joints)}
+    start = 6 * len(cfg.ft_sensors)
+    for g in cfg.actuation:
+        rows = slice(start, start + len(g.joints))
+        start = rows.stop
+        yield g, [joint_col[j] for j in g.joints], rows
+
+
 def group_row_maps(group: ActuationGroup) -> tuple[np.ndarray, np.ndarray]:
     """(L, C) of a group: its rows are L times its joint equations, and motor terms enter them through C."""
     if motor_space(group):
@@ -233,13 +244,7 @@ class FrictionCoordinate:
 
 def friction_coordinates(model: RobotModel, dq: np.ndarray) -> Iterator[tuple[slice, list[FrictionCoordinate]]]:
     """Per actuation group: its row channels and the friction coordinates that enter them."""
-    cfg = model.config
-    joint_col = {j: i for i, j in enumerate(cfg.joints)}
-    start = 6 * len(cfg.ft_sensors)
-    for g in cfg.actuation:
-        gj = [joint_col[j] for j in g.joints]
-        rows = slice(start, start + len(gj))
-        start = rows.stop
+    for g, gj, rows in group_rows(model):
         # L comes from inverting the coupling: its structural zeros may be rounding residue (1e-17).
         L, C = (np.where(np.abs(M) > 1e-9 * np.abs(M).max(), M, 0.0) for M in group_row_maps(g))
         coordinates = [FrictionCoordinate(dq[:, c], L[:, li], ("joint_friction", j))
@@ -276,7 +281,6 @@ def fill_rows(model: RobotModel, sig: Signals, A: np.ndarray, b: np.ndarray) -> 
     """Write the rows of `sig`'s samples into A (N, r, p) and b (N, r), which the caller zeroed."""
     cfg, layout = model.config, model.layout
     inertial = layout.span("inertial")
-    joint_col = {j: i for i, j in enumerate(cfg.joints)}
     rb = rigid_body_regressors(model, sig.q, sig.dq, sig.ddq, sig.gravity)
 
     for i, s in enumerate(cfg.ft_sensors):
@@ -287,11 +291,7 @@ def fill_rows(model: RobotModel, sig: Signals, A: np.ndarray, b: np.ndarray) -> 
         if sig.payload is not None:
             b[:, rows] -= rb.ft[s.name] @ sig.payload
 
-    start = 6 * len(cfg.ft_sensors)
-    for g in cfg.actuation:
-        gj = [joint_col[j] for j in g.joints]
-        rows = slice(start, start + len(gj))
-        start = rows.stop
+    for g, gj, rows in group_rows(model):
         # The group's rows are L times its joint equations (L = T⁻ᵀ in motor space, else I). Motor terms enter
         # the joint equations through Tᵀ, hence the rows through C = L Tᵀ: exactly I in motor space.
         L, C = group_row_maps(g)
