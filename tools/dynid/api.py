@@ -95,6 +95,8 @@ class DynamicsModel(BaseEstimator):
         Physically consistent estimation (docs/consistency.md): the estimator's parameters projected onto physical
         ones (every pseudo-inertia positive semidefinite, friction ≥ 0, gains of their sign), kept as the
         estimator "consistent".
+    cad_pull : bool
+        With `consistent`: a pull of the inertial parameters towards CAD, its weight cross-validated (default off).
 
     Attributes
     ----------
@@ -110,7 +112,8 @@ class DynamicsModel(BaseEstimator):
 
     def __init__(self, robot: str | Path = "icub_right_arm", estimator: str = "iv", n_components: int | None = None,
                  blocks: int = 10, min_speed: float = 0.01, alpha: float = ALPHA, n_mode: str = "dim",
-                 supply_time_constant: float = SupplyTracking.time_constant_s, consistent: bool = True) -> None:
+                 supply_time_constant: float = SupplyTracking.time_constant_s, consistent: bool = True,
+                 cad_pull: bool = False) -> None:
         self.robot = robot
         self.estimator = estimator
         self.n_components = n_components
@@ -120,6 +123,7 @@ class DynamicsModel(BaseEstimator):
         self.n_mode = n_mode
         self.supply_time_constant = supply_time_constant
         self.consistent = consistent
+        self.cad_pull = cad_pull
 
     def _check_params(self) -> None:
         if self.estimator not in ESTIMATORS:
@@ -138,6 +142,8 @@ class DynamicsModel(BaseEstimator):
             raise InputError(f"supply_time_constant must be 0 or more, got {self.supply_time_constant!r}")
         if not isinstance(self.consistent, (bool, np.bool_)):
             raise InputError(f"consistent must be True or False, got {self.consistent!r}")
+        if not isinstance(self.cad_pull, (bool, np.bool_)):
+            raise InputError(f"cad_pull must be True or False, got {self.cad_pull!r}")
 
     def fit(self, X: Data | Sequence[Data], y: None = None) -> DynamicsModel:
         """Identify the model on one or more contact-free runs (stacked into one regression).
@@ -153,7 +159,8 @@ class DynamicsModel(BaseEstimator):
         robot = load_robot(self.robot)
         runs, labels = _runs(X, robot)
         fit = FitSettings(estimator=self.estimator, n_components=self.n_components, min_speed=self.min_speed,
-                          blocks=self.blocks, consistent=bool(self.consistent))
+                          blocks=self.blocks, consistent=bool(self.consistent),
+                          cad_pull=bool(self.cad_pull))
         done = identify(robot, runs, labels, IdentifySettings(fit, DetectorSettings(self.alpha, self.n_mode),
                                                               self.supply_time_constant))
         self._set_fitted(done.model)

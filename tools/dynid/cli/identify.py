@@ -39,7 +39,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     model = RobotModel(config)
     datasets = [load_run(p, model, window(args), w) for p, w in zip(args.data, payloads(args, len(args.data)))]
     settings = FitSettings(estimator=args.estimator, n_components=args.n_components, min_speed=args.min_speed,
-                           blocks=args.blocks, consistent=args.consistent == "on")
+                           blocks=args.blocks, consistent=args.consistent == "on",
+                           cad_pull=args.cad_pull == "cv")
     detector = DetectorSettings(args.alpha, args.n_mode)
     done = identify(model, datasets, args.data, IdentifySettings(settings, detector, args.supply_time_constant,
                                                                  estimate_noise=args.noise == "estimate"))
@@ -283,9 +284,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     help="physically consistent estimation (default on; docs/consistency.md): the estimator's "
                     "parameters moved the least the data allow so that every body's pseudo-inertia is positive "
                     "semidefinite and its mass inside a sphere about its frame, friction is non-negative and gains "
-                    "keep their sign (a semidefinite programme, Clarabel through cvxpy), with a pull to CAD whose "
-                    "weight is cross-validated; the model keeps it as estimator 'consistent' and the active "
-                    "constraints are printed. off: the unconstrained estimate")
+                    "keep their sign (a semidefinite programme, Clarabel through cvxpy); the model keeps it as "
+                    "estimator 'consistent' and the active constraints are printed. off: the unconstrained estimate")
+    sp.add_argument("--cad-pull", choices=["off", "cv"], default="off",
+                    help="with --consistent on: a pull of the inertial parameters towards CAD, its weight chosen by "
+                    "cross-validation over the time blocks (kept only where it beats no pull by a standard error of "
+                    "the folds); default off: the data alone")
     sp.add_argument("--n-components", type=positive_int, metavar="NU", help="PLS latent variables (default: by CV)")
     sp.add_argument("--blocks", type=positive_int, default=10, help="time blocks for CV and jackknife (default 10)")
     sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"T² confidence level (default {ALPHA})")

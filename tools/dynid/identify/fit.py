@@ -65,6 +65,8 @@ class FitSettings:
     # Physically consistent estimation (dynid.identify.consistent, docs/consistency.md): the chosen estimator's Φ̂
     # projected onto physical parameters; the model keeps that one (estimate "consistent"), all others are reported
     consistent: bool = True
+    # Its pull towards CAD, λ cross-validated over consistent.LAMBDAS; off by default: λ = 0, the data alone
+    cad_pull: bool = False
 
 
 @dataclass
@@ -265,7 +267,8 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
     chosen_name = settings.estimator
     consistent = None
     if settings.consistent:
-        consistent, est = _consistent(model, stats, base, estimates[chosen_name], folds_of[chosen_name], prior)
+        consistent, est = _consistent(model, stats, base, estimates[chosen_name], folds_of[chosen_name], prior,
+                                      ConsistentSettings() if settings.cad_pull else ConsistentSettings(lambdas=(0.0,)))
         if est is not None:
             estimates[est.name] = est
             chosen_name = est.name
@@ -316,7 +319,7 @@ CONSISTENT = "consistent"
 
 
 def _consistent(model: RobotModel, stats: Statistics, base: BaseParameters, unconstrained: Estimate,
-                jack: np.ndarray, prior: np.ndarray) -> tuple[dict, Estimate | None]:
+                jack: np.ndarray, prior: np.ndarray, settings: ConsistentSettings) -> tuple[dict, Estimate | None]:
     """The consistent estimate from the unconstrained one (its fold estimates are the CV's targets), or, when the
     solver fails, the reason (the model then keeps the unconstrained estimate: docs/consistency.md)."""
     try:
@@ -324,7 +327,7 @@ def _consistent(model: RobotModel, stats: Statistics, base: BaseParameters, unco
         null[base.dependent, np.arange(base.dependent.size)] = 1.0
         null[base.independent] = -base.K
         done = consistent_fit(model, stats.gram.sum(axis=1), unconstrained.phi,
-                              [expand(base, b, prior) for b in jack], prior, ConsistentSettings(), null)
+                              [expand(base, b, prior) for b in jack], prior, settings, null)
     except DataError as e:
         return {"status": "failed", "reason": str(e), "from": unconstrained.name}, None
     record = {"status": "solved", "from": unconstrained.name, **done.record()}
