@@ -94,7 +94,7 @@ class DynamicsModel(BaseEstimator):
     consistent : bool
         Physically consistent estimation (docs/consistency.md): the estimator's parameters projected onto physical
         ones (every pseudo-inertia positive semidefinite, friction ≥ 0, gains of their sign), kept as the
-        estimator "consistent".
+        estimator "consistent" (default off: docs/consistency.md says why).
     cad_pull : bool
         With `consistent`: a pull of the inertial parameters towards CAD, its weight cross-validated (default off).
 
@@ -112,7 +112,7 @@ class DynamicsModel(BaseEstimator):
 
     def __init__(self, robot: str | Path = "icub_right_arm", estimator: str = "iv", n_components: int | None = None,
                  blocks: int = 10, min_speed: float = 0.01, alpha: float = ALPHA, n_mode: str = "dim",
-                 supply_time_constant: float = SupplyTracking.time_constant_s, consistent: bool = True,
+                 supply_time_constant: float = SupplyTracking.time_constant_s, consistent: bool = False,
                  cad_pull: bool = False) -> None:
         self.robot = robot
         self.estimator = estimator

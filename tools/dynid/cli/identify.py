@@ -280,8 +280,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     payload_arg(sp, repeatable=True)
     sp.add_argument("--estimator", choices=ESTIMATORS, default=DEFAULT_ESTIMATOR,
                     help=f"whose parameters the model keeps (default {DEFAULT_ESTIMATOR}); all three are reported")
-    sp.add_argument("--consistent", choices=["on", "off"], default="on",
-                    help="physically consistent estimation (default on; docs/consistency.md): the estimator's "
+    sp.add_argument("--consistent", choices=["on", "off"], default="off",
+                    help="physically consistent estimation (default off; docs/consistency.md): the estimator's "
                     "parameters moved the least the data allow so that every body's pseudo-inertia is positive "
                     "semidefinite and its mass inside a sphere about its frame, friction is non-negative and gains "
                     "keep their sign (a semidefinite programme, Clarabel through cvxpy); the model keeps it as "

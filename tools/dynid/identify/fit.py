@@ -63,8 +63,9 @@ class FitSettings:
     iv_iterations: int = 30
     workers: int | None = None
     # Physically consistent estimation (dynid.identify.consistent, docs/consistency.md): the chosen estimator's Φ̂
-    # projected onto physical parameters; the model keeps that one (estimate "consistent"), all others are reported
-    consistent: bool = True
+    # projected onto physical parameters; the model keeps that one (estimate "consistent"), all others are reported.
+    # Off by default: on the default arm it cost the live mission 2 of its 22 episodes (docs/consistency.md#default)
+    consistent: bool = False
     # Its pull towards CAD, λ cross-validated over consistent.LAMBDAS; off by default: λ = 0, the data alone
     cad_pull: bool = False
 
@@ -319,7 +320,8 @@ CONSISTENT = "consistent"
 
 
 def _consistent(model: RobotModel, stats: Statistics, base: BaseParameters, unconstrained: Estimate,
-                jack: np.ndarray, prior: np.ndarray, settings: ConsistentSettings) -> tuple[dict, Estimate | None]:
+                jack: np.ndarray, prior: np.ndarray,
+                settings: ConsistentSettings = ConsistentSettings(lambdas=(0.0,))) -> tuple[dict, Estimate | None]:
     """The consistent estimate from the unconstrained one (its fold estimates are the CV's targets), or, when the
     solver fails, the reason (the model then keeps the unconstrained estimate: docs/consistency.md)."""
     try:
