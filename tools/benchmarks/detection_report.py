@@ -1,7 +1,7 @@
 """The detection report of docs/detection.md: `dynid detect` (the momentum detector beside today's calibrated
 and the paper's variant) on the simulated arm and on each real run given, with a ROC figure per run.
 
-    PYTHONPATH=tools OMP_NUM_THREADS=1 python tools/benchmarks/detection_report.py --sim /work/sim \
+    PYTHONPATH=tools OMP_NUM_THREADS=1 python tools/benchmarks/detection_report.py --sim out \
         --realdata ../shared/realdata --work /tmp/detrep --figures docs/figures
 
 Fits what it needs into --work (the simulated arm's default fit; the UR10e with known gains on the 14-harmonic
