@@ -21,7 +21,7 @@ COMMANDS: dict[str, Command] = {
     "excite": Command("excite", "design an excitation trajectory for the fit (Fourier series, well conditioned)"),
     "fit": Command("identify", "identify inertia, F/T offsets, friction and motor gains in one regression"),
     "validate": Command("identify", "the paper's Table II on a validation experiment"),
-    "detect": Command("identify", "offline T² contact detection against the skin's ground truth"),
+    "detect": Command("identify", "offline T² contact detection (momentum-observer residuals) against ground truth or labels"),
     "report": Command("report", "the identification report: one HTML page with figures and tables"),
     "export": Command("export", "write the real-time monitor's coefficient file (or --print one), or the identified robot as a URDF (--urdf)"),
     "gaps": Command(

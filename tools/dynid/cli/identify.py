@@ -318,10 +318,15 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.set_defaults(func=cmd_validate)
 
     sp = sub.add_parser("detect", help=COMMANDS["detect"].help,
-                        description="T² per sample, both variants (calibrated: dynid's default; paper: diagonal Λ and "
-                        "the F threshold); TPR, FPR, ROC/AUC, detection delay, TPR per side of the F/T sensor.")
-    sp.add_argument("--model", required=True, metavar="MODEL")
-    sp.add_argument("--data", required=True, metavar="DATA")
+                        description="T² per sample, three variants side by side: momentum (the default where it can be "
+                        "calibrated: the generalized-momentum observer's residuals, no q̈; docs/detection.md), "
+                        "calibrated (acceleration-based residuals, Λ and T²_α calibrated on contact-free data) and "
+                        "paper (diagonal Λ and the F threshold). Against the data's contact column (the skin's) or "
+                        "--episodes labels: TPR, FPR, ROC/AUC, episodes found, onset delays, TPR per side of the F/T "
+                        "sensor; without either, the false positives of a contact-free run.")
+    sp.add_argument("--model", required=True, metavar="MODEL", help="a model file of `dynid fit`")
+    sp.add_argument("--data", required=True, metavar="DATA",
+                    help="the run to examine: a CSV, candump log, dataset file, simulate directory or YARP folder")
     window_args(sp)
     payload_arg(sp, repeatable=False)
     sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"confidence level (default {ALPHA})")
