@@ -24,9 +24,8 @@ from sklearn.utils.validation import check_is_fitted
 
 from .config import RobotConfig, load_config
 from .detect.evaluation import detectors
-from .detect.momentum_t2 import (MomentumDetector, calibrate_momentum, calibration_runs, friction_band, run_residuals,
-                                 score_with_delays)
-from .detect.t2 import ALPHA, VARIANTS, Detector, calibrate, calibration_residuals
+from .detect.momentum_t2 import MomentumDetector, calibrate_momentum, calibration_runs, friction_band, run_residuals
+from .detect.t2 import ALPHA, VARIANTS, Detector, calibrate, calibration_residuals, score_with_delays
 from .detect.t2 import score as score_t2
 from .errors import InputError
 from .export.model_export import Exported, ExportSettings, export_model

@@ -84,8 +84,9 @@ def report(default_experiments: dict[str, Path], default_model: Path, tmp_path_f
     runs = {
         "report": ("report", "--model", str(default_model), "--validation", v, "--contact", c, "--out", str(d / "r.html")),
         "validate": ("validate", "--model", str(default_model), "--data", v),
-        "detect_contact": ("detect", "--model", str(default_model), "--data", c),
-        "detect_validation": ("detect", "--model", str(default_model), "--data", v),
+        # the page shows the paper's two acceleration-based detectors (its Fig. 3-5), not the momentum observer
+        "detect_contact": ("detect", "--model", str(default_model), "--data", c, "--residual", "acceleration"),
+        "detect_validation": ("detect", "--model", str(default_model), "--data", v, "--residual", "acceleration"),
     }
     out = {"html": d / "r.html", "dir": d}
     for name, args in runs.items():

@@ -11,7 +11,7 @@ import numpy as np
 from ..config.robot_config import RobotConfig, load_config
 from ..detect.evaluation import detection
 from ..detect.momentum import DEFAULT_BANDWIDTH_HZ
-from ..detect.momentum_t2 import calibration_runs, momentum_detection, score_with_delays
+from ..detect.momentum_t2 import calibration_runs, momentum_detection
 from ..detect.t2 import ALPHA
 from ..errors import DataError
 from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, FitSettings
@@ -199,11 +199,7 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
     if labels is not None:
         ds = replace(ev.dataset, contact=episodes_mask(ev.dataset.t, labels))
         ev = replace(ev, dataset=ds)
-    found = detection(ev, args.model, args.data, args.alpha, args.n_mode)
-    side = found.side
-    for variant, t2 in found.t2.items():  # every episode's onset delay, and against the labels' start + shift
-        found.result["variants"][variant] = score_with_delays(ev.dataset.t, t2, found.detectors[variant].threshold,
-                                                              ev.dataset.contact, side, args.label_widening)
+    found = detection(ev, args.model, args.data, args.alpha, args.n_mode, args.label_widening)
     if labels is not None:
         found.result["episodes_file"] = {"path": args.episodes, "episodes": int(len(labels)),
                                          "in_data": len(contact_episodes(ev.dataset.contact))}
@@ -213,7 +209,7 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
             runs, paths = calibration_runs(ev.identified, args.calibration,
                                            (args.calibration_from, args.calibration_to))
             momentum = momentum_detection(ev.identified, ev.dataset, runs, args.alpha, args.bandwidth,
-                                          args.label_widening, side)
+                                          args.label_widening, found.side)
         except DataError as e:
             if args.residual == "momentum":  # asked for by name: its failure is the command's
                 raise

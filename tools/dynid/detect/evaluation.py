@@ -16,7 +16,7 @@ from ..identify.model_file import IdentifiedModel
 from ..identify.validation import Evaluated
 from ..io.dataset import beside_run
 from ..robot.outputs import divisors
-from .t2 import VARIANTS, Detector, f_threshold, score
+from .t2 import VARIANTS, Detector, f_threshold, score_with_delays
 from .visibility import contact_residuals, episode_visibility
 
 
@@ -51,7 +51,10 @@ class Detection:
     side: np.ndarray | None  # the skin's side per sample: +1 distal, −1 proximal, 0 none
 
 
-def detection(ev: Evaluated, model_label: str, data_label: str, alpha: float, n_mode: str) -> Detection:
+def detection(ev: Evaluated, model_label: str, data_label: str, alpha: float, n_mode: str,
+              shift_s: float = 0.0) -> Detection:
+    """Both acceleration-based variants on one run: scores, every episode's onset delay (and against the labels'
+    start + shift_s), and on a simulated run which episodes the sensors can see."""
     dets = detectors(ev.identified, alpha, n_mode)
     side = ev.dataset.extra.get("skin.side")
     result: dict[str, Any] = {"model": model_label, "data": data_label, "alpha": alpha, "variants": {}}
@@ -59,7 +62,8 @@ def detection(ev: Evaluated, model_label: str, data_label: str, alpha: float, n_
     for variant, d in dets.items():
         e = ev.e_constant if variant == "paper" else ev.e  # the paper's model has constant gains
         t2s[variant] = d.t2(ev.model, e, ev.signals.dq, ev.identified.phi)
-        result["variants"][variant] = score(ev.dataset.t, t2s[variant], d.threshold, ev.dataset.contact, side)
+        result["variants"][variant] = score_with_delays(ev.dataset.t, t2s[variant], d.threshold, ev.dataset.contact,
+                                                         side, shift_s)
     truth = beside_run(data_label, "truth.npz")
     if ev.dataset.contact is not None and ev.dataset.contact.any() and truth.is_file():
         result["visibility"] = visibility(ev, dets["calibrated"], t2s["calibrated"], np.load(truth))

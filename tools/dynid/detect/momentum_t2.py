@@ -27,7 +27,7 @@ from ..robot.regressors.stack import gravity_per_sample
 from .momentum import (DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S, MomentumResiduals, friction_band, measured_velocity,
                        momentum_residuals)
 from .online import raw_signals
-from .t2 import QUANTILE_LEVELS, score
+from .t2 import QUANTILE_LEVELS, score_with_delays
 
 ISOLATION_SIGMAS = 3.0
 BAND_SIGMAS = 1.0  # the static-friction band is widened by this many standard errors of the Coulomb terms
@@ -158,31 +158,6 @@ def contact_events(model: RobotModel, det: MomentumDetector, res: MomentumResidu
                        "side": sides, "tau_ext_nm": dict(zip(cfg.joints, res.tau_ext[k].tolist())),
                        "wrench": wrenches})
     return events
-
-
-def score_with_delays(t: np.ndarray, t2: np.ndarray, threshold: float, contact: np.ndarray | None,
-                      side: np.ndarray | None = None, shift_s: float = 0.0) -> dict:
-    """dynid.detect.t2.score plus every episode's onset delay (None: missed) and, with `shift_s`, the delays
-    against the labels' start + shift_s (labels widened by shift_s, as the UR10e folder's are)."""
-    from ..io.dataset import contact_episodes
-
-    out = score(t, t2, threshold, contact, side)
-    if contact is None:
-        return out
-    alarm = t2 > threshold
-    delays = []
-    for a, b in contact_episodes(contact):
-        hits = np.flatnonzero(alarm[a:b])
-        delays.append(float(t[a + hits[0]] - t[a]) if hits.size else None)
-    out["onset_delays_s"] = delays
-    found = [d for d in delays if d is not None]
-    if found:
-        out["delay_s"]["max"] = float(max(found))
-    if shift_s and found:
-        shifted = [d - shift_s for d in found]
-        out["delay_s_shifted"] = {"shift_s": shift_s, "median": float(np.median(shifted)),
-                                  "p90": float(np.percentile(shifted, 90)), "max": float(max(shifted))}
-    return out
 
 
 def calibration_runs(identified, paths: Sequence[str] | None, window=(None, None)) -> tuple[list, list[str]]:

@@ -217,3 +217,28 @@ def score(t: np.ndarray, t2: np.ndarray, threshold: float, contact: np.ndarray |
 
 def channel_names(model: RobotModel) -> list[str]:
     return [o.name for o in output_channels(model)]
+
+
+def score_with_delays(t: np.ndarray, t2: np.ndarray, threshold: float, contact: np.ndarray | None,
+                      side: np.ndarray | None = None, shift_s: float = 0.0) -> dict:
+    """dynid.detect.t2.score plus every episode's onset delay (None: missed) and, with `shift_s`, the delays
+    against the labels' start + shift_s (labels widened by shift_s, as the UR10e folder's are)."""
+    from ..io.dataset import contact_episodes
+
+    out = score(t, t2, threshold, contact, side)
+    if contact is None:
+        return out
+    alarm = t2 > threshold
+    delays = []
+    for a, b in contact_episodes(contact):
+        hits = np.flatnonzero(alarm[a:b])
+        delays.append(float(t[a + hits[0]] - t[a]) if hits.size else None)
+    out["onset_delays_s"] = delays
+    found = [d for d in delays if d is not None]
+    if found:
+        out["delay_s"]["max"] = float(max(found))
+    if shift_s and found:
+        shifted = [d - shift_s for d in found]
+        out["delay_s_shifted"] = {"shift_s": shift_s, "median": float(np.median(shifted)),
+                                  "p90": float(np.percentile(shifted, 90)), "max": float(max(shifted))}
+    return out
