@@ -57,7 +57,9 @@ def detection(ev: Evaluated, model_label: str, data_label: str, alpha: float, n_
     start + shift_s), and on a simulated run which episodes the sensors can see."""
     dets = detectors(ev.identified, alpha, n_mode)
     side = ev.dataset.extra.get("skin.side")
-    result: dict[str, Any] = {"model": model_label, "data": data_label, "alpha": alpha, "variants": {}}
+    # "residual": what the variants here are computed on (dynid detect replaces it by "momentum" when it adds that one)
+    result: dict[str, Any] = {"model": model_label, "data": data_label, "alpha": alpha, "residual": "acceleration",
+                              "variants": {}}
     t2s = {}
     for variant, d in dets.items():
         e = ev.e_constant if variant == "paper" else ev.e  # the paper's model has constant gains
