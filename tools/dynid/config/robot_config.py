@@ -7,7 +7,6 @@ with a `ConfigError` whose message names the field, e.g. ``icub_right_arm: actua
 
 from __future__ import annotations
 
-import difflib
 import hashlib
 import importlib.metadata
 import math
@@ -21,6 +20,7 @@ import numpy as np
 import yaml
 
 from ..errors import ConfigError
+from .fields import Fields, as_float
 from .log_columns import LogColumn, parse_columns
 from .yarp_ports import YarpLayout, parse_yarp
 
@@ -161,98 +161,6 @@ class RobotConfig:
 # Loading and validation
 
 
-class _Fields:
-    """Typed access to a YAML mapping that names the offending field in every error."""
-
-    def __init__(self, robot: str, path: str, data: Any) -> None:
-        if not isinstance(data, dict):
-            raise ConfigError(f"{robot}: {path or 'the file'} must be a mapping, got {type(data).__name__}")
-        self.robot, self.path, self.data = robot, path, data
-
-    def _where(self, key: str) -> str:
-        return f"{self.path}.{key}" if self.path else key
-
-    def fail(self, key: str, problem: str) -> ConfigError:
-        return ConfigError(f"{self.robot}: field '{self._where(key)}' {problem}")
-
-    def only(self, *allowed: str) -> _Fields:
-        """Refuse keys this mapping does not define: a typo must not silently drop a setting."""
-        for key in self.data:
-            if key not in allowed:
-                near = difflib.get_close_matches(str(key), allowed, n=1)
-                hint = f" (did you mean '{near[0]}'?)" if near else f" (known: {', '.join(allowed)})"
-                raise self.fail(str(key), f"is not a known setting{hint}")
-        return self
-
-    def has(self, key: str) -> bool:
-        return key in self.data
-
-    def raw(self, key: str, default: Any = ...) -> Any:
-        if key not in self.data:
-            if default is ...:
-                raise self.fail(key, "is missing")
-            return default
-        return self.data[key]
-
-    def sub(self, key: str, default: Any = ...) -> _Fields:
-        return _Fields(self.robot, self._where(key), self.raw(key, default))
-
-    def items(self, key: str, default: Any = ...) -> list[_Fields]:
-        value = self.raw(key, default)
-        if not isinstance(value, list):
-            raise self.fail(key, "must be a list")
-        return [_Fields(self.robot, f"{self._where(key)}[{i}]", v) for i, v in enumerate(value)]
-
-    def string(self, key: str, default: Any = ...) -> str:
-        value = self.raw(key, default)
-        if not isinstance(value, str) or not value:
-            raise self.fail(key, f"must be a non-empty string, got {value!r}")
-        return value
-
-    def strings(self, key: str, default: Any = ...) -> tuple[str, ...]:
-        value = self.raw(key, default)
-        if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
-            raise self.fail(key, f"must be a list of names, got {value!r}")
-        if len(set(value)) != len(value):
-            raise self.fail(key, f"lists a name twice: {value!r}")
-        return tuple(value)
-
-    def number(self, key: str, default: Any = ..., positive: bool = False) -> float:
-        value = self.raw(key, default)
-        if value is None and default is None:
-            return None  # type: ignore[return-value]
-        # float() first: math.isfinite raised OverflowError on an integer too large for a float (1 with 400 zeros).
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(_float(value)):
-            raise self.fail(key, f"must be a finite number, got {_shown(value)}")
-        if positive and value <= 0:
-            raise self.fail(key, f"must be positive, got {value!r}")
-        return float(value)
-
-    def matrix(self, key: str, shape: tuple[int, int]) -> np.ndarray:
-        value = self.raw(key)
-        try:
-            m = np.array(value, dtype=float)
-        except (TypeError, ValueError, OverflowError):  # OverflowError: an integer too large for a float
-            raise self.fail(key, f"must be a numeric matrix, got {value!r}") from None
-        if m.shape != shape or not np.all(np.isfinite(m)):
-            raise self.fail(key, f"must be a finite {shape[0]}x{shape[1]} matrix, got shape {m.shape}")
-        return m
-
-
-def _float(value: int | float) -> float:
-    """`value` as a float; inf for an integer too large for one."""
-    try:
-        return float(value)
-    except OverflowError:
-        return math.inf
-
-
-def _shown(value: Any) -> str:
-    """A value for a message: its repr, cut to 60 characters (an integer of 400 digits, a long list)."""
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
-
-
 def resolve_config_path(robot: str | Path) -> Path:
     """A path to a YAML file, or the name of a bundled configuration."""
     path = Path(robot)
@@ -274,7 +182,7 @@ def bundled_configs() -> list[str]:
 URDF_PATH_ENV = "DYNID_URDF_PATH"  # directories searched for a `urdf: {supplied: FILE}` (os.pathsep-separated)
 
 
-def _supplied_urdf(spec: _Fields, name: str) -> Path:
+def _supplied_urdf(spec: Fields, name: str) -> Path:
     """A URDF dynid does not ship (its licence, or the robot's owner, keeps it out): found in DYNID_URDF_PATH."""
     for folder in os.environ.get(URDF_PATH_ENV, "").split(os.pathsep):
         if folder and (Path(folder) / name).is_file():
@@ -285,7 +193,7 @@ def _supplied_urdf(spec: _Fields, name: str) -> Path:
     )
 
 
-def _resolve_urdf(f: _Fields, config_dir: Path, override: str | Path | None = None) -> Path:
+def _resolve_urdf(f: Fields, config_dir: Path, override: str | Path | None = None) -> Path:
     spec = f.sub("urdf").only("path", "icub_models", "package", "file", "supplied")
     if override is not None:
         path = Path(override)
@@ -326,7 +234,7 @@ def _resolve_urdf(f: _Fields, config_dir: Path, override: str | Path | None = No
     return path
 
 
-def _noise(f: _Fields, motors: tuple[str, ...], joints: tuple[str, ...]) -> NoiseConfig:
+def _noise(f: Fields, motors: tuple[str, ...], joints: tuple[str, ...]) -> NoiseConfig:
     """`noise`: each input kind one number, or a mapping with a value per motor (pwm, current) or joint (torque)."""
     n = f.sub("noise", {}).only("pwm", "current", "torque", "encoder_step")
     defaults = {"pwm": 0.002, "current": 0.01, "torque": 0.05}
@@ -367,9 +275,9 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     # and its composer recurses once per level of nesting.
     except (ValueError, RecursionError) as e:
         raise ConfigError(f"{path}: not valid YAML: {e.__class__.__name__}: {str(e)[:80]}") from None
-    root = _Fields(path.stem, "", data)
+    root = Fields(path.stem, "", data)
     name = root.string("name")
-    f = _Fields(name, "", data).only(
+    f = Fields(name, "", data).only(
         "name", "urdf", "base_link", "gravity", "joints", "ft_sensors", "motors", "actuation", "noise", "can",
         "derivatives", "columns", "payload_frame", "yarp", "limits",
     )
@@ -497,7 +405,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     )
 
 
-def _limits(f: _Fields, joints: tuple[str, ...]) -> MotionLimits:
+def _limits(f: Fields, joints: tuple[str, ...]) -> MotionLimits:
     """`limits`: {position_margin, velocity, acceleration}; each rate one number or a value per joint."""
     spec = f.sub("limits", {}).only("position_margin", "velocity", "acceleration")
     margin = spec.number("position_margin", 0.1)
@@ -519,7 +427,7 @@ _DERIVATIVE_OPTIONS: dict[str, type] = {
 }
 
 
-def _derivatives(f: _Fields) -> dict[str, Any]:
+def _derivatives(f: Fields) -> dict[str, Any]:
     """Options of dynid.io.derivatives.estimate_derivatives, each checked for its type."""
     d = f.sub("derivatives", {}).only(*_DERIVATIVE_OPTIONS)
     out: dict[str, Any] = {}
@@ -536,7 +444,7 @@ def _derivatives(f: _Fields) -> dict[str, Any]:
     return out
 
 
-def _validate_can(f: _Fields, joints: tuple[str, ...], motors: tuple[str, ...], sensors: tuple[str, ...]) -> dict:
+def _validate_can(f: Fields, joints: tuple[str, ...], motors: tuple[str, ...], sensors: tuple[str, ...]) -> dict:
     """The CAN mapping: buses, and which board (bus, address) carries which joint, motor or sensor."""
     if not f.has("can"):
         return {}
@@ -544,7 +452,7 @@ def _validate_can(f: _Fields, joints: tuple[str, ...], motors: tuple[str, ...], 
     buses = can.strings("buses")
     used_addresses: set[tuple[str, int, int]] = set()
 
-    def address(b: _Fields, cls: int) -> int:
+    def address(b: Fields, cls: int) -> int:
         bus = b.string("bus")
         if bus not in buses:
             raise b.fail("bus", f"names '{bus}', which is not in can.buses")
@@ -565,7 +473,7 @@ def _validate_can(f: _Fields, joints: tuple[str, ...], motors: tuple[str, ...], 
             raise b.fail("sensor", f"names '{sensor}', which is not in ft_sensors")
         fs = b.raw("full_scale")
         if not (isinstance(fs, list) and len(fs) == 6 and all(  # finite: an inf full scale made every F/T value nan
-                not isinstance(x, bool) and isinstance(x, (int, float)) and 0 < _float(x) < math.inf for x in fs)):
+                not isinstance(x, bool) and isinstance(x, (int, float)) and 0 < as_float(x) < math.inf for x in fs)):
             raise b.fail("full_scale", f"must be six positive numbers (N, N, N, Nm, Nm, Nm), got {fs!r}")
         strain.append(b.data)
     mc = []
