@@ -5,15 +5,11 @@ UR10e. Skipped, with the reason, where the data are absent."""
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
-from . import convert
+from . import cli, convert
 
 LEG = convert.REALDATA / "icub_leg_insitu"
 DUMP = LEG / "dumperLeftLegNoIMU"
@@ -22,11 +18,7 @@ SENSORS = ("r_leg_ft_sensor", "r_foot_ft_sensor")
 
 
 def dynid(*args: str) -> dict:
-    env = {k: v for k, v in os.environ.items() if k != "DYNID_URDF_PATH"}
-    done = subprocess.run([sys.executable, "-m", "dynid.cli", *args, "--json", "-"], capture_output=True, text=True,
-                          timeout=900, env=env)
-    assert done.returncode == 0, done.stderr
-    return json.loads(done.stdout)
+    return cli.dynid(*args, keep_urdf_path=False)
 
 
 @pytest.fixture(scope="module")

@@ -4,25 +4,16 @@ measured, with a small margin; the issue's targets that are not reached are name
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from . import convert
+from .cli import dynid
 
 UR = convert.REALDATA / "ur10e_mamedov"
 LEG_ROOT = convert.REALDATA / "icub_leg_insitu"
 LEG = LEG_ROOT / "dumperLeftLegNoIMU"
-
-
-def dynid(*args: str) -> dict:
-    done = subprocess.run([sys.executable, "-m", "dynid.cli", *args, "--json", "-"], capture_output=True, text=True,
-                          timeout=900)
-    assert done.returncode == 0, done.stderr
-    return json.loads(done.stdout)
 
 
 @pytest.fixture(scope="module")

@@ -11,8 +11,6 @@ consistent one, the fitted model itself takes the round trip.
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -23,15 +21,12 @@ from dynid.identify.validation import load_run
 from dynid.robot.regressors.stack import signals_from_dataset
 
 from . import convert
+from .cli import run
 
 UR = convert.REALDATA / "ur10e_mamedov"
 pytestmark = pytest.mark.skipif(not UR.is_dir(), reason=f"no real UR10e data at {UR}")
 IDENT = UR / "identification" / "ur-20_02_19_14harm50sec.csv"
 PTP = UR / "validation" / "ur-20_01_17-ptp_10_points.csv"
-
-
-def run(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True, timeout=900)
 
 
 def test_ur10e_urdf_round_trip_on_ptp_10_points(tmp_path: Path) -> None:
