@@ -1,9 +1,11 @@
-// rt_bench: time per sample of the full real-time core (filter, RNEA prediction, residuals, T², detector), and
-// in the same run Pinocchio's rnea on the same 7-joint chain (built from the same coefficient file).
+// rt_bench: time per sample of the full real-time core (filter, RNEA prediction, residuals, T², detector), of the
+// core running the momentum observer instead (momentum terms, observer, band, T², detector, τ_ext), and in the same
+// run Pinocchio's rnea on the same 7-joint chain (built from the same coefficient file).
 //   rt_bench [COEF_FILE] [--samples N]
 // Each call is timed alone (steady_clock; its own overhead is reported and not subtracted).
 #include "rt_monitor/core.hpp"
 
+#include <pinocchio/algorithm/crba.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody/data.hpp>
 #include <pinocchio/multibody/model.hpp>
@@ -96,11 +98,17 @@ int main(int argc, char** argv) {
     }
 
     auto core = std::make_unique<Core>(*c);
+    auto observer = std::make_unique<Core>(*c);
+    if (!observer->set_residual(Residual::kMomentum)) {
+        std::fprintf(stderr, "rt_bench: %s carries no momentum observer (export it again)\n", path.c_str());
+        return 2;
+    }
     pinocchio::Model pm = pinocchio_chain(*c);
     pinocchio::Data pd(pm);
     Eigen::VectorXd q(pm.nq), v(pm.nv), a(pm.nv);
 
     std::vector<double> t_core(static_cast<size_t>(n)), t_rnea(static_cast<size_t>(n)), t_clock(static_cast<size_t>(n));
+    std::vector<double> t_obs(static_cast<size_t>(n));
     volatile double sink = 0;
     for (long k = 0; k < n; ++k) {  // interleaved, so both see the same machine state
         const auto t0 = Clock::now();
@@ -113,12 +121,16 @@ int main(int argc, char** argv) {
         const auto t3 = Clock::now();
         sink = sink + pd.tau[0];
         const auto t4 = Clock::now();
+        const Output& ob = observer->step(&Q[k * nj], &Y[k * no]);
+        const auto t5 = Clock::now();
+        sink = sink + ob.p.t2;
+        t_obs[k] = std::chrono::duration<double, std::nano>(t5 - t4).count();
         t_core[k] = std::chrono::duration<double, std::nano>(t1 - t0).count();
         t_rnea[k] = std::chrono::duration<double, std::nano>(t3 - t2).count();
         t_clock[k] = std::chrono::duration<double, std::nano>(t4 - t3).count();
     }
     // Same chain, same answer: the core's joint torques against Pinocchio's on every 1000th state.
-    double worst = 0;
+    double worst = 0, worst_p = 0, worst_beta = 0;
     for (long k = 0; k < n; k += 1000) {
         VecJ qq = VecJ::Zero(), vv = VecJ::Zero(), aa = VecJ::Zero();
         for (int j = 0; j < nj; ++j) qq[j] = q[j] = Q[k * nj + j], vv[j] = v[j] = V[k * nj + j], aa[j] = a[j] = A[k * nj + j];
@@ -126,20 +138,38 @@ int main(int argc, char** argv) {
         core->predict(qq, vv, aa, VecO::Zero(), p);
         pinocchio::rnea(pm, pd, q, v, a);
         for (int j = 0; j < nj; ++j) worst = std::max(worst, std::abs(p.tau[j] - pd.tau[j]) / (1e-12 + pd.tau.cwiseAbs().maxCoeff()));
+        // The observer's momentum terms: p = M q̇ and β = Cᵀq̇ − g against Pinocchio's crba, Coriolis matrix, gravity.
+        MomentumTerms m;
+        momentum_terms(*c, qq.data(), vv.data(), m);
+        pinocchio::crba(pm, pd, q);
+        pd.M.triangularView<Eigen::StrictlyLower>() = pd.M.transpose().triangularView<Eigen::StrictlyLower>();
+        const Eigen::VectorXd mv = pd.M * v;
+        const Eigen::VectorXd beta = pinocchio::computeCoriolisMatrix(pm, pd, q, v).transpose() * v -
+                                     pinocchio::computeGeneralizedGravity(pm, pd, q);
+        for (int j = 0; j < nj; ++j) {
+            worst_p = std::max(worst_p, std::abs(m.p[j] - mv[j]) / (1e-12 + mv.cwiseAbs().maxCoeff()));
+            worst_beta = std::max(worst_beta, std::abs(m.beta[j] - beta[j]) / (1e-12 + beta.cwiseAbs().maxCoeff()));
+        }
     }
     const long warm = std::min<long>(n / 10, 1000);  // first calls: cold caches, filter warm-up
     t_core.erase(t_core.begin(), t_core.begin() + warm);
     t_rnea.erase(t_rnea.begin(), t_rnea.begin() + warm);
     t_clock.erase(t_clock.begin(), t_clock.begin() + warm);
-    const Stats sc = stats(t_core), sr = stats(t_rnea), sk = stats(t_clock);
+    t_obs.erase(t_obs.begin(), t_obs.begin() + warm);
+    const Stats sc = stats(t_core), sr = stats(t_rnea), sk = stats(t_clock), so = stats(t_obs);
     std::printf("rt_bench: %s, %d joints, %d outputs, filter window %d; %ld samples timed one by one\n",
                 c->robot_name.c_str(), nj, no, c->window, n - warm);
     std::printf("  full core step       median %7.1f ns  p99.9 %7.1f ns  max %9.1f ns  mean %7.1f ns\n", sc.median,
                 sc.p999, sc.max, sc.mean);
+    std::printf("  observer core step   median %7.1f ns  p99.9 %7.1f ns  max %9.1f ns  mean %7.1f ns\n", so.median,
+                so.p999, so.max, so.mean);
     std::printf("  pinocchio::rnea      median %7.1f ns  p99.9 %7.1f ns  max %9.1f ns  mean %7.1f ns\n", sr.median,
                 sr.p999, sr.max, sr.mean);
     std::printf("  timer overhead       median %7.1f ns (included in both)\n", sk.median);
     std::printf("  ratio core / rnea (medians): %.2f\n", sc.median / sr.median);
+    std::printf("  ratio observer core / rnea (medians): %.2f\n", so.median / sr.median);
     std::printf("  joint torques, core vs Pinocchio: max relative difference %.2e\n", worst);
+    std::printf("  momentum M q̇ and Cᵀq̇ − g, core vs Pinocchio: max relative difference %.2e, %.2e\n", worst_p,
+                worst_beta);
     return sink == 12345.678 ? 1 : 0;
 }

@@ -55,6 +55,12 @@ def coefficient_seeds() -> None:
     c.supply_gate = [0.2 if k == 1 else 0.0 for k in c.channel_kind]
     put(d, "effects_supply.payload", c.encode())
     put(d, "effects_supply.dcoef", wrap(c.encode()))
+    m = coefficients_t.decode(payload)  # the momentum observer selected, with supply tracking and a band
+    m.residual = 1
+    m.supply_time_constant, m.supply_prior, m.supply_gate = c.supply_time_constant, c.supply_prior, c.supply_gate
+    m.joint_band = [[0.05, 0.04] for _ in m.joint_band]
+    put(d, "momentum.payload", m.encode())
+    put(d, "momentum.dcoef", wrap(m.encode()))
 
 
 def config_seeds() -> tuple[str, str]:

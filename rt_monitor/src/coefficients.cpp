@@ -128,7 +128,55 @@ LoadResult check_shape(const uint8_t* p, size_t n) {
     w.array(ne, 1 + 4 + 3 * 8);                     // effect_kind, effect_joint, effect_param
     w.array(2, 8);                                  // supply_time_constant, supply_prior
     w.array(no, 8);                                 // supply_gate
+    int32_t vw = 0;
+    w.array(1, 1 + 8);                              // residual, observer_bandwidth
+    if (!w.count(vw, "velocity filter samples", kMaxWindow, r)) return r ? not_this : r;
+    w.array(vw, 8);                                 // velocity_filter
+    w.array(int64_t(nj + nm) * 2, 8);               // joint_band, motor_band
+    w.array(no, 8);                                 // observer_variance
+    w.array(3, 8);                                  // observer thresholds
+    w.array(int64_t(nj) * no + nj + 1, 8);          // tau_map, tau_variance, isolation_sigmas
     if (!w.ok() || w.at() != n) return not_this;
+    return LoadResult{};
+}
+
+// The observer's section: absent (velocity_window 0) unless the file selects it; when present, complete and usable.
+LoadResult check_observer(const dynid::coefficients_t& c) {
+    auto dim = [](const std::string& m) { return fail(LoadError::kDimension, m); };
+    if (c.residual != 0 && c.residual != 1)
+        return dim("unknown residual " + str(c.residual) + " (this monitor knows 0 acceleration, 1 momentum)");
+    if (c.velocity_window == 0) {
+        if (c.residual == 1) return dim("the file selects the momentum residual but carries no observer");
+        return LoadResult{};
+    }
+    if (c.residual == 1 && c.n_effects > 0) return dim("the momentum observer has no form for named effects");
+    if (c.velocity_window < 3) return dim("velocity filter window " + str(c.velocity_window) + " below 3 samples");
+    auto nf = [](const char* what) { return fail(LoadError::kNotFinite, std::string("non-finite value in ") + what); };
+    if (!finite_all(c.velocity_filter) || !finite_all(c.observer_variance) || !finite_all(c.tau_variance))
+        return nf("the momentum observer");
+    for (const auto& b : c.joint_band)
+        if (!finite_all(b)) return nf("the static-friction band");
+    for (const auto& b : c.motor_band)
+        if (!finite_all(b)) return nf("the static-friction band");
+    for (const auto& row : c.tau_map)
+        if (!finite_all(row)) return nf("the external-torque map");
+    for (double v : {c.observer_bandwidth, c.observer_threshold, c.observer_rest_threshold, c.observer_ft_threshold,
+                     c.isolation_sigmas})
+        if (!std::isfinite(v)) return nf("the momentum observer's settings");
+    if (!(c.observer_bandwidth > 0) || !(c.observer_threshold > 0) || !(c.observer_rest_threshold > 0) ||
+        !(c.observer_ft_threshold > 0) || !(c.isolation_sigmas > 0))
+        return dim("momentum observer settings out of range (bandwidth, thresholds, isolation level must be positive)");
+    for (int i = 0; i < c.n_outputs; ++i)
+        if (!(c.observer_variance[i] > 0)) return dim("observer Λ of " + shown_name(c.channel_names[i]) + " is not positive");
+    for (int j = 0; j < c.n_joints; ++j) {
+        if (!(c.tau_variance[j] > 0))
+            return dim("joint " + shown_name(c.joint_names[j]) + ": the τ_ext variance must be positive");
+        if (c.joint_band[j][0] < 0 || c.joint_band[j][1] < 0)
+            return dim("joint " + shown_name(c.joint_names[j]) + ": its static-friction band must be ≥ 0");
+    }
+    for (int k = 0; k < c.n_motors; ++k)
+        if (c.motor_band[k][0] < 0 || c.motor_band[k][1] < 0)
+            return dim("motor " + shown_name(c.motor_names[k]) + ": its static-friction band must be ≥ 0");
     return LoadResult{};
 }
 
@@ -200,7 +248,7 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     const uint32_t version = read_le32(data + 8);
     if (version != kFileVersion)
         return fail(LoadError::kVersion, "format version " + std::to_string(version) + ", this monitor reads " +
-                                             std::to_string(kFileVersion));
+                                             std::to_string(kFileVersion) + ": export the model again (dynid export)");
     const uint64_t length = read_le32(data + 12);
     if (size != kHeader + length + 4)
         return fail(LoadError::kTruncated, "truncated or padded: " + std::to_string(size) + " bytes, the header says " +
@@ -228,6 +276,7 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     if (c.n_motors > kMaxMotors) return cap("motors", c.n_motors, kMaxMotors);
     if (c.n_outputs > kMaxOutputs) return cap("outputs", c.n_outputs, kMaxOutputs);
     if (c.window > kMaxWindow) return cap("filter samples", c.window, kMaxWindow);
+    if (c.velocity_window > kMaxWindow) return cap("velocity filter samples", c.velocity_window, kMaxWindow);
     if (c.n_effects > kMaxEffects) return cap("effects", c.n_effects, kMaxEffects);
     auto dim = [](const std::string& m) { return fail(LoadError::kDimension, m); };
     if (c.n_joints < 1 || c.n_bodies < c.n_joints || c.n_outputs < 6 || c.n_motors < 0)
@@ -311,6 +360,8 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
         return dim(m.str());
     }
 
+    if (LoadResult obs = check_observer(c); !obs) return obs;
+
     if (!expected_robot.empty() && c.robot_name != expected_robot)
         return fail(LoadError::kRobot, "exported for robot '" + shown_name(c.robot_name) + "', not for '" + shown_name(expected_robot) + "'");
 
@@ -379,6 +430,25 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     out.lag = c.lag;
     for (int r = 0; r < 3; ++r)
         for (int i = 0; i < c.window; ++i) out.filter(r, i) = c.filter[r][i];
+    out.residual = Residual(c.residual);
+    out.observer_bandwidth = c.observer_bandwidth;
+    out.velocity_window = c.velocity_window;
+    for (int i = 0; i < c.velocity_window; ++i) out.velocity_filter[i] = c.velocity_filter[i];
+    for (int j = 0; j < c.n_joints; ++j) {
+        out.joint_band(j, 0) = c.joint_band[j][0];
+        out.joint_band(j, 1) = c.joint_band[j][1];
+        out.tau_variance[j] = c.tau_variance[j];
+        for (int i = 0; i < c.n_outputs; ++i) out.tau_map(j, i) = c.tau_map[j][i];
+    }
+    for (int k = 0; k < c.n_motors; ++k) {
+        out.motor_band(k, 0) = c.motor_band[k][0];
+        out.motor_band(k, 1) = c.motor_band[k][1];
+    }
+    for (int i = 0; i < c.n_outputs; ++i) out.observer_variance[i] = c.observer_variance[i];
+    out.observer_threshold = c.observer_threshold;
+    out.observer_rest_threshold = c.observer_rest_threshold;
+    out.observer_ft_threshold = c.observer_ft_threshold;
+    out.isolation_sigmas = c.isolation_sigmas;
     out.n_effects = c.n_effects;
     for (int k = 0; k < c.n_effects; ++k) {
         out.effect_kind[k] = EffectKind(c.effect_kind[k]);

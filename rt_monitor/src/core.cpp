@@ -1,5 +1,8 @@
 #include "rt_monitor/core.hpp"
 
+#include "rt_monitor/kinematics.hpp"
+
+#include <algorithm>
 #include <cmath>
 
 namespace dynid::rt {
@@ -11,13 +14,13 @@ inline double friction(double v, const double* c) noexcept {
     return (v > 0 ? c[0] + c[2] * v : 0.0) + (v < 0 ? -c[1] + c[3] * v : 0.0);
 }
 
-inline Mat3 axis_rotation(const Vec3& a, double angle) noexcept {
-    const double s = std::sin(angle), co = std::cos(angle), t = 1.0 - co;
-    Mat3 R;
-    R << t * a.x() * a.x() + co, t * a.x() * a.y() - s * a.z(), t * a.x() * a.z() + s * a.y(),
-        t * a.x() * a.y() + s * a.z(), t * a.y() * a.y() + co, t * a.y() * a.z() - s * a.x(),
-        t * a.x() * a.z() - s * a.y(), t * a.y() * a.z() + s * a.x(), t * a.z() * a.z() + co;
-    return R;
+// The observer's friction: the law where the coordinate moves; at rest (|v| < min_speed) its viscous part only,
+// Coulomb friction being the band (dynid.detect.momentum).
+template <class Row>
+inline double observed_friction(double v, const Row& row, double min_speed) noexcept {
+    const double c[4] = {row(0), row(1), row(2), row(3)};
+    if (std::abs(v) >= min_speed) return friction(v, c);
+    return (v > 0 ? c[2] * v : 0.0) + (v < 0 ? c[3] * v : 0.0);
 }
 
 }  // namespace
@@ -28,7 +31,9 @@ Core::Core(const Coefficients& c) noexcept : c_(c) {
     det_.hysteresis = c.hysteresis;
     width_ = c.n_joints + c.n_outputs;
     if (c.supply_time_constant > 0) lambda_ = std::exp(-c.sample_period / c.supply_time_constant);
+    if (c.has_observer()) decay_ = std::exp(-2.0 * M_PI * c.observer_bandwidth * c.sample_period);
     ratio_.fill(1.0);  // stays 1 on every channel but the tracked motor inputs
+    residual_ = c.has_observer() ? c.residual : Residual::kAcceleration;
     reset();
 }
 
@@ -37,7 +42,18 @@ void Core::reset() noexcept {
     slot_ = 0;
     count_ = 0;
     above_run_ = below_run_ = 0;
+    window_ = residual_ == Residual::kMomentum ? c_.velocity_window : c_.window;
+    observing_ = false;
+    r_.setZero();
+    inputs_.setZero();
     out_ = Output{};
+}
+
+bool Core::set_residual(Residual r) noexcept {
+    if (r == Residual::kMomentum && !c_.has_observer()) return false;
+    residual_ = r;
+    reset();
+    return true;
 }
 
 void Core::rnea(const VecJ& q, const VecJ& dq, const VecJ& ddq, VecJ& tau, Vec6& sensor_force) const noexcept {
@@ -48,12 +64,7 @@ void Core::rnea(const VecJ& q, const VecJ& dq, const VecJ& ddq, VecJ& tau, Vec6&
     for (int i = 0; i < nb; ++i) {
         const int j = c_.joint_index[i], p = c_.parent[i];
         const Vec3& ax = c_.axis[i];
-        r[i] = c_.translation[i];
-        switch (c_.joint_type[i]) {
-            case JointType::kRevolute: R[i].noalias() = c_.rotation[i] * axis_rotation(ax, q[j]); break;
-            case JointType::kPrismatic: R[i] = c_.rotation[i]; r[i].noalias() += c_.rotation[i] * (ax * q[j]); break;
-            default: R[i] = c_.rotation[i]; break;
-        }
+        joint_placement(c_, i, q.data(), R[i], r[i]);
         Vec3 vp, wp, ap, alp;
         if (p < 0) {
             vp.setZero(); wp.setZero(); ap = -c_.gravity; alp.setZero();
@@ -164,7 +175,7 @@ void Core::predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y
 }
 
 const Output& Core::step(const double* q, const double* y) noexcept {
-    const int W = c_.window, nj = c_.n_joints, no = c_.n_outputs;
+    const int W = window_, nj = c_.n_joints, no = c_.n_outputs;
     for (int k = 0; k < nj; ++k) ring_(k, slot_) = ring_(k, slot_ + W) = q[k];
     for (int k = 0; k < no; ++k) ring_(nj + k, slot_) = ring_(nj + k, slot_ + W) = y[k];
     slot_ = slot_ + 1 == W ? 0 : slot_ + 1;
@@ -174,6 +185,14 @@ const Output& Core::step(const double* q, const double* y) noexcept {
         out_.ready = false;
         return out_;
     }
+    out_.ready = true;
+    if (residual_ == Residual::kMomentum) observe(q, y);
+    else accelerate();
+    return out_;
+}
+
+void Core::accelerate() noexcept {
+    const int W = window_, nj = c_.n_joints, no = c_.n_outputs;
     // The window, oldest first, is columns slot_ … slot_ + W − 1: the same summation order as dynid.detect.online.
     out_.q.setZero(); out_.dq.setZero(); out_.ddq.setZero(); out_.y.setZero();
     for (int s = 0; s < W; ++s) {
@@ -186,11 +205,104 @@ const Output& Core::step(const double* q, const double* y) noexcept {
         }
         for (int k = 0; k < no; ++k) out_.y[k] += w0 * col[nj + k];
     }
-    out_.ready = true;
     predict(out_.q, out_.dq, out_.ddq, out_.y, out_.p);
-    detect();
+    out_.wrench = out_.p.e.head<6>();
+    detect(c_.threshold, c_.ft_threshold);
     track_supply();  // after this sample's residual: the sample never explains itself
-    return out_;
+}
+
+void Core::observe(const double* q, const double* y) noexcept {
+    // dynid.detect.momentum term for term: r = low-pass of τ_meas − τ_model with τ_model = ṗ − β (no q̈), on the raw
+    // q and the causal q̇ estimate; ṗ is the difference of p over the step (0 on the observer's first sample).
+    const int W = window_, nj = c_.n_joints, no = c_.n_outputs;
+    const double T = c_.sample_period, ms = c_.min_speed;
+    out_.dq.setZero();
+    for (int s = 0; s < W; ++s) {
+        const double w1 = c_.velocity_filter[s];
+        const auto col = ring_.col(slot_ + s);
+        for (int k = 0; k < nj; ++k) out_.dq[k] += w1 * col[k];
+    }
+    for (int k = 0; k < nj; ++k) out_.q[k] = q[k];
+    for (int k = 0; k < no; ++k) out_.y[k] = y[k];
+    out_.ddq.setZero();
+    const VecJ& dq = out_.dq;
+    momentum_terms(c_, q, dq.data(), terms_);
+    VecJ x_joint = terms_.beta;  // β − ṗ: minus the model's torque, per joint
+    Vec6 x_sensor = terms_.beta_sensor;
+    if (observing_) {
+        x_joint -= (terms_.p - p_prev_) / T;
+        x_sensor -= (terms_.p_sensor - ps_prev_) / T;
+    }
+    observing_ = true;
+    p_prev_ = terms_.p;
+    ps_prev_ = terms_.p_sensor;
+    for (int j = 0; j < nj; ++j) x_joint[j] -= observed_friction(dq[j], c_.joint_friction.row(j), ms);
+    VecO x = VecO::Zero(), lo = VecO::Zero(), hi = VecO::Zero();
+    std::array<bool, kMaxOutputs> rest{};
+    bool all_rest = true;
+    for (int i = 0; i < no; ++i) {
+        if (i < 6) {  // the sensor's coordinate: τ_meas = −(w − w_O), its row w − ŵ = −(τ_meas − τ_model)
+            x[i] = (y[i] - c_.ft_offset[i]) - x_sensor[i];
+            all_rest = false;
+            continue;
+        }
+        double s = c_.divisor[i] * y[i];  // the motors' (or a torque sensor's) torque on this row
+        for (int j = 0; j < nj; ++j) s += c_.row_map(i, j) * x_joint[j];
+        const int m = c_.channel_motor[i];
+        if (m >= 0 && c_.motor_friction_on[m])
+            s -= observed_friction(c_.motor_velocity.row(m).head(nj).dot(dq.head(nj)), c_.motor_friction.row(m), ms);
+        x[i] = s;
+        // The static-friction band of every resting coordinate on this row.
+        for (int j = 0; j < nj; ++j) {
+            if (!(c_.gate_joints[i] >> j & 1u) || std::abs(dq[j]) >= ms) continue;
+            rest[i] = true;
+            const double a = c_.row_map(i, j) * c_.joint_band(j, 0), b = -c_.row_map(i, j) * c_.joint_band(j, 1);
+            lo[i] += std::min(a, b);
+            hi[i] += std::max(a, b);
+        }
+        for (int k = 0; k < c_.n_motors; ++k) {
+            if (!(c_.gate_motors[i] >> k & 1u)) continue;
+            if (std::abs(c_.motor_velocity.row(k).head(nj).dot(dq.head(nj))) >= ms) continue;
+            rest[i] = true;
+            lo[i] -= c_.motor_band(k, 1);
+            hi[i] += c_.motor_band(k, 0);
+        }
+        all_rest = all_rest && rest[i];
+    }
+    const double a = decay_;
+    r_.head(no) = a * r_.head(no) + (1.0 - a) * x.head(no);
+    out_.r = r_;
+    if (c_.supply_time_constant > 0) {  // the supply tracker on the low-passed inputs (dynid.detect.momentum._tracked)
+        for (int i = 0; i < no; ++i) {
+            if (!(c_.supply_gate[i] > 0)) continue;
+            inputs_[i] = a * inputs_[i] + (1.0 - a) * y[i];
+            const double g = c_.divisor[i], u = inputs_[i];
+            const double predicted = u - r_[i] / g, residual = u - ratio_[i] * predicted;
+            out_.r[i] = residual * g;
+            if (!rest[i] && std::abs(residual) <= c_.supply_gate[i]) {
+                num_[i] = lambda_ * num_[i] + (1.0 - lambda_) * predicted * u;
+                den_[i] = lambda_ * den_[i] + (1.0 - lambda_) * predicted * predicted;
+                ratio_[i] = (num_[i] + c_.supply_prior) / (den_[i] + c_.supply_prior);
+            }
+        }
+    }
+    Prediction& p = out_.p;
+    p.t2 = p.t2_ft = 0;
+    for (int i = 0; i < no; ++i) {
+        const double ri = out_.r[i];
+        p.e[i] = rest[i] ? ri - std::clamp(ri, lo[i], hi[i]) : ri;  // at rest: the distance outside the band
+        p.active[i] = true;
+        p.y_model[i] = p.y_hat[i] = 0;
+        const double z = p.e[i] * p.e[i] / c_.observer_variance[i];
+        p.t2 += z;
+        if (i < 6) p.t2_ft += z;
+    }
+    out_.tau_ext.head(nj) = c_.tau_map.topLeftCorner(nj, no) * out_.r.head(no);
+    out_.joint = -1;
+    for (int j = nj - 1; j >= 0 && out_.joint < 0; --j)
+        if (std::abs(out_.tau_ext[j]) > c_.isolation_sigmas * std::sqrt(c_.tau_variance[j])) out_.joint = j;
+    out_.wrench = out_.r.head<6>();
+    detect(all_rest ? c_.observer_rest_threshold : c_.observer_threshold, c_.observer_ft_threshold);
 }
 
 void Core::track_supply() noexcept {
@@ -207,11 +319,10 @@ void Core::track_supply() noexcept {
     }
 }
 
-void Core::detect() noexcept {
+void Core::detect(double threshold, double ft_threshold) noexcept {
     const double t2 = out_.p.t2;
-    out_.above = t2 > c_.threshold;
-    out_.wrench = out_.p.e.head<6>();
-    out_.side = !out_.above ? Side::kNone : (out_.p.t2_ft > c_.ft_threshold ? Side::kDistal : Side::kProximal);
+    out_.above = t2 > threshold;
+    out_.side = !out_.above ? Side::kNone : (out_.p.t2_ft > ft_threshold ? Side::kDistal : Side::kProximal);
     if (!out_.in_contact) {
         above_run_ = out_.above ? above_run_ + 1 : 0;
         if (above_run_ >= det_.debounce_on) {
@@ -220,7 +331,7 @@ void Core::detect() noexcept {
             below_run_ = 0;
         }
     } else {
-        below_run_ = t2 < det_.hysteresis * c_.threshold ? below_run_ + 1 : 0;
+        below_run_ = t2 < det_.hysteresis * threshold ? below_run_ + 1 : 0;
         if (below_run_ >= det_.debounce_off) {
             out_.in_contact = false;
             out_.event = Event::kEnd;

@@ -120,9 +120,10 @@ TEST(Loader, RefusesDamagedBytes) {
     crc[200] ^= 0x40;
     cases.push_back({"flipped bit", crc, LoadError::kCrc, "CRC mismatch"});
     auto version = good;
-    put_le32(version, 8, 2);  // a file of the format before supply tracking: refused, not misread
+    put_le32(version, 8, 3);  // a file of the format before the momentum observer: refused, not misread
     reseal(version);
-    cases.push_back({"version 2", version, LoadError::kVersion, "format version 2, this monitor reads 3"});
+    cases.push_back({"version 3", version, LoadError::kVersion,
+                     "format version 3, this monitor reads 4: export the model again"});
     auto magic = good;
     magic[0] = 'X';
     cases.push_back({"magic", magic, LoadError::kMagic, "bad magic"});
@@ -219,10 +220,12 @@ TEST(Loader, RefusesASamplePeriodOutOfRange) {
     }
 }
 
-TEST(Core, NoHeapAllocationOver100000Samples) {
+// The loop as rt_monitor runs it, counted: the acceleration residuals (with effects and supply tracking on) or the
+// momentum observer (with supply tracking; it has no form for effects).
+void no_allocation_over_100000_samples(Residual residual) {
     auto c = load_fixture();
     // With an augmented model's effects on (the CAD fixture has none): their evaluation allocates nothing either.
-    c->n_effects = 2;
+    c->n_effects = residual == Residual::kMomentum ? 0 : 2;
     c->effect_kind[0] = EffectKind::kStribeck;
     c->effect_joint[0] = 6;
     c->effect_param[0] = {0.3, 0.05, 0.0};
@@ -233,6 +236,7 @@ TEST(Core, NoHeapAllocationOver100000Samples) {
     c->supply_prior = 1e-4;
     for (int i = 6; i < c->n_outputs; ++i) c->supply_gate[i] = 0.02;
     auto core = std::make_unique<Core>(*c);
+    ASSERT_TRUE(core->set_residual(residual));
     // Through the monitor's sample clock, with late stamps (held, then caught up) and lost samples (bridged).
     auto clock = std::make_unique<SampleClock>(1000.0);
     // The status message as rt_monitor publishes it: supply array and encode buffer sized once, here.
@@ -288,6 +292,9 @@ TEST(Core, NoHeapAllocationOver100000Samples) {
     delete v;
     EXPECT_GE(g_allocations.load(), 1);
 }
+
+TEST(Core, NoHeapAllocationOver100000Samples) { no_allocation_over_100000_samples(Residual::kAcceleration); }
+TEST(Core, NoHeapAllocationOver100000SamplesWithTheObserver) { no_allocation_over_100000_samples(Residual::kMomentum); }
 
 namespace {
 // A smooth motion (q linear in time: the filter reproduces it exactly) with its exact model outputs, plus a
@@ -408,4 +415,60 @@ TEST(Core, SupplyTrackingFollowsASagAndIgnoresAPush) {
     core = std::move(plain);
     for (k = 0; k < 500; ++k) step(k, 0.0);
     for (int i = 6; i < c->n_outputs; ++i) EXPECT_EQ(core->supply_ratio(i), 1.0);
+}
+
+// The momentum observer on exact model outputs (q linear in time, so the causal q̇ is exact): r stays below 1e-3 of
+// its noise (ṗ is a difference quotient over the step);
+// a constant disturbance d on the elbow motor's PWM then shows as r = gain·d·(1 − e^(−K_O t)) on its row
+// (dynid.detect.momentum), the external joint torques τ_ext = tau_map·r, an onset after the debounce, proximal, and
+// the isolated joint is the elbow (the most distal joint with a row).
+TEST(Observer, ExactDataThenAFirstOrderStepOnAPush) {
+    Scenario s;
+    ASSERT_TRUE(s.core->set_residual(Residual::kMomentum));
+    const Coefficients& c = *s.c;
+    s.core->set_detector({3, 20, 0.5});
+    const int no = c.n_outputs, W = c.velocity_window;
+    int k = 0;
+    for (; k < 300; ++k) {
+        const Output& o = s.step(k, VecO::Zero());
+        EXPECT_EQ(o.ready, k >= W - 1) << k;
+        if (!o.ready) continue;
+        EXPECT_FALSE(o.above) << "false alarm at " << k << " T2 " << o.p.t2;
+        if (k < W + 100) continue;  // the start: ṗ is unknown on the first sample, a transient of e^(−K_O t)
+        for (int i = 0; i < no; ++i) EXPECT_NEAR(o.r[i], 0.0, 1e-3 * std::sqrt(c.observer_variance[i])) << k << " " << i;
+    }
+    const double d = 0.05, gain = c.divisor[9], a = std::exp(-2 * M_PI * c.observer_bandwidth * c.sample_period);
+    VecO push = VecO::Zero();
+    push[9] = d;
+    const VecO r_before = s.core->output().r;
+    int onset = -1;
+    for (int n = 1; n <= 200; ++n, ++k) {
+        const Output& o = s.step(k, push);
+        // x jumps by gain·d: r_n = r_0 + gain·d·(1 − aⁿ) on the row, nothing elsewhere
+        EXPECT_NEAR(o.r[9] - r_before[9], gain * d * (1 - std::pow(a, n)), 1e-4 * gain * d) << n;
+        for (int i = 0; i < 9; ++i) EXPECT_NEAR(o.r[i], r_before[i], 1e-3 * std::sqrt(c.observer_variance[i])) << i;
+        if (o.event == Event::kOnset) {
+            onset = n;
+            EXPECT_EQ(o.side, Side::kProximal);
+        }
+    }
+    const Output& o = s.core->output();
+    const int nj = c.n_joints;
+    const VecJ expected = c.tau_map.topLeftCorner(nj, no) * o.r.head(no);
+    for (int j = 0; j < nj; ++j) EXPECT_NEAR(o.tau_ext[j], expected[j], 1e-12) << j;
+    EXPECT_GT(std::abs(o.tau_ext[3]), 0.5 * gain * d);
+    EXPECT_EQ(o.joint, 3) << "the elbow: the most distal joint with a significant external torque";
+    // T² crosses T²_α when gain·d·(1 − aⁿ) reaches sqrt(T²_α Λ), then 3 samples of debounce
+    const double level = std::sqrt(c.observer_threshold * c.observer_variance[9]) / (gain * d);
+    ASSERT_LT(level, 1.0);
+    const int cross = int(std::ceil(std::log(1 - level) / std::log(a)));
+    EXPECT_NEAR(onset, cross + 2, 1) << "onset 3 samples after the crossing";
+}
+
+TEST(Observer, RefusedWhereTheFileHasNone) {
+    auto c = load_fixture();
+    c->velocity_window = 0;  // a file without the observer's section
+    Core core(*c);
+    EXPECT_FALSE(core.set_residual(Residual::kMomentum));
+    EXPECT_EQ(core.residual(), Residual::kAcceleration);
 }

@@ -1,8 +1,9 @@
 // rt_eval: the core on files, for tests and offline replays (not the real-time loop).
 //   rt_eval --coef FILE [--robot NAME] --check
 //   rt_eval --coef FILE [--robot NAME] --predict IN OUT   IN rows: q, q̇, q̈, y   OUT: ŷ, e, active, T², T²_FT
-//   rt_eval --coef FILE [--robot NAME] --stream IN OUT    IN rows: raw q, y     OUT: ready, q, q̇, q̈, y, ŷ, e,
-//                                                          T², T²_FT, above, in_contact, event, side
+//   rt_eval --coef FILE [--robot NAME] [--residual acceleration|momentum] --stream IN OUT
+//       IN rows: raw q, y    OUT: ready, q, q̇, q̈, y, ŷ, e, T², T²_FT, above, in_contact, event, side, r, τ_ext, joint
+//       (the residual the file selects, or the one named; r, τ_ext and joint are the observer's: zero, −1 else)
 // Matrices: "DYMX", int64 rows, int64 cols, then float64 row-major (little-endian). Exit 2 on bad usage or
 // data, 10 + LoadError on a refused coefficient file.
 #include "rt_monitor/core.hpp"
@@ -54,12 +55,13 @@ int usage(const char* msg) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    std::string coef, robot, mode, in, out;
+    std::string coef, robot, mode, in, out, residual;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         if (a == "--coef" && i + 1 < argc) coef = argv[++i];
         else if (a == "--robot" && i + 1 < argc) robot = argv[++i];
         else if (a == "--check") mode = "check";
+        else if (a == "--residual" && i + 1 < argc) residual = argv[++i];
         else if ((a == "--predict" || a == "--stream") && i + 2 < argc) {
             mode = a.substr(2);
             in = argv[++i];
@@ -81,7 +83,12 @@ int main(int argc, char** argv) {
     }
     Matrix x;
     if (!read_matrix(in, x)) return usage(("cannot read matrix " + in).c_str());
+    if (!residual.empty() && residual != "acceleration" && residual != "momentum")
+        return usage(("--residual is acceleration or momentum, not '" + residual + "'").c_str());
     auto core = std::make_unique<Core>(*c);
+    if (!residual.empty() &&
+        !core->set_residual(residual == "momentum" ? Residual::kMomentum : Residual::kAcceleration))
+        return usage("--residual momentum: the coefficient file carries no momentum observer");
     Matrix y;
     y.rows = x.rows;
     if (mode == "predict") {
@@ -103,7 +110,7 @@ int main(int argc, char** argv) {
         }
     } else {
         if (x.cols != nj + no) return usage("--stream input needs n_joints + n_outputs columns");
-        y.cols = 1 + 3 * nj + 3 * no + 6;
+        y.cols = 1 + 3 * nj + 3 * no + 6 + no + nj + 1;
         y.v.resize(size_t(y.rows * y.cols));
         for (int64_t k = 0; k < x.rows; ++k) {
             const double* row = &x.v[size_t(k * x.cols)];
@@ -116,6 +123,10 @@ int main(int argc, char** argv) {
             oo += 3 * no;
             oo[0] = s.p.t2, oo[1] = s.p.t2_ft, oo[2] = s.above, oo[3] = s.in_contact, oo[4] = int(s.event),
             oo[5] = int(s.side);
+            oo += 6;
+            for (int i = 0; i < no; ++i) oo[i] = s.r[i];
+            for (int j = 0; j < nj; ++j) oo[no + j] = s.tau_ext[j];
+            oo[no + nj] = s.joint;
         }
     }
     if (!write_matrix(out, y)) return usage(("cannot write " + out).c_str());

@@ -50,12 +50,12 @@ void on_signal(int) { g_stop = 1; }
 
 constexpr const char* kSynopsis =
     "usage: rt_monitor --model COEF --config CONFIG [--replay CANDUMP.log [--realtime]] [--loopback DIR] "
-    "[--lcm-url URL] [--mlockall] [--priority N] [--cpu LIST] [--latency-out FILE] [--stats-out FILE] [--help]\n";
+    "[--lcm-url URL] [--residual acceleration|momentum] [--mlockall] [--priority N] [--cpu LIST] [--latency-out FILE] [--stats-out FILE] [--help]\n";
 
 constexpr const char* kHelp = R"(
 The real-time contact monitor: reads the boards' CAN frames, assembles samples (one per F/T strain pair),
-predicts the F/T wrench and the PWMs with the identified model, computes Hotelling T2 and publishes contact
-events, a status (counters, loop times, supply ratios) and decimated residuals on LCM (channels DYNID_CONTACT,
+runs the identified model's momentum observer (or its acceleration residuals: the file says which), computes
+Hotelling T2 and publishes contact events (with the external joint torques and the isolated joint), a status (counters, loop times, supply ratios) and decimated residuals on LCM (channels DYNID_CONTACT,
 DYNID_STATUS, DYNID_RESIDUAL). SIGINT or SIGTERM ends the run; the final counters are printed on stdout.
 
 required:
@@ -69,6 +69,10 @@ frame source (default: SocketCAN raw sockets on the configured buses, kernel fil
   --realtime            with --replay: at the log's own pace
   --loopback DIR        read the loopback transport: one datagram socket per bus at DIR/<bus>.can
                         (`boards --sink loopback:DIR --realtime` sends to it); excludes --replay
+
+detection:
+  --residual R          acceleration or momentum: run this residual instead of the one the file selects (momentum
+                        needs a file that carries the observer: `dynid export` writes it)
 
 output:
   --lcm-url URL         LCM URL, overriding the configuration's lcm_url (default: LCM's own, UDP multicast);
@@ -193,7 +197,7 @@ bool write_stats(const std::string& path, Allocations a, Body body) {
 
 int main(int argc, char** argv) {
     std::string model, config, replay, loopback, url, latency_out, stats_out;
-    std::string priority, cpu;
+    std::string priority, cpu, residual;
     bool have_url = false, have_cpu = false, realtime = false;
     RtSettings rts;
     for (int i = 1; i < argc; ++i) {
@@ -213,6 +217,7 @@ int main(int argc, char** argv) {
         else if (a == "--lcm-url") ok = have_url = value(url);
         else if (a == "--latency-out") ok = path(latency_out);
         else if (a == "--stats-out") ok = path(stats_out);
+        else if (a == "--residual") ok = value(residual);
         else if (a == "--realtime") realtime = true;
         else if (a == "--mlockall") rts.mlockall = true;
         else if (a == "--priority") ok = rts.fifo = value(priority);
@@ -223,6 +228,8 @@ int main(int argc, char** argv) {
     }
     if (model.empty() || config.empty()) return usage("--model and --config are required");
     if (!replay.empty() && !loopback.empty()) return usage("--replay and --loopback exclude each other");
+    if (!residual.empty() && residual != "acceleration" && residual != "momentum")
+        return usage("--residual is acceleration or momentum, not '" + residual + "'");
     // Range checks are the system's (SCHED_FIFO's priorities, the allowed CPUs): a refusal has its own exit code.
     if (rts.fifo && !parse_int(priority, -1000000, 1000000, rts.priority))
         return usage("--priority needs an integer, got '" + priority + "'");
@@ -253,6 +260,9 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "rt_monitor: error: %s\n", lr.message.c_str());
         return kExitBase + int(lr.error);
     }
+    if (residual == "momentum" && !coef->has_observer())
+        return bad_config(model + ": carries no momentum observer (export it again with dynid export), so "
+                          "--residual momentum cannot run");
     Assembler asm_;
     if (!asm_.init(cfg, *coef, err)) return bad_config(config + ": " + err);
 
@@ -297,22 +307,30 @@ int main(int argc, char** argv) {
                  describe_rt_settings(rts).c_str());
 
     auto core = std::make_unique<Core>(*coef);
+    if (!residual.empty()) core->set_residual(residual == "momentum" ? Residual::kMomentum : Residual::kAcceleration);
     core->set_detector({coef->debounce_on, coef->debounce_off, coef->hysteresis});
-    const int n_out = coef->n_outputs;
+    const bool momentum = core->residual() == Residual::kMomentum;
+    std::fprintf(stderr, "rt_monitor: residual: %s\n", momentum ? "momentum observer" : "acceleration (fixed-lag filter)");
+    const int n_out = coef->n_outputs, n_joints = coef->n_joints;
     dynid::contact_event_t ev;
     ev.n_channels = n_out;
     ev.channel.assign(coef->channel_names.begin(), coef->channel_names.begin() + n_out);
     ev.normalized_residual.assign(size_t(n_out), 0.0);
+    ev.residual = int8_t(momentum);
+    ev.n_joints = n_joints;
+    ev.joint.assign(coef->joint_names.begin(), coef->joint_names.begin() + n_joints);
+    ev.tau_ext.assign(size_t(n_joints), 0.0);
+    ev.isolated_joint = -1;
     dynid::residual_t res;
     res.n_channels = n_out;
     res.normalized_residual.assign(size_t(n_out), 0.0);
-    res.threshold = coef->threshold;
-    ev.threshold = coef->threshold;
+    res.threshold = core->threshold();
+    ev.threshold = core->threshold();
     dynid::monitor_status_t st{};
     init_supply(*coef, st);  // sized here: the status's encoded size is fixed from here on
     // Channel residuals are published in units of their σ; σ once here, not per message.
     std::vector<double> sigma(static_cast<size_t>(n_out));
-    for (int i = 0; i < n_out; ++i) sigma[size_t(i)] = std::sqrt(coef->variance[size_t(i)]);
+    for (int i = 0; i < n_out; ++i) sigma[size_t(i)] = std::sqrt(core->variance(i));
     // One encode buffer for every message (their sizes are fixed from here on), so a publish does not allocate
     // the way lcm::LCM::publish(channel, const T*) does; channel names built once too.
     enum { kContact, kResidual, kStatus };
@@ -416,6 +434,8 @@ int main(int argc, char** argv) {
             ev.t2 = o.p.t2;
             fill_residual(ev.normalized_residual, o);
             for (int k = 0; k < 6; ++k) ev.wrench[k] = o.wrench[k];
+            for (int j = 0; j < n_joints; ++j) ev.tau_ext[size_t(j)] = o.tau_ext[j];
+            ev.isolated_joint = o.joint;
             send(kContact, ev);
             if (o.event == Event::kOnset && latency.size() < latency.capacity()) latency.push_back(mono_us() - rx_mono);
         }

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import exit_counter
-from test_rt_core import python_mirror, raw_samples, stream
+from test_rt_core import detector_columns, python_mirror, raw_samples, stream
 
 from dynid.config.robot_config import load_config
 from dynid.detect.visibility import monitor_visibility
@@ -92,7 +92,8 @@ def test_replay_end_to_end(setup: dict, default_experiments: dict) -> None:
     # Independent path: the same core on the raw floating-point samples, no CAN in between.
     c = read_coefficients(setup["coef"])
     out = stream(setup["coef"], raw_samples(data, c), setup["root"])
-    ref = [(int(out[k, -2]), int(k)) for k in np.flatnonzero(out[:, -2])]
+    event = detector_columns(c)["event"]
+    ref = [(int(out[k, event]), int(k)) for k in np.flatnonzero(out[:, event])]
     assert events == ref
 
     # Ground truth: every onset lies in a contact episode, allowing for the filter lag and the debounce.

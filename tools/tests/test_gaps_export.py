@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import dynid
-from test_rt_core import raw_samples, read_matrix, rel_err, rt_eval, stream, vector_states, write_matrix
+from test_rt_core import detector_columns, raw_samples, read_matrix, rel_err, rt_eval, stream, vector_states, write_matrix
 
 from dynid.export.coefficients import read_coefficients
 from dynid.identify.model_file import load_model
@@ -166,7 +166,7 @@ def _replay(coef: Path, run: Path, tmp_path: Path) -> tuple[np.ndarray, float]:
     m3 = c.channel_names.index("pwm.m3")  # the elbow's channel, gated on the elbow alone
     assert c.gate_joints[m3] == 1 << c.joint_names.index("r_elbow") and c.gate_motors[m3] == 0
     moving = np.abs(dq[:, c.joint_names.index("r_elbow")]) >= c.min_speed
-    return float(np.sqrt(np.mean(e[moving, m3] ** 2))), float(out[:, -4].mean())
+    return float(np.sqrt(np.mean(e[moving, m3] ** 2))), float(out[:, detector_columns(c)["above"]].mean())
 
 
 def test_replay_with_hidden_effects(augmented: dict, tmp_path: Path) -> None:

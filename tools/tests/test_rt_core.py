@@ -57,6 +57,12 @@ def raw_samples(ds, c: coefficients_t) -> np.ndarray:
     return np.hstack([ds.q, ds.ft[c.sensor_name]] + [ds.pwm[m][:, None] for m in c.motor_names])
 
 
+def detector_columns(c: coefficients_t) -> dict[str, int]:
+    """Where `rt_eval --stream` writes T², the detector's state and the side (the observer's columns follow)."""
+    at = 1 + 3 * c.n_joints + 3 * c.n_outputs
+    return {"t2": at, "t2_ft": at + 1, "above": at + 2, "in_contact": at + 3, "event": at + 4, "side": at + 5}
+
+
 def stream(coef: Path, raw: np.ndarray, work: Path) -> np.ndarray:
     """The core's per-sample output rows (`rt_eval --stream`) for the raw samples `raw`."""
     write_matrix(work / "in.mx", raw)
@@ -198,7 +204,7 @@ def test_threshold_keeps_its_promise_online(exported: Path, default_experiments:
     assert ds.contact is None or not ds.contact.any(), "the validation run must be contact-free"
     out = stream(exported, raw_samples(ds, c), tmp_path)
     out = out[out[:, 0] == 1]
-    above = out[:, -4]
+    above = out[:, detector_columns(c)["above"]]
     fpr = float(above.mean())
     print(f"online FPR on the contact-free validation run: {100 * fpr:.3f} % (1 − α = {100 * (1 - c.alpha):.2f} %)")
     assert 0.5 * (1 - c.alpha) <= fpr <= 2 * (1 - c.alpha)
@@ -235,7 +241,7 @@ def _bad_files(good: bytes) -> dict[str, tuple[bytes, int, str]]:
     flipped = bytearray(good)
     flipped[len(good) // 2] ^= 0x01
     bad["wrong CRC"] = (bytes(flipped), EXIT_BASE + 5, "CRC mismatch")
-    bad["wrong version"] = (wrap(payload, version=2), EXIT_BASE + 4, "format version 2, this monitor reads 3")
+    bad["wrong version"] = (wrap(payload, version=3), EXIT_BASE + 4, "format version 3, this monitor reads 4")
 
     c = coefficients_t.decode(payload)
     nj = 9  # capacity is 8
@@ -244,6 +250,9 @@ def _bad_files(good: bytes) -> dict[str, tuple[bytes, int, str]]:
     c.joint_friction = list(c.joint_friction) + [[0.0] * 4] * 2
     c.motor_velocity = [list(r) + [0.0, 0.0] for r in c.motor_velocity]
     c.row_map = [list(r) + [0.0, 0.0] for r in c.row_map]
+    c.joint_band = list(c.joint_band) + [[0.0, 0.0]] * 2
+    c.tau_map = list(c.tau_map) + [[0.0] * c.n_outputs] * 2
+    c.tau_variance = list(c.tau_variance) + [1.0] * 2
     bad["too many joints"] = (_reencode(c), EXIT_BASE + 7, "too many joints: 9")
 
     c = coefficients_t.decode(payload)
@@ -332,7 +341,8 @@ def test_contact_run_side_and_detection(exported: Path, default_experiments: dic
     lag = c.lag  # output k is the estimate of sample k − lag
     truth, side = np.zeros(len(out), bool), np.zeros(len(out))
     truth[lag:], side[lag:] = ds.contact[:-lag] != 0, ds.extra["skin.side"][:-lag]
-    ready, above, named = out[:, 0] == 1, out[:, -4] == 1, out[:, -1]
+    col = detector_columns(c)
+    ready, above, named = out[:, 0] == 1, out[:, col["above"]] == 1, out[:, col["side"]]
     for code, name in ((1, "distal"), (-1, "proximal")):
         sel = ready & truth & (side == code) & above
         assert sel.sum() > 100, f"too few detected {name} samples to judge the side"

@@ -21,7 +21,8 @@ constexpr int kMaxEffects = 8;
 // The sample period a file may give: 100 kHz to 1 Hz (the sample clock counts periods between µs stamps in int64).
 constexpr double kMinSamplePeriod = 1e-5, kMaxSamplePeriod = 1.0;
 
-constexpr uint32_t kFileVersion = 3;  // 2: effects (Stribeck, spring) of an augmented model; 3: supply tracking
+// 2: effects (Stribeck, spring) of an augmented model; 3: supply tracking; 4: the momentum observer
+constexpr uint32_t kFileVersion = 4;
 constexpr char kMagic[8] = {'D', 'Y', 'N', 'I', 'D', 'C', 'O', 'F'};
 
 using Vec3 = Eigen::Vector3d;
@@ -33,6 +34,8 @@ enum class ChannelKind : int8_t { kFt = 0, kInput = 1, kTorque = 2 };
 // Extra joint torques of an augmented model (`dynid gaps --out`), added to τ + τ_f of their joint:
 // Stribeck p0·sign(q̇)·exp(−(q̇/p1)²), spring p0·(q − p1).
 enum class EffectKind : int8_t { kStribeck = 1, kSpring = 2 };
+// The residual the core runs: the acceleration residuals (fixed-lag filter, q̈) or the momentum observer's.
+enum class Residual : int8_t { kAcceleration = 0, kMomentum = 1 };
 
 struct Coefficients {
     std::string robot_name, config_digest, dynid_version, model_sha256, data_sha256, estimator;
@@ -74,6 +77,20 @@ struct Coefficients {
     // Supply tracking of the input channels (dynid.identify.supply): time constant (s, 0 = off), prior weight, gates.
     double supply_time_constant = 0, supply_prior = 0;
     std::array<double, kMaxOutputs> supply_gate{};
+
+    // The generalized-momentum observer (format version 4, dynid.detect.momentum); velocity_window 0: none.
+    Residual residual = Residual::kAcceleration;
+    double observer_bandwidth = 0;  // Hz
+    int velocity_window = 0;
+    Eigen::Matrix<double, 1, kMaxWindow> velocity_filter = decltype(velocity_filter)::Zero();  // 1/s, oldest first
+    Eigen::Matrix<double, kMaxJoints, 2> joint_band = decltype(joint_band)::Zero();  // static friction fc⁺, fc⁻ (Nm)
+    Eigen::Matrix<double, kMaxMotors, 2> motor_band = decltype(motor_band)::Zero();
+    std::array<double, kMaxOutputs> observer_variance{};
+    double observer_threshold = 0, observer_rest_threshold = 0, observer_ft_threshold = 0;
+    Eigen::Matrix<double, kMaxJoints, kMaxOutputs> tau_map = decltype(tau_map)::Zero();  // τ_ext = tau_map · r
+    std::array<double, kMaxJoints> tau_variance{};
+    double isolation_sigmas = 0;
+    bool has_observer() const { return velocity_window > 0; }
 
     std::array<std::string, kMaxJoints> joint_names;
     std::array<std::string, kMaxOutputs> channel_names;

@@ -1,14 +1,15 @@
-// The real-time evaluation core: per sample, the fixed-lag derivative filter, a fixed-size recursive
-// Newton-Euler prediction of the F/T wrench and the motor inputs, residuals, T², the debounced detector with
-// hysteresis, the contact side and the wrench estimate. After construction: no allocation, no locks, no
-// exceptions, no I/O (rt_monitor/README.md, "Real-time core").
+// The real-time evaluation core: per sample, either the fixed-lag derivative filter and a fixed-size recursive
+// Newton-Euler prediction of the F/T wrench and the motor inputs (the acceleration residuals), or the
+// generalized-momentum observer (no q̈: dynid.detect.momentum); then T², the debounced detector with hysteresis,
+// the contact side, the wrench and, with the observer, the external joint torques and the isolated joint. After
+// construction: no allocation, no locks, no exceptions, no I/O (rt_monitor/README.md, "Real-time core").
 #pragma once
 
 #include "rt_monitor/coefficients.hpp"
+#include "rt_monitor/momentum.hpp"
 
 namespace dynid::rt {
 
-using VecJ = Eigen::Matrix<double, kMaxJoints, 1>;
 using VecO = Eigen::Matrix<double, kMaxOutputs, 1>;
 
 enum class Event : int8_t { kNone = 0, kOnset = 1, kEnd = 2 };
@@ -34,6 +35,12 @@ struct Output {
     Event event = Event::kNone;
     Side side = Side::kNone;     // while above: distal if the F/T channels fire, else proximal
     Vec6 wrench = Vec6::Zero();  // estimated external wrench at the sensor (sensor frame): the F/T residual
+    // The momentum observer only (zero, −1 otherwise): its output r per channel (before the static-friction band),
+    // the external joint torques τ_ext = tau_map·r (Nm) and the isolated joint: the most distal one whose |τ_ext|
+    // exceeds isolation_sigmas of its noise (the contact is on its link or beyond).
+    VecO r = VecO::Zero();
+    VecJ tau_ext = VecJ::Zero();
+    int joint = -1;
 };
 
 struct DetectorSettings {
@@ -50,9 +57,19 @@ public:
     // The model alone, on given states and (filtered) outputs: what the cross-language vectors check.
     void predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y, Prediction& out) const noexcept;
 
-    // Restart the filter and the detector (after a gap in the frames). The supply estimate survives: a gap in
-    // the data does not change the boards' supply, and starting it over would put its drift back into e.
+    // Restart the filter, the observer and the detector (after a gap in the frames). The supply estimate survives:
+    // a gap in the data does not change the boards' supply, and starting it over would put its drift back into e.
     void reset() noexcept;
+    // Run the other residual than the file selects (start-up only; it resets). False: the file carries no observer.
+    bool set_residual(Residual r) noexcept;
+    Residual residual() const noexcept { return residual_; }
+    // Λ of channel i for the residual that runs.
+    double variance(int i) const noexcept {
+        return residual_ == Residual::kMomentum ? c_.observer_variance[i] : c_.variance[i];
+    }
+    double threshold() const noexcept {
+        return residual_ == Residual::kMomentum ? c_.observer_threshold : c_.threshold;
+    }
     // The supply ratio r of output channel i (1 on untracked channels; dynid.identify.supply).
     double supply_ratio(int i) const noexcept { return ratio_[i]; }
     void set_detector(const DetectorSettings& s) noexcept { det_ = s; }
@@ -61,12 +78,16 @@ public:
 
 private:
     void rnea(const VecJ& q, const VecJ& dq, const VecJ& ddq, VecJ& tau, Vec6& sensor_force) const noexcept;
-    void detect() noexcept;
+    void accelerate() noexcept;
+    void observe(const double* q, const double* y) noexcept;
+    void detect(double threshold, double ft_threshold) noexcept;
     void track_supply() noexcept;
 
     const Coefficients& c_;
     DetectorSettings det_;
+    Residual residual_ = Residual::kAcceleration;
     int width_ = 0;  // channels per raw sample: n_joints + n_outputs
+    int window_ = 0;  // samples in the ring: the derivative filter's window, or the observer's velocity window
     // Each sample is stored twice, at slot and slot + window, so the window is always contiguous.
     Eigen::Matrix<double, kMaxJoints + kMaxOutputs, 2 * kMaxWindow> ring_;
     int slot_ = 0;
@@ -75,6 +96,14 @@ private:
     // Supply tracking: exponentially forgotten sums of ŷ y and ŷ², and their ratio r, per output channel.
     double lambda_ = 1.0;
     std::array<double, kMaxOutputs> num_{}, den_{}, ratio_{};
+    // The observer: a = exp(−K_O·T), its output r, the previous momentum (joints, then the sensor's 6), the
+    // low-passed inputs of the tracked channels.
+    double decay_ = 0;
+    bool observing_ = false;
+    VecO r_ = VecO::Zero(), inputs_ = VecO::Zero();
+    VecJ p_prev_ = VecJ::Zero();
+    Vec6 ps_prev_ = Vec6::Zero();
+    MomentumTerms terms_;
     Output out_;
 };
 

@@ -18,12 +18,13 @@ from ..export.coefficients import (
     describe,
     read_coefficients,
 )
-from ..export.model_export import ExportSettings, export_cad, export_model
+from ..detect.momentum import DEFAULT_BANDWIDTH_HZ
+from ..export.model_export import MOMENTUM_EVENTS, ExportSettings, export_cad, export_model
 from ..identify.model_file import load_model
 from .commands import COMMANDS
 from .common import check_outputs
 from .common import confidence as alpha
-from .common import int_in, json_arg
+from .common import int_in, json_arg, positive_float
 from .common import non_negative_int as lag
 
 
@@ -33,8 +34,14 @@ MAX_DEBOUNCE = 1_000_000
 
 
 def _settings(args: argparse.Namespace) -> ExportSettings:
-    return ExportSettings(args.data or (), args.lag, args.window, args.alpha,
-                          EventSettings(args.debounce_on, args.debounce_off, args.hysteresis))
+    """Given event settings apply to the residual the monitor runs; unset ones take that residual's defaults."""
+    def events(default: EventSettings) -> EventSettings:
+        given = (args.debounce_on, args.debounce_off, args.hysteresis)
+        fallback = (default.debounce_on, default.debounce_off, default.hysteresis)
+        return EventSettings(*(g if g is not None else d for g, d in zip(given, fallback)))
+
+    return ExportSettings(args.data or (), args.lag, args.window, args.alpha, events(EventSettings()),
+                          args.residual, args.bandwidth, events(MOMENTUM_EVENTS))
 
 
 def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
@@ -112,7 +119,23 @@ def _export_coefficients(args: argparse.Namespace) -> dict[str, Any]:
           f"{det.get('threshold', float('nan')):.4g}); F/T-side threshold {cal.ft_threshold:.4g}; {cal.samples} "
           "calibration samples")
     print("  Λ online / offline: " + ", ".join(f"{n} {a / b:.2f}" for n, a, b in zip(done.channels, cal.variance, offline)))
-    return {"model": args.model, "out": args.out, "bytes": done.size, "threshold": cal.threshold,
+    obs = done.observer
+    if obs is not None:
+        d = obs.detector
+        print(f"  momentum observer: bandwidth {d.bandwidth_hz:g} Hz, causal q̇ over {obs.velocity_window} samples; "
+              f"T²_α {d.threshold:.4g}, F/T-side threshold {next(iter(d.ft_thresholds.values())):.4g}; {d.samples} "
+              "calibration samples")
+    ev = done.events
+    print(f"  the monitor runs the {done.residual} residuals; events: onset after {ev.debounce_on} samples above "
+          f"T²_α, end after {ev.debounce_off} below {ev.hysteresis:g}·T²_α")
+    momentum = None if obs is None else {
+        "bandwidth_hz": obs.detector.bandwidth_hz, "velocity_window": obs.velocity_window,
+        "threshold": obs.detector.threshold, "ft_threshold": next(iter(obs.detector.ft_thresholds.values())),
+        "residual_variance": dict(zip(done.channels, obs.detector.variance.tolist())),
+        "calibration_samples": obs.detector.samples}
+    return {"model": args.model, "out": args.out, "residual": done.residual, "momentum": momentum,
+            "events": {"debounce_on": ev.debounce_on, "debounce_off": ev.debounce_off, "hysteresis": ev.hysteresis},
+            "bytes": done.size, "threshold": cal.threshold,
             "ft_threshold": cal.ft_threshold, "alpha": alpha,
             "residual_variance": dict(zip(done.channels, cal.variance.tolist())),
             "filter": est.as_dict(), "calibration_samples": cal.samples,
@@ -155,11 +178,18 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--window", type=int_in(3, MAX_WINDOW), metavar="N", help="filter window in samples, 3 to "
                     f"{MAX_WINDOW} (the monitor's capacity; default: the configuration's offline window)")
     sp.add_argument("--alpha", type=alpha, help="confidence level (default: the model's)")
-    sp.add_argument("--debounce-on", type=int_in(1, MAX_DEBOUNCE), default=DEFAULT_DEBOUNCE_ON, metavar="N",
-                    help=f"samples above T²_α for an onset (default {DEFAULT_DEBOUNCE_ON})")
-    sp.add_argument("--debounce-off", type=int_in(1, MAX_DEBOUNCE), default=DEFAULT_DEBOUNCE_OFF, metavar="N",
+    sp.add_argument("--residual", choices=["momentum", "acceleration"], default=None,
+                    help="the residual the monitor runs: acceleration (default: the fixed-lag derivative filter's "
+                    "q̈) or momentum (the generalized-momentum observer, no q̈; not for a model with named effects). "
+                    "The file carries both calibrations (rt_monitor --residual switches); docs/detection.md#monitor")
+    sp.add_argument("--bandwidth", type=positive_float, default=DEFAULT_BANDWIDTH_HZ, metavar="HZ",
+                    help=f"the momentum observer's bandwidth K_O/2π (default {DEFAULT_BANDWIDTH_HZ:g} Hz)")
+    sp.add_argument("--debounce-on", type=int_in(1, MAX_DEBOUNCE), default=None, metavar="N",
+                    help=f"samples above T²_α for an onset (default {DEFAULT_DEBOUNCE_ON} with acceleration, "
+                    f"{MOMENTUM_EVENTS.debounce_on} with momentum)")
+    sp.add_argument("--debounce-off", type=int_in(1, MAX_DEBOUNCE), default=None, metavar="N",
                     help=f"samples below the hysteresis level for an end (default {DEFAULT_DEBOUNCE_OFF})")
-    sp.add_argument("--hysteresis", type=fraction, default=DEFAULT_HYSTERESIS,
+    sp.add_argument("--hysteresis", type=fraction, default=None,
                     help=f"end level as a fraction of T²_α (default {DEFAULT_HYSTERESIS})")
     json_arg(sp)
     sp.set_defaults(func=cmd_export)

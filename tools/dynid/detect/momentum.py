@@ -60,6 +60,21 @@ MIN_VELOCITY_SAMPLES = 5
 HOLD_TIME_CONSTANTS = 0.0
 
 
+def velocity_window_samples(t: np.ndarray, window_s: float = VELOCITY_WINDOW_S) -> int:
+    """The causal q̇ estimator's window in samples for data sampled at times t: `window_s`, at least 5 samples."""
+    steps = np.diff(np.asarray(t, float))
+    if steps.size == 0 or np.any(steps <= 0):
+        raise DataError("the causal q̇ estimator needs strictly increasing time stamps")
+    return max(MIN_VELOCITY_SAMPLES, int(round(window_s / float(np.median(steps)))) + 1)
+
+
+def causal_velocity_weights(window: int, sample_period: float) -> np.ndarray:
+    """(window,) the estimator's weights on uniform samples, oldest first: q̇_k = Σ w_i q_{k−window+1+i} (the
+    monitor's; the quadratic least-squares slope at the newest sample, as `causal_velocity` computes it)."""
+    s = np.arange(window, dtype=float) - (window - 1)
+    return np.linalg.pinv(np.vander(s, 3, increasing=True))[1] / sample_period
+
+
 def causal_velocity(t: np.ndarray, q: np.ndarray, window_s: float = VELOCITY_WINDOW_S) -> np.ndarray:
     """(N, n) q̇ at each sample from the samples of the last `window_s` seconds (at least 5), a quadratic
     least-squares fit at their own time stamps, evaluated at the newest sample (causal); the first samples use
@@ -67,11 +82,7 @@ def causal_velocity(t: np.ndarray, q: np.ndarray, window_s: float = VELOCITY_WIN
     t = np.asarray(t, float)
     q = np.atleast_2d(np.asarray(q, float))
     n = t.size
-    steps = np.diff(t)
-    if n < 2 or np.any(steps <= 0):
-        raise DataError("the causal q̇ estimator needs strictly increasing time stamps")
-    w = max(MIN_VELOCITY_SAMPLES, int(round(window_s / float(np.median(steps)))) + 1)
-    w = min(w, n)
+    w = min(velocity_window_samples(t, window_s), n)
     out = np.zeros_like(q)
     # Windows ending at k ≥ w − 1: batched normal equations in local time s = t_i − t_k.
     idx = np.arange(w - 1, n)[:, None] + np.arange(-(w - 1), 1)[None, :]  # (M, w)
@@ -212,9 +223,29 @@ def momentum_residuals(model: RobotModel, phi: np.ndarray, t: np.ndarray, q: np.
     causal supply estimate, fitted on the low-passed input against the low-passed prediction (`_tracked`)."""
     if not (np.isfinite(bandwidth_hz) and bandwidth_hz > 0):
         raise DataError(f"the observer's bandwidth must be positive, got {bandwidth_hz} Hz")
-    cfg, layout = model.config, model.layout
     t = np.asarray(t, float)
-    dq = causal_velocity(t, q, velocity_window_s) if dq is None else np.asarray(dq, float)
+    options = dict(bandwidth_hz=bandwidth_hz, min_speed=min_speed, band=band, tracking=tracking,
+                   hold_time_constants=hold_time_constants)
+    if dq is not None:
+        return _observe(model, phi, t, q, inputs, tau, ft, gravity, np.asarray(dq, float), **options)
+    # With estimated q̇ the observer starts, at rest, once the estimator's window is full: as the monitor's does
+    # (rt_monitor/src/core.cpp), so the two agree from the first sample on; r = 0 before.
+    dq = causal_velocity(t, q, velocity_window_s)
+    start = min(velocity_window_samples(t, velocity_window_s), t.size) - 1
+    if start == 0:
+        return _observe(model, phi, t, q, inputs, tau, ft, gravity, dq, **options)
+    cut = slice(start, None)
+    later = _observe(model, phi, t[cut], q[cut], {k: np.asarray(v)[cut] for k, v in inputs.items()},
+                     {k: np.asarray(v)[cut] for k, v in tau.items()}, {k: np.asarray(v)[cut] for k, v in ft.items()},
+                     None if gravity is None else gravity[cut], dq[cut], **options)
+    pad = lambda x: np.concatenate([np.zeros((start,) + x.shape[1:], x.dtype), x])  # noqa: E731
+    return MomentumResiduals(t, pad(later.r), pad(later.e), dq, pad(later.at_rest), pad(later.tau_ext))
+
+
+def _observe(model: RobotModel, phi: np.ndarray, t: np.ndarray, q: np.ndarray, inputs: dict, tau: dict, ft: dict,
+             gravity: np.ndarray | None, dq: np.ndarray, *, bandwidth_hz: float, min_speed: float, band: dict | None,
+             tracking, hold_time_constants: float) -> MomentumResiduals:
+    cfg, layout = model.config, model.layout
     terms = momentum_terms(model, phi, q, dq, gravity)
     n = t.size
     outs = output_channels(model)

@@ -76,23 +76,27 @@ class MomentumDetector:
 
 
 def run_residuals(model: RobotModel, phi: np.ndarray, dataset, bandwidth_hz: float, min_speed: float,
-                  band: dict, tracking=None, velocity_window_s: float = VELOCITY_WINDOW_S) -> MomentumResiduals:
+                  band: dict, tracking=None, velocity_window_s: float = VELOCITY_WINDOW_S,
+                  measured: bool = True) -> MomentumResiduals:
+    """The observer over one run; q̇ the data's own where they carry it (and `measured`), else estimated causally
+    (as the monitor, which reads encoders only, does: `measured=False`)."""
     t, q, inputs, tau, ft = raw_signals(model, dataset)
     return momentum_residuals(model, phi, t, q, inputs, tau, ft, gravity_per_sample(model, dataset),
                               bandwidth_hz=bandwidth_hz, min_speed=min_speed, band=band, tracking=tracking,
-                              velocity_window_s=velocity_window_s, dq=measured_velocity(model, dataset))
+                              velocity_window_s=velocity_window_s,
+                              dq=measured_velocity(model, dataset) if measured else None)
 
 
 def calibrate_momentum(model: RobotModel, phi: np.ndarray, record: dict | None, datasets: Sequence,
                        alpha: float, min_speed: float, bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ,
                        band_sigmas: float = BAND_SIGMAS, tracking=None,
-                       velocity_window_s: float = VELOCITY_WINDOW_S) -> MomentumDetector:
+                       velocity_window_s: float = VELOCITY_WINDOW_S, measured: bool = True) -> MomentumDetector:
     """Λ and T²_α of the momentum residuals on contact-free runs (their first 5 time constants left out)."""
     band = friction_band(model, phi, record, band_sigmas)
     es, rests, taus = [], [], []
     settle = SETTLE_TIME_CONSTANTS / (2 * np.pi * bandwidth_hz)
     for ds in datasets:
-        res = run_residuals(model, phi, ds, bandwidth_hz, min_speed, band, tracking, velocity_window_s)
+        res = run_residuals(model, phi, ds, bandwidth_hz, min_speed, band, tracking, velocity_window_s, measured)
         keep = res.t - res.t[0] >= settle
         if ds.contact is not None:  # a labelled run: its contacts, widened by CONTACT_MARGIN_S, are left out
             keep &= ~_widened(res.t, np.asarray(ds.contact) != 0, CONTACT_MARGIN_S)

@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..detect.momentum import causal_velocity_weights
+from ..detect.momentum_t2 import ISOLATION_SIGMAS, MomentumDetector
 from ..detect.online import FixedLagSavitzkyGolay
 from ..errors import DataError
 from ..identify.supply import SupplyTracking, tracked
@@ -30,17 +32,20 @@ from ..io.dataset import atomic_write
 from ..robot.effects import EXPORTABLE, Effect
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
-from ..robot.regressors.stack import group_row_maps
+from ..robot.regressors.stack import group_row_maps, group_rows
 from ..version import __version__
 from .lcm_coefficients import coefficients_t
 
 MAGIC = b"DYNIDCOF"
-FILE_VERSION = 3  # 2: the effects of an augmented model (Stribeck, spring); 3: supply tracking; older files are refused
+# 2: the effects of an augmented model (Stribeck, spring); 3: supply tracking; 4: the momentum observer. Older files
+# are refused, named: re-export them.
+FILE_VERSION = 4
 HEADER = struct.Struct("<8sII")
 # The monitor's compile-time filter capacity (kMaxWindow, rt_monitor/include/rt_monitor/coefficients.hpp): a longer
 # window was exported without a word and the monitor then refused the file (exit 17).
 MAX_WINDOW = 64
 KIND = {"ft": 0, "input": 1, "torque": 2}
+RESIDUAL = {"acceleration": 0, "momentum": 1}
 JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
 # Events, not samples: the filtered residuals are autocorrelated over the filter window, so single samples above
 # T²_α come in bursts. On the default simulated runs, 5 samples gave an onset every 3 s on contact-free data;
@@ -61,7 +66,8 @@ def unwrap(data: bytes, where: str = "coefficient file") -> bytes:
     if magic != MAGIC:
         raise DataError(f"{where}: not a dynid coefficient file (bad magic)")
     if version != FILE_VERSION:
-        raise DataError(f"{where}: format version {version}, this dynid reads {FILE_VERSION}")
+        raise DataError(f"{where}: format version {version}, this dynid reads {FILE_VERSION}: export the model again "
+                        "(dynid export)")
     if len(data) != HEADER.size + length + 4:
         raise DataError(f"{where}: truncated or padded ({len(data)} bytes, the header says {HEADER.size + length + 4})")
     (crc,) = struct.unpack_from("<I", data, HEADER.size + length)
@@ -131,6 +137,16 @@ class MonitorDetector:
 
 
 @dataclass(frozen=True)
+class MonitorObserver:
+    """The monitor's momentum observer (dynid.detect.momentum), calibrated on the q̇ the monitor estimates."""
+
+    detector: MomentumDetector
+    velocity_window: int  # samples of the causal q̇ estimator
+    band: dict  # {(kind, owner): (fc_pos, fc_neg)}: the static-friction band, widened (friction_band)
+    events: EventSettings = EventSettings()
+
+
+@dataclass(frozen=True)
 class Provenance:
     """Where the coefficients come from, written into the file for the monitor's start-up line."""
 
@@ -149,8 +165,12 @@ def check_window(est: FixedLagSavitzkyGolay) -> None:
 
 def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDetector, est: FixedLagSavitzkyGolay,
                        provenance: Provenance = Provenance(), effects: Sequence[Effect] = (),
-                       tracking: SupplyTracking | None = None) -> coefficients_t:
-    """The payload of the coefficient file for Φ (with Stribeck and spring effects), the detector and the filter."""
+                       tracking: SupplyTracking | None = None, observer: MonitorObserver | None = None,
+                       residual: str = "acceleration") -> coefficients_t:
+    """The payload of the coefficient file for Φ (with Stribeck and spring effects), the detector and the filter,
+    and the momentum observer; `residual` names the one the monitor runs (the observer needs `observer`)."""
+    if residual not in RESIDUAL or (residual == "momentum" and observer is None):
+        raise DataError(f"the monitor's residual is acceleration or momentum (with an observer), not '{residual}'")
     cfg, layout, pm = model.config, model.layout, model.pin_model
     exportable_effects(effects)
     if len(cfg.ft_sensors) != 1:
@@ -250,7 +270,46 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDete
     c.supply_time_constant = tracking.time_constant_s if tracking is not None else 0.0
     c.supply_prior = tracking.prior_input ** 2 if tracking is not None else 0.0
     c.supply_gate = [tracking.gate_of(o.sigma) if tracking is not None and tracked(o) else 0.0 for o in outs]
+    _observer_section(c, model, est, observer, residual)
     return c
+
+
+def _observer_section(c: coefficients_t, model: RobotModel, est: FixedLagSavitzkyGolay,
+                      observer: MonitorObserver | None, residual: str) -> None:
+    """Format version 4: the momentum observer, its band, T² and the external-torque map (zeros without one)."""
+    cfg = model.config
+    nj, no, motors = c.n_joints, c.n_outputs, c.motor_names
+    c.residual = RESIDUAL[residual]
+    if residual == "momentum":
+        ev = observer.events
+        c.debounce_on, c.debounce_off, c.hysteresis = int(ev.debounce_on), int(ev.debounce_off), float(ev.hysteresis)
+    if observer is None:
+        c.observer_bandwidth, c.velocity_window, c.velocity_filter = 0.0, 0, []
+        c.joint_band, c.motor_band = [[0.0, 0.0] for _ in range(nj)], [[0.0, 0.0] for _ in motors]
+        c.observer_variance = [0.0] * no
+        c.observer_threshold = c.observer_rest_threshold = c.observer_ft_threshold = 0.0
+        c.tau_map, c.tau_variance, c.isolation_sigmas = [[0.0] * no for _ in range(nj)], [0.0] * nj, 0.0
+        return
+    d = observer.detector
+    if observer.velocity_window > MAX_WINDOW:
+        raise DataError(f"the monitor's q̇ estimator holds at most {MAX_WINDOW} samples, this one {observer.velocity_window}")
+    c.observer_bandwidth = float(d.bandwidth_hz)
+    c.velocity_window = int(observer.velocity_window)
+    c.velocity_filter = causal_velocity_weights(observer.velocity_window, est.sample_period).tolist()
+    c.joint_band = [list(observer.band.get(("joint_friction", j), (0.0, 0.0))) for j in cfg.joints]
+    c.motor_band = [list(observer.band.get(("motor_friction", m), (0.0, 0.0))) for m in motors]
+    c.observer_variance = np.asarray(d.variance, float).tolist()
+    c.observer_threshold, c.observer_rest_threshold = float(d.threshold), float(d.rest_threshold)
+    if len(d.ft_thresholds) != 1:
+        raise DataError("the monitor's observer needs exactly one F/T sensor")
+    c.observer_ft_threshold = float(next(iter(d.ft_thresholds.values())))
+    tau_map = np.zeros((nj, no))
+    for g, gj, rows in group_rows(model):  # τ_ext = −L⁻¹ r per actuation group (dynid.detect.momentum)
+        L, _ = group_row_maps(g)
+        tau_map[np.ix_(gj, np.arange(no)[rows])] = -np.linalg.inv(L)
+    c.tau_map = tau_map.tolist()
+    c.tau_variance = np.asarray(d.tau_variance, float).tolist()
+    c.isolation_sigmas = float(ISOLATION_SIGMAS)
 
 
 def exportable_effects(effects: Sequence[Effect]) -> None:
@@ -304,6 +363,21 @@ def describe(c: coefficients_t) -> str:
                      f"gates {gates}")
     else:
         lines.append("supply tracking: off (constant motor gains)")
+    if c.velocity_window > 0:
+        chosen = "the monitor runs it" if c.residual == 1 else "carried; the monitor runs the acceleration residuals"
+        lines.append(f"momentum observer ({chosen}): bandwidth {c.observer_bandwidth:g} Hz, causal q̇ over "
+                     f"{c.velocity_window} samples; T²_α {c.observer_threshold:.6g} (all rows at rest "
+                     f"{c.observer_rest_threshold:.6g}), F/T-side threshold {c.observer_ft_threshold:.6g}")
+        for i in range(c.n_outputs):
+            lines.append(f"  {c.channel_names[i]:18s} Λ {c.observer_variance[i]:.4g}")
+        for j in range(c.n_joints):
+            lines.append(f"  {c.joint_names[j]:18s} static-friction band [{f(c.joint_band[j])}] Nm, τ_ext variance "
+                         f"{c.tau_variance[j]:.4g} Nm²")
+        for k in range(c.n_motors):
+            if c.motor_friction_on[k]:
+                lines.append(f"  {c.motor_names[k]:18s} static-friction band [{f(c.motor_band[k])}] Nm")
+    else:
+        lines.append("momentum observer: none (the monitor runs the acceleration residuals)")
     names = {1: "stribeck", 2: "spring"}
     for k in range(c.n_effects):
         j, p = _name(c.joint_names, c.effect_joint[k]), c.effect_param[k]

@@ -14,11 +14,11 @@ import struct
 
 class coefficients_t(object):
 
-    __slots__ = ["robot_name", "config_digest", "dynid_version", "model_sha256", "data_sha256", "estimator", "n_joints", "joint_names", "n_bodies", "body_names", "parent", "joint_type", "joint_index", "axis", "rotation", "translation", "inertial", "gravity", "sensor_body", "sensor_name", "n_motors", "motor_names", "motor_velocity", "motor_friction_on", "motor_friction", "joint_friction", "n_outputs", "channel_names", "channel_kind", "ft_offset", "row_map", "channel_motor", "divisor", "residual_variance", "gate_joints", "gate_motors", "min_speed", "alpha", "threshold", "ft_threshold", "calibration_samples", "debounce_on", "debounce_off", "hysteresis", "sample_period", "window", "order", "lag", "filter", "n_effects", "effect_kind", "effect_joint", "effect_param", "supply_time_constant", "supply_prior", "supply_gate"]
+    __slots__ = ["robot_name", "config_digest", "dynid_version", "model_sha256", "data_sha256", "estimator", "n_joints", "joint_names", "n_bodies", "body_names", "parent", "joint_type", "joint_index", "axis", "rotation", "translation", "inertial", "gravity", "sensor_body", "sensor_name", "n_motors", "motor_names", "motor_velocity", "motor_friction_on", "motor_friction", "joint_friction", "n_outputs", "channel_names", "channel_kind", "ft_offset", "row_map", "channel_motor", "divisor", "residual_variance", "gate_joints", "gate_motors", "min_speed", "alpha", "threshold", "ft_threshold", "calibration_samples", "debounce_on", "debounce_off", "hysteresis", "sample_period", "window", "order", "lag", "filter", "n_effects", "effect_kind", "effect_joint", "effect_param", "supply_time_constant", "supply_prior", "supply_gate", "residual", "observer_bandwidth", "velocity_window", "velocity_filter", "joint_band", "motor_band", "observer_variance", "observer_threshold", "observer_rest_threshold", "observer_ft_threshold", "tau_map", "tau_variance", "isolation_sigmas"]
 
-    __typenames__ = ["string", "string", "string", "string", "string", "string", "int32_t", "string", "int32_t", "string", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "double", "int32_t", "string", "int32_t", "string", "double", "int8_t", "double", "double", "int32_t", "string", "int8_t", "double", "double", "int32_t", "double", "double", "int64_t", "int64_t", "double", "double", "double", "double", "int32_t", "int32_t", "int32_t", "double", "double", "int32_t", "int32_t", "int32_t", "double", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double"]
+    __typenames__ = ["string", "string", "string", "string", "string", "string", "int32_t", "string", "int32_t", "string", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "double", "int32_t", "string", "int32_t", "string", "double", "int8_t", "double", "double", "int32_t", "string", "int8_t", "double", "double", "int32_t", "double", "double", "int64_t", "int64_t", "double", "double", "double", "double", "int32_t", "int32_t", "int32_t", "double", "double", "int32_t", "int32_t", "int32_t", "double", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "int8_t", "double", "int32_t", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double"]
 
-    __dimensions__ = [None, None, None, None, None, None, None, ["n_joints"], None, ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies", 3], ["n_bodies", 9], ["n_bodies", 3], ["n_bodies", 10], [3], None, None, None, ["n_motors"], ["n_motors", "n_joints"], ["n_motors"], ["n_motors", 4], ["n_joints", 4], None, ["n_outputs"], ["n_outputs"], [6], ["n_outputs", "n_joints"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], None, None, None, None, None, None, None, None, None, None, None, None, [3, "window"], None, ["n_effects"], ["n_effects"], ["n_effects", 3], None, None, ["n_outputs"]]
+    __dimensions__ = [None, None, None, None, None, None, None, ["n_joints"], None, ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies", 3], ["n_bodies", 9], ["n_bodies", 3], ["n_bodies", 10], [3], None, None, None, ["n_motors"], ["n_motors", "n_joints"], ["n_motors"], ["n_motors", 4], ["n_joints", 4], None, ["n_outputs"], ["n_outputs"], [6], ["n_outputs", "n_joints"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], None, None, None, None, None, None, None, None, None, None, None, None, [3, "window"], None, ["n_effects"], ["n_effects"], ["n_effects", 3], None, None, ["n_outputs"], None, None, None, ["velocity_window"], ["n_joints", 2], ["n_motors", 2], ["n_outputs"], None, None, None, ["n_joints", "n_outputs"], ["n_joints"], None]
 
     def __init__(self):
         self.robot_name = ""
@@ -309,6 +309,59 @@ class coefficients_t(object):
         LCM Type: double[n_outputs]
         """
 
+        self.residual = 0
+        """
+        generalized-momentum observer (format version 4, dynid.detect.momentum): the residual that needs no q̈.
+        0: the monitor runs the acceleration residuals above; 1: the observer's, with its own T² below
+        LCM Type: int8_t
+        """
+
+        self.observer_bandwidth = 0.0
+        """
+        K_O / 2π, Hz: r is the first-order low-pass of (τ_meas − τ_model) at this bandwidth
+        LCM Type: double
+        """
+
+        self.velocity_window = 0
+        """
+        the observer's q̇: least-squares slope at the newest sample (weights oldest first, 1/s)
+        LCM Type: int32_t
+        """
+
+        self.velocity_filter = []
+        """ LCM Type: double[velocity_window] """
+        self.joint_band = []
+        """
+        the static-friction band at rest: fc⁺, fc⁻ widened by their standard errors (Nm), per joint and per motor
+        LCM Type: double[n_joints][2]
+        """
+
+        self.motor_band = []
+        """ LCM Type: double[n_motors][2] """
+        self.observer_variance = []
+        """
+        Λ of the observer's residuals (row-space units: N, Nm), T²_α, T²_α where every row rests, and the F/T
+        channels' share of T² at α (the contact side)
+        LCM Type: double[n_outputs]
+        """
+
+        self.observer_threshold = 0.0
+        """ LCM Type: double """
+        self.observer_rest_threshold = 0.0
+        """ LCM Type: double """
+        self.observer_ft_threshold = 0.0
+        """ LCM Type: double """
+        self.tau_map = []
+        """
+        external joint torque τ_ext = tau_map · r (Nm), its calibration variance, and the isolation level: the
+        contact is on or beyond the most distal joint whose |τ_ext| exceeds isolation_sigmas of its noise
+        LCM Type: double[n_joints][n_outputs]
+        """
+
+        self.tau_variance = []
+        """ LCM Type: double[n_joints] """
+        self.isolation_sigmas = 0.0
+        """ LCM Type: double """
 
     def encode(self):
         buf = BytesIO()
@@ -408,6 +461,18 @@ class coefficients_t(object):
             buf.write(struct.pack('>3d', *self.effect_param[i0][:3]))
         buf.write(struct.pack(">dd", self.supply_time_constant, self.supply_prior))
         buf.write(struct.pack('>%dd' % self.n_outputs, *self.supply_gate[:self.n_outputs]))
+        buf.write(struct.pack(">bdi", self.residual, self.observer_bandwidth, self.velocity_window))
+        buf.write(struct.pack('>%dd' % self.velocity_window, *self.velocity_filter[:self.velocity_window]))
+        for i0 in range(self.n_joints):
+            buf.write(struct.pack('>2d', *self.joint_band[i0][:2]))
+        for i0 in range(self.n_motors):
+            buf.write(struct.pack('>2d', *self.motor_band[i0][:2]))
+        buf.write(struct.pack('>%dd' % self.n_outputs, *self.observer_variance[:self.n_outputs]))
+        buf.write(struct.pack(">ddd", self.observer_threshold, self.observer_rest_threshold, self.observer_ft_threshold))
+        for i0 in range(self.n_joints):
+            buf.write(struct.pack('>%dd' % self.n_outputs, *self.tau_map[i0][:self.n_outputs]))
+        buf.write(struct.pack('>%dd' % self.n_joints, *self.tau_variance[:self.n_joints]))
+        buf.write(struct.pack(">d", self.isolation_sigmas))
 
     @staticmethod
     def decode(data: bytes):
@@ -505,12 +570,27 @@ class coefficients_t(object):
             self.effect_param.append(struct.unpack('>3d', buf.read(24)))
         self.supply_time_constant, self.supply_prior = struct.unpack(">dd", buf.read(16))
         self.supply_gate = struct.unpack('>%dd' % self.n_outputs, buf.read(self.n_outputs * 8))
+        self.residual, self.observer_bandwidth, self.velocity_window = struct.unpack(">bdi", buf.read(13))
+        self.velocity_filter = struct.unpack('>%dd' % self.velocity_window, buf.read(self.velocity_window * 8))
+        self.joint_band = []
+        for i0 in range(self.n_joints):
+            self.joint_band.append(struct.unpack('>2d', buf.read(16)))
+        self.motor_band = []
+        for i0 in range(self.n_motors):
+            self.motor_band.append(struct.unpack('>2d', buf.read(16)))
+        self.observer_variance = struct.unpack('>%dd' % self.n_outputs, buf.read(self.n_outputs * 8))
+        self.observer_threshold, self.observer_rest_threshold, self.observer_ft_threshold = struct.unpack(">ddd", buf.read(24))
+        self.tau_map = []
+        for i0 in range(self.n_joints):
+            self.tau_map.append(struct.unpack('>%dd' % self.n_outputs, buf.read(self.n_outputs * 8)))
+        self.tau_variance = struct.unpack('>%dd' % self.n_joints, buf.read(self.n_joints * 8))
+        self.isolation_sigmas = struct.unpack(">d", buf.read(8))[0]
         return self
 
     @staticmethod
     def _get_hash_recursive(parents):
         if coefficients_t in parents: return 0
-        tmphash = (0x939d9a8fb6ed911b) & 0xffffffffffffffff
+        tmphash = (0x2b242849955679ae) & 0xffffffffffffffff
         tmphash  = (((tmphash<<1)&0xffffffffffffffff) + (tmphash>>63)) & 0xffffffffffffffff
         return tmphash
     _packed_fingerprint = None

@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from ..config.robot_config import RobotConfig
+from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, friction_band, velocity_window_samples
+from ..detect.momentum_t2 import CALIBRATION_MAX_S, MomentumDetector, calibrate_momentum
 from ..detect.online import FixedLagSavitzkyGolay, OnlineCalibration, calibrate_online, estimator_for
 from ..detect.t2 import f_threshold
 from ..errors import DataError
@@ -20,12 +22,15 @@ from ..identify.model_file import IdentifiedModel, data_file, file_digest
 from ..identify.supply import SupplyTracking
 from ..identify.validation import load_run
 from ..io.dataset import Dataset
+from ..io.load import apply_window
 from ..robot.effects import Effect
 from ..robot.model import RobotModel
-from ..robot.outputs import output_channels
+from ..robot.outputs import divisors, output_channels
+from ..robot.regressors.stack import group_row_maps, group_rows
 from .coefficients import (
     EventSettings,
     MonitorDetector,
+    MonitorObserver,
     Provenance,
     build_coefficients,
     check_window,
@@ -34,6 +39,9 @@ from .coefficients import (
 )
 
 CAD_SAMPLES = 100_000  # the N of the F threshold of an uncalibrated (CAD) export
+# The observer's events: on the live mission of the default arm, 3 samples gave 40 false onsets in 120 s, 10 gave one
+# and found every visible episode (docs/detection.md#monitor).
+MOMENTUM_EVENTS = EventSettings(debounce_on=10, debounce_off=100, hysteresis=0.5)
 
 
 @dataclass(frozen=True)
@@ -45,6 +53,12 @@ class ExportSettings:
     window: int | None = None  # filter window in samples; default the configuration's offline window
     alpha: float | None = None  # default: the model's
     events: EventSettings = field(default_factory=EventSettings)
+    # The residual the monitor runs: "acceleration" (default: on the live mission of the default arm it finds more
+    # episodes, sooner, than the observer; docs/detection.md#monitor) or "momentum" (the observer, no q̈; not for an
+    # augmented model, whose effects have no momentum form yet). The file carries both where it can.
+    residual: str | None = None
+    bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ  # the observer's
+    observer_events: EventSettings = field(default_factory=lambda: MOMENTUM_EVENTS)
 
 
 @dataclass(frozen=True)
@@ -57,6 +71,9 @@ class Exported:
     channels: list[str]
     effects: list[Effect]
     tracking: SupplyTracking | None
+    residual: str
+    observer: MonitorObserver | None
+    events: EventSettings  # those of the residual the monitor runs
 
 
 def calibration_data(identified: IdentifiedModel, model: RobotModel, data: Sequence[str]) -> tuple[list[Dataset], str]:
@@ -99,14 +116,35 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
     alpha = float(det.get("alpha", 0.99)) if settings.alpha is None else settings.alpha
     min_speed = float(det.get("min_speed", 0.01))
     tracking = identified.supply_tracking
+    residual = settings.residual or "acceleration"
+    if residual == "momentum" and effects:
+        raise DataError(f"{identified.path}: an augmented model (named effects) has no momentum residual yet; export "
+                        "it with --residual acceleration")
     cal = calibrate_online(model, identified.phi, datasets, est, alpha, min_speed, effects=effects, tracking=tracking)
     detector = MonitorDetector(cal.variance, cal.threshold, cal.ft_threshold, alpha, min_speed, cal.samples,
                                settings.events)
+    observer = None if effects else monitor_observer(identified, datasets, alpha, min_speed, settings)
     provenance = Provenance(file_digest(identified.path) if identified.path else "", data_digest,
                             str(identified.record.get("estimator", "")))
-    c = build_coefficients(model, identified.phi, detector, est, provenance, effects, tracking)
+    c = build_coefficients(model, identified.phi, detector, est, provenance, effects, tracking, observer, residual)
     size = write_coefficients(c, out)
-    return Exported(str(out), size, alpha, est, cal, list(c.channel_names), effects, tracking)
+    events = observer.events if residual == "momentum" else settings.events
+    return Exported(str(out), size, alpha, est, cal, list(c.channel_names), effects, tracking, residual, observer,
+                    events)
+
+
+def monitor_observer(identified: IdentifiedModel, datasets: Sequence[Dataset], alpha: float, min_speed: float,
+                     settings: ExportSettings) -> MonitorObserver:
+    """The momentum detector calibrated as the monitor will run it: q̇ from its causal estimator (the monitor reads
+    encoders, not the data's velocity columns), each run's first CALIBRATION_MAX_S seconds (as `dynid detect`)."""
+    model, phi = identified.robot_model, identified.phi
+    runs = [apply_window(ds, None, float(ds.t[0]) + CALIBRATION_MAX_S, source="calibration")
+            if ds.duration > CALIBRATION_MAX_S else ds for ds in datasets]
+    det = calibrate_momentum(model, phi, identified.record, runs, alpha, min_speed, settings.bandwidth_hz,
+                             tracking=identified.supply_tracking, measured=False)
+    band = friction_band(model, phi, identified.record, det.band_sigmas)
+    return MonitorObserver(det, velocity_window_samples(datasets[0].t, det.velocity_window_s), band,
+                           settings.observer_events)
 
 
 def export_cad(config: RobotConfig, out: str | Path, settings: ExportSettings = ExportSettings()) -> int:
@@ -119,7 +157,29 @@ def export_cad(config: RobotConfig, out: str | Path, settings: ExportSettings = 
     outs = output_channels(model)
     variance = np.array([o.sigma for o in outs]) ** 2
     alpha = 0.99 if settings.alpha is None else settings.alpha
-    est = estimator_for(model, np.arange(3) * 1e-3, settings.lag, settings.window)
+    t = np.arange(3) * 1e-3
+    est = estimator_for(model, t, settings.lag, settings.window)
     detector = MonitorDetector(variance, f_threshold(len(outs), CAD_SAMPLES, alpha), f_threshold(6, CAD_SAMPLES, alpha),
                                alpha, 0.01, CAD_SAMPLES, settings.events)
-    return write_coefficients(build_coefficients(model, phi, detector, est, Provenance(estimator="cad")), out)
+    observer = cad_observer(model, phi, variance, alpha, t, settings)
+    residual = settings.residual or "acceleration"
+    c = build_coefficients(model, phi, detector, est, Provenance(estimator="cad"), observer=observer, residual=residual)
+    return write_coefficients(c, out)
+
+
+def cad_observer(model: RobotModel, phi: np.ndarray, variance: np.ndarray, alpha: float, t: np.ndarray,
+                 settings: ExportSettings) -> MonitorObserver:
+    """An uncalibrated observer for the CAD export: Λ the channels' noise in row units (σ·gain on a motor row),
+    χ² thresholds, no friction band."""
+    from scipy import stats
+
+    row_variance = variance * divisors(model, phi) ** 2
+    tau_variance = np.ones(len(model.config.joints))
+    for g, gj, r in group_rows(model):  # τ_ext = −L⁻¹ r: its variance from the rows'
+        Li = np.linalg.inv(group_row_maps(g)[0])
+        tau_variance[gj] = Li**2 @ row_variance[r]
+    det = MomentumDetector(settings.bandwidth_hz, row_variance, tau_variance,
+                           float(stats.chi2.ppf(alpha, row_variance.size)), alpha, 0.01, 0.0,
+                           {s.name: float(stats.chi2.ppf(alpha, 6)) for s in model.config.ft_sensors}, CAD_SAMPLES)
+    return MonitorObserver(det, velocity_window_samples(t), friction_band(model, phi, None, 0.0),
+                           settings.observer_events)

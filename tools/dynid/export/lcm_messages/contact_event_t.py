@@ -10,11 +10,11 @@ import struct
 class contact_event_t(object):
     """ A contact onset or end, published by rt_monitor on channel DYNID_CONTACT (rt_monitor/README.md). """
 
-    __slots__ = ["utime", "kind", "side", "onset_utime", "sample", "t2", "threshold", "n_channels", "channel", "normalized_residual", "wrench"]
+    __slots__ = ["utime", "kind", "side", "onset_utime", "sample", "t2", "threshold", "n_channels", "channel", "normalized_residual", "wrench", "residual", "n_joints", "joint", "tau_ext", "isolated_joint"]
 
-    __typenames__ = ["int64_t", "int8_t", "int8_t", "int64_t", "int64_t", "double", "double", "int32_t", "string", "double", "double"]
+    __typenames__ = ["int64_t", "int8_t", "int8_t", "int64_t", "int64_t", "double", "double", "int32_t", "string", "double", "double", "int8_t", "int32_t", "string", "double", "int32_t"]
 
-    __dimensions__ = [None, None, None, None, None, None, None, None, ["n_channels"], ["n_channels"], [6]]
+    __dimensions__ = [None, None, None, None, None, None, None, None, ["n_channels"], ["n_channels"], [6], None, None, ["n_joints"], ["n_joints"], None]
 
     def __init__(self):
         self.utime = 0
@@ -71,6 +71,28 @@ class contact_event_t(object):
         LCM Type: double[6]
         """
 
+        self.residual = 0
+        """
+        estimated external wrench at the sensor, sensor frame: N, N, N, Nm, Nm, Nm
+        LCM Type: int8_t
+        """
+
+        self.n_joints = 0
+        """
+        0 acceleration residuals (wrench: the F/T residual), 1 momentum observer
+        LCM Type: int32_t
+        """
+
+        self.joint = []
+        """ LCM Type: string[n_joints] """
+        self.tau_ext = []
+        """ LCM Type: double[n_joints] """
+        self.isolated_joint = 0
+        """
+        estimated external joint torque, Nm (momentum observer; 0 otherwise)
+        LCM Type: int32_t
+        """
+
 
     def encode(self):
         buf = BytesIO()
@@ -87,6 +109,14 @@ class contact_event_t(object):
             buf.write(b"\0")
         buf.write(struct.pack('>%dd' % self.n_channels, *self.normalized_residual[:self.n_channels]))
         buf.write(struct.pack('>6d', *self.wrench[:6]))
+        buf.write(struct.pack(">bi", self.residual, self.n_joints))
+        for i0 in range(self.n_joints):
+            __joint_encoded = self.joint[i0].encode('utf-8')
+            buf.write(struct.pack('>I', len(__joint_encoded)+1))
+            buf.write(__joint_encoded)
+            buf.write(b"\0")
+        buf.write(struct.pack('>%dd' % self.n_joints, *self.tau_ext[:self.n_joints]))
+        buf.write(struct.pack(">i", self.isolated_joint))
 
     @staticmethod
     def decode(data: bytes):
@@ -108,12 +138,19 @@ class contact_event_t(object):
             self.channel.append(buf.read(__channel_len)[:-1].decode('utf-8', 'replace'))
         self.normalized_residual = struct.unpack('>%dd' % self.n_channels, buf.read(self.n_channels * 8))
         self.wrench = struct.unpack('>6d', buf.read(48))
+        self.residual, self.n_joints = struct.unpack(">bi", buf.read(5))
+        self.joint = []
+        for i0 in range(self.n_joints):
+            __joint_len = struct.unpack('>I', buf.read(4))[0]
+            self.joint.append(buf.read(__joint_len)[:-1].decode('utf-8', 'replace'))
+        self.tau_ext = struct.unpack('>%dd' % self.n_joints, buf.read(self.n_joints * 8))
+        self.isolated_joint = struct.unpack(">i", buf.read(4))[0]
         return self
 
     @staticmethod
     def _get_hash_recursive(parents):
         if contact_event_t in parents: return 0
-        tmphash = (0x95c382bf27d9cb61) & 0xffffffffffffffff
+        tmphash = (0x36a18f601c715d18) & 0xffffffffffffffff
         tmphash  = (((tmphash<<1)&0xffffffffffffffff) + (tmphash>>63)) & 0xffffffffffffffff
         return tmphash
     _packed_fingerprint = None
