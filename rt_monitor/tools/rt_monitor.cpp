@@ -300,17 +300,15 @@ int main(int argc, char** argv) {
     sa.sa_handler = on_signal;  // no SA_RESTART: poll() returns, the loop sees the flag
     sigaction(SIGINT, &sa, nullptr);
     sigaction(SIGTERM, &sa, nullptr);
-    std::fprintf(stderr, "rt_monitor: running: %s; LCM %s; %s\n",
-                 !replay.empty() ? ("replay of " + replay + (realtime ? " in real time" : "")).c_str()
-                 : !loopback.empty() ? ("loopback transport in " + loopback).c_str() : "SocketCAN",
-                 (url.empty() ? std::string("default URL") : url).c_str(),
-                 describe_rt_settings(rts).c_str());
-
     auto core = std::make_unique<Core>(*coef);
     if (!residual.empty()) core->set_residual(residual == "momentum" ? Residual::kMomentum : Residual::kAcceleration);
     core->set_detector({coef->debounce_on, coef->debounce_off, coef->hysteresis});
     const bool momentum = core->residual() == Residual::kMomentum;
-    std::fprintf(stderr, "rt_monitor: residual: %s\n", momentum ? "momentum observer" : "acceleration (fixed-lag filter)");
+    std::fprintf(stderr, "rt_monitor: running: %s; LCM %s; %s; %s residuals\n",
+                 !replay.empty() ? ("replay of " + replay + (realtime ? " in real time" : "")).c_str()
+                 : !loopback.empty() ? ("loopback transport in " + loopback).c_str() : "SocketCAN",
+                 (url.empty() ? std::string("default URL") : url).c_str(),
+                 describe_rt_settings(rts).c_str(), momentum ? "momentum-observer" : "acceleration");
     const int n_out = coef->n_outputs, n_joints = coef->n_joints;
     dynid::contact_event_t ev;
     ev.n_channels = n_out;

@@ -136,3 +136,24 @@ def test_observer_section_is_checked(exported: Path, tmp_path: Path) -> None:
     np.testing.assert_allclose(c.velocity_filter, causal_velocity_weights(c.velocity_window, c.sample_period),
                                rtol=0, atol=1e-9)
     assert RT_EVAL.is_file()
+
+
+def test_observer_visibility_scales_with_the_contact(exported: Path, default_experiments: dict) -> None:
+    """The live summary's 'visible' for an observer file: no contact is visible when the plant's contact records are
+    zeroed, every one when they are a thousand times stronger, and in between the default run's."""
+    from dynid.detect.visibility import observer_visibility
+
+    c = read_coefficients(exported)
+    c.residual = 1
+    model = RobotModel(load_config("icub_right_arm"))
+    truth = dict(np.load(default_experiments["contact"] / "truth.npz"))
+    contact = [k for k in truth if k.startswith("extra/contact.")]
+
+    def visible(scale: float) -> int:
+        scaled = {**truth, **{k: scale * np.asarray(truth[k], float) for k in contact}}
+        return sum(v.visible for v in observer_visibility(model, c, scaled))
+
+    episodes = len(observer_visibility(model, c, truth))
+    assert visible(0.0) == 0
+    assert visible(1e3) == episodes
+    assert 0 < visible(1.0) < episodes

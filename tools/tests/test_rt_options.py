@@ -39,7 +39,7 @@ def test_settings_are_applied_to_the_running_process(tmp_path: Path) -> None:
     try:
         line = proc.stderr.readline()  # written once the settings are in force
         assert line == (f"rt_monitor: running: loopback transport in {tmp_path}; LCM memq://; mlockall on, "
-                        f"SCHED_FIFO priority 7, CPU {cpu}\n")
+                        f"SCHED_FIFO priority 7, CPU {cpu}; acceleration residuals\n")
         assert os.sched_getscheduler(proc.pid) == os.SCHED_FIFO
         assert os.sched_getparam(proc.pid).sched_priority == 7
         assert os.sched_getaffinity(proc.pid) == {cpu}
@@ -64,7 +64,7 @@ def test_without_options_the_start_up_line_says_so(tmp_path: Path) -> None:
     assert first.startswith(f"rt_monitor: running: replay of {tmp_path / 'empty.log'}; LCM memq://; mlockall off, "
                             "default scheduling, CPUs ")
     if cpus:
-        assert first.endswith(f"CPUs {cpus}")
+        assert first.endswith(f"CPUs {cpus}; acceleration residuals")
 
 
 def _refused(done: subprocess.CompletedProcess, code: int, *words: str) -> None:
@@ -100,7 +100,7 @@ def test_cpu_list_pins_to_every_cpu_of_it(tmp_path: Path) -> None:
                             text=True)
     try:
         line = proc.stderr.readline()
-        assert line.endswith(f"default scheduling, CPUs {text}\n"), line
+        assert line.endswith(f"default scheduling, CPUs {text}; acceleration residuals\n"), line
         assert os.sched_getaffinity(proc.pid) == set(chosen)
         proc.send_signal(signal.SIGTERM)
         proc.communicate(timeout=10)

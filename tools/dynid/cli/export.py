@@ -181,7 +181,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--residual", choices=["momentum", "acceleration"], default=None,
                     help="the residual the monitor runs: acceleration (default: the fixed-lag derivative filter's "
                     "q̈) or momentum (the generalized-momentum observer, no q̈; not for a model with named effects). "
-                    "The file carries both calibrations (rt_monitor --residual switches); docs/detection.md#monitor")
+                    "The file carries both calibrations (rt_monitor --residual switches); docs/detection.md#the-monitor")
     sp.add_argument("--bandwidth", type=positive_float, default=DEFAULT_BANDWIDTH_HZ, metavar="HZ",
                     help=f"the momentum observer's bandwidth K_O/2π (default {DEFAULT_BANDWIDTH_HZ:g} Hz)")
     sp.add_argument("--debounce-on", type=int_in(1, MAX_DEBOUNCE), default=None, metavar="N",

@@ -73,10 +73,44 @@ def episode_visibility(contact: np.ndarray, signal: np.ndarray, active: np.ndarr
 
 def monitor_visibility(model: RobotModel, coef, truth: Mapping[str, np.ndarray]) -> list[EpisodeVisibility]:
     """The episodes of a simulated contact run that the monitor's detector (a coefficient file: Λ, T²_α through
-    its online filter, the debounce, the gates) can see, with the channels in use decided on the true q̇."""
+    its online filter, the debounce, the gates) can see, with the channels in use decided on the true q̇; for a
+    file that runs the momentum observer, `observer_visibility`."""
     if "contact" not in truth or "dq" not in truth:
         raise DataError("the ground truth has no contact or q̇ record (not a simulated contact run?)")
+    if getattr(coef, "residual", 0) == 1:
+        return observer_visibility(model, coef, truth)
     signal = contact_residuals(model, np.asarray(coef.divisor, float), truth)
     active = ~rows_at_rest(model, np.asarray(truth["dq"], float), float(coef.min_speed))
     return episode_visibility(np.asarray(truth["contact"]), signal, active, np.asarray(coef.residual_variance, float),
                               float(coef.threshold), int(coef.debounce_on))
+
+
+def observer_visibility(model: RobotModel, coef, truth: Mapping[str, np.ndarray]) -> list[EpisodeVisibility]:
+    """The same for the momentum observer: the contact's own residual in row units (−L τ_contact, the F/T wrench)
+    through the observer's low-pass, outside the static-friction band on the rows of resting coordinates (true
+    q̇), against the observer's Λ and T²_α."""
+    from .momentum import first_order
+
+    dq = np.asarray(truth["dq"], float)
+    t = np.arange(dq.shape[0]) * float(coef.sample_period)
+    r = first_order(t, contact_residuals(model, np.ones(len(coef.divisor)), truth), float(coef.observer_bandwidth))
+    lo, hi = np.zeros_like(r), np.zeros_like(r)
+    rest = np.zeros(r.shape, bool)
+    for i in range(6, r.shape[1]):
+        for j in range(coef.n_joints):
+            if coef.gate_joints[i] >> j & 1:
+                slow = np.abs(dq[:, j]) < coef.min_speed
+                ends = coef.row_map[i][j] * np.array([coef.joint_band[j][0], -coef.joint_band[j][1]])
+                rest[:, i] |= slow
+                lo[:, i] += np.where(slow, ends.min(), 0.0)
+                hi[:, i] += np.where(slow, ends.max(), 0.0)
+        for k in range(coef.n_motors):
+            if coef.gate_motors[i] >> k & 1:
+                slow = np.abs(dq @ np.asarray(coef.motor_velocity[k], float)) < coef.min_speed
+                rest[:, i] |= slow
+                lo[:, i] -= np.where(slow, coef.motor_band[k][1], 0.0)
+                hi[:, i] += np.where(slow, coef.motor_band[k][0], 0.0)
+    e = np.where(rest, r - np.clip(r, lo, hi), r)
+    return episode_visibility(np.asarray(truth["contact"]), e, np.ones(e.shape, bool),
+                              np.asarray(coef.observer_variance, float), float(coef.observer_threshold),
+                              int(coef.debounce_on))

@@ -40,7 +40,7 @@ from .coefficients import (
 
 CAD_SAMPLES = 100_000  # the N of the F threshold of an uncalibrated (CAD) export
 # The observer's events: on the live mission of the default arm, 3 samples gave 40 false onsets in 120 s, 10 gave one
-# and found every visible episode (docs/detection.md#monitor).
+# and found every visible episode (docs/detection.md#the-monitor).
 MOMENTUM_EVENTS = EventSettings(debounce_on=10, debounce_off=100, hysteresis=0.5)
 
 
@@ -54,7 +54,7 @@ class ExportSettings:
     alpha: float | None = None  # default: the model's
     events: EventSettings = field(default_factory=EventSettings)
     # The residual the monitor runs: "acceleration" (default: on the live mission of the default arm it finds more
-    # episodes, sooner, than the observer; docs/detection.md#monitor) or "momentum" (the observer, no q̈; not for an
+    # episodes, sooner, than the observer; docs/detection.md#the-monitor) or "momentum" (the observer, no q̈; not for an
     # augmented model, whose effects have no momentum form yet). The file carries both where it can.
     residual: str | None = None
     bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ  # the observer's
