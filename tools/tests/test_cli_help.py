@@ -20,7 +20,7 @@ PROGRAMS = {
 OPTIONS = {
     "boards": {"--config", "--data", "--sink", "--realtime", "--rt-priority", "--t0", "--sensor", "--strain-sat",
                "--restart", "--repeat", "--help"},
-    "rt_monitor": {"--model", "--config", "--replay", "--realtime", "--loopback", "--lcm-url", "--mlockall",
+    "rt_monitor": {"--model", "--config", "--replay", "--realtime", "--loopback", "--lcm-url", "--residual", "--mlockall",
                    "--priority", "--cpu", "--latency-out", "--stats-out", "--help"},
 }
 

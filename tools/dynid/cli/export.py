@@ -125,6 +125,8 @@ def _export_coefficients(args: argparse.Namespace) -> dict[str, Any]:
         print(f"  momentum observer: bandwidth {d.bandwidth_hz:g} Hz, causal q̇ over {obs.velocity_window} samples; "
               f"T²_α {d.threshold:.4g}, F/T-side threshold {next(iter(d.ft_thresholds.values())):.4g}; {d.samples} "
               "calibration samples")
+    else:
+        print(f"  momentum observer: not carried ({done.observer_note})")
     ev = done.events
     print(f"  the monitor runs the {done.residual} residuals; events: onset after {ev.debounce_on} samples above "
           f"T²_α, end after {ev.debounce_off} below {ev.hysteresis:g}·T²_α")

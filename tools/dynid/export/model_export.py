@@ -74,6 +74,7 @@ class Exported:
     residual: str
     observer: MonitorObserver | None
     events: EventSettings  # those of the residual the monitor runs
+    observer_note: str = ""  # why the file carries no observer
 
 
 def calibration_data(identified: IdentifiedModel, model: RobotModel, data: Sequence[str]) -> tuple[list[Dataset], str]:
@@ -123,14 +124,21 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
     cal = calibrate_online(model, identified.phi, datasets, est, alpha, min_speed, effects=effects, tracking=tracking)
     detector = MonitorDetector(cal.variance, cal.threshold, cal.ft_threshold, alpha, min_speed, cal.samples,
                                settings.events)
-    observer = None if effects else monitor_observer(identified, datasets, alpha, min_speed, settings)
+    observer, note = None, "an augmented model's effects have no momentum form yet" if effects else ""
+    if not effects:
+        try:
+            observer = monitor_observer(identified, datasets, alpha, min_speed, settings)
+        except DataError as e:  # the acceleration residuals the monitor runs do not need it: said, not fatal
+            if residual == "momentum":
+                raise
+            note = str(e)
     provenance = Provenance(file_digest(identified.path) if identified.path else "", data_digest,
                             str(identified.record.get("estimator", "")))
     c = build_coefficients(model, identified.phi, detector, est, provenance, effects, tracking, observer, residual)
     size = write_coefficients(c, out)
     events = observer.events if residual == "momentum" else settings.events
     return Exported(str(out), size, alpha, est, cal, list(c.channel_names), effects, tracking, residual, observer,
-                    events)
+                    events, note)
 
 
 def monitor_observer(identified: IdentifiedModel, datasets: Sequence[Dataset], alpha: float, min_speed: float,
