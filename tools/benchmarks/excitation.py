@@ -4,7 +4,7 @@
         [--duration 60] [--validation out/validation] [--max-evaluations N] [--seed N]
 
 In WORKDIR (steps whose output exists are skipped): `dynid excite --duration D` (the design, timed; `--max-evaluations`
-and `--seed` passed on: a budget of evaluations makes the design independent of the machine's load), `dynid simulate
+and `--seed` passed on: a budget of evaluations, the time unbounded, makes the design independent of the load), `dynid simulate
 --kind identification --duration D --seed 0` (today's) and `dynid simulate --trajectory design.csv --seed 0` (the
 same true arm, noise and disturbance streams), `dynid fit` of each, `dynid validate` of each on the validation run,
 `dynid structure --data` of each (the condition number on the run's own data). Then the errors against the plant's
@@ -64,7 +64,9 @@ def main() -> None:
     d = f"{args.duration:g}"
     times: dict[str, float] = {}
     if not (w / "design.csv").exists():
-        budget = [] if args.max_evaluations is None else ["--max-evaluations", str(args.max_evaluations)]
+        # A budget of evaluations alone, the time unbounded: else a loaded machine's 80 s stop first
+        budget = [] if args.max_evaluations is None else ["--max-evaluations", str(args.max_evaluations),
+                                                          "--max-time", "3600"]
         times["design"] = dynid("excite", "--duration", d, "--seed", str(args.seed), *budget, "--out",
                                 str(w / "design.csv"), "--json", str(w / "design.json"))
     validation = args.validation or w / "validation"
