@@ -1,9 +1,10 @@
 """Designed excitation against today's identification trajectory (docs/excitation.md): run once, not in CI.
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python tools/benchmarks/excitation.py WORKDIR \
-        [--duration 60] [--validation out/validation]
+        [--duration 60] [--validation out/validation] [--max-evaluations N] [--seed N]
 
-In WORKDIR (steps whose output exists are skipped): `dynid excite --duration D` (the design, timed), `dynid simulate
+In WORKDIR (steps whose output exists are skipped): `dynid excite --duration D` (the design, timed; `--max-evaluations`
+and `--seed` passed on: a budget of evaluations, the time unbounded, makes the design independent of the load), `dynid simulate
 --kind identification --duration D --seed 0` (today's) and `dynid simulate --trajectory design.csv --seed 0` (the
 same true arm, noise and disturbance streams), `dynid fit` of each, `dynid validate` of each on the validation run,
 `dynid structure --data` of each (the condition number on the run's own data). Then the errors against the plant's
@@ -55,13 +56,19 @@ def main() -> None:
     p.add_argument("workdir", type=Path)
     p.add_argument("--duration", type=float, default=60.0)
     p.add_argument("--validation", type=Path, help="a validation run (default: simulate one, 120 s, seed 0)")
+    p.add_argument("--max-evaluations", type=int, help="dynid excite's budget of evaluations (default: its --max-time)")
+    p.add_argument("--seed", type=int, default=0, help="dynid excite's seed (the runs keep seed 0)")
     args = p.parse_args()
     w = args.workdir
     w.mkdir(parents=True, exist_ok=True)
     d = f"{args.duration:g}"
     times: dict[str, float] = {}
     if not (w / "design.csv").exists():
-        times["design"] = dynid("excite", "--duration", d, "--out", str(w / "design.csv"), "--json", str(w / "design.json"))
+        # A budget of evaluations alone, the time unbounded: else a loaded machine's 80 s stop first
+        budget = [] if args.max_evaluations is None else ["--max-evaluations", str(args.max_evaluations),
+                                                          "--max-time", "3600"]
+        times["design"] = dynid("excite", "--duration", d, "--seed", str(args.seed), *budget, "--out",
+                                str(w / "design.csv"), "--json", str(w / "design.json"))
     validation = args.validation or w / "validation"
     if not validation.exists():
         dynid("simulate", "--kind", "validation", "--out", str(validation))

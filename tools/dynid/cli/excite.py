@@ -94,7 +94,8 @@ def cmd_excite(args: argparse.Namespace) -> dict[str, Any]:
           f"{1 / f:g} s, {args.harmonics} harmonics of {f:g} Hz, in {result.seconds:.1f} s "
           f"({result.evaluations} evaluations, {result.starts} SLSQP run(s)"
           f"{', stopped by its budget' if result.stopped_by_time else ''}) -> {args.out}")
-    print(f"  condition number of the weighted, column-scaled base regressor (rank {objective.rank}): designed "
+    print(f"  condition number of the weighted, column-scaled regressor on its rank ({objective.rank}; what `dynid "
+          f"structure --data` prints for a run, here with predicted inputs): designed "
           f"{designed:.4g}, today's identification trajectory over the same {args.duration:g} s "
           + (f"{today:.4g} (ratio {ratio:.3f})" if np.isfinite(today) else "inf (it leaves a base direction unexcited)"))
     print("  joint: peak |dq| / limit, peak |ddq| / limit, closest approach to the URDF limits (fraction of range)")
@@ -128,9 +129,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         description="Design an excitation trajectory: a finite Fourier series per joint (Swevers et "
                         "al. 1997), at rest at both ends, within the joints' position (URDF, with the configuration's "
                         "margin), velocity and acceleration limits (the configuration's 'limits'), minimising the "
-                        "condition number of the fit's weighted base regressor. Writes a CSV of t, q, dq, ddq for "
-                        "`dynid simulate --trajectory` or a position controller, and reports the condition number "
-                        "against today's identification trajectory of the same duration (docs/excitation.md).")
+                        "condition number of the fit's weighted regressor (as `dynid structure --data` computes it). "
+                        "Writes a CSV of t, q, dq, ddq for `dynid simulate --trajectory` or a position controller, and "
+                        "reports the condition number against today's identification trajectory of the same duration "
+                        "(docs/excitation.md).")
     robot_arg(sp)
     sp.add_argument("--duration", type=positive_float, required=True, metavar="S",
                     help=f"seconds of trajectory, a whole number of periods (at most {MAX_DURATION_S:g})")
