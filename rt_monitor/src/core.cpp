@@ -297,7 +297,7 @@ void Core::observe(const double* q, const double* y) noexcept {
         p.t2 += z;
         if (i < 6) p.t2_ft += z;
     }
-    out_.tau_ext.head(nj) = c_.tau_map.topLeftCorner(nj, no) * out_.r.head(no);
+    out_.tau_ext.head(nj).noalias() = c_.tau_map.topLeftCorner(nj, no) * out_.r.head(no);
     out_.joint = -1;
     for (int j = nj - 1; j >= 0 && out_.joint < 0; --j)
         if (std::abs(out_.tau_ext[j]) > c_.isolation_sigmas * std::sqrt(c_.tau_variance[j])) out_.joint = j;
