@@ -3,26 +3,17 @@ real, untared wrist F/T sensor. The figures are in the README ("Checked against"
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
-from . import convert
+from . import cli, convert
 
 HERE = Path(__file__).parent
 pytestmark = pytest.mark.skipif(not convert.REALDATA.is_dir(), reason=f"no real data at {convert.REALDATA}")
 
 
-def dynid(*args: str) -> dict:
-    target = args[args.index("--out") + 1] if "--out" in args else args[args.index("--data") + 1]
-    out = Path(target).with_suffix(".result.json")
-    done = subprocess.run([sys.executable, "-m", "dynid.cli", *args, "--json", str(out)], capture_output=True,
-                          text=True, timeout=600)
-    assert done.returncode == 0, done.stderr
-    return json.loads(out.read_text())
+dynid = cli.dynid
 
 
 def split_csv(conversion: convert.Conversion, tmp_path: Path, rows: slice, name: str) -> Path:

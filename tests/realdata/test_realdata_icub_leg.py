@@ -5,15 +5,12 @@ every command over the run without a traceback. The figures are in docs/robots/i
 
 from __future__ import annotations
 
-import json
-import os
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
-from . import convert
+from . import cli, convert
 
 LEG = convert.REALDATA / "icub_leg_insitu"
 DUMP = LEG / "dumperLeftLegNoIMU"
@@ -26,15 +23,11 @@ SENSORS = ("r_leg_ft_sensor", "r_foot_ft_sensor")
 
 
 def run(*args: str) -> subprocess.CompletedProcess:
-    env = {k: v for k, v in os.environ.items() if k != "DYNID_URDF_PATH"}
-    return subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True, timeout=900,
-                          env=env)
+    return cli.run(*args, keep_urdf_path=False)  # the test's --urdf is the only URDF found
 
 
 def dynid(*args: str) -> dict:
-    done = run(*args, "--json", "-")
-    assert done.returncode == 0, done.stderr
-    return json.loads(done.stdout)
+    return cli.dynid(*args, keep_urdf_path=False)
 
 
 @pytest.fixture(scope="module")

@@ -6,16 +6,13 @@ docs/robots/ur10e.md."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from . import convert
+from . import cli, convert
 
 UR = convert.REALDATA / "ur10e_mamedov"
 pytestmark = pytest.mark.skipif(not UR.is_dir(), reason=f"no real UR10e data at {UR}")
@@ -30,15 +27,7 @@ DRV_GAINS = {"shoulder_pan": 10.0, "shoulder_lift": 10.6956, "elbow": 8.4566, "w
 FILES = sorted(p for p in UR.rglob("*.csv") if not p.name.endswith(".episodes.csv")) if UR.is_dir() else []
 
 
-def run(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True, timeout=900,
-                          env=env)
-
-
-def dynid(*args: str) -> dict:
-    done = run(*args, "--json", "-")
-    assert done.returncode == 0, done.stderr
-    return json.loads(done.stdout)
+run, dynid = cli.run, cli.dynid
 
 
 def urdf() -> tuple[str, str]:
@@ -68,8 +57,8 @@ def test_unknown_gains_without_ft_or_payload_is_one_line(tmp_path: Path) -> None
     done = run("fit", "--robot", "ur10e", *urdf(), "--data", str(PAIR[0]), "--out", str(tmp_path / "m.json"))
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert "the scale cannot be identified" in done.stderr and "--payload" in done.stderr
-    env = {k: v for k, v in os.environ.items() if k != "DYNID_URDF_PATH"}
-    done = run("fit", "--robot", "ur10e", "--data", str(PAIR[0]), "--out", str(tmp_path / "m.json"), env=env)
+    done = run("fit", "--robot", "ur10e", "--data", str(PAIR[0]), "--out", str(tmp_path / "m.json"),
+               keep_urdf_path=False)
     assert done.returncode == 2 and "--urdf PATH" in done.stderr and len(done.stderr.strip().splitlines()) == 1
 
 
