@@ -93,7 +93,8 @@ def cmd_structure(args: argparse.Namespace) -> dict[str, Any]:
     if rest.any():
         print(f"  rows left out where a friction coordinate is slower than {args.min_speed:g} rad/s (static friction): "
               f"{100 * rest.mean():.1f} % of all rows")
-    print(f"numerical rank {bp.rank} of {len(layout)}; condition number of the normalised base regressor {bp.condition_number:.4g}")
+    print(f"numerical rank {bp.rank} of {len(layout)}; condition number {bp.condition_number:.4g} (the column-normalised, "
+          "weighted regressor: largest over rank-th singular value)")
     if bp.unidentifiable:
         print(f"  act on no row (unidentifiable): {', '.join(bp.unidentifiable)}")
     if args.combinations:
