@@ -54,9 +54,11 @@ constexpr const char* kSynopsis =
 
 constexpr const char* kHelp = R"(
 The real-time contact monitor: reads the boards' CAN frames, assembles samples (one per F/T strain pair),
-runs the identified model's momentum observer (or its acceleration residuals: the file says which), computes
-Hotelling T2 and publishes contact events (with the external joint torques and the isolated joint), a status (counters, loop times, supply ratios) and decimated residuals on LCM (channels DYNID_CONTACT,
-DYNID_STATUS, DYNID_RESIDUAL). SIGINT or SIGTERM ends the run; the final counters are printed on stdout.
+predicts the F/T wrench and the PWMs with the identified model (the acceleration residuals) or runs its momentum
+observer (the file says which, --residual overrides), computes Hotelling T2 and publishes contact events (with the
+observer: the external joint torques and the isolated joint), a status (counters, loop times, supply ratios) and
+decimated residuals on LCM (channels DYNID_CONTACT, DYNID_STATUS, DYNID_RESIDUAL). SIGINT or SIGTERM ends the
+run; the final counters are printed on stdout.
 
 required:
   --model COEF          the coefficient file written by `dynid export` (refused with exit 10 + the reason if

@@ -180,7 +180,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--window", type=int_in(3, MAX_WINDOW), metavar="N", help="filter window in samples, 3 to "
                     f"{MAX_WINDOW} (the monitor's capacity; default: the configuration's offline window)")
     sp.add_argument("--alpha", type=alpha, help="confidence level (default: the model's)")
-    sp.add_argument("--residual", choices=["momentum", "acceleration"], default=None,
+    sp.add_argument("--residual", choices=["acceleration", "momentum"], default=None,
                     help="the residual the monitor runs: acceleration (default: the fixed-lag derivative filter's "
                     "q̈) or momentum (the generalized-momentum observer, no q̈; not for a model with named effects). "
                     "The file carries both calibrations (rt_monitor --residual switches); docs/detection.md#the-monitor")
