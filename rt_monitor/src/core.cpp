@@ -237,6 +237,8 @@ void Core::observe(const double* q, const double* y) noexcept {
     p_prev_ = terms_.p;
     ps_prev_ = terms_.p_sensor;
     for (int j = 0; j < nj; ++j) x_joint[j] -= observed_friction(dq[j], c_.joint_friction.row(j), ms);
+    std::array<double, kMaxMotors> vm{};  // q̇_m = T q̇, once per sample
+    for (int k = 0; k < c_.n_motors; ++k) vm[k] = c_.motor_velocity.row(k).head(nj).dot(dq.head(nj));
     VecO x = VecO::Zero(), lo = VecO::Zero(), hi = VecO::Zero();
     std::array<bool, kMaxOutputs> rest{};
     bool all_rest = true;
@@ -249,8 +251,7 @@ void Core::observe(const double* q, const double* y) noexcept {
         double s = c_.divisor[i] * y[i];  // the motors' (or a torque sensor's) torque on this row
         for (int j = 0; j < nj; ++j) s += c_.row_map(i, j) * x_joint[j];
         const int m = c_.channel_motor[i];
-        if (m >= 0 && c_.motor_friction_on[m])
-            s -= observed_friction(c_.motor_velocity.row(m).head(nj).dot(dq.head(nj)), c_.motor_friction.row(m), ms);
+        if (m >= 0 && c_.motor_friction_on[m]) s -= observed_friction(vm[m], c_.motor_friction.row(m), ms);
         x[i] = s;
         // The static-friction band of every resting coordinate on this row.
         for (int j = 0; j < nj; ++j) {
@@ -261,8 +262,7 @@ void Core::observe(const double* q, const double* y) noexcept {
             hi[i] += std::max(a, b);
         }
         for (int k = 0; k < c_.n_motors; ++k) {
-            if (!(c_.gate_motors[i] >> k & 1u)) continue;
-            if (std::abs(c_.motor_velocity.row(k).head(nj).dot(dq.head(nj))) >= ms) continue;
+            if (!(c_.gate_motors[i] >> k & 1u) || std::abs(vm[k]) >= ms) continue;
             rest[i] = true;
             lo[i] -= c_.motor_band(k, 1);
             hi[i] += c_.motor_band(k, 0);

@@ -39,6 +39,7 @@ hold shows as a residual outside the band.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -201,6 +202,26 @@ def friction_band(model: RobotModel, phi: np.ndarray, record: dict | None, band_
     return out
 
 
+def band_at_rest(model: RobotModel, dq: np.ndarray, band: dict, min_speed: float,
+                 hold: Callable[[np.ndarray], np.ndarray] = lambda slow: slow
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(at_rest, lo, hi), each (N, n_out): the rows holding a friction coordinate slower than `min_speed` (its mask
+    passed through `hold`), and the static torque they may carry there: the sum over those coordinates of
+    share·[−fc⁻, fc⁺], from `band` {(kind, owner): (fc⁺, fc⁻)} (`friction_band`)."""
+    n, n_out = dq.shape[0], len(output_channels(model))
+    at_rest = np.zeros((n, n_out), dtype=bool)
+    lo, hi = np.zeros((n, n_out)), np.zeros((n, n_out))
+    for rows, coordinates in friction_coordinates(model, dq):
+        for c in coordinates:
+            fc_pos, fc_neg = band[c.block]
+            ends = np.stack([c.share * fc_pos, -c.share * fc_neg])
+            slow = hold(np.abs(c.velocity) < min_speed)
+            at_rest[:, rows] |= slow[:, None] & (c.share != 0)[None, :]
+            lo[:, rows] += np.where(slow[:, None], ends.min(axis=0), 0.0)
+            hi[:, rows] += np.where(slow[:, None], ends.max(axis=0), 0.0)
+    return at_rest, lo, hi
+
+
 @dataclass(frozen=True)
 class MomentumResiduals:
     t: np.ndarray  # (N,)
@@ -274,22 +295,14 @@ def _observe(model: RobotModel, phi: np.ndarray, t: np.ndarray, q: np.ndarray, i
             gain = known if known is not None else phi[layout.block("motor_gain", m).start]
             x[:, rows] += np.outer(np.asarray(inputs[m], float) * gain, C[:, mi])
     # friction: the identified law where the coordinate moves; its Coulomb part left out where it rests
-    at_rest = np.zeros((n, n_out), dtype=bool)
-    lo, hi = np.zeros((n, n_out)), np.zeros((n, n_out))
-    band = band or friction_band(model, phi, None, 0.0)
     for rows, coordinates in friction_coordinates(model, dq):
         for c in coordinates:
-            coeffs = phi[layout.block(*c.block).slice]
-            slow = np.abs(c.velocity) < min_speed
             F = friction_regressor(c.velocity)
-            F[slow, :2] = 0.0
-            x[:, rows] -= np.outer(F @ coeffs, c.share)
-            fc_pos, fc_neg = band[c.block]
-            ends = np.stack([c.share * fc_pos, -c.share * fc_neg])
-            banded = _held(t, slow, hold_time_constants / (2.0 * np.pi * bandwidth_hz))
-            at_rest[:, rows] |= banded[:, None] & (c.share != 0)[None, :]
-            lo[:, rows] += np.where(banded[:, None], ends.min(axis=0), 0.0)
-            hi[:, rows] += np.where(banded[:, None], ends.max(axis=0), 0.0)
+            F[np.abs(c.velocity) < min_speed, :2] = 0.0
+            x[:, rows] -= np.outer(F @ phi[layout.block(*c.block).slice], c.share)
+    hold_s = hold_time_constants / (2.0 * np.pi * bandwidth_hz)
+    at_rest, lo, hi = band_at_rest(model, dq, band or friction_band(model, phi, None, 0.0), min_speed,
+                                   lambda slow: _held(t, slow, hold_s))
     r = first_order(t, x, bandwidth_hz)
     if tracking is not None and inputs:  # the monitor's causal supply tracking, on the low-passed rows
         r = _tracked(model, phi, tracking, min_speed, t, q, dq, inputs, r, bandwidth_hz)

@@ -91,11 +91,16 @@ def calibrate_momentum(model: RobotModel, phi: np.ndarray, record: dict | None, 
                        alpha: float, min_speed: float, bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ,
                        band_sigmas: float = BAND_SIGMAS, tracking=None,
                        velocity_window_s: float = VELOCITY_WINDOW_S, measured: bool = True) -> MomentumDetector:
-    """Λ and T²_α of the momentum residuals on contact-free runs (their first 5 time constants left out)."""
+    """Λ and T²_α of the momentum residuals on contact-free runs: each run's first CALIBRATION_MAX_S seconds (the
+    observer runs every sample: a bounded time), less its first 5 time constants."""
+    from ..io.load import apply_window
+
     band = friction_band(model, phi, record, band_sigmas)
     es, rests, taus = [], [], []
     settle = SETTLE_TIME_CONSTANTS / (2 * np.pi * bandwidth_hz)
     for ds in datasets:
+        if ds.duration > CALIBRATION_MAX_S:
+            ds = apply_window(ds, None, float(ds.t[0]) + CALIBRATION_MAX_S, source="calibration run")
         res = run_residuals(model, phi, ds, bandwidth_hz, min_speed, band, tracking, velocity_window_s, measured)
         keep = res.t - res.t[0] >= settle
         if ds.contact is not None:  # a labelled run: its contacts, widened by CONTACT_MARGIN_S, are left out
@@ -167,7 +172,6 @@ def contact_events(model: RobotModel, det: MomentumDetector, res: MomentumResidu
 def calibration_runs(identified, paths: Sequence[str] | None, window=(None, None)) -> tuple[list, list[str]]:
     """The contact-free runs to calibrate on: `paths` (cut to `window`), or the runs the model was fitted on."""
     from ..identify.validation import load_run
-    from ..io.load import apply_window
 
     model = identified.robot_model
     given = bool(paths)
@@ -186,8 +190,6 @@ def calibration_runs(identified, paths: Sequence[str] | None, window=(None, None
             raise DataError(f"{identified.path} was fitted on {fitted} of the {ds.n_samples} samples of {p} (a --from/--to "
                             "window); give the contact-free runs to calibrate the momentum detector with --calibration "
                             "DATA --calibration-from S --calibration-to S")
-        if ds.duration > CALIBRATION_MAX_S:  # the observer runs every sample: a bounded time
-            ds = apply_window(ds, None, float(ds.t[0]) + CALIBRATION_MAX_S, source=str(p))
         runs.append(ds)
     return runs, [str(p) for p in paths]
 

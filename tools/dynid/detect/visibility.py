@@ -87,29 +87,16 @@ def monitor_visibility(model: RobotModel, coef, truth: Mapping[str, np.ndarray])
 
 def observer_visibility(model: RobotModel, coef, truth: Mapping[str, np.ndarray]) -> list[EpisodeVisibility]:
     """The same for the momentum observer: the contact's own residual in row units (−L τ_contact, the F/T wrench)
-    through the observer's low-pass, outside the static-friction band on the rows of resting coordinates (true
-    q̇), against the observer's Λ and T²_α."""
-    from .momentum import first_order
+    through the observer's low-pass, outside the file's static-friction band on the rows of resting coordinates
+    (true q̇), against the observer's Λ and T²_α."""
+    from .momentum import band_at_rest, first_order
 
     dq = np.asarray(truth["dq"], float)
     t = np.arange(dq.shape[0]) * float(coef.sample_period)
     r = first_order(t, contact_residuals(model, np.ones(len(coef.divisor)), truth), float(coef.observer_bandwidth))
-    lo, hi = np.zeros_like(r), np.zeros_like(r)
-    rest = np.zeros(r.shape, bool)
-    for i in range(6, r.shape[1]):
-        for j in range(coef.n_joints):
-            if coef.gate_joints[i] >> j & 1:
-                slow = np.abs(dq[:, j]) < coef.min_speed
-                ends = coef.row_map[i][j] * np.array([coef.joint_band[j][0], -coef.joint_band[j][1]])
-                rest[:, i] |= slow
-                lo[:, i] += np.where(slow, ends.min(), 0.0)
-                hi[:, i] += np.where(slow, ends.max(), 0.0)
-        for k in range(coef.n_motors):
-            if coef.gate_motors[i] >> k & 1:
-                slow = np.abs(dq @ np.asarray(coef.motor_velocity[k], float)) < coef.min_speed
-                rest[:, i] |= slow
-                lo[:, i] -= np.where(slow, coef.motor_band[k][1], 0.0)
-                hi[:, i] += np.where(slow, coef.motor_band[k][0], 0.0)
+    band = {("joint_friction", j): tuple(b) for j, b in zip(coef.joint_names, coef.joint_band)}
+    band.update({("motor_friction", m): tuple(b) for m, b in zip(coef.motor_names, coef.motor_band)})
+    rest, lo, hi = band_at_rest(model, dq, band, float(coef.min_speed))
     e = np.where(rest, r - np.clip(r, lo, hi), r)
     return episode_visibility(np.asarray(truth["contact"]), e, np.ones(e.shape, bool),
                               np.asarray(coef.observer_variance, float), float(coef.observer_threshold),

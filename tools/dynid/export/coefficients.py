@@ -143,7 +143,6 @@ class MonitorObserver:
     detector: MomentumDetector
     velocity_window: int  # samples of the causal q̇ estimator
     band: dict  # {(kind, owner): (fc_pos, fc_neg)}: the static-friction band, widened (friction_band)
-    events: EventSettings = EventSettings()
 
 
 @dataclass(frozen=True)
@@ -280,9 +279,6 @@ def _observer_section(c: coefficients_t, model: RobotModel, est: FixedLagSavitzk
     cfg = model.config
     nj, no, motors = c.n_joints, c.n_outputs, c.motor_names
     c.residual = RESIDUAL[residual]
-    if residual == "momentum":
-        ev = observer.events
-        c.debounce_on, c.debounce_off, c.hysteresis = int(ev.debounce_on), int(ev.debounce_off), float(ev.hysteresis)
     if observer is None:
         c.observer_bandwidth, c.velocity_window, c.velocity_filter = 0.0, 0, []
         c.joint_band, c.motor_band = [[0.0, 0.0] for _ in range(nj)], [[0.0, 0.0] for _ in motors]

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..config.robot_config import RobotConfig
 from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, friction_band, velocity_window_samples
-from ..detect.momentum_t2 import CALIBRATION_MAX_S, MomentumDetector, calibrate_momentum
+from ..detect.momentum_t2 import MomentumDetector, calibrate_momentum
 from ..detect.online import FixedLagSavitzkyGolay, OnlineCalibration, calibrate_online, estimator_for
 from ..detect.t2 import f_threshold
 from ..errors import DataError
@@ -22,7 +22,6 @@ from ..identify.model_file import IdentifiedModel, data_file, file_digest
 from ..identify.supply import SupplyTracking
 from ..identify.validation import load_run
 from ..io.dataset import Dataset
-from ..io.load import apply_window
 from ..robot.effects import Effect
 from ..robot.model import RobotModel
 from ..robot.outputs import divisors, output_channels
@@ -59,6 +58,10 @@ class ExportSettings:
     residual: str | None = None
     bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ  # the observer's
     observer_events: EventSettings = field(default_factory=lambda: MOMENTUM_EVENTS)
+
+    def events_for(self, residual: str) -> EventSettings:
+        """The event settings the file carries: those of the residual the monitor runs."""
+        return self.observer_events if residual == "momentum" else self.events
 
 
 @dataclass(frozen=True)
@@ -121,9 +124,9 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
     if residual == "momentum" and effects:
         raise DataError(f"{identified.path}: an augmented model (named effects) has no momentum residual yet; export "
                         "it with --residual acceleration")
+    events = settings.events_for(residual)
     cal = calibrate_online(model, identified.phi, datasets, est, alpha, min_speed, effects=effects, tracking=tracking)
-    detector = MonitorDetector(cal.variance, cal.threshold, cal.ft_threshold, alpha, min_speed, cal.samples,
-                               settings.events)
+    detector = MonitorDetector(cal.variance, cal.threshold, cal.ft_threshold, alpha, min_speed, cal.samples, events)
     observer, note = None, "an augmented model's effects have no momentum form yet" if effects else ""
     if not effects:
         try:
@@ -136,7 +139,6 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
                             str(identified.record.get("estimator", "")))
     c = build_coefficients(model, identified.phi, detector, est, provenance, effects, tracking, observer, residual)
     size = write_coefficients(c, out)
-    events = observer.events if residual == "momentum" else settings.events
     return Exported(str(out), size, alpha, est, cal, list(c.channel_names), effects, tracking, residual, observer,
                     events, note)
 
@@ -144,15 +146,12 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
 def monitor_observer(identified: IdentifiedModel, datasets: Sequence[Dataset], alpha: float, min_speed: float,
                      settings: ExportSettings) -> MonitorObserver:
     """The momentum detector calibrated as the monitor will run it: q̇ from its causal estimator (the monitor reads
-    encoders, not the data's velocity columns), each run's first CALIBRATION_MAX_S seconds (as `dynid detect`)."""
+    encoders, not the data's velocity columns), on the runs `dynid detect` would calibrate on."""
     model, phi = identified.robot_model, identified.phi
-    runs = [apply_window(ds, None, float(ds.t[0]) + CALIBRATION_MAX_S, source="calibration")
-            if ds.duration > CALIBRATION_MAX_S else ds for ds in datasets]
-    det = calibrate_momentum(model, phi, identified.record, runs, alpha, min_speed, settings.bandwidth_hz,
+    det = calibrate_momentum(model, phi, identified.record, datasets, alpha, min_speed, settings.bandwidth_hz,
                              tracking=identified.supply_tracking, measured=False)
     band = friction_band(model, phi, identified.record, det.band_sigmas)
-    return MonitorObserver(det, velocity_window_samples(datasets[0].t, det.velocity_window_s), band,
-                           settings.observer_events)
+    return MonitorObserver(det, velocity_window_samples(datasets[0].t, det.velocity_window_s), band)
 
 
 def export_cad(config: RobotConfig, out: str | Path, settings: ExportSettings = ExportSettings()) -> int:
@@ -167,16 +166,16 @@ def export_cad(config: RobotConfig, out: str | Path, settings: ExportSettings = 
     alpha = 0.99 if settings.alpha is None else settings.alpha
     t = np.arange(3) * 1e-3
     est = estimator_for(model, t, settings.lag, settings.window)
-    detector = MonitorDetector(variance, f_threshold(len(outs), CAD_SAMPLES, alpha), f_threshold(6, CAD_SAMPLES, alpha),
-                               alpha, 0.01, CAD_SAMPLES, settings.events)
-    observer = cad_observer(model, phi, variance, alpha, t, settings)
     residual = settings.residual or "acceleration"
+    detector = MonitorDetector(variance, f_threshold(len(outs), CAD_SAMPLES, alpha), f_threshold(6, CAD_SAMPLES, alpha),
+                               alpha, 0.01, CAD_SAMPLES, settings.events_for(residual))
+    observer = cad_observer(model, phi, variance, alpha, t, settings.bandwidth_hz)
     c = build_coefficients(model, phi, detector, est, Provenance(estimator="cad"), observer=observer, residual=residual)
     return write_coefficients(c, out)
 
 
 def cad_observer(model: RobotModel, phi: np.ndarray, variance: np.ndarray, alpha: float, t: np.ndarray,
-                 settings: ExportSettings) -> MonitorObserver:
+                 bandwidth_hz: float) -> MonitorObserver:
     """An uncalibrated observer for the CAD export: Λ the channels' noise in row units (σ·gain on a motor row),
     χ² thresholds, no friction band."""
     from scipy import stats
@@ -186,8 +185,7 @@ def cad_observer(model: RobotModel, phi: np.ndarray, variance: np.ndarray, alpha
     for g, gj, r in group_rows(model):  # τ_ext = −L⁻¹ r: its variance from the rows'
         Li = np.linalg.inv(group_row_maps(g)[0])
         tau_variance[gj] = Li**2 @ row_variance[r]
-    det = MomentumDetector(settings.bandwidth_hz, row_variance, tau_variance,
+    det = MomentumDetector(bandwidth_hz, row_variance, tau_variance,
                            float(stats.chi2.ppf(alpha, row_variance.size)), alpha, 0.01, 0.0,
                            {s.name: float(stats.chi2.ppf(alpha, 6)) for s in model.config.ft_sensors}, CAD_SAMPLES)
-    return MonitorObserver(det, velocity_window_samples(t), friction_band(model, phi, None, 0.0),
-                           settings.observer_events)
+    return MonitorObserver(det, velocity_window_samples(t), friction_band(model, phi, None, 0.0))
