@@ -70,6 +70,6 @@ def test_icub_leg_right_foot_on_the_ground(tmp_path: Path) -> None:
                    str(LEG), "--calibration-from", "14", "--calibration-to", "65")
     m = result["variants"]["momentum"]
     print("iCub leg:", {k: (v["tpr"], v["fpr"]) for k, v in result["variants"].items()})
-    assert m["tpr"] >= 0.99  # measured 99.4 %
+    assert m["tpr"] >= 0.99  # measured 99.2 %
     assert m["fpr"] <= 0.03  # measured 2.70 % over 13.1-65.6 s (1.12 % on 14-65 s): the 2 % target is not reached
     assert result["variants"]["paper"]["fpr"] > 0.05  # the paper's variant: 7.7 %
