@@ -31,7 +31,7 @@ from .errors import InputError
 from .export.model_export import Exported, ExportSettings, export_model
 from .gaps.find import Gaps
 from .gaps.find import find_gaps as analyse_gaps
-from .identify.fit import ESTIMATORS, FitSettings
+from .identify.fit import ESTIMATORS, PSEUDO_INERTIA_ONLY, FitSettings
 from .identify.model_file import IdentifiedModel
 from .identify.model_file import load_model as load_model_file
 from .identify.supply import SupplyTracking
@@ -90,10 +90,11 @@ class DynamicsModel(BaseEstimator):
         n of the paper's F threshold: dim(e), or ν as the paper writes.
     supply_time_constant : float
         Time constant (s) of each motor's supply tracking; 0 keeps the gains constant.
-    consistent : bool
+    consistent : bool or "pseudo-inertia"
         Physically consistent estimation (docs/consistency.md): the estimator's parameters projected onto physical
-        ones (every pseudo-inertia positive semidefinite, friction ≥ 0, gains of their sign), kept as the
-        estimator "consistent" (default off: docs/consistency.md says why).
+        ones (every pseudo-inertia positive semidefinite, each body's mass inside a sphere about its frame,
+        friction ≥ 0, gains of their sign), kept as the estimator "consistent" (default off: docs/consistency.md
+        says why). "pseudo-inertia": the same without the sphere (a body may carry mass beyond its reach).
     cad_pull : bool
         With `consistent`: a pull of the inertial parameters towards CAD, its weight cross-validated (default off).
 
@@ -111,7 +112,7 @@ class DynamicsModel(BaseEstimator):
 
     def __init__(self, robot: str | Path = "icub_right_arm", estimator: str = "iv", n_components: int | None = None,
                  blocks: int = 10, min_speed: float = 0.01, alpha: float = ALPHA, n_mode: str = "dim",
-                 supply_time_constant: float = SupplyTracking.time_constant_s, consistent: bool = False,
+                 supply_time_constant: float = SupplyTracking.time_constant_s, consistent: bool | str = False,
                  cad_pull: bool = False) -> None:
         self.robot = robot
         self.estimator = estimator
@@ -139,8 +140,8 @@ class DynamicsModel(BaseEstimator):
             raise InputError(f"n_mode must be 'dim' or 'nu', got {self.n_mode!r}")
         if not (np.isfinite(self.supply_time_constant) and self.supply_time_constant >= 0):
             raise InputError(f"supply_time_constant must be 0 or more, got {self.supply_time_constant!r}")
-        if not isinstance(self.consistent, (bool, np.bool_)):
-            raise InputError(f"consistent must be True or False, got {self.consistent!r}")
+        if not (isinstance(self.consistent, (bool, np.bool_)) or self.consistent == PSEUDO_INERTIA_ONLY):
+            raise InputError(f"consistent must be True, False or {PSEUDO_INERTIA_ONLY!r}, got {self.consistent!r}")
         if not isinstance(self.cad_pull, (bool, np.bool_)):
             raise InputError(f"cad_pull must be True or False, got {self.cad_pull!r}")
 
@@ -159,7 +160,7 @@ class DynamicsModel(BaseEstimator):
         runs, labels = _runs(X, robot)
         fit = FitSettings(estimator=self.estimator, n_components=self.n_components, min_speed=self.min_speed,
                           blocks=self.blocks, consistent=bool(self.consistent),
-                          cad_pull=bool(self.cad_pull))
+                          cad_pull=bool(self.cad_pull), consistent_sphere=self.consistent != PSEUDO_INERTIA_ONLY)
         done = identify(robot, runs, labels, IdentifySettings(fit, DetectorSettings(self.alpha, self.n_mode),
                                                               self.supply_time_constant))
         self._set_fitted(done.model)

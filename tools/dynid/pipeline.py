@@ -116,7 +116,8 @@ def fit_record(model: RobotModel, result: FitResult, settings: FitSettings, dete
     return {
         # the regression; with `consistent` solved, `parameters` are its physically consistent projection
         "estimator": settings.estimator if result.chosen == CONSISTENT else result.chosen,
-        "settings": {"estimator": settings.estimator, "consistent": settings.consistent, "cad_pull": settings.cad_pull,
+        "settings": {"estimator": settings.estimator, "consistent": settings.consistent,
+                     "consistent_sphere": settings.consistent_sphere, "cad_pull": settings.cad_pull,
                      "n_components": n_components, "min_speed": settings.min_speed,
                      "blocks": result.statistics.n_blocks, "instrument_window_s": settings.instrument_window_s,
                      "alpha": detector.alpha, "n_mode": detector.n_mode},

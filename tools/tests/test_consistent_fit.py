@@ -72,6 +72,32 @@ def test_with_no_constraint_binding_it_is_the_unconstrained_least_squares(arm: R
     assert residual(phi) <= residual(reference) * (1 + 1e-8)
 
 
+def test_a_tool_beyond_the_sphere_stays_with_pseudo_inertia_only(arm: RobotModel) -> None:
+    """A physical body whose mass sits beyond its sphere (a 0.4 kg ball of 10 cm radius 0.6 m out on the hand): the sphere binds and
+    moves it; with `sphere` off (`--consistent pseudo-inertia`) nothing binds and the estimate is the least squares."""
+    truth = physical_truth(arm)
+    body = len(arm.bodies) - 1
+    s = arm.layout.span("inertial").start + 10 * body
+    m, c, r = 0.4, np.array([0.6, 0.0, 0.0]), 0.1
+    inertia = m * (0.4 * r**2 * np.eye(3) + c @ c * np.eye(3) - np.outer(c, c))  # a solid ball, about the body's frame
+    truth[s:s + 10] += [m, *(m * c), inertia[0, 0], inertia[0, 1], inertia[1, 1], inertia[0, 2], inertia[1, 2],
+                        inertia[2, 2]]  # INERTIAL_FIELDS' order
+    A, b = synthetic(arm, truth, seed=2)
+    reference = ols(A, b)
+    cad = np.nan_to_num(arm.cad_parameters(), nan=0.0)
+    residual = lambda x: float(np.sum((A @ x - b) ** 2))  # noqa: E731
+    found = {}
+    for sphere in (True, False):
+        # prior = truth: λ₀'s pull (on every direction here) costs nothing, as in the first test
+        problem = ConsistentProblem(arm, truth, cad, A.T @ A, ConsistentSettings(sphere=sphere))
+        phi = problem.solve(A.T @ A, reference, 0.0)
+        found[sphere] = (problem.active(phi), residual(phi))
+    assert found[True][0]["sphere"] == [arm.bodies[body].name], found[True][0]
+    assert found[True][1] > residual(reference) + 100  # the sphere costs the fit far more than the noise
+    assert not any(found[False][0][k] for k in ("pseudo_inertia", "sphere", "friction", "gain")), found[False][0]
+    assert found[False][1] <= residual(reference) * (1 + 1e-8)
+
+
 def hand_written_pseudo_inertia(phi: object, cp: object) -> object:
     """J = [[½ tr(I)·1 − I, h], [hᵀ, m]] written out entry by entry (not through robot/pseudo_inertia.py's basis)."""
     m, hx, hy, hz, ixx, ixy, iyy, ixz, iyz, izz = (phi[k] for k in range(10))

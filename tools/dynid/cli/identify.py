@@ -14,7 +14,7 @@ from ..detect.momentum import DEFAULT_BANDWIDTH_HZ
 from ..detect.momentum_t2 import calibration_runs, momentum_detection
 from ..detect.t2 import ALPHA
 from ..errors import DataError
-from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, FitSettings
+from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_INERTIA_ONLY, FitSettings
 from ..identify.supply import SupplyTracking
 from ..identify.validation import evaluate, load_run, validation
 from ..io.dataset import contact_episodes
@@ -39,8 +39,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     model = RobotModel(config)
     datasets = [load_run(p, model, window(args), w) for p, w in zip(args.data, payloads(args, len(args.data)))]
     settings = FitSettings(estimator=args.estimator, n_components=args.n_components, min_speed=args.min_speed,
-                           blocks=args.blocks, consistent=args.consistent == "on",
-                           cad_pull=args.cad_pull == "cv")
+                           blocks=args.blocks, consistent=args.consistent != "off",
+                           cad_pull=args.cad_pull == "cv", consistent_sphere=args.consistent != PSEUDO_INERTIA_ONLY)
     detector = DetectorSettings(args.alpha, args.n_mode)
     done = identify(model, datasets, args.data, IdentifySettings(settings, detector, args.supply_time_constant,
                                                                  estimate_noise=args.noise == "estimate"))
@@ -107,8 +107,10 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     print_consistent(result.consistent)
     warnings = record.get("plausibility", [])
     if warnings:
-        print(f"  WARNING: {len(warnings)} physically implausible estimate(s) (--consistent on keeps every body "
-              "physical; the data may not determine these bodies one by one):")
+        why = ("--consistent pseudo-inertia lets a centre of mass leave its sphere"
+               if args.consistent == PSEUDO_INERTIA_ONLY else
+               "--consistent on keeps every body physical; the data may not determine these bodies one by one")
+        print(f"  WARNING: {len(warnings)} physically implausible estimate(s) ({why}):")
         for w in warnings:
             print(f"    {w['text']}")
     rms = np.sqrt(result.residual_variance[result.chosen])
@@ -133,7 +135,8 @@ def print_consistent(done: dict[str, Any] | None) -> None:
         print(f"  WARNING: {done['reason']}; the model keeps the unconstrained {done['from']} estimate")
         return
     active = done["active"]
-    print(f"  physically consistent ({done['solver']}, from {done['from']}, {done['solve_time_s']:.1f} s): pull to CAD "
+    bounds = "" if done.get("sphere", True) else ", pseudo-inertia only"
+    print(f"  physically consistent ({done['solver']}, from {done['from']}{bounds}, {done['solve_time_s']:.1f} s): pull to CAD "
           f"λ = {done['lambda']:g} (cross-validated over {', '.join(f'{x:g}' for x in done['cv']['lambdas'])})")
     binding = [(what, active[key]) for what, key in (("pseudo-inertia at its bound", "pseudo_inertia"),
                                                       ("mass inside its sphere at the bound", "sphere"),
@@ -276,14 +279,16 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     payload_arg(sp, repeatable=True)
     sp.add_argument("--estimator", choices=ESTIMATORS, default=DEFAULT_ESTIMATOR,
                     help=f"whose parameters the model keeps (default {DEFAULT_ESTIMATOR}); all three are reported")
-    sp.add_argument("--consistent", choices=["on", "off"], default="off",
+    sp.add_argument("--consistent", choices=["on", "off", PSEUDO_INERTIA_ONLY], default="off",
                     help="physically consistent estimation (default off; docs/consistency.md): the estimator's "
                     "parameters moved the least the data allow so that every body's pseudo-inertia is positive "
                     "semidefinite and its mass inside a sphere about its frame, friction is non-negative and gains "
                     "keep their sign (a semidefinite programme, Clarabel through cvxpy); the model keeps it as "
-                    "estimator 'consistent' and the active constraints are printed. off: the unconstrained estimate")
+                    "estimator 'consistent' and the active constraints are printed. pseudo-inertia: the same "
+                    "without the sphere (a body may carry mass beyond its reach, e.g. a tool). off: the "
+                    "unconstrained estimate")
     sp.add_argument("--cad-pull", choices=["off", "cv"], default="off",
-                    help="with --consistent on: a pull of the inertial parameters towards CAD, its weight chosen by "
+                    help="with --consistent on or pseudo-inertia: a pull of the inertial parameters towards CAD, its weight chosen by "
                     "cross-validation over the time blocks (kept only where it beats no pull by a standard error of "
                     "the folds); default off: the data alone")
     sp.add_argument("--n-components", type=positive_int, metavar="NU", help="PLS latent variables (default: by CV)")

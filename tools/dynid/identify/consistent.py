@@ -7,6 +7,7 @@ solved by Clarabel through cvxpy (docs/consistency.md says why):
     minimise    ‖F (Φ − Φ̂)‖²  +  λ·c · Σ_inertial ((Φ_i − Φ_CAD,i) / σ_i)²  +  λ₀·c · ‖P_null ((Φ − Φ_prior) / σ)‖²
     subject to  J(φ_b) ⪰ ε · J(φ_b,CAD)                  every body b (the pseudo-inertia, robot/pseudo_inertia.py)
                 m_b − tr Σ_b / R_b² ≥ ε · m_b,CAD         every body: density-realizable inside a sphere of radius R_b
+                                                          (unless `sphere` is off: J ⪰ 0 alone, any mass distribution)
                 fc±, fv± ≥ 0                              every joint and motor friction coefficient
                 sign(g_nom) · g ≥ GAIN_FLOOR · |g_nom|    every unknown motor gain
 
@@ -57,6 +58,8 @@ class ConsistentSettings:
     epsilon: float = EPSILON
     gain_floor: float = GAIN_FLOOR
     solver: str = "CLARABEL"
+    # the density-realizable sphere (off: J ⪰ 0 alone, for a body that carries mass beyond its reach, e.g. a tool)
+    sphere: bool = True
 
 
 @dataclass
@@ -74,7 +77,7 @@ class ConsistentResult:
     def record(self) -> dict:
         return {"lambda": self.lam, "active": self.active, "cv": self.cv, "solver": self.solver,
                 "solver_status": self.solver_status, "solve_time_s": self.solve_time_s,
-                "epsilon": self.settings.epsilon, "gain_floor": self.settings.gain_floor}
+                "epsilon": self.settings.epsilon, "gain_floor": self.settings.gain_floor, "sphere": self.settings.sphere}
 
 
 def _factor(gram: np.ndarray) -> np.ndarray:
@@ -184,6 +187,8 @@ class ConsistentProblem:
             TT = np.outer(T, T)
             J = sum(phi[s + k] * (PSEUDO_INERTIA_BASIS[k] * TT) for k in range(10)) - eps * self.bodies.j_cad[b] * TT
             cons.append(0.5 * (J + J.T) >> 0)
+            if not settings.sphere:
+                continue
             R = self.bodies.radius[b]
             m_cad = self.bodies.mass[b]
             trace_sigma = 0.5 * (phi[s + 4] + phi[s + 6] + phi[s + 9])  # tr Σ = ½ tr I
@@ -241,6 +246,8 @@ class ConsistentProblem:
             out["min_eigenvalue"][name] = float(np.linalg.eigvalsh(pseudo_inertia(phi[s:s + 10]) * TT)[0])
             if lo < ACTIVE_RTOL * max(1.0, float(np.abs(J).max())):
                 out["pseudo_inertia"].append(name)
+            if not self.settings.sphere:
+                continue
             R, m_cad = self.bodies.radius[b], self.bodies.mass[b]
             slack = (phi[s] - 0.5 * (phi[s + 4] + phi[s + 6] + phi[s + 9]) / R**2) / m_cad - eps * float(self.cad[s] > 0)
             if slack < ACTIVE_RTOL:

@@ -35,7 +35,7 @@ from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from ..robot.regressors.base import BaseParameters, base_parameters_from_factor
 from ..robot.regressors.stack import DEFAULT_MIN_SPEED, Signals, row_weights, signals_from_dataset
-from .consistent import ConsistentSettings, consistent_fit
+from .consistent import LAMBDAS, ConsistentSettings, consistent_fit
 from .regression import InputColumns, base_least_squares, instrumental_variables, pls_path, unseen_directions
 from .statistics import MIN_BLOCK_SAMPLES, Statistics, accumulate
 
@@ -68,6 +68,11 @@ class FitSettings:
     consistent: bool = False
     # Its pull towards CAD, λ cross-validated over consistent.LAMBDAS; off by default: λ = 0, the data alone
     cad_pull: bool = False
+    # Its density-realizable sphere about each body's frame (off: every pseudo-inertia PSD, nothing more)
+    consistent_sphere: bool = True
+
+
+PSEUDO_INERTIA_ONLY = "pseudo-inertia"  # `--consistent pseudo-inertia`: every J ⪰ 0, no sphere about the body's frame
 
 
 @dataclass
@@ -269,7 +274,8 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
     consistent = None
     if settings.consistent:
         consistent, est = _consistent(model, stats, base, estimates[chosen_name], folds_of[chosen_name], prior,
-                                      ConsistentSettings() if settings.cad_pull else ConsistentSettings(lambdas=(0.0,)))
+                                      ConsistentSettings(lambdas=LAMBDAS if settings.cad_pull else (0.0,),
+                                                         sphere=settings.consistent_sphere))
         if est is not None:
             estimates[est.name] = est
             chosen_name = est.name
