@@ -53,10 +53,13 @@ class EpisodeVisibility:
     peak_t2: float  # the largest T² the contact alone adds, over the channels in use at each sample
     longest_run: int  # samples in a row with that T² above T²_α
     visible: bool  # longest_run ≥ the debounce
+    # Samples from the start to the last of the first `debounce` in a row above T²_α (−1 if never): the earliest onset
+    # a detector with this Λ, T²_α and debounce could confirm, were its residual free of noise and of filter lag
+    earliest: int = -1
 
     def as_dict(self) -> dict:
         return {"start": self.start, "end": self.end, "peak_t2": self.peak_t2, "longest_run": self.longest_run,
-                "visible": self.visible}
+                "visible": self.visible, "earliest": self.earliest}
 
 
 def episode_visibility(contact: np.ndarray, signal: np.ndarray, active: np.ndarray, variance: np.ndarray,
@@ -66,8 +69,10 @@ def episode_visibility(contact: np.ndarray, signal: np.ndarray, active: np.ndarr
     t2 = np.sum(np.where(active, signal**2 / np.asarray(variance, float), 0.0), axis=1)
     out = []
     for a, b in contact_episodes(contact):
-        best = max((e - s for s, e in contact_episodes(t2[a:b] > threshold)), default=0)
-        out.append(EpisodeVisibility(int(a), int(b), float(t2[a:b].max()), best, best >= debounce))
+        runs = contact_episodes(t2[a:b] > threshold)
+        best = max((e - s for s, e in runs), default=0)
+        earliest = next((s + debounce - 1 for s, e in runs if e - s >= debounce), -1)
+        out.append(EpisodeVisibility(int(a), int(b), float(t2[a:b].max()), best, best >= debounce, int(earliest)))
     return out
 
 
