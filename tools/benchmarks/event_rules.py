@@ -52,7 +52,9 @@ def t2_stream(coef_path: Path, data, residual: str, work: Path) -> tuple[np.ndar
     return t2 / threshold, out[:, 0] > 0
 
 
-def onsets(stat: np.ndarray, ready: np.ndarray, rule: list[tuple[float, int]], off: int, hysteresis: float) -> list[int]:
+def onsets(stat: np.ndarray, ready: np.ndarray, rule: list[tuple[float, int]], off: int,
+           hysteresis: float) -> list[int]:
+    """The samples at which the monitor, firing on `rule`, would report an onset."""
     fire = np.zeros(stat.size, bool)
     for level, n in rule:
         above = ((stat > level) & ready).astype(int)

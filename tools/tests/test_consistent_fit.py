@@ -73,8 +73,9 @@ def test_with_no_constraint_binding_it_is_the_unconstrained_least_squares(arm: R
 
 
 def test_a_tool_beyond_the_sphere_stays_with_pseudo_inertia_only(arm: RobotModel) -> None:
-    """A physical body whose mass sits beyond its sphere (a 0.4 kg ball of 10 cm radius 0.6 m out on the hand): the sphere binds and
-    moves it; with `sphere` off (`--consistent pseudo-inertia`) nothing binds and the estimate is the least squares."""
+    """A physical body whose mass sits beyond its sphere (a 0.4 kg ball of 10 cm radius 0.6 m out on the hand): the
+    sphere binds and moves it; with `sphere` off (`--consistent pseudo-inertia`) nothing binds and the estimate is the
+    least squares."""
     truth = physical_truth(arm)
     body = len(arm.bodies) - 1
     s = arm.layout.span("inertial").start + 10 * body

@@ -64,14 +64,14 @@ def test_visibility_rule(arm: RobotModel) -> None:
     assert seen.visible and seen.longest_run == 200 and seen.peak_t2 == pytest.approx((0.025 / 0.002) ** 2)
     assert seen.earliest == 9  # a step: above T²_α from the first sample, confirmed on the tenth
     assert not through_axis.visible and through_axis.peak_t2 == 0.0 and through_axis.earliest == -1
-    # A 30 ms raised-cosine ramp (the simulator's): the contact alone passes T²_α where (1 − cos(πk/30))/2 · 0.025 Nm
-    # / 20 reaches √30 · 0.002 Nm, k = 30/π · acos(1 − 2·√30·0.002·20/0.025) = 16.3, and is confirmed 9 samples later
+    # A 30 ms raised-cosine ramp (the simulator's): the contact alone passes T²_α = 30 where (1 − cos(πk/30))/2 · 0.025
+    # reaches √30 · 0.002, k = 30/π · acos(1 − 2·√30·0.002/0.025) = 13.8, so from k = 14, confirmed 9 samples later
     ramp = signal.copy()
     k = np.arange(30)
     ramp[100:130, elbow] *= 0.5 * (1 - np.cos(np.pi * k / 30))
     got = episode_visibility(contact, ramp, moving, variance, threshold=30.0, debounce=10)[0]
-    first = int(np.ceil(30 / np.pi * np.arccos(1 - 2 * np.sqrt(30.0) * 0.002 * 20 / 0.5)))
-    assert got.earliest == first + 9
+    first = int(np.ceil(30 / np.pi * np.arccos(1 - 2 * np.sqrt(30.0) * 0.002 / 0.025)))
+    assert first == 14 and got.earliest == first + 9
     resting = moving.copy()
     resting[:, elbow] = False  # static friction holds the elbow: its row is out of T²
     assert not episode_visibility(contact, signal, resting, variance, 30.0, 10)[0].visible

@@ -136,8 +136,9 @@ def print_consistent(done: dict[str, Any] | None) -> None:
         return
     active = done["active"]
     bounds = "" if done.get("sphere", True) else ", pseudo-inertia only"
-    print(f"  physically consistent ({done['solver']}, from {done['from']}{bounds}, {done['solve_time_s']:.1f} s): pull to CAD "
-          f"λ = {done['lambda']:g} (cross-validated over {', '.join(f'{x:g}' for x in done['cv']['lambdas'])})")
+    print(f"  physically consistent ({done['solver']}, from {done['from']}{bounds}, {done['solve_time_s']:.1f} s): "
+          f"pull to CAD λ = {done['lambda']:g} (cross-validated over "
+          f"{', '.join(f'{x:g}' for x in done['cv']['lambdas'])})")
     binding = [(what, active[key]) for what, key in (("pseudo-inertia at its bound", "pseudo_inertia"),
                                                       ("mass inside its sphere at the bound", "sphere"),
                                                       ("friction at 0", "friction"),
@@ -288,9 +289,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     "without the sphere (a body may carry mass beyond its reach, e.g. a tool). off: the "
                     "unconstrained estimate")
     sp.add_argument("--cad-pull", choices=["off", "cv"], default="off",
-                    help="with --consistent on or pseudo-inertia: a pull of the inertial parameters towards CAD, its weight chosen by "
-                    "cross-validation over the time blocks (kept only where it beats no pull by a standard error of "
-                    "the folds); default off: the data alone")
+                    help="with --consistent on or pseudo-inertia: a pull of the inertial parameters towards CAD, "
+                    "its weight chosen by cross-validation over the time blocks (kept only where it beats no pull by "
+                    "a standard error of the folds); default off: the data alone")
     sp.add_argument("--n-components", type=positive_int, metavar="NU", help="PLS latent variables (default: by CV)")
     sp.add_argument("--blocks", type=positive_int, default=10, help="time blocks for CV and jackknife (default 10)")
     sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"T² confidence level (default {ALPHA})")

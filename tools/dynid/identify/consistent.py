@@ -77,7 +77,8 @@ class ConsistentResult:
     def record(self) -> dict:
         return {"lambda": self.lam, "active": self.active, "cv": self.cv, "solver": self.solver,
                 "solver_status": self.solver_status, "solve_time_s": self.solve_time_s,
-                "epsilon": self.settings.epsilon, "gain_floor": self.settings.gain_floor, "sphere": self.settings.sphere}
+                "epsilon": self.settings.epsilon, "gain_floor": self.settings.gain_floor,
+                "sphere": self.settings.sphere}
 
 
 def _factor(gram: np.ndarray) -> np.ndarray:
