@@ -150,14 +150,13 @@ def momentum_terms(model: RobotModel, phi: np.ndarray, q: np.ndarray, dq: np.nda
     Q, V = model.pinocchio_configuration(q), model.pinocchio_velocity(dq)
     n = Q.shape[0]
     P, B = np.empty((n, pm.nv)), np.empty((n, pm.nv))
+    rest = np.zeros(pm.nv)
     for k in range(n):
         if gravity is not None:
             pm.gravity = pin.Motion(np.asarray(gravity[k], float), np.zeros(3))
-        M = pin.crba(pm, data, Q[k])
-        M = np.triu(M) + np.triu(M, 1).T  # crba fills the upper triangle
-        C = pin.computeCoriolisMatrix(pm, data, Q[k], V[k])
         g = pin.computeGeneralizedGravity(pm, data, Q[k])
-        P[k] = M @ V[k]
+        P[k] = pin.rnea(pm, data, Q[k], rest, V[k]) - g  # M q̇: RNEA at rest with q̇ as the acceleration, no M formed
+        C = pin.computeCoriolisMatrix(pm, data, Q[k], V[k])
         B[k] = C.T @ V[k] - g
     return MomentumTerms(P, B)
 

@@ -39,6 +39,13 @@ def _norms(X: np.ndarray) -> np.ndarray:
     return np.where(n > 0, n, 1.0)
 
 
+def columns_on(E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(channels E touches, the norms of `_norms`) of candidate columns E (N, r, K), in one pass over E."""
+    energy = np.einsum("nrk,nrk->rk", E, E)
+    n = np.sqrt(energy.sum(axis=0))
+    return np.flatnonzero(energy.sum(axis=1) > 0), np.where(n > 0, n, 1.0)
+
+
 def _bordered_solve(Ginv: np.ndarray, G: np.ndarray, g: np.ndarray, d: int) -> np.ndarray:
     """Least squares of the normal equations G (d + K square) whose leading d×d block has the (cached) pseudo-
     inverse Ginv: a Schur complement on the K candidate columns, K small, instead of a new (d + K) solve.
@@ -70,6 +77,8 @@ class Design:
     inv_folds: np.ndarray = field(init=False)  # (B, d, d) pseudo-inverse of each fold's training normal matrix
     inv_all: np.ndarray = field(init=False)  # (d, d) the same over all blocks
     scale: np.ndarray = field(init=False)  # (d,) norm of each column of D; G, g are of D / scale
+    # the last candidate's `cross` (a candidate is fitted, then cross-validated: the same E twice in a row)
+    _crossed: tuple = field(init=False, default=(None, None), repr=False)
 
     @property
     def n_blocks(self) -> int:
@@ -84,8 +93,9 @@ class Design:
         for b in range(B):
             sel = self._block(b)
             Db, yb = self.D[sel], self.y[sel]
-            self.G[b] = np.einsum("nri,nrj->rij", Db, Db)
-            self.g[b] = np.einsum("nri,nr->ri", Db, yb)
+            Dr = Db.transpose(1, 2, 0)  # (r, d, n): per channel a BLAS product, not einsum's loop
+            self.G[b] = Dr @ Dr.transpose(0, 2, 1)
+            self.g[b] = (Dr @ yb.T[:, :, None])[:, :, 0]
             self.yy[b] = (yb**2).sum(axis=0)
             self.rows[b] = (np.abs(Db).sum(axis=2) > 0).sum(axis=0)
         self.scale = _norms(self.D)
@@ -95,11 +105,14 @@ class Design:
         self.inv_all = _pinv(Gb.sum(axis=0))
         self.inv_folds = np.stack([_pinv(Gb.sum(axis=0) - Gb[b]) for b in range(B)])
 
-    def cross(self, E: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(D'E, E'E, E'y) per (block, channel) for extra columns E (N, r, K), both scaled to unit-norm columns."""
+    def cross(self, E: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(D'E, E'E, E'y) per (block, channel) for extra columns E (N, r, K), both scaled to unit-norm columns, and
+        E's column norms."""
+        if self._crossed[0] is E:
+            return self._crossed[1]
         B, r, d, K = self.n_blocks, self.D.shape[1], self.D.shape[2], E.shape[2]
         DE, EE, Ey = np.zeros((B, r, d, K)), np.zeros((B, r, K, K)), np.zeros((B, r, K))
-        active = np.flatnonzero(np.abs(E).sum(axis=(0, 2)) > 0)
+        active, e = columns_on(E)
         for b in range(B):
             sel = self._block(b)
             for c in active:  # views, no copies: a candidate touches few channels
@@ -107,14 +120,15 @@ class Design:
                 DE[b, c] = self.D[sel, c].T @ Ec
                 EE[b, c] = Ec.T @ Ec
                 Ey[b, c] = Ec.T @ self.y[sel, c]
-        e = _norms(E)
-        return DE / np.outer(self.scale, e), EE / np.outer(e, e), Ey / e
+        out = DE / np.outer(self.scale, e), EE / np.outer(e, e), Ey / e, e
+        self._crossed = (E, out)
+        return out
 
     def augmented(self, E: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         """(G, g) per (block, channel) of [D, E]."""
         if E is None:
             return self.G, self.g
-        DE, EE, Ey = self.cross(E)
+        DE, EE, Ey, _ = self.cross(E)
         top = np.concatenate([self.G, DE], axis=3)
         bottom = np.concatenate([np.swapaxes(DE, 2, 3), EE], axis=3)
         return np.concatenate([top, bottom], axis=2), np.concatenate([self.g, Ey], axis=2)
@@ -128,7 +142,7 @@ class Design:
         d = self.D.shape[2]
         for b in range(self.n_blocks):
             x = self.inv_folds[b] @ (gt - gb[b]) if E is None else _bordered_solve(self.inv_folds[b], Gt - Gb[b], gt - gb[b], d)
-            out[b] = np.einsum("i,rij,j->r", x, G[b], x) - 2 * g[b] @ x + self.yy[b]
+            out[b] = (G[b] @ x) @ x - 2 * g[b] @ x + self.yy[b]
         return out
 
     def fit(self, E: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
@@ -137,8 +151,8 @@ class Design:
         Gs, gs = G.sum(axis=(0, 1)), g.sum(axis=(0, 1))
         x = self.inv_all @ gs if E is None else _bordered_solve(self.inv_all, Gs, gs, self.D.shape[2])
         Gc, gc, yy = G.sum(axis=0), g.sum(axis=0), self.yy.sum(axis=0)
-        scale = self.scale if E is None else np.concatenate([self.scale, _norms(E)])
-        return x / scale, np.einsum("i,rij,j->r", x, Gc, x) - 2 * gc @ x + yy
+        scale = self.scale if E is None else np.concatenate([self.scale, self.cross(E)[3]])
+        return x / scale, (Gc @ x) @ x - 2 * gc @ x + yy
 
     def fold_fits(self) -> list[np.ndarray]:
         """x (own units) fitted on all blocks but b, for each b: the block jackknife's replicates."""
@@ -176,7 +190,7 @@ def evaluate(design: Design, cand: Candidate, weights: np.ndarray, base_cv: np.n
     """The candidate's columns, weighted like the rows (1/σ, 0 at rest), against the current design; its p-value
     is left NaN (`robust_p_value` costs a pass over the rows: only the best candidate of a round gets one)."""
     E = weighted_columns(cand.values, weights)
-    channels = np.flatnonzero(np.abs(E).sum(axis=(0, 2)) > 0)
+    channels = columns_on(E)[0]
     before = base_cv[:, channels].sum(axis=1)
     if cand.positive:
         k = E.shape[2]

@@ -199,7 +199,8 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
     if reference is not None:
         Aw[:, :, inertial] = 0.0  # held columns: V gets no component along them
     # Identifiable subspace of the standard model on this run: Z = A V (columns the data cannot see dropped).
-    G = np.einsum("nri,nrj->ij", Aw, Aw)
+    flat = Aw.reshape(-1, Aw.shape[2])
+    G = flat.T @ flat
     s, V = np.linalg.eigh(G)
     V = V[:, s > 1e-10 * s.max()]
     bounds = np.linspace(0, n, settings.n_blocks + 1).astype(int)
