@@ -89,13 +89,16 @@ def test_table_ii_identified_beats_cad(default_model: Path, default_experiments,
 
 
 def test_calibrated_threshold_keeps_its_promise(default_model: Path, default_experiments, tmp_path: Path) -> None:
-    free = run_json(tmp_path, "detect", "--model", str(default_model), "--data", str(default_experiments["validation"]))
+    # --residual acceleration: these are the acceleration-based variants' promises (the observer's: test_momentum.py)
+    free = run_json(tmp_path, "detect", "--model", str(default_model), "--data", str(default_experiments["validation"]),
+                    "--residual", "acceleration")
     calibrated, paper = free["variants"]["calibrated"], free["variants"]["paper"]
     assert calibrated["fpr"] <= 0.02  # measured 1.4 % at α = 0.99
     # The paper's variant (diagonal Λ, F threshold) does not: heavy-tailed, autocorrelated PWM residuals.
     assert paper["fpr"] > 2 * (1 - 0.99)
 
-    contact = run_json(tmp_path, "detect", "--model", str(default_model), "--data", str(default_experiments["contact"]))
+    contact = run_json(tmp_path, "detect", "--model", str(default_model), "--data", str(default_experiments["contact"]),
+                       "--residual", "acceleration")
     cal = contact["variants"]["calibrated"]
     assert cal["tpr_by_side"]["distal"] >= 0.99
     assert cal["fpr"] <= 0.02 and cal["auc"] > 0.85
@@ -114,8 +117,8 @@ def test_calibrated_threshold_keeps_its_promise(default_model: Path, default_exp
 
 def test_alpha_moves_the_calibrated_threshold(default_model: Path, default_experiments, tmp_path: Path) -> None:
     data = str(default_experiments["validation"])
-    loose = run_json(tmp_path, "detect", "--model", str(default_model), "--data", data, "--alpha", "0.95")
-    strict = run_json(tmp_path, "detect", "--model", str(default_model), "--data", data, "--alpha", "0.999")
+    loose, strict = (run_json(tmp_path, "detect", "--model", str(default_model), "--data", data, "--alpha", alpha,
+                              "--residual", "acceleration") for alpha in ("0.95", "0.999"))
     assert loose["variants"]["calibrated"]["fpr"] > strict["variants"]["calibrated"]["fpr"]
     assert loose["variants"]["calibrated"]["fpr"] <= 0.1 and strict["variants"]["calibrated"]["fpr"] <= 0.005
 
