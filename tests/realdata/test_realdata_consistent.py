@@ -79,7 +79,7 @@ def test_ur10e_consistent_is_physical_and_as_good_on_ptp(tmp_path: Path) -> None
         pytest.skip(f"no real UR10e data at {UR}")
     robot = ("--robot", "ur10e_known_gains", "--urdf", str(UR / "ur10e.urdf"))
     errors, fits = {}, {}
-    for mode in ("off", "on", "pseudo-inertia"):
+    for mode in ("off", "on"):
         path = tmp_path / f"{mode}.json"
         fits[mode] = dynid("fit", *robot, "--data", str(UR / "identification/ur-20_02_19_14harm50sec.csv"),
                            "--consistent", mode, "--out", str(path))
