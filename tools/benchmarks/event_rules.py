@@ -15,8 +15,6 @@ mission's (docs/detection.md#the-monitor). Beside them, the delays the contact a
 from __future__ import annotations
 
 import argparse
-import struct
-import subprocess
 import tempfile
 from pathlib import Path
 
@@ -25,6 +23,7 @@ import numpy as np
 from dynid.config.robot_config import load_config
 from dynid.detect.visibility import contact_residuals, episode_visibility
 from dynid.export.coefficients import read_coefficients
+from dynid.export.rt_eval_io import detector_columns, raw_samples, run_stream
 from dynid.io.dataset import beside_run, contact_episodes
 from dynid.io.load import load_data
 from dynid.robot.model import RobotModel
@@ -37,19 +36,9 @@ SLACK = 40  # samples after an episode's end in which an onset still counts as f
 def t2_stream(coef_path: Path, data, residual: str, work: Path) -> tuple[np.ndarray, np.ndarray]:
     """(T² / T²_α, ready) per sample, from the core."""
     c = read_coefficients(coef_path)
-    raw = np.hstack([data.q, data.ft[c.sensor_name]] + [data.pwm[m][:, None] for m in c.motor_names])
-    raw = np.ascontiguousarray(raw, "<f8")
-    (work / "in.mx").write_bytes(b"DYMX" + struct.pack("<qq", *raw.shape) + raw.tobytes())
-    done = subprocess.run([str(RT_EVAL), "--coef", str(coef_path), "--residual", residual, "--stream",
-                           str(work / "in.mx"), str(work / "out.mx")], capture_output=True, text=True)
-    if done.returncode != 0:
-        raise SystemExit(f"rt_eval: {done.stderr.strip()}")
-    blob = (work / "out.mx").read_bytes()
-    rows, cols = struct.unpack_from("<qq", blob, 4)
-    out = np.frombuffer(blob, "<f8", offset=20).reshape(rows, cols)
-    t2 = out[:, 1 + 3 * c.n_joints + 3 * c.n_outputs]  # rt_eval's T² column (tools/tests/test_rt_core.py)
+    out = run_stream(RT_EVAL, coef_path, raw_samples(data, c), work, "--residual", residual)
     threshold = c.observer_threshold if residual == "momentum" else c.threshold
-    return t2 / threshold, out[:, 0] > 0
+    return out[:, detector_columns(c)["t2"]] / threshold, out[:, 0] > 0
 
 
 def onsets(stat: np.ndarray, ready: np.ndarray, rule: list[tuple[float, int]], off: int,

@@ -9,13 +9,14 @@ number of onset events; then runs rt_bench on the exported model. Needs scripts/
 
 from __future__ import annotations
 
-import struct
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from dynid.export.rt_eval_io import raw_samples, run_stream
 
 ROOT = Path(__file__).resolve().parents[2]
 BUILD = ROOT / "build" / "rt_monitor"
@@ -26,13 +27,7 @@ def dynid(*args: str) -> None:
 
 
 def replay(coef: Path, raw: np.ndarray, work: Path) -> np.ndarray:
-    x = np.ascontiguousarray(raw, "<f8")
-    (work / "in.mx").write_bytes(b"DYMX" + struct.pack("<qq", *x.shape) + x.tobytes())
-    subprocess.run([str(BUILD / "rt_eval"), "--coef", str(coef), "--stream", str(work / "in.mx"),
-                    str(work / "out.mx")], check=True)
-    data = (work / "out.mx").read_bytes()
-    rows, cols = struct.unpack_from("<qq", data, 4)
-    return np.frombuffer(data, "<f8", offset=20).reshape(rows, cols)
+    return run_stream(BUILD / "rt_eval", coef, raw, work)
 
 
 def main() -> None:
@@ -53,7 +48,7 @@ def main() -> None:
     print(f"coefficient file {coef}: T²_α {c.threshold:.4g} (α {c.alpha}), filter window {c.window} lag {c.lag}")
     for kind in ("validation", "contact"):
         ds = load_data(work / kind, config)
-        raw = np.hstack([ds.q, ds.ft[c.sensor_name]] + [ds.pwm[m][:, None] for m in c.motor_names])
+        raw = raw_samples(ds, c)
         out = replay(coef, raw, work)
         ready, above, onsets = out[:, 0] == 1, out[:, -4] == 1, out[:, -2] == 1
         truth, side = np.zeros(len(out), bool), np.zeros(len(out))

@@ -3,7 +3,6 @@ file's checks, and the threshold's promise when the contact-free validation run 
 
 from __future__ import annotations
 
-import struct
 import subprocess
 import sys
 import zlib
@@ -18,6 +17,7 @@ from dynid.detect.online import FixedLagSavitzkyGolay, online_signals, online_ti
 from dynid.detect.t2 import Detector
 from dynid.export.coefficients import read_coefficients, unwrap, wrap
 from dynid.export.lcm_coefficients import coefficients_t
+from dynid.export.rt_eval_io import detector_columns, raw_samples, read_matrix, run_stream, write_matrix  # noqa: F401 (the other rt tests import them from here)
 from dynid.identify.model_file import load_model
 from dynid.identify.supply import SupplyTracker
 from dynid.io.load import load_data
@@ -35,40 +35,15 @@ def dynid(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True, timeout=900)
 
 
-def write_matrix(path: Path, x: np.ndarray) -> None:
-    x = np.ascontiguousarray(x, dtype="<f8")
-    path.write_bytes(b"DYMX" + struct.pack("<qq", *x.shape) + x.tobytes())
-
-
-def read_matrix(path: Path) -> np.ndarray:
-    data = path.read_bytes()
-    assert data[:4] == b"DYMX"
-    rows, cols = struct.unpack_from("<qq", data, 4)
-    return np.frombuffer(data, "<f8", offset=20).reshape(rows, cols)
-
-
 def rt_eval(*args: str, exe: Path = RT_EVAL) -> subprocess.CompletedProcess:
     assert exe.is_file(), f"{exe} is not built (scripts/setup)"
     return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=600)
 
 
-def raw_samples(ds, c: coefficients_t) -> np.ndarray:
-    """(N, joints + 6 + motors): what the monitor receives per sample, in the coefficient file's order."""
-    return np.hstack([ds.q, ds.ft[c.sensor_name]] + [ds.pwm[m][:, None] for m in c.motor_names])
-
-
-def detector_columns(c: coefficients_t) -> dict[str, int]:
-    """Where `rt_eval --stream` writes T², the detector's state and the side (the observer's columns follow)."""
-    at = 1 + 3 * c.n_joints + 3 * c.n_outputs
-    return {"t2": at, "t2_ft": at + 1, "above": at + 2, "in_contact": at + 3, "event": at + 4, "side": at + 5}
-
-
 def stream(coef: Path, raw: np.ndarray, work: Path) -> np.ndarray:
     """The core's per-sample output rows (`rt_eval --stream`) for the raw samples `raw`."""
-    write_matrix(work / "in.mx", raw)
-    done = rt_eval("--coef", str(coef), "--stream", str(work / "in.mx"), str(work / "out.mx"))
-    assert done.returncode == 0, done.stderr
-    return read_matrix(work / "out.mx")
+    assert RT_EVAL.is_file(), f"{RT_EVAL} is not built (scripts/setup)"
+    return run_stream(RT_EVAL, coef, raw, work)
 
 
 def python_mirror(identified, c: coefficients_t, t: np.ndarray, q: np.ndarray, inputs: dict, ft: dict):

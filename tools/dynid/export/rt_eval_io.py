@@ -1,0 +1,52 @@
+"""The monitor's offline evaluator, `rt_eval --stream`, from Python: its matrix files and its output columns.
+
+`rt_eval --stream IN OUT` runs the real-time core sample by sample on IN and writes one row per sample to OUT (the
+layout: rt_monitor/tools/rt_eval.cpp). Both are DYMX files: b"DYMX", rows and columns as little-endian int64, then
+the rows as little-endian float64. The tests, the RT report and the event-rule replay read and write them here.
+"""
+
+from __future__ import annotations
+
+import struct
+import subprocess
+from pathlib import Path
+
+import numpy as np
+
+from .lcm_coefficients import coefficients_t
+
+MAGIC = b"DYMX"
+
+
+def write_matrix(path: Path, x: np.ndarray) -> None:
+    x = np.ascontiguousarray(x, dtype="<f8")
+    path.write_bytes(MAGIC + struct.pack("<qq", *x.shape) + x.tobytes())
+
+
+def read_matrix(path: Path) -> np.ndarray:
+    data = path.read_bytes()
+    if data[:4] != MAGIC:
+        raise ValueError(f"{path}: not a DYMX matrix")
+    rows, cols = struct.unpack_from("<qq", data, 4)
+    return np.frombuffer(data, "<f8", offset=20).reshape(rows, cols)
+
+
+def raw_samples(ds, c: coefficients_t) -> np.ndarray:
+    """(N, joints + 6 + motors): what the monitor receives per sample, in the coefficient file's order."""
+    return np.hstack([ds.q, ds.ft[c.sensor_name]] + [ds.pwm[m][:, None] for m in c.motor_names])
+
+
+def detector_columns(c: coefficients_t) -> dict[str, int]:
+    """Where `rt_eval --stream` writes T², the detector's state and the side (the observer's columns follow)."""
+    at = 1 + 3 * c.n_joints + 3 * c.n_outputs
+    return {"t2": at, "t2_ft": at + 1, "above": at + 2, "in_contact": at + 3, "event": at + 4, "side": at + 5}
+
+
+def run_stream(exe: Path, coef: Path, raw: np.ndarray, work: Path, *options: str) -> np.ndarray:
+    """The core's per-sample output rows for the raw samples `raw` (`exe --coef COEF OPTIONS --stream`)."""
+    write_matrix(work / "in.mx", raw)
+    done = subprocess.run([str(exe), "--coef", str(coef), *options, "--stream", str(work / "in.mx"),
+                           str(work / "out.mx")], capture_output=True, text=True, timeout=600)
+    if done.returncode != 0:
+        raise RuntimeError(f"rt_eval: {done.stderr.strip()}")
+    return read_matrix(work / "out.mx")
