@@ -214,7 +214,7 @@ MODELS = [
           says="the model file names robot 'panda', but the configuration it embeds is icub_right_arm's",
           make=model(setting("robot.name", "panda"))),
     dynid("export-model-for-another-robot", "export", "--model", M, "--out", "{out}/c.dcoef",
-          says="the dataset's joints do not match the configuration panda", make=model(another_robot)),
+          says="the monitor needs exactly one F/T sensor; panda has 0", make=model(another_robot)),  # before any data
     dynid("validate-model-config-gone", "validate", "--model", M, "--data", "{run}",
           says="changed or is gone, and no intact copy is embedded",
           make=model(lambda m: m["robot"].update(config_text="name: [", config_source="/nonexistent.yaml"))),

@@ -42,6 +42,14 @@ def test_panda_fit_on_two_thirds_predicts_the_last_third(tmp_path: Path) -> None
     print(f"Panda: relative torque error {100 * held_out['relative_torque_error']:.2f} % on the held-out last 1/3, "
           f"{100 * fitted['relative_torque_error']:.2f} % on the fitted 2/3 (Gaz et al. 2019: 1.41 %)")
     assert held_out["relative_torque_error"] < 0.016  # measured 1.47 %
+    # The held-out third is contact-free. Its positions stall for a few samples at a time: the observer takes the
+    # log's recorded dq, and neither alarms often nor estimates external torques the joints never carried.
+    detected = dynid("detect", "--model", str(model), "--data", str(test), "--residual", "momentum")
+    momentum = detected["variants"]["momentum"]
+    peak = max(abs(v) for e in detected["events"] for v in e["tau_ext_nm"].values())
+    print(f"Panda held-out third: momentum FPR {100 * momentum['fpr']:.2f} %, largest event torque {peak:.1f} Nm")
+    assert momentum["fpr"] <= 0.02  # measured 1.21 % (1.91 % with q̇ estimated from the stalling q)
+    assert peak < 15.0  # measured 8.5 Nm (80 Nm with q̇ estimated from q)
 
 
 def test_tiago_hand_mass_com_and_offsets_and_what_the_run_cannot_identify(tmp_path: Path) -> None:

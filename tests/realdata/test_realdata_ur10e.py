@@ -124,9 +124,11 @@ def test_every_command_over_every_file_without_a_traceback(tmp_path: Path) -> No
             if done.returncode == 2:
                 assert len(done.stderr.strip().splitlines()) == 1, f"{call}\n{done.stderr}"
             outcomes.append((f"{args[0]} {path.name}", done.returncode, done.stderr.strip()))
-    # The monitor's fixed-lag filter needs uniform samples; the UR's stamps step 2-12 ms: one line, exit 2.
+    # The monitor's core holds exactly one F/T sensor and the UR10e has none: one line, exit 2, before any data is read.
     done = run("export", "--model", str(model), "--out", str(tmp_path / "ur.dcoef"))
-    assert done.returncode == 2 and "uniform samples" in done.stderr and len(done.stderr.splitlines()) == 1, done.stderr
+    assert done.returncode == 2 and "exactly one F/T sensor" in done.stderr and len(done.stderr.splitlines()) == 1, \
+        done.stderr
+    assert not (tmp_path / "ur.dcoef").exists()
     assert not tracebacks, "\n".join(f"{c}\n{e}" for c, e in tracebacks)
     refused = [(o, e) for o, rc, e in outcomes if rc == 2]
     for o, e in refused:

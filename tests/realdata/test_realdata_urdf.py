@@ -34,6 +34,13 @@ def test_ur10e_urdf_round_trip_on_ptp_10_points(tmp_path: Path) -> None:
     fit = run("fit", "--robot", "ur10e_known_gains", "--urdf", str(convert.UR10E_URDF), "--data", str(IDENT),
               "--out", str(model))
     assert fit.returncode == 0, fit.stderr
+    # The unconstrained fit's nearest physical set is physical but not what the wrist can be: said, not hidden.
+    nearest = run("export", "--model", str(model), "--urdf", str(tmp_path / "nearest.urdf"), "--nearest-physical",
+                  "--json", "-")
+    assert nearest.returncode == 0, nearest.stderr
+    notes = json.loads(nearest.stdout)["notes"]
+    assert any(n.startswith("the written set: wrist_3_link: centre of mass") for n in notes), notes
+    assert any("--consistent on" in n for n in notes), notes
     done = run("export", "--model", str(model), "--urdf", str(out), "--json", "-")
     if done.returncode == 2:  # the unconstrained fit: refused in one line, nothing written
         assert len(done.stderr.strip().splitlines()) == 1 and "--nearest-physical" in done.stderr, done.stderr
@@ -52,3 +59,4 @@ def test_ur10e_urdf_round_trip_on_ptp_10_points(tmp_path: Path) -> None:
     assert max(errors.values()) < 1e-9, errors
     side = (tmp_path / "ur10e_identified.dynamics.yaml").read_text()
     assert "gain_source: known (configuration)" in side and "shoulder_pan_joint" in side
+

@@ -144,6 +144,8 @@ class DynamicsModel(BaseEstimator):
             raise InputError(f"consistent must be True, False or {PSEUDO_INERTIA_ONLY!r}, got {self.consistent!r}")
         if not isinstance(self.cad_pull, (bool, np.bool_)):
             raise InputError(f"cad_pull must be True or False, got {self.cad_pull!r}")
+        if self.cad_pull and self.consistent is False:
+            raise InputError("cad_pull weighs the CAD prior of the physically consistent fit: set consistent too")
 
     def fit(self, X: Data | Sequence[Data], y: None = None) -> DynamicsModel:
         """Identify the model on one or more contact-free runs (stacked into one regression).

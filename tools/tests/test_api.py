@@ -59,6 +59,8 @@ def test_parameters_are_checked_at_fit_and_clone_keeps_them(runs: Path) -> None:
         dynid.DynamicsModel(alpha=1.5).fit(str(runs / "identification"))
     with pytest.raises(dynid.InputError, match="consistent must be True, False or 'pseudo-inertia', got 'psd'"):
         dynid.DynamicsModel(consistent="psd").fit(str(runs / "identification"))
+    with pytest.raises(dynid.InputError, match="cad_pull weighs the CAD prior of the physically consistent fit"):
+        dynid.DynamicsModel(cad_pull=True).fit(str(runs / "identification"))
     with pytest.raises(NotFittedError):
         dynid.DynamicsModel().predict(str(runs / "contact"))
 

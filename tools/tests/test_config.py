@@ -72,6 +72,7 @@ BAD = [
     ("bad input kind", _set(["actuation", 1, "input"], "voltage"), "actuation[1].input"),
     ("negative gain", _set(["motors", "m3", "nominal_gain"], -1), "motors.m3.nominal_gain"),
     ("gravity", _set(["gravity"], [0, 0]), "'gravity'"),
+    ("gravity in cm/s²", _set(["gravity"], [0, 0, -981]), "981 m/s² long"),
     ("noise", _set(["ft_sensors", 0, "noise", "force"], "low"), "ft_sensors[0].noise.force"),
     ("can bus", _set(["can", "strain", 0, "bus"], "can7"), "can.strain[0].bus"),
     ("can address", _set(["can", "motor_control", 0, "address"], 16), "can.motor_control[0].address"),
@@ -103,6 +104,8 @@ MODEL_BAD = [
     # a base below the sensor: the tree is re-rooted at r_hand, which would swap the sensor's sides (robot/reroot.py)
     ("sensor between base link and root", _set(["base_link"], "r_hand"), "between the base link 'r_hand' and the URDF's root"),
     ("base link unknown", _set(["base_link"], "torso_99"), "'torso_99', not a link"),
+    ("payload frame not in the urdf", _set(["payload_frame"], "tool_flange"), "'payload_frame' names 'tool_flange'"),
+    ("payload frame on the base", _set(["payload_frame"], "root_link"), "fixed to the base"),
     ("sensor named unlike the URDF", lambda d: (d.pop("can"), d["ft_sensors"][0].__setitem__("name", "r_arm_ftt")),
      "the URDF names this sensor 'r_arm_ft'"),
 ]

@@ -151,6 +151,43 @@ def test_causal_velocity_is_causal_and_exact_on_a_quadratic() -> None:
 # The simulated arm (the default experiments)
 
 
+def test_the_observer_takes_the_robots_own_velocity_never_an_estimate_of_dynids() -> None:
+    """velocity.<joint> extras first, then recorded dq columns; a dq that dynid estimated from q is not measured."""
+    from dynid.io.dataset import Dataset
+
+    t = np.arange(400) / RATE
+    q = np.outer(np.sin(2 * np.pi * t), np.arange(1, MODEL.n_joints + 1) * 0.1)
+    dq = np.outer(2 * np.pi * np.cos(2 * np.pi * t), np.arange(1, MODEL.n_joints + 1) * 0.1)
+    recorded = Dataset(t=t, joints=CFG.joints, q=q, dq=dq)
+    assert mo.measured_velocity(MODEL, recorded) is recorded.dq
+    assert mo.measured_velocity(MODEL, recorded.with_derivatives()) is not None  # still the recorded one
+    estimated = Dataset(t=t, joints=CFG.joints, q=q).with_derivatives()
+    assert estimated.dq is not None and mo.measured_velocity(MODEL, estimated) is None
+    extras = {f"velocity.{j}": 2 * dq[:, i] for i, j in enumerate(CFG.joints)}
+    both = Dataset(t=t, joints=CFG.joints, q=q, dq=dq, extra=extras)
+    np.testing.assert_array_equal(mo.measured_velocity(MODEL, both), 2 * dq)
+
+
+def test_a_known_payload_joins_the_observers_model(default_experiments: dict[str, Path], default_model: Path) -> None:
+    """--payload reaches the momentum residual: the run's payload is added to its body's inertial parameters."""
+    from dataclasses import replace
+
+    from dynid.detect.momentum_t2 import run_residuals
+    from dynid.identify.model_file import load_model
+    from dynid.io.load import apply_window, load_data
+
+    identified = load_model(str(default_model))
+    model, phi = identified.robot_model, identified.phi
+    ds = load_data(default_experiments["validation"], model.config)
+    ds = apply_window(ds, None, float(ds.t[0]) + 2.0, source="validation")
+    payload = {"mass": 0.5, "com": [0.0, 0.02, 0.0]}
+    carried = run_residuals(model, phi, replace(ds, meta={**ds.meta, "payload": payload}), BW, 0.01, {})
+    loaded = np.array(phi, float)
+    loaded[model.layout.span("inertial")] += model.payload_parameters(0.5, [0.0, 0.02, 0.0])
+    np.testing.assert_allclose(carried.r, run_residuals(model, loaded, ds, BW, 0.01, {}).r, atol=1e-9)
+    assert np.abs(carried.r - run_residuals(model, phi, ds, BW, 0.01, {}).r).max() > 0.01
+
+
 def test_observer_tracks_the_plants_contacts_and_the_acceleration_residual(default_experiments: dict[str, Path],
                                                                            default_model: Path) -> None:
     from dynid.detect.online import raw_signals
@@ -234,6 +271,16 @@ def test_episodes_labels_end_to_end(default_experiments: dict[str, Path], defaul
         assert words in done.stderr
     done = dynid(*args, "--episodes", str(tmp_path / "missing.csv"))
     assert done.returncode == 2 and "does not exist" in done.stderr
+    # Labels in another clock, and a widening that leaves no episode, are refused rather than scored.
+    elsewhere = tmp_path / "elsewhere.csv"
+    elsewhere.write_text(f"t_start,t_end\n{float(ds.t[-1]) + 10!r},{float(ds.t[-1]) + 20!r}\n")
+    for extra, words in ((("--episodes", str(elsewhere)), "hold none of its episodes"),
+                         (("--episodes", str(labels), "--label-widening", "100"), "--label-widening 100 s"),
+                         (("--label-widening", "100"), "contact column"),
+                         (("--calibration-from", "1"), "not with --residual acceleration")):
+        done = dynid(*args, *extra)
+        assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
+        assert words in done.stderr, done.stderr
 
 
 def test_the_api_detector_uses_the_momentum_residual(default_experiments: dict[str, Path], default_model: Path) -> None:

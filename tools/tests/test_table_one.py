@@ -70,6 +70,17 @@ def test_a_payloads_torques_move_to_b(tmp_path: Path) -> None:
     assert np.abs(unloaded.A @ phi - unloaded.b).max() > 1e-3  # the payload matters
 
 
+def test_a_payload_in_another_unit_is_refused(tmp_path: Path) -> None:
+    """Grams for kg or millimetres for metres would scale every gain of the fit: refused, naming the unit."""
+    model = RobotModel(load_config(torque_config(tmp_path)))
+    own = float(np.sum(model.cad_inertial_parameters[0::10]))
+    model.payload_parameters(9.9 * own)  # heavy, but a load
+    with pytest.raises(ConfigError, match="--payload takes kg"):
+        model.payload_parameters(2000.0 * own)
+    with pytest.raises(ConfigError, match="--payload takes metres"):
+        model.payload_parameters(2.0, [0.0, 0.0, 50.0])
+
+
 def test_unknown_gains_without_ft_or_payload_cannot_be_scaled(tmp_path: Path) -> None:
     model = RobotModel(load_config(current_config(tmp_path)))
     ds = Dataset(t=np.arange(3.0), joints=model.config.joints, q=np.zeros((3, model.n_joints)))

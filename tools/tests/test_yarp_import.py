@@ -153,3 +153,34 @@ def test_a_dumper_folder_without_a_yarp_field_says_so(tmp_path: Path) -> None:
     with pytest.raises(DataError, match="yarpdatadumper folder, but the configuration icub_right_arm has no 'yarp'"):
         load_data(root, load_config("icub_right_arm"))
 
+
+
+def test_a_fit_on_a_dumper_folder_is_recorded_and_export_finds_it_again(tmp_path: Path,
+                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The model file keeps the folder's absolute path and a digest of its logs; export reuses the folder while
+    the logs are unchanged, and says so when they changed or are gone."""
+    import shutil
+    from types import SimpleNamespace
+
+    from dynid.export import model_export
+    from dynid.export.model_export import calibration_data
+    from dynid.identify.model_file import data_digest, data_record
+    from dynid.robot.model import RobotModel
+
+    config, root = _config(tmp_path), _dumper(tmp_path)
+    record = data_record(root, 600, 6.0)
+    assert record["path"] == str(root.resolve()) and record["sha256"] == data_digest(root) is not None
+    identified = SimpleNamespace(record={"data": [record]}, path="model.json")
+    model = RobotModel(config)
+    # the synthetic wrist leaves the URDF's limits, which the reader holds real data to: read without them here
+    monkeypatch.setattr(model_export, "load_run", lambda path, robot: load_data(path, robot.config))
+    runs, digests = calibration_data(identified, model, [])
+    assert digests == record["sha256"] and runs[0].meta["source_format"] == "yarp dumper"
+    log = root / "icub/right_arm/analog:o/data.log"
+    log.write_text(log.read_text().replace("100 ", "99 ", 1))
+    with pytest.raises(DataError, match="changed since the fit"):
+        calibration_data(identified, model, [])
+    shutil.rmtree(root)
+    with pytest.raises(DataError, match="are gone"):
+        calibration_data(identified, model, [])
+    assert data_digest(root) is None

@@ -27,6 +27,11 @@ class Parser(argparse.ArgumentParser):
         raise SystemExit(EXIT_BAD_INPUT)
 
 
+def plural(n: int, noun: str) -> str:
+    """'1 episode', '2 episodes'."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 def write_json(result: dict[str, Any], target: str | None) -> None:
     """Write the result atomically (a reader sees the old file or the new one), or to stdout for '-'."""
     if not target:

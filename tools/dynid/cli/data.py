@@ -173,8 +173,10 @@ def cmd_simulate(args: argparse.Namespace) -> dict[str, Any]:
     if truth["contacts"]:
         sides = [c["side"] for c in truth["contacts"]]
         print(f"  contacts: {len(sides)} ({sides.count('distal')} distal, {sides.count('proximal')} proximal of the F/T sensor)")
+    drive = (f"PWM within ±1: {100 * realism['pwm_within_limits']:.3f} % of samples; "
+             if config.motors_with_input("pwm") else "")
     print(
-        f"  PWM within ±1: {100 * realism['pwm_within_limits']:.3f} % of samples; joint limits respected: "
+        f"  {drive}joint limits respected: "
         f"{100 * realism['joint_limits_respected']:.2f} %; "
         + (f"{realism['reaching_targets']} reaching targets" if args.trajectory is None else f"following {args.trajectory}")
     )

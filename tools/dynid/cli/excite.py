@@ -100,8 +100,9 @@ def cmd_excite(args: argparse.Namespace) -> dict[str, Any]:
           + (f"{today:.4g} (ratio {ratio:.3f})" if np.isfinite(today) else "inf (it leaves a base direction unexcited)"))
     print("  joint: peak |dq| / limit, peak |ddq| / limit, closest approach to the URDF limits (fraction of range)")
     for i, j in enumerate(joints):
-        print(f"    {j}: {reached['velocity'][i]:.3f} of {limits.velocity[i]:g} rad/s, "
-              f"{reached['acceleration'][i]:.3f} of {limits.acceleration[i]:g} rad/s², "
+        unit = "m" if model.prismatic[i] else "rad"
+        print(f"    {j}: {reached['velocity'][i]:.3f} of {limits.velocity[i]:g} {unit}/s, "
+              f"{reached['acceleration'][i]:.3f} of {limits.acceleration[i]:g} {unit}/s², "
               f"{reached['position_clearance'][i]:.3f} (margin {limits.margin:g})")
     return {
         "robot": config.name, "out": args.out, "duration_s": args.duration, "rate_hz": args.rate, "samples": n,

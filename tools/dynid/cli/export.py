@@ -83,17 +83,18 @@ def _export_urdf(args: argparse.Namespace) -> dict[str, Any]:
     done = export_urdf(identified, args.urdf, allow_residual=args.nearest_physical)
     ps = done.physical
     print(f"exported {identified.config.name} -> {args.urdf} (the identified robot) and {done.side}")
-    print(f"  inertial: {len(done.identified_links)} links identified ({', '.join(done.identified_links)}), "
+    print(f"  inertial: {len(done.identified_links)} links free to move, {len(done.moved_links)} moved from the URDF's "
+          f"values ({', '.join(done.moved_links) or 'none'}), "
           f"{len(done.cad_links)} keep CAD; distance to CAD {ps.distance:.4g} (scaled), smallest scaled "
-          f"pseudo-inertia eigenvalue {ps.min_eigenvalue:.3g}; base parameters reproduced to {done.base_relative_error:.2g} "
-          "(relative)")
+          f"pseudo-inertia eigenvalue {ps.min_eigenvalue:.3g}; largest base-parameter change "
+          f"{100 * done.base_relative_error:.2g} % of the largest identified one")
     if done.rerooted:
         print(f"  written in the URDF's original tree (the configuration re-roots it at {identified.config.base_link})")
     for note in done.notes:
         print(f"  note: {note}")
     result: dict[str, Any] = {
         "model": args.model, "urdf": args.urdf, "side_file": str(done.side), "robot": identified.config.name,
-        "identified_links": done.identified_links, "cad_links": len(done.cad_links), "distance_to_cad": ps.distance,
+        "identified_links": done.identified_links, "moved_links": done.moved_links, "cad_links": len(done.cad_links), "distance_to_cad": ps.distance,
         "min_scaled_pseudo_inertia_eigenvalue": ps.min_eigenvalue, "base_relative_error": done.base_relative_error,
         "nearest_physical": bool(args.nearest_physical), "rerooted": done.rerooted, "notes": done.notes,
     }

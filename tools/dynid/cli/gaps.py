@@ -14,7 +14,7 @@ from ..identify.validation import load_run
 from ..robot.model import RobotModel
 from ..pipeline import check_scale
 from .commands import COMMANDS
-from .common import json_arg, robot_arg, window, window_args
+from .common import json_arg, plural, robot_arg, window, window_args
 
 
 def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
@@ -41,7 +41,7 @@ def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
         from ..report.gaps_figures import write_figures  # matplotlib: loaded only to draw
 
         result["figures"] = write_figures(result, args.figures)
-        print(f"figures -> {args.figures}: {len(result['figures'])} files")
+        print(f"figures -> {args.figures}: {plural(len(result['figures']), 'figure')}, with gaps.json and figures.json")
     return result
 
 

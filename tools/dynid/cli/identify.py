@@ -13,20 +13,20 @@ from ..detect.evaluation import detection
 from ..detect.momentum import DEFAULT_BANDWIDTH_HZ
 from ..detect.momentum_t2 import calibration_runs, momentum_detection
 from ..detect.t2 import ALPHA
-from ..errors import DataError
+from ..errors import DataError, InputError
 from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_INERTIA_ONLY, FitSettings
 from ..identify.supply import SupplyTracking
 from ..identify.validation import evaluate, load_run, validation
 from ..io.dataset import contact_episodes
-from ..io.episodes import episodes_mask, read_episodes
+from ..io.episodes import check_widening, episodes_in_data, episodes_mask, read_episodes
 from ..paper import PAPER, PAPER_ROBOT
 from ..pipeline import DetectorSettings, IdentifySettings, identify
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from .commands import COMMANDS
 from .common import confidence as alpha
-from .common import (finite_float, json_arg, min_speed_arg, non_negative_float, payload_arg, payloads, positive_float,
-                     positive_int, robot_arg, window, window_args)
+from .common import (finite_float, json_arg, min_speed_arg, non_negative_float, payload_arg, payloads, plural,
+                     positive_float, positive_int, robot_arg, window, window_args)
 
 INPUT_WORD = {"pwm": "PWM", "current": "current", "tau": "joint torque"}
 GAIN_UNIT = {"pwm": "Nm per unit duty", "current": "Nm per A"}
@@ -35,6 +35,9 @@ SHOW_UNSEEN = 6  # name the combinations a jackknife fold misses when there are 
 
 
 def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
+    if args.cad_pull == "cv" and args.consistent == "off":
+        raise InputError("--cad-pull cv weighs the CAD prior of the physically consistent fit: give it with "
+                         "--consistent on (or pseudo-inertia)")
     config = load_config(args.robot, args.urdf)
     model = RobotModel(config)
     datasets = [load_run(p, model, window(args), w) for p, w in zip(args.data, payloads(args, len(args.data)))]
@@ -55,8 +58,9 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     print(f"fitted {config.name} on {result.samples} samples in {elapsed:.1f} s ({elapsed_fit:.1f} s the regression) "
           f"-> {args.out}")
     print(f"  base parameters: rank {base.rank} of {len(model.layout)}; {int(result.identified.sum())} determined to "
-          f"10 % or better; PLS ν = {result.cv['n_components']} (cross-validated on {result.statistics.n_blocks} time "
-          "blocks)")
+          f"10 % or better; PLS ν = {result.cv['n_components']} "
+          + (f"(cross-validated on {result.statistics.n_blocks} time blocks)" if args.n_components is None else
+             "(--n-components)"))
     gains = [i for i, n in enumerate(record["base"]["independent"]) if n.endswith(".phi_m")]
     unit = " and ".join(GAIN_UNIT[k] for k in sorted({g.input for g in config.actuation if g.input != "torque"}))
     print(f"  motor gains ({unit}) by estimator:" if gains else "  no unknown motor gains in this set-up")
@@ -198,11 +202,22 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
+    calibration_given = bool(args.calibration) or (args.calibration_from, args.calibration_to) != (None, None)
+    if calibration_given and args.residual == "acceleration":
+        raise InputError("--calibration, --calibration-from and --calibration-to set the momentum residual's "
+                         "calibration: not with --residual acceleration")
     labels = read_episodes(args.episodes) if args.episodes else None  # a bad file: exit 2 before any work
+    if labels is not None:
+        check_widening(labels, args.label_widening, args.episodes)
     ev = evaluate(args.model, args.data, window=window(args), payload=args.payload)
     if labels is not None:
+        episodes_in_data(ev.dataset.t, labels, args.episodes)
         ds = replace(ev.dataset, contact=episodes_mask(ev.dataset.t, labels))
         ev = replace(ev, dataset=ds)
+    elif ev.dataset.contact is not None:
+        t = ev.dataset.t
+        check_widening(np.array([(t[a], t[b - 1]) for a, b in contact_episodes(ev.dataset.contact)]).reshape(-1, 2),
+                       args.label_widening, f"{args.data}'s contact column")
     found = detection(ev, args.model, args.data, args.alpha, args.n_mode, args.label_widening)
     if labels is not None:
         found.result["episodes_file"] = {"path": args.episodes, "episodes": int(len(labels)),
@@ -215,7 +230,7 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
             momentum = momentum_detection(ev.identified, ev.dataset, runs, args.alpha, args.bandwidth,
                                           args.label_widening, found.side)
         except DataError as e:
-            if args.residual == "momentum":  # asked for by name: its failure is the command's
+            if args.residual == "momentum" or calibration_given:  # asked for: its failure is the command's
                 raise
             skipped = str(e)  # the default: say why, and report the acceleration-based variants
     if momentum is not None:
@@ -227,8 +242,9 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
         found.result["momentum_skipped"] = skipped
     print(f"T² contact detection with {args.model} on {args.data} ({ev.dataset.n_samples} samples), α = {args.alpha}")
     if labels is not None:
-        print(f"  contact labels: {args.episodes} ({len(labels)} episodes, "
-              f"{found.result['episodes_file']['in_data']} in the data)")
+        print(f"  contact labels: {args.episodes} ({plural(len(labels), 'episode')}, "
+              f"{found.result['episodes_file']['in_data']} in the data)"
+              + (": the run is scored as contact-free" if not len(labels) else ""))
     elif ev.dataset.contact is None:
         print("  no contact ground truth in the data: FPR assumes the run is contact-free")
     if skipped:

@@ -30,6 +30,7 @@ BUNDLED_DIR = Path(__file__).parent / "robots"
 InputKind = Literal["pwm", "current", "torque"]
 INPUT_KINDS: tuple[str, ...] = ("pwm", "current", "torque")
 FT_CHANNEL_NAMES: tuple[str, ...] = ("fx", "fy", "fz", "tx", "ty", "tz")
+MAX_GRAVITY = 30.0  # m/s², three times Earth's: a longer vector is in another unit (981: cm/s²)
 
 
 @dataclass(frozen=True)
@@ -377,6 +378,8 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         raise f.fail("gravity", f"must be three numbers, got {gravity!r}") from None
     if g_arr.shape != (3,) or not np.all(np.isfinite(g_arr)):
         raise f.fail("gravity", f"must be three finite numbers, got {gravity!r}")
+    if np.linalg.norm(g_arr) > MAX_GRAVITY:
+        raise f.fail("gravity", f"is {np.linalg.norm(g_arr):g} m/s² long: gravity is in m/s² (9.81 on Earth)")
 
     can = f.raw("can", {})
     if not isinstance(can, dict):

@@ -25,7 +25,8 @@ Discretely, per sample k (Δt_k its step; exact for a residual held over the ste
 with β = τ_meas + Cᵀq̇ − g at sample k (only q, q̇ and the inputs: no q̈).
 
 **q̇** is the data's measured joint velocity where they carry one for every joint (extra columns
-`velocity.<joint>`, rad/s: a controller's own, as the UR10e logs hold it; `measured_velocity`), else a causal estimator (`causal_velocity`: a quadratic fitted by least squares to the last
+`velocity.<joint>`, rad/s: a controller's own, as the UR10e logs hold it, or recorded `dq` columns, as the Panda's;
+`measured_velocity`), else a causal estimator (`causal_velocity`: a quadratic fitted by least squares to the last
 `window` samples at their own time stamps, evaluated at the newest: on uniform samples the monitor's
 fixed-lag Savitzky-Golay filter with lag 0, dynid.detect.online).
 
@@ -105,10 +106,14 @@ def causal_velocity(t: np.ndarray, q: np.ndarray, window_s: float = VELOCITY_WIN
 
 
 def measured_velocity(model: RobotModel, dataset) -> np.ndarray | None:
-    """(N, n_joints) the data's `velocity.<joint>` extra columns, when every joint has one; else None."""
+    """(N, n_joints) the robot's own joint velocity: the data's `velocity.<joint>` extra columns when every joint
+    has one, else their recorded `dq` columns (not an estimate dynid made from q); None when the data carry neither.
+    A log whose positions stall for a few samples while its stamps advance (the Panda's) would otherwise stall a
+    q̇ estimated from q, and the observer would read the stall as a momentum jump."""
     cols = [dataset.extra.get(f"velocity.{j}") for j in model.config.joints]
     if any(c is None for c in cols):
-        return None
+        recorded = dataset.meta.get("derivatives", {}).get("dq", "recorded") == "recorded"
+        return None if dataset.dq is None or not recorded else np.asarray(dataset.dq, float)
     dq = np.column_stack([np.asarray(c, float) for c in cols])
     if not np.all(np.isfinite(dq)):
         raise DataError("the data's velocity.<joint> columns hold a value that is not a finite number")
@@ -244,6 +249,9 @@ def momentum_residuals(model: RobotModel, phi: np.ndarray, t: np.ndarray, q: np.
     if not (np.isfinite(bandwidth_hz) and bandwidth_hz > 0):
         raise DataError(f"the observer's bandwidth must be positive, got {bandwidth_hz} Hz")
     t = np.asarray(t, float)
+    if t.size > 1 and bandwidth_hz >= 0.5 / float(np.median(np.diff(t))):
+        raise DataError(f"the observer's bandwidth {bandwidth_hz:g} Hz is at or above the data's Nyquist frequency "
+                        f"({0.5 / float(np.median(np.diff(t))):.4g} Hz): give a lower --bandwidth")
     options = dict(bandwidth_hz=bandwidth_hz, min_speed=min_speed, band=band, tracking=tracking,
                    hold_time_constants=hold_time_constants)
     if dq is not None:

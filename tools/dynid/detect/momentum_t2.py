@@ -79,8 +79,13 @@ def run_residuals(model: RobotModel, phi: np.ndarray, dataset, bandwidth_hz: flo
                   band: dict, tracking=None, velocity_window_s: float = VELOCITY_WINDOW_S,
                   measured: bool = True) -> MomentumResiduals:
     """The observer over one run; q̇ the data's own where they carry it (and `measured`), else estimated causally
-    (as the monitor, which reads encoders only, does: `measured=False`)."""
+    (as the monitor, which reads encoders only, does: `measured=False`). A known payload the run carries
+    (`dataset.meta["payload"]`, --payload) joins its body's inertial parameters."""
     t, q, inputs, tau, ft = raw_signals(model, dataset)
+    payload = dataset.meta.get("payload")
+    if payload:
+        phi = np.array(phi, float)
+        phi[model.layout.span("inertial")] += model.payload_parameters(float(payload["mass"]), payload.get("com"))
     return momentum_residuals(model, phi, t, q, inputs, tau, ft, gravity_per_sample(model, dataset),
                               bandwidth_hz=bandwidth_hz, min_speed=min_speed, band=band, tracking=tracking,
                               velocity_window_s=velocity_window_s,
@@ -163,7 +168,7 @@ def contact_events(model: RobotModel, det: MomentumDetector, res: MomentumResidu
                        "peak_t2": float(det.t2(res.e[k : k + 1])[0]),
                        "peak_ratio": float(stat[k]),
                        "joint": cfg.joints[int(significant[-1])] if significant.size else None,
-                       "largest": cfg.joints[int(np.argmax(np.abs(z)))],
+                       "largest": cfg.joints[int(np.argmax(np.abs(z)))] if np.any(z) else None,
                        "side": sides, "tau_ext_nm": dict(zip(cfg.joints, res.tau_ext[k].tolist())),
                        "wrench": wrenches})
     return events
@@ -184,9 +189,9 @@ def calibration_runs(identified, paths: Sequence[str] | None, window=(None, None
     runs = []
     records = {} if given else {d["path"]: d for d in identified.record.get("data", [])}
     for p in paths:
-        ds = load_run(str(p), model, window)
+        ds = load_run(str(p), model, window, records.get(p, {}).get("payload"))  # a payload the fit was told of
         fitted = records.get(p, {}).get("samples")
-        if fitted is not None and fitted != ds.n_samples:  # the fit saw a window the model file does not name
+        if fitted is not None and window == (None, None) and fitted != ds.n_samples:  # a window the file does not name
             raise DataError(f"{identified.path} was fitted on {fitted} of the {ds.n_samples} samples of {p} (a --from/--to "
                             "window); give the contact-free runs to calibrate the momentum detector with --calibration "
                             "DATA --calibration-from S --calibration-to S")

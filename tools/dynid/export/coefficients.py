@@ -154,6 +154,13 @@ class Provenance:
     estimator: str = ""
 
 
+def check_monitor_supports(model: RobotModel) -> None:
+    """Refuse a robot the monitor's core cannot run, before any data is read: it holds exactly one F/T sensor."""
+    cfg = model.config
+    if len(cfg.ft_sensors) != 1:
+        raise DataError(f"the monitor needs exactly one F/T sensor; {cfg.name} has {len(cfg.ft_sensors)}")
+
+
 def check_window(est: FixedLagSavitzkyGolay) -> None:
     """Refuse a filter window the monitor cannot hold (`MAX_WINDOW`), before anything is calibrated or written."""
     if est.window > MAX_WINDOW:
@@ -172,8 +179,7 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDete
         raise DataError(f"the monitor's residual is acceleration or momentum (with an observer), not '{residual}'")
     cfg, layout, pm = model.config, model.layout, model.pin_model
     exportable_effects(effects)
-    if len(cfg.ft_sensors) != 1:
-        raise DataError(f"the monitor needs exactly one F/T sensor; {cfg.name} has {len(cfg.ft_sensors)}")
+    check_monitor_supports(model)
     check_window(est)
     c = coefficients_t()
     c.robot_name, c.config_digest, c.dynid_version = cfg.name, cfg.digest, __version__

@@ -18,7 +18,7 @@ from ..detect.momentum_t2 import MomentumDetector, calibrate_momentum
 from ..detect.online import FixedLagSavitzkyGolay, OnlineCalibration, calibrate_online, estimator_for
 from ..detect.t2 import f_threshold
 from ..errors import DataError
-from ..identify.model_file import IdentifiedModel, data_file, file_digest
+from ..identify.model_file import IdentifiedModel, data_digest, file_digest
 from ..identify.supply import SupplyTracking
 from ..identify.validation import load_run
 from ..io.dataset import Dataset
@@ -32,6 +32,7 @@ from .coefficients import (
     MonitorObserver,
     Provenance,
     build_coefficients,
+    check_monitor_supports,
     check_window,
     exportable_effects,
     write_coefficients,
@@ -84,20 +85,27 @@ def calibration_data(identified: IdentifiedModel, model: RobotModel, data: Seque
     """The contact-free data Λ and T²_α come from: `data`, else what the model was fitted on (checked by sha256)."""
     if data:
         paths = list(data)
+        digests = [data_digest(p) for p in paths]
+        missing = next((p for p, d in zip(paths, digests) if d is None), None)
+        if missing is not None:
+            raise DataError(f"{missing}: no such data (a file, a `dynid simulate` directory or a yarpdatadumper folder)")
     else:
         record = identified.record.get("data") or []
         if not record:
             raise DataError(f"{identified.path} names no identification data; pass --data")
-        paths = []
+        paths, digests = [], []
         for entry in record:
-            p = data_file(entry["path"])
-            if not p.is_file():
+            digest = data_digest(entry["path"])
+            if digest is None:
                 raise DataError(f"the identification data {entry['path']} are gone; pass the contact-free data with --data")
-            if file_digest(p) != entry["sha256"]:
+            if entry.get("sha256") is None:
+                raise DataError(f"{identified.path} holds no sha256 of its identification data {entry['path']} (a "
+                                "model fitted in Python, or by an older dynid); pass the contact-free data with --data")
+            if digest != entry["sha256"]:
                 raise DataError(f"the identification data {entry['path']} changed since the fit (sha256); pass --data")
             paths.append(entry["path"])
-    digests = ",".join(file_digest(data_file(p)) for p in paths)
-    return [load_run(p, model) for p in paths], digests
+            digests.append(digest)
+    return [load_run(p, model) for p in paths], ",".join(str(d) for d in digests)
 
 
 def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportSettings = ExportSettings()) -> Exported:
@@ -108,9 +116,10 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
         raise DataError(f"{model.config.name} takes gravity per sample from the accelerometer at "
                         f"{model.config.gravity_imu}; the monitor takes it constant: export a configuration with a "
                         "constant 'gravity' (the base held still) instead")
+    check_monitor_supports(model)  # before any data is read: a robot the core cannot run is refused at once
     effects = identified.effects
     exportable_effects(effects)  # before the (slow) calibration: an effect the monitor lacks is refused at once
-    datasets, data_digest = calibration_data(identified, model, settings.data)
+    datasets, calibration_digest = calibration_data(identified, model, settings.data)
     est = estimator_for(model, datasets[0].t, settings.lag, settings.window)
     check_window(est)  # before the calibration: a window the monitor cannot hold is refused at once
     for ds in datasets[1:]:
@@ -135,7 +144,7 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
             if residual == "momentum":
                 raise
             note = str(e)
-    provenance = Provenance(file_digest(identified.path) if identified.path else "", data_digest,
+    provenance = Provenance(file_digest(identified.path) if identified.path else "", calibration_digest,
                             str(identified.record.get("estimator", "")))
     c = build_coefficients(model, identified.phi, detector, est, provenance, effects, tracking, observer, residual)
     size = write_coefficients(c, out)

@@ -34,6 +34,7 @@ import yaml
 
 from ..errors import DataError, InputError
 from ..identify.model_file import IdentifiedModel, file_digest
+from ..identify.plausibility import implausible
 from ..io.dataset import atomic_write
 from ..robot.model import RobotModel
 from ..robot.parameters import FRICTION_FIELDS, WRENCH_FIELDS
@@ -63,6 +64,7 @@ class UrdfExport:
     base_relative_error: float  # max |β(written) − β̂| / max |β̂| over the inertial base combinations
     rerooted: bool
     notes: list[str] = field(default_factory=list)
+    moved_links: list[str] = field(default_factory=list)  # the identified links whose written values are not the URDF's
 
 
 # ------------------------------------------------------------------------------------------------ the links
@@ -162,6 +164,10 @@ def export_urdf(identified: IdentifiedModel, out: str | Path, allow_residual: bo
     try:
         physical = nearest_physical_set(parts, phi[inertial], B_in[rows], sigma[rows], allow_residual)
     except NotReproducible:
+        if identified.record.get("consistent"):  # its own set is physical, but on the cone's boundary
+            raise InputError("the solver finds no physically consistent full set that reproduces this consistent "
+                             "fit's base parameters exactly (its bodies sit on the boundary of the physical set); "
+                             "export the nearest one, with its residual, by --nearest-physical") from None
         raise InputError(NOT_REPRODUCIBLE) from None
     written = {p.link: physical.links.get(p.link, p.cad) for p in parts}
     bodies = np.concatenate([sum((p.A @ written[p.link] for p in parts if p.body == k), np.zeros(10))
@@ -170,15 +176,24 @@ def export_urdf(identified: IdentifiedModel, out: str | Path, allow_residual: bo
     relative = float(np.abs(B_in[rows] @ bodies - beta_hat).max(initial=0.0) / max(np.abs(beta_hat).max(initial=0.0),
                                                                                   1e-300))
     identified_links = [p.link for p in parts if p.variable]
+    moved_links = [p.link for p in parts if p.variable and _moved(written[p.link], p.cad)]
     cad_links = [lk.get("name") for lk in tree.getroot().findall("link") if lk.get("name") not in identified_links]
 
     inertials = {name: _inertial_xml(written[name]) for name in identified_links}
     notes = list(physical.notes)
+    if physical.status != "optimal":
+        notes.append(f"the solver's status: {physical.status}")
+    written_phi = np.array(phi, float)
+    written_phi[inertial] = bodies
+    odd = [f"the written set: {p['text']}" for p in implausible(robot, written_phi)]
+    if odd:  # physical, but not what the link can be: the base parameters alone do not place its mass
+        notes += odd + ["`dynid fit --consistent on` identifies a set in which every link is physical and its mass "
+                        "within the link's reach"]
     dynamics, joint_rows = _joint_dynamics(identified, notes)
     urdf_text = _splice(text, inertials, dynamics)
     side = side_file(out)
     record = _side_record(identified, Path(out), source, physical, relative, identified_links, cad_links,
-                          joint_rows, robot, notes)
+                          joint_rows, robot, notes, moved_links)
     side_text = yaml.safe_dump(record, sort_keys=False, width=120)
     had_side = side.exists()
     atomic_write(side, lambda f: f.write(side_text.encode()))
@@ -189,7 +204,16 @@ def export_urdf(identified: IdentifiedModel, out: str | Path, allow_residual: bo
             side.unlink(missing_ok=True)
         raise
     return UrdfExport(Path(out), side, physical, identified_links, cad_links, relative,
-                      bool(robot.reversed_joints), notes)
+                      bool(robot.reversed_joints), notes, moved_links)
+
+
+def _moved(phi: np.ndarray, cad: np.ndarray) -> bool:
+    """The written link differs from the URDF's by more than the conic solver's noise: 0.1 % of its mass, of its mass
+    times its extent, and of that times its extent again for the inertias."""
+    m = max(float(cad[0]), float(phi[0]), 1e-9)
+    length = max(float(np.linalg.norm(cad[1:4])) / m, 0.01)
+    scale = np.r_[m, np.full(3, m * length), np.full(6, m * length**2)]
+    return bool(np.max(np.abs(phi - cad) / scale) > 1e-3)
 
 
 def _inertial_xml(phi: np.ndarray) -> dict[str, Any]:
@@ -219,7 +243,7 @@ def _joint_dynamics(identified: IdentifiedModel, notes: list[str]) -> tuple[dict
 
 def _side_record(identified: IdentifiedModel, out: Path, source: Path, physical: PhysicalSet, relative: float,
                  identified_links: list[str], cad_links: list[str], joint_rows: dict[str, dict[str, float]],
-                 robot: RobotModel, notes: list[str]) -> dict[str, Any]:
+                 robot: RobotModel, notes: list[str], moved: list[str]) -> dict[str, Any]:
     config, params, layout = robot.config, identified.parameters, robot.layout
     motors: dict[str, Any] = {}
     coupling: dict[str, Any] = {}
@@ -263,6 +287,7 @@ def _side_record(identified: IdentifiedModel, out: Path, source: Path, physical:
             "base_relative_error": relative,
             "solver_status": physical.status,
             "identified_links": identified_links,
+            "moved_links": [lk for lk in identified_links if lk in moved],
             "cad_links": "every other link keeps the source URDF's <inertial>",
         },
         "friction_model": "tau_f = fc_pos*[dq>0] - fc_neg*[dq<0] + fv_pos*max(dq,0) + fv_neg*min(dq,0); "

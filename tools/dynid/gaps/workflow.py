@@ -159,7 +159,8 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
     if not any(o.kind == "input" for o in output_channels(model)):  # torque-sensed joints only: no supply to track
         settings = replace(settings, supply=None)
     ctx, A, b, w = _collect(model, ds, stride)
-    log(f"gaps: {ds.n_samples} samples ({ds.duration:.0f} s), every {stride}th kept, {settings.n_blocks} held-out time blocks"
+    kept = "every sample" if stride == 1 else f"one sample in {stride}"
+    log(f"gaps: {ds.n_samples} samples ({ds.duration:.0f} s), {kept} kept, {settings.n_blocks} held-out time blocks"
         + (", inertias held at the given model's" if reference is not None else "")
         + (", two passes (supply tracking)" if settings.supply is not None else ""))
     result = _analyse(model, ctx, A, b, w, settings, reference)

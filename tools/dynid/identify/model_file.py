@@ -232,19 +232,36 @@ def _check_sections(data: dict[str, Any], path: Path) -> None:
         raise DataError(f"{path}: section 'settings' must be a mapping, its min_speed a number")
 
 
-def data_file(path: str | Path) -> Path:
-    """The file behind a DATA argument: a `dynid simulate` directory's dataset, else the path itself."""
+def data_digest(path: str | Path) -> str | None:
+    """sha256 of the data behind a DATA argument: a file's bytes, a `dynid simulate` directory's dataset, or a
+    yarpdatadumper folder's `data.log` files (each with its path in the folder, in sorted order); None where there
+    are no such data."""
+    from ..io.yarp import is_dumper_folder
+
     p = Path(path)
-    return p / SIMULATION_DATASET if p.is_dir() else p
+    if p.is_file():
+        return file_digest(p)
+    if (p / SIMULATION_DATASET).is_file():
+        return file_digest(p / SIMULATION_DATASET)
+    if is_dumper_folder(p):
+        h = hashlib.sha256()
+        for log in sorted(p.glob("**/data.log")):
+            h.update(log.relative_to(p).as_posix().encode() + b"\0" + file_digest(log).encode())
+        return h.hexdigest()
+    return None
 
 
-def data_record(path: str | Path, samples: int, duration_s: float) -> dict[str, Any]:
-    """What a model file says of the data it was fitted on (export checks the sha256 before reusing them). Data
-    that never was a file (a `Dataset` built in Python) has no path to resolve and no sha256."""
-    if not data_file(path).is_file():
-        return {"path": str(path), "sha256": None, "samples": samples, "duration_s": duration_s}
-    return {"path": str(Path(path).resolve()), "sha256": file_digest(data_file(path)), "samples": samples,
-            "duration_s": duration_s}
+def data_record(path: str | Path, samples: int, duration_s: float,
+                payload: dict[str, Any] | None = None) -> dict[str, Any]:
+    """What a model file says of the data it was fitted on (export checks the sha256 before reusing them), with the
+    known payload the run carried. Data that never was a file (a `Dataset` built in Python) has no path to resolve
+    and no sha256."""
+    digest = data_digest(path)
+    out = {"path": str(path) if digest is None else str(Path(path).resolve()), "sha256": digest, "samples": samples,
+           "duration_s": duration_s}
+    if payload:
+        out["payload"] = {"mass": float(payload["mass"]), "com": payload.get("com")}
+    return out
 
 
 def file_digest(path: str | Path) -> str:

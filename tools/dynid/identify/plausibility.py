@@ -70,4 +70,10 @@ def implausible(model: RobotModel, phi: np.ndarray) -> list[dict[str, Any]]:
             found.append({"body": body.name, "problem": "com", "distance_m": distance, "extent_m": extent,
                           "text": f"{body.name}: centre of mass {distance:.3g} m from its frame, the link reaches "
                                   f"{extent:.3g} m"})
+    cad = model.cad_inertial_parameters
+    for f in found:  # a body the data leave at its CAD values: the URDF's own figures, not an estimate
+        k = next(i for i, b in enumerate(model.bodies) if b.name == f["body"])
+        if np.array_equal(inertial[10 * k : 10 * k + 10], cad[10 * k : 10 * k + 10]):
+            f["urdf_values"] = True
+            f["text"] += " (the URDF's own values: the data leave this body at its CAD)"
     return found

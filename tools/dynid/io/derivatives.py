@@ -204,7 +204,7 @@ class SavitzkyGolay:
             raise ValueError(
                 f"Savitzky-Golay window of {self.window_s} s spans only {w} samples at the median step of "
                 f"{dt:.6g} s; a degree-{self.polyorder} fit needs at least {self.polyorder + 1 + self.polyorder % 2} "
-                f"(odd), so lengthen window_s."
+                f"(odd), so lengthen window_s (the configuration's derivatives.window_s)."
             )
         if t.size < w:
             raise ValueError(

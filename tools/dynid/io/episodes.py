@@ -60,3 +60,23 @@ def episodes_mask(t: np.ndarray, episodes: np.ndarray) -> np.ndarray:
     for a, b in episodes:
         mask[(t >= a) & (t <= b)] = 1
     return mask
+
+
+def episodes_in_data(t: np.ndarray, episodes: np.ndarray, where: str) -> int:
+    """How many `episodes` overlap the data's span; none of several is refused: such labels are in another clock
+    (the data's own seconds are expected: `dynid import` prints the span)."""
+    t = np.asarray(t, float)
+    inside = int(sum(1 for a, b in episodes if b >= t[0] and a <= t[-1]))
+    if len(episodes) and not inside:
+        raise DataError(f"{where}: the data ({t[0]:g}–{t[-1]:g} s) hold none of its episodes ({episodes[0, 0]:g}–"
+                        f"{episodes[-1, 1]:g} s); the episodes are in the data's own seconds")
+    return inside
+
+
+def check_widening(episodes: np.ndarray, widening_s: float, where: str) -> None:
+    """A label widened by S on each side lasts more than 2 S: a larger S leaves no episode to measure from."""
+    if widening_s > 0 and len(episodes):
+        shortest = float(np.min(episodes[:, 1] - episodes[:, 0]))
+        if 2 * widening_s >= shortest:
+            raise DataError(f"--label-widening {widening_s:g} s: the shortest episode of {where} lasts {shortest:g} s, "
+                            "and a label widened by S on each side lasts more than 2 S")

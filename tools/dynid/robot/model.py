@@ -28,6 +28,8 @@ from .parameters import ParameterLayout
 from .reroot import path_to_root, reroot
 
 _ONE_DOF = ("revolute", "continuous", "prismatic")
+PAYLOAD_MASS_FACTOR = 10.0  # a known payload heavier than ten times the chain is refused as a typo
+PAYLOAD_REACH_M = 2.0  # a payload's centre of mass farther than this and than the chain's reach is refused
 
 
 @dataclass(frozen=True)
@@ -56,6 +58,8 @@ class RobotModel:
                     f"{config.name}: field 'joints' names '{j}', a {urdf_joints[j].get('type')} joint; "
                     "moving joints must be revolute, continuous or prismatic"
                 )
+        # per configured joint: prismatic (m, m/s) rather than revolute or continuous (rad, rad/s)
+        self.prismatic: tuple[bool, ...] = tuple(urdf_joints[j].get("type") == "prismatic" for j in config.joints)
         if config.base_link not in urdf_links:
             raise ConfigError(f"{config.name}: field 'base_link' names '{config.base_link}', not a link of {config.urdf.name}")
         for s in config.ft_sensors:
@@ -113,6 +117,8 @@ class RobotModel:
         for jid in range(1, m.njoints):
             bodies.append(Body(self._child_link(jid), jid, m.names[jid]))
         self.bodies: tuple[Body, ...] = tuple(bodies)
+        if config.payload_frame:  # refused with the configuration, not at the first --payload
+            self._payload_site()
         self.sensor_bodies = {sensor_of_joint[b.moved_by]: b for b in bodies if b.moved_by in sensor_of_joint}
 
         groups = config.actuation
@@ -212,18 +218,33 @@ class RobotModel:
         `com` is its centre of mass in the configuration's `payload_frame` (default: the origin of the last
         moving link's frame), m. Raises ConfigError when the frame is not in the URDF.
         """
+        body, placement = self._payload_site()
+        own = float(np.sum(self.cad_inertial_parameters[0::10]))
+        if mass > PAYLOAD_MASS_FACTOR * own:  # a typo or another unit, not a load this robot lifts
+            raise ConfigError(f"a payload of {mass:g} kg is over {PAYLOAD_MASS_FACTOR:g} times the chain's own CAD mass "
+                              f"({own:.3g} kg): --payload takes kg")
+        reach = sum(float(np.linalg.norm(p.translation)) for p in self.pin_model.jointPlacements)
+        if com is not None and np.linalg.norm(com) > max(PAYLOAD_REACH_M, reach):
+            raise ConfigError(f"a payload's centre of mass {np.linalg.norm(com):g} m from its frame is farther than "
+                              f"{max(PAYLOAD_REACH_M, reach):.3g} m (the chain reaches {reach:.3g} m): --payload takes "
+                              "metres")
+        c = placement.act(np.asarray(com if com is not None else [0.0, 0.0, 0.0], float))
+        out = np.zeros(10 * len(self.bodies))
+        out[10 * body : 10 * body + 10] = pin.Inertia(float(mass), c, np.zeros((3, 3))).toDynamicParameters()
+        return out
+
+    def _payload_site(self) -> tuple[int, pin.SE3]:
+        """(body, the payload frame in its joint's frame): the configuration's `payload_frame`, else the origin of
+        the last moving link's frame."""
         m = self.pin_model
         frame_name = self.config.payload_frame or self.bodies[-1].name
         if not m.existFrame(frame_name):
             raise ConfigError(f"{self.config.name}: field 'payload_frame' names '{frame_name}', not a frame of the URDF")
         frame = m.frames[m.getFrameId(frame_name)]
-        c = frame.placement.act(np.asarray(com if com is not None else [0.0, 0.0, 0.0], float))
         body = next((k for k, b in enumerate(self.bodies) if b.joint_id == frame.parentJoint), None)
         if body is None:
             raise ConfigError(f"{self.config.name}: the payload frame '{frame_name}' is fixed to the base, not carried")
-        out = np.zeros(10 * len(self.bodies))
-        out[10 * body : 10 * body + 10] = pin.Inertia(float(mass), c, np.zeros((3, 3))).toDynamicParameters()
-        return out
+        return body, frame.placement
 
     def with_inertial_parameters(self, phi_inertial: np.ndarray) -> pin.Model:
         """A copy of the Pinocchio model carrying other inertial parameters (e.g. identified or true ones)."""
