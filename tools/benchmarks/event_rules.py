@@ -7,8 +7,9 @@ The default contact and validation runs go through the real-time core sample by 
 --stream`, the acceleration residuals or, with --residual momentum, the observer), and each rule below turns the
 per-sample T² into onsets as the monitor does (an onset once the rule fires; the episode ends after the file's
 debounce_off samples below its hysteresis). A rule is a list of (level, n): fire when T² > level · T²_α for n samples
-in a row, any of them. The first rule is the monitor's own (T²_α for debounce_on samples): its row is the live
-mission's (docs/detection.md#the-monitor). Beside them, the delays the contact alone would allow, noise- and lag-free
+in a row, any of them; or a CUSUM (`cusum`), which fires at once on a large T² and later on a small persistent one.
+The first rule is the monitor's own (T²_α for debounce_on samples): its row is the live mission's
+(docs/detection.md#the-monitor). Beside them, the delays the contact alone would allow, noise- and lag-free
 (dynid.detect.visibility, from the plant's truth), with no debounce and with the file's.
 """
 
@@ -31,6 +32,7 @@ from dynid.robot.regressors.stack import rows_at_rest
 
 RT_EVAL = Path(__file__).resolve().parents[2] / "build" / "rt_monitor" / "rt_eval"
 SLACK = 40  # samples after an episode's end in which an onset still counts as finding it (the summary's slack)
+CUSUM_RULES = [(1.0, 40.0, 10.0), (1.5, 20.0, 3.0), (2.0, 10.0, 3.0), (2.0, 5.0, 5.0)]  # (drift, h, cap)
 
 
 def t2_stream(coef_path: Path, data, residual: str, work: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -48,6 +50,21 @@ def onsets(stat: np.ndarray, ready: np.ndarray, rule: list[tuple[float, int]], o
     for level, n in rule:
         above = ((stat > level) & ready).astype(int)
         fire |= np.convolve(above, np.ones(n, int))[:stat.size] >= n
+    return episodes_of(stat, fire, off, hysteresis)
+
+
+def cusum(stat: np.ndarray, ready: np.ndarray, drift: float, h: float, cap: float) -> np.ndarray:
+    """Page's CUSUM on T²/T²_α: S = max(0, S + min(x, cap) − drift), firing at S ≥ h (S held at h, so an episode's
+    evidence does not carry past its end). A large T² fires at once, a small one must persist."""
+    fire, s = np.zeros(stat.size, bool), 0.0
+    for k in range(stat.size):
+        s = min(h, max(0.0, s + min(float(stat[k]), cap) - drift)) if ready[k] else 0.0
+        fire[k] = s >= h
+    return fire
+
+
+def episodes_of(stat: np.ndarray, fire: np.ndarray, off: int, hysteresis: float) -> list[int]:
+    """Onsets where `fire` starts an episode; an episode ends after `off` samples below the hysteresis level."""
     out, inside, below = [], False, 0
     for k in range(stat.size):
         if not inside and fire[k]:
@@ -79,13 +96,16 @@ def main() -> None:
     print("| rule: T² above level · T²_α for n samples | episodes found | onset delay median / p90 | "
           "false onsets, contact run / contact-free run |")
     print("|---|---|---|---|")
-    for rule in rules:
-        on = onsets(sc, rc, rule, int(c.debounce_off), float(c.hysteresis))
+    off, hysteresis = int(c.debounce_off), float(c.hysteresis)
+    rows = [(" or ".join(f"{lv:g}·T²_α × {n}" for lv, n in rule), onsets(sc, rc, rule, off, hysteresis),
+             onsets(sv, rv, rule, off, hysteresis)) for rule in rules]
+    rows += [(f"CUSUM of min(T²/T²_α, {cap:g}) − {drift:g} ≥ {h:g}",
+              episodes_of(sc, cusum(sc, rc, drift, h, cap), off, hysteresis),
+              episodes_of(sv, cusum(sv, rv, drift, h, cap), off, hysteresis)) for drift, h, cap in CUSUM_RULES]
+    for text, on, free_on in rows:
         delays = [ms * (next(k for k in on if a0 <= k <= e + SLACK) - a0) for a0, e in episodes
                   if any(a0 <= k <= e + SLACK for k in on)]
         false = sum(1 for k in on if not any(a0 <= k <= e + SLACK for a0, e in episodes))
-        free_on = onsets(sv, rv, rule, int(c.debounce_off), float(c.hysteresis))
-        text = " or ".join(f"{lv:g}·T²_α × {n}" for lv, n in rule)
         print(f"| {text} | {len(delays)}/{len(episodes)} | {np.median(delays):.0f} / {np.percentile(delays, 90):.0f} "
               f"ms | {false} / {len(free_on)} |")
     truth = beside_run(str(a.contact), "truth.npz")
