@@ -133,7 +133,8 @@ def test_blocks_beyond_what_the_samples_allow(runs, tmp_path: Path) -> None:
     ok(dynid("fit", "--data", str(run), "--blocks", "1000", "--out", str(model), "--json", str(tmp_path / "fit.json")))
     result = strict_json(tmp_path / "fit.json")
     assert result["jackknife"]["folds"] == 3 and result["identified"] > 0
-    # more PLS components than the run determines combinations: refused, not printed as used
-    refused(dynid("fit", "--data", str(run), "--n-components", str(result["rank"] + 1), "--out", str(tmp_path / "n.json")),
-            f"--n-components {result['rank'] + 1}: the run determines {result['rank']} base combinations")
-    assert not (tmp_path / "n.json").exists()
+    # ν given: said as given, not as cross-validated (more than the rank is allowed: PLS then runs until Xᵀy is
+    # exhausted, which floating point needs to reach least squares, test_estimators.py)
+    done = dynid("fit", "--data", str(run), "--n-components", str(result["rank"] + 1), "--out", str(tmp_path / "n.json"))
+    ok(done)
+    assert f"PLS ν = {result['rank'] + 1} (--n-components)" in done.stdout, done.stdout

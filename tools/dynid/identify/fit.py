@@ -253,9 +253,6 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
                         "give a longer run or a wider --from/--to window")
     prior = prior_parameters(model)
     beta_prior = base.base(prior)
-    if settings.n_components is not None and settings.n_components > base.rank:
-        raise DataError(f"--n-components {settings.n_components}: the run determines {base.rank} base combinations (the "
-                        f"rank); PLS takes {base.rank} components or fewer")
     cv = cross_validate_nu(stats, base.rank) if settings.n_components is None else {"n_components": settings.n_components}
     nu = int(cv["n_components"])
     names = [settings.estimator] + [e for e in ESTIMATORS if e != settings.estimator]
