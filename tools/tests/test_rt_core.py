@@ -196,6 +196,19 @@ def test_cad_fixture_is_current(tmp_path: Path) -> None:
     assert out.read_bytes() == FIXTURE.read_bytes(), "regenerate: dynid export --cad --out " + str(FIXTURE)
 
 
+def test_a_cad_export_takes_the_boards_rate(tmp_path: Path) -> None:
+    """--rate sets a CAD file's sample period and the filter's window with it (the offline window in seconds);
+    a calibrated export takes its data's rate, so --rate without --cad is refused."""
+    out = tmp_path / "cad500.dcoef"
+    done = dynid("export", "--cad", "--rate", "500", "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    c, default = read_coefficients(out), read_coefficients(FIXTURE)
+    assert c.sample_period == pytest.approx(0.002) and default.sample_period == pytest.approx(0.001)
+    assert c.window < default.window
+    done = dynid("export", "--model", str(out), "--rate", "500", "--out", str(tmp_path / "x.dcoef"))
+    assert done.returncode == 2 and "--rate goes with --cad" in done.stderr
+
+
 def test_python_codec_is_lcm_gens(tmp_path: Path) -> None:
     done = subprocess.run([str(ROOT / ".venv" / "bin" / "lcm-gen"), "-p", "--ppath", str(tmp_path),
                            str(ROOT / "rt_monitor" / "lcmtypes" / "coefficients_t.lcm")], capture_output=True, text=True)

@@ -41,7 +41,7 @@ def _settings(args: argparse.Namespace) -> ExportSettings:
         return EventSettings(*(g if g is not None else d for g, d in zip(given, fallback)))
 
     return ExportSettings(args.data or (), args.lag, args.window, args.alpha, events(EventSettings()),
-                          args.residual, args.bandwidth, events(MOMENTUM_EVENTS))
+                          args.residual, args.bandwidth, events(MOMENTUM_EVENTS), args.rate or 1000.0)
 
 
 def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
@@ -51,6 +51,8 @@ def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
         return {"file": args.print, "robot": c.robot_name, "n_joints": c.n_joints, "n_outputs": c.n_outputs,
                 "channels": list(c.channel_names), "threshold": c.threshold, "alpha": c.alpha,
                 "window": c.window, "lag": c.lag}
+    if args.rate is not None and not args.cad:
+        raise InputError("--rate goes with --cad: a calibrated export takes its data's sample rate")
     if args.cad:
         if not args.out:
             raise InputError("export --cad needs --out COEF_FILE")
@@ -167,7 +169,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--out", metavar="COEF_FILE", help="the coefficient file to write (atomically)")
     sp.add_argument("--print", metavar="COEF_FILE", help="print a coefficient file readably instead")
     sp.add_argument("--cad", action="store_true", help="export the CAD model of --robot, uncalibrated (for tests "
-                    "and benchmarks: nominal gains, no friction, Λ = the noise σ², the F threshold, 1 kHz)")
+                    "and benchmarks: nominal gains, no friction, Λ = the noise σ², the F threshold, at --rate)")
+    sp.add_argument("--rate", type=positive_float, default=None, metavar="HZ",
+                    help="with --cad: the boards' sample rate (default 1000 Hz)")
     sp.add_argument("--robot", default="icub_right_arm", metavar="CFG", help="robot of --cad (default icub_right_arm)")
     sp.add_argument("--urdf", metavar="FILE", help="with --model: the URDF to write, the identified robot (and its "
                     "side file FILE.dynamics.yaml: asymmetric friction, motor gains, coupling, F/T offsets); with "

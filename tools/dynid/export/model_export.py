@@ -59,6 +59,7 @@ class ExportSettings:
     residual: str | None = None
     bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ  # the observer's
     observer_events: EventSettings = field(default_factory=lambda: MOMENTUM_EVENTS)
+    cad_rate_hz: float = 1000.0  # the boards' sample rate of a CAD export (a calibrated one takes its data's)
 
     def events_for(self, residual: str) -> EventSettings:
         """The event settings the file carries: those of the residual the monitor runs."""
@@ -165,7 +166,7 @@ def monitor_observer(identified: IdentifiedModel, datasets: Sequence[Dataset], a
 
 def export_cad(config: RobotConfig, out: str | Path, settings: ExportSettings = ExportSettings()) -> int:
     """The CAD model with nominal gains and no friction or offsets, Λ = the channels' noise σ², the F threshold,
-    1 kHz; returns the file's size."""
+    sampled at `settings.cad_rate_hz`; returns the file's size."""
     model = RobotModel(config)
     phi = np.nan_to_num(model.cad_parameters(), nan=0.0)
     for m in model.layout.owners("motor_gain"):
@@ -173,7 +174,7 @@ def export_cad(config: RobotConfig, out: str | Path, settings: ExportSettings = 
     outs = output_channels(model)
     variance = np.array([o.sigma for o in outs]) ** 2
     alpha = 0.99 if settings.alpha is None else settings.alpha
-    t = np.arange(3) * 1e-3
+    t = np.arange(3) / settings.cad_rate_hz
     est = estimator_for(model, t, settings.lag, settings.window)
     residual = settings.residual or "acceleration"
     detector = MonitorDetector(variance, f_threshold(len(outs), CAD_SAMPLES, alpha), f_threshold(6, CAD_SAMPLES, alpha),
