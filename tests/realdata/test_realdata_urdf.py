@@ -59,4 +59,3 @@ def test_ur10e_urdf_round_trip_on_ptp_10_points(tmp_path: Path) -> None:
     assert max(errors.values()) < 1e-9, errors
     side = (tmp_path / "ur10e_identified.dynamics.yaml").read_text()
     assert "gain_source: known (configuration)" in side and "shoulder_pan_joint" in side
-

@@ -154,7 +154,6 @@ def test_a_dumper_folder_without_a_yarp_field_says_so(tmp_path: Path) -> None:
         load_data(root, load_config("icub_right_arm"))
 
 
-
 def test_a_fit_on_a_dumper_folder_is_recorded_and_export_finds_it_again(tmp_path: Path,
                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
     """The model file keeps the folder's absolute path and a digest of its logs; export reuses the folder while
