@@ -25,8 +25,8 @@ from scipy.optimize import nnls
 
 from dynid.detect.momentum import DEFAULT_BANDWIDTH_HZ
 from dynid.detect.momentum_t2 import (SETTLE_TIME_CONSTANTS, calibration_runs, friction_band, run_residuals)
+from dynid.detect.t2 import score_with_delays
 from dynid.identify.validation import evaluate
-from dynid.io.dataset import contact_episodes
 from dynid.io.episodes import episodes_mask, read_episodes
 
 FEATURES = {
@@ -70,14 +70,11 @@ def score(calibrated: tuple, res, labels: np.ndarray, feature, alpha: float = 0.
     threshold = float(np.quantile(np.sum(e**2 / (X @ coef.T), axis=1), alpha))
     rest_threshold = float(stats.chi2.ppf(alpha, e.shape[1]))
     t2 = np.sum(res.e**2 / (feature(res.dq) @ coef.T), axis=1)
-    alarm = t2 > np.where(res.at_rest.all(axis=1), rest_threshold, threshold)
-    delays = []
-    for a, b in contact_episodes(labels):
-        hit = np.flatnonzero(alarm[a:b])
-        delays.append(1e3 * (res.t[a + hit[0]] - res.t[a]) if hit.size else np.nan)
-    d = np.array(delays)
-    return {"fpr": float(alarm[~labels].mean()), "tpr": float(alarm[labels].mean()), "found": int(np.isfinite(d).sum()),
-            "episodes": d.size, "median": float(np.nanmedian(d)), "max": float(np.nanmax(d))}
+    stat = t2 / np.where(res.at_rest.all(axis=1), rest_threshold, threshold)  # a contact above 1, as dynid's
+    scored = score_with_delays(res.t, stat, 1.0, labels.astype(np.uint8))
+    d = [1e3 * x for x in scored["onset_delays_s"] if x is not None]
+    return {"fpr": scored["fpr"], "tpr": scored["tpr"], "found": len(d), "episodes": len(scored["onset_delays_s"]),
+            "median": float(np.median(d)), "max": float(max(d))}
 
 
 def main() -> None:
