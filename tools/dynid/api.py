@@ -378,10 +378,11 @@ def export_urdf(model: DynamicsModel, path: str | Path, nearest_physical: bool =
 
 
 def find_gaps(X: Data, robot: str | Path = "icub_right_arm", model: DynamicsModel | None = None,
-              supply_tracking: bool = True, verbose: bool = False) -> Gaps:
+              supply_tracking: bool = True, verbose: bool = False, keep_tentative: bool = False) -> Gaps:
     """Where the model and the run disagree, the missing effects that explain it and the gap after the fix
-    (`dynid gaps`): `.result` is its `--json`, `.augmented_model()` the model with the effects. With `model`, its
-    inertias are held (a payload, a changed gain or friction is then named against it)."""
+    (`dynid gaps`): `.result` is its `--json`, `.augmented_model()` the model with the named effects (and the
+    tentative ones with `keep_tentative`). With `model`, its inertias are held (a payload, a changed gain or friction
+    is then named against it)."""
     given = None
     if model is not None:
         check_is_fitted(model, "model_")
@@ -389,7 +390,8 @@ def find_gaps(X: Data, robot: str | Path = "icub_right_arm", model: DynamicsMode
     robot_model = given.robot_model if given is not None else load_robot(robot)
     ds = X if isinstance(X, Dataset) else load_run(str(X), robot_model)
     label = str(X) if not isinstance(X, Dataset) else "dataset"
-    return analyse_gaps(robot_model, ds, label, given, supply_tracking, log=print if verbose else (lambda _: None))
+    return analyse_gaps(robot_model, ds, label, given, supply_tracking, log=print if verbose else (lambda _: None),
+                        keep_tentative=keep_tentative)
 
 
 load_model = DynamicsModel.load

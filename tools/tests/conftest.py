@@ -68,6 +68,24 @@ def exported(default_model: Path, tmp_path_factory: pytest.TempPathFactory) -> P
     return out
 
 
+HIDDEN_EFFECTS = ["--effect", "stribeck:joint=r_elbow,excess=2,velocity=0.05",
+                  "--effect", "spring:joint=r_shoulder_yaw,stiffness=1.0"]
+
+
+@pytest.fixture(scope="session")
+def hidden_effects_runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Two runs of the default arm with a hidden Stribeck (elbow) and spring (shoulder yaw): "fit" (40 s, seed 0) for
+    `dynid gaps`, "replay" (30 s, seed 1) to replay its augmented model on."""
+    root = tmp_path_factory.mktemp("hidden_effects")
+    runs = {}
+    for name, seed, duration in (("fit", "0", "40"), ("replay", "1", "30")):
+        runs[name] = root / name
+        done = dynid("simulate", "--kind", "identification", "--duration", duration, "--seed", seed, *HIDDEN_EFFECTS,
+                     "--out", str(runs[name]))
+        assert done.returncode == 0, done.stderr
+    return runs
+
+
 def exit_counter(stdout: str, name: str) -> int:
     """A counter of the final line rt_monitor prints at exit ("..., late 12, ...")."""
     return int(stdout.split(f", {name} ")[1].split(",")[0])

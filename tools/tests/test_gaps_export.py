@@ -18,21 +18,15 @@ from dynid.robot.effects import Effect, augmented_residuals, effect_rows
 from dynid.robot.outputs import residuals
 from dynid.robot.regressors.stack import Signals
 
-EFFECTS = ["--effect", "stribeck:joint=r_elbow,excess=2,velocity=0.05",
-           "--effect", "spring:joint=r_shoulder_yaw,stiffness=1.0"]
+pytestmark = pytest.mark.numerics
 
 
 @pytest.fixture(scope="module")
-def augmented(default_model: Path, tmp_path_factory: pytest.TempPathFactory) -> dict:
-    """Two runs of the default arm with a hidden Stribeck (elbow) and spring (shoulder yaw): `dynid gaps` on the
-    first, given the session's standard model; both monitors exported; the second run replays."""
+def augmented(default_model: Path, hidden_effects_runs: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> dict:
+    """The session's two runs with a hidden Stribeck (elbow) and spring (shoulder yaw): `dynid gaps` on the first,
+    given the session's standard model; both monitors exported; the second run replays."""
     root = tmp_path_factory.mktemp("gapsexport")
-    runs = {}
-    for name, seed, duration in (("fit", "0", "40"), ("replay", "1", "30")):
-        runs[name] = root / name
-        done = dynid("simulate", "--kind", "identification", "--duration", duration, "--seed", seed, *EFFECTS,
-                     "--out", str(runs[name]))
-        assert done.returncode == 0, done.stderr
+    runs = hidden_effects_runs
     aug, figs = root / "augmented.json", root / "figures"
     done = dynid("gaps", "--model", str(default_model), "--data", str(runs["fit"]), "--out", str(aug),
                  "--figures", str(figs), "--json", str(root / "gaps.json"))
@@ -48,13 +42,17 @@ def augmented(default_model: Path, tmp_path_factory: pytest.TempPathFactory) -> 
 
 def test_augmented_model_round_trip(augmented: dict, default_model: Path) -> None:
     result = augmented["result"]
-    assert {(e["name"], e["where"]) for e in result["effects"]} == {("stribeck", "joint r_elbow"),
-                                                                   ("spring", "joint r_shoulder_yaw")}
+    written = [e for e in result["effects"] if e["in_model"]]
+    # named (confident) effects are written; a tentative one (rounding-dependent armature on m3, say) is reported only
+    assert all(e["confident"] for e in written) and all(e["in_model"] for e in result["effects"] if e["confident"])
+    assert {(e["name"], e["where"]) for e in written} == {("stribeck", "joint r_elbow"),
+                                                         ("spring", "joint r_shoulder_yaw")}
     m = load_model(augmented["model"])
     raw = json.loads(augmented["model"].read_text())
     assert raw["format_version"] == 2
     effects = {e.kind: e for e in m.effects}
-    for e in result["effects"]:  # what was printed and written to --json is what the model file holds
+    assert len(m.effects) == len(written)
+    for e in written:  # what was printed and written to --json is what the model file holds
         loaded = effects[e["name"]]
         assert loaded.where == e["where"]
         for k, v in e["parameters"].items():

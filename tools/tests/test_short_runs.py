@@ -18,6 +18,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.numerics
+
 DYNID = Path(sys.executable).parent / "dynid"
 # One BLAS thread: the fit's many small (119×119) products spin OpenBLAS's threads against the other jobs of a
 # loaded 2-core machine (measured at load 7: this file 118 s wall, 42 s CPU; with one thread 68 s, 22 s). Nothing
@@ -130,11 +132,15 @@ def test_blocks_beyond_what_the_samples_allow(runs, tmp_path: Path) -> None:
     assert not model.exists()
     run = tmp_path / "short"
     ok(dynid("simulate", "--kind", "identification", "--duration", "0.6", "--out", str(run)))
-    ok(dynid("fit", "--data", str(run), "--blocks", "1000", "--out", str(model), "--json", str(tmp_path / "fit.json")))
+    # 600 samples for a rank of 77: the IV iteration of a jackknife fold wanders (its steps end near 5 or 160,
+    # depending on the CPU's rounding), so IV determines nothing here, on every CPU, and says why
+    refused(dynid("fit", "--data", str(run), "--blocks", "1000", "--out", str(model)), "iv iteration did not settle")
+    ols = ("--estimator", "ols")
+    ok(dynid("fit", "--data", str(run), *ols, "--blocks", "1000", "--out", str(model), "--json", str(tmp_path / "fit.json")))
     result = strict_json(tmp_path / "fit.json")
     assert result["jackknife"]["folds"] == 3 and result["identified"] > 0
     # ν given: said as given, not as cross-validated (more than the rank is allowed: PLS then runs until Xᵀy is
     # exhausted, which floating point needs to reach least squares, test_estimators.py)
-    done = dynid("fit", "--data", str(run), "--n-components", str(result["rank"] + 1), "--out", str(tmp_path / "n.json"))
+    done = dynid("fit", "--data", str(run), *ols, "--n-components", str(result["rank"] + 1), "--out", str(tmp_path / "n.json"))
     ok(done)
     assert f"PLS ν = {result['rank'] + 1} (--n-components)" in done.stdout, done.stdout

@@ -27,7 +27,8 @@ def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
         raise InputError(f"{args.model} is already an augmented model (it names effects); give the standard "
                          "model it came from")
     tracking = not args.no_supply_tracking and bool(config.motors_with_input("pwm"))  # a PWM's supply drifts
-    found = find_gaps(model, ds, args.data, identified, supply_tracking=tracking, log=print)
+    found = find_gaps(model, ds, args.data, identified, supply_tracking=tracking, log=print,
+                      keep_tentative=args.keep_tentative)
     result = found.result
     print(format_report(result))
     if args.out:
@@ -60,6 +61,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     "configuration is used")
     sp.add_argument("--out", metavar="AUGMENTED_MODEL", help="write the refitted model with the named effects "
                     "(a model file: validate, detect, report and export accept it; export carries Stribeck and spring)")
+    sp.add_argument("--keep-tentative", action="store_true", help="write the effects reported as tentative into "
+                    "the augmented model too (by default it holds only the named ones)")
     sp.add_argument("--figures", metavar="DIR", help="write a figure per finding and the gap before/after (PNG + "
                     "gaps.json) to DIR; `dynid report --gaps DIR` shows them")
     sp.add_argument("--no-supply-tracking", action="store_true", help="analyse with constant motor gains (one "

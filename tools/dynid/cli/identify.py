@@ -14,7 +14,7 @@ from ..detect.momentum import DEFAULT_BANDWIDTH_HZ
 from ..detect.momentum_t2 import calibration_runs, momentum_detection
 from ..detect.t2 import ALPHA
 from ..errors import DataError, InputError
-from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_INERTIA_ONLY, FitSettings
+from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_INERTIA_ONLY, FitSettings, iv_settled
 from ..identify.supply import SupplyTracking
 from ..identify.validation import evaluate, load_run, validation
 from ..io.dataset import contact_episodes
@@ -81,11 +81,18 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
             print(f"    {motor:16s} {value:8.3f} ± {se:.3f}   nominal {nominal:8.3f}   "
                   f"{100 * (value / nominal - 1):+6.1f} %   {status}")
     for name, est in result.estimates.items():
-        step = est.detail.get("last_step", 0.0)
-        if "last_step" in est.detail and (step is None or step > IV_SETTLED):
+        settled, near = iv_settled(est.detail)
+        if not settled:
+            step, spread = est.detail.get("last_step"), est.detail.get("start_spread")
             last = "not finite" if step is None else f"{step:.2g}"
-            print(f"  {name}: the iteration did not settle in {est.detail['iterations']} iterations (last relative "
-                  f"step {last}): its values are the last iterate")
+            apart = "" if "start_spread" not in est.detail else \
+                f", {'not finite' if spread is None else f'{spread:.2g}'} apart from a second start"
+            folds = est.detail.get("folds_unsettled") or []
+            where = (f"on the jackknife folds without time block(s) {', '.join(map(str, folds))}" if folds else
+                     f"in {est.detail['iterations']} iterations (last relative step {last}{apart}; {IV_SETTLED:g} "
+                     f"needed{', borderline' if near else ''})")
+            print(f"  {name}: the iteration did not settle {where}: its values are the last iterate and its standard "
+                  "errors mean nothing")
     inertial = set(model.layout.names[model.layout.span("inertial")])
     unexcited = [n for n in base.unidentifiable if n not in inertial]  # inertial ones: structural (CAD kept)
     if unexcited:
@@ -108,6 +115,14 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         if undetermined:
             print("  not determined by this run (standard error above 10 %, or unseen by a jackknife fold; no value "
                   "given): " + ", ".join(undetermined))
+    edges = result.borderline()
+    if edges["determined"]:
+        print(f"  borderline: {plural(len(edges['determined']), 'combination')} with a standard error on the 10 % "
+              "threshold (taken as not determined; another CPU's rounding could count it): "
+              + "; ".join(edges["determined"][:SHOW_UNSEEN]) + (" …" if len(edges["determined"]) > SHOW_UNSEEN else ""))
+    if edges["rank_cut"]:
+        print(f"  borderline: singular value(s) {', '.join(f'{v:.3g}' for v in edges['rank_cut'])} of the largest sit "
+              f"on the rank cut {base.rtol:g} (left out of the rank)")
     print_consistent(result.consistent)
     warnings = record.get("plausibility", [])
     if warnings:
@@ -128,7 +143,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
             "estimators": record["estimators"],
             "base": record["base"], "residual_rms": dict(zip(record["outputs"]["channels"], rms.tolist())),
             "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed,
-            "plausibility": warnings, "consistent": result.consistent}
+            "plausibility": warnings, "consistent": result.consistent, "borderline": edges}
 
 
 def print_consistent(done: dict[str, Any] | None) -> None:

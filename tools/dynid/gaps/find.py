@@ -37,10 +37,11 @@ class Gaps:
 
 
 def find_gaps(model: RobotModel, ds: Dataset, data_label: str, given: IdentifiedModel | None = None,
-              supply_tracking: bool = True, log: Callable[[str], None] = print) -> Gaps:
+              supply_tracking: bool = True, log: Callable[[str], None] = print, keep_tentative: bool = False) -> Gaps:
     """Refit the standard model on the run (holding `given`'s inertias when there is one), name the missing
     effects that explain the gap on held-out blocks, and build the augmented model. Supply tracking follows the
-    given model's (a model fitted with it off keeps constant gains here too)."""
+    given model's (a model fitted with it off keeps constant gains here too). The augmented model carries the
+    named effects; tentative ones only with `keep_tentative`."""
     reference = None
     if given is not None:
         if given.effects:
@@ -50,7 +51,7 @@ def find_gaps(model: RobotModel, ds: Dataset, data_label: str, given: Identified
     supply = None
     if supply_tracking:
         supply = given.supply_tracking if given is not None else SupplyTracking()
-    result = run(model, ds, Settings(supply=supply), reference=reference, log=log)
+    result = run(model, ds, Settings(supply=supply, keep_tentative=keep_tentative), reference=reference, log=log)
     augmented = result.pop("_augmented")
     result["data"] = data_label
     # a payload is already in Φ (its link's inertial parameters): the model file lists only effects it predicts with

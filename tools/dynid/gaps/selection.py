@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats as sps
 
+from ..margins import borderline
 from ..robot.effect_library import Candidate
 
 MIN_DOF = 10  # batches beyond the number of columns tested, at least (the F reference's denominator dof)
@@ -39,11 +40,20 @@ def _norms(X: np.ndarray) -> np.ndarray:
     return np.where(n > 0, n, 1.0)
 
 
+TOUCH_RTOL = 1e-10  # a channel whose share of a candidate's columns is below this (in amplitude) is not touched
+
+
 def columns_on(E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(channels E touches, the norms of `_norms`) of candidate columns E (N, r, K), in one pass over E."""
+    """(channels E touches, the norms of `_norms`) of candidate columns E (N, r, K), in one pass over E.
+
+    A channel is touched when its energy is more than rounding residue of the largest channel's: which channels a
+    candidate acts on sets the held-out SSE it is judged by, so that set must not hang on a 1e-17 that one CPU's
+    kernels make exactly zero and another's do not."""
     energy = np.einsum("nrk,nrk->rk", E, E)
     n = np.sqrt(energy.sum(axis=0))
-    return np.flatnonzero(energy.sum(axis=1) > 0), np.where(n > 0, n, 1.0)
+    per_channel = energy.sum(axis=1)
+    touched = per_channel > TOUCH_RTOL**2 * max(float(per_channel.max(initial=0.0)), 1e-300)
+    return np.flatnonzero(touched), np.where(n > 0, n, 1.0)
 
 
 def _bordered_solve(Ginv: np.ndarray, G: np.ndarray, g: np.ndarray, d: int) -> np.ndarray:
@@ -200,7 +210,7 @@ def evaluate(design: Design, cand: Candidate, weights: np.ndarray, base_cv: np.n
     return Trial(cand, channels, before, cv[:, channels].sum(axis=1), float("nan"))
 
 
-def worse_channels(before_cv: np.ndarray, after_cv: np.ndarray, rows: np.ndarray) -> list[tuple[int, float]]:
+def worse_channels(before_cv: np.ndarray, after_cv: np.ndarray, rows: np.ndarray) -> list[tuple[int, float, bool]]:
     """(row channel, relative increase) of every channel whose held-out error a fix makes worse.
 
     Worse: the held-out RMS grows by over 5 % and by over the channel's noise std (the rows are in noise units).
@@ -210,8 +220,15 @@ def worse_channels(before_cv: np.ndarray, after_cv: np.ndarray, rows: np.ndarray
     growth of the RMS."""
     n = np.maximum(rows.sum(axis=0), 1)
     was, now = np.sqrt(before_cv.sum(axis=0) / n), np.sqrt(after_cv.sum(axis=0) / n)
-    grew = (now > (1 + WORSE_TOLERANCE) * was) & (now - was > WORSE_NOISE)
-    return [(int(c), float(now[c] / was[c] - 1)) for c in np.flatnonzero(grew) if was[c] > 0]
+    out = []
+    for c in np.flatnonzero(was > 0):
+        ratio, diff = float(now[c] / was[c]), float(now[c] - was[c])
+        # on either threshold's band the channel counts as worse: the fix is refused rather than named on one CPU only
+        near = borderline(ratio, 1 + WORSE_TOLERANCE) or borderline(diff, WORSE_NOISE)
+        if (ratio > 1 + WORSE_TOLERANCE or borderline(ratio, 1 + WORSE_TOLERANCE)) and \
+                (diff > WORSE_NOISE or borderline(diff, WORSE_NOISE)):
+            out.append((int(c), ratio - 1, near))
+    return out
 
 
 def robust_p_value(design: Design, E: np.ndarray, batch: int) -> float:

@@ -23,6 +23,7 @@ import numpy as np
 from ..errors import DataError
 from ..identify.fit import FitSettings, SignalSource
 from ..identify.supply import SupplyTracking, smoothed_ratios
+from ..margins import above, borderline, borderline_log
 from ..io.dataset import Dataset
 from ..robot.effect_library import LIBRARY, NEEDS_GIVEN_MODEL, Candidate, Context, refined
 from ..robot.model import RobotModel
@@ -31,7 +32,7 @@ from ..robot.regressors.stack import Signals, fill_rows, row_channels
 from .episodes import format_episode, residual_episodes
 from .profile import profile
 from .refit import reference_phi, refit
-from .selection import Design, Trial, evaluate, robust_p_value, weighted_columns, worse_channels
+from .selection import WORSE_TOLERANCE, Design, Trial, evaluate, robust_p_value, weighted_columns, worse_channels
 
 MAX_SAMPLES = 6000  # decimated samples kept: the filtered signals are smooth, and selection stays seconds
 N_BLOCKS = 5
@@ -61,6 +62,7 @@ class Settings:
     alpha: float = ALPHA
     max_effects: int = MAX_EFFECTS
     supply: SupplyTracking | None = SupplyTracking()  # None: constant gains (one pass)
+    keep_tentative: bool = False  # write tentative effects into the augmented model too (named ones always are)
 
 
 MIN_SAMPLES = 2000
@@ -224,6 +226,7 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
     candidates: list[Candidate] = [c for make in LIBRARY.values() for c in make(ctx)]
     named: list[dict] = []
     tried: list[Trial] = []
+    on_edge: list[dict] = []  # decisions whose statistic sat on its threshold's band (dynid.margins)
     not_significant: dict | None = None  # the round's best by held-out gain, when the robust test rejected it
     accepted_E: list[np.ndarray] = []
     accepted: list[Candidate] = []
@@ -241,14 +244,20 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
         best = max([best, *fine], key=lambda tr: tr.gain)
         # best per effect/place, for the report of what was ruled out
         tried = trials
-        if best.gain < settings.min_gain:
+        reaches, near = above(best.gain, settings.min_gain)
+        if near:
+            on_edge.append(_edge("min_cv_gain", best.candidate.key, best.gain, settings.min_gain, "not named"))
+        if not reaches:
             break
         c = best.candidate
         Ew = weighted_columns(c.values, w)
         best = replace(best, p_value=robust_p_value(current, Ew, batch))
-        if best.p_value > settings.alpha / len(trials):
+        level = settings.alpha / len(trials)
+        if borderline_log(best.p_value, level):
+            on_edge.append(_edge("alpha", c.key, best.p_value, level, "not significant"))
+        if best.p_value > level or borderline_log(best.p_value, level):
             not_significant = {"effect": c.key, "search": dict(c.nonlinear), "cv_gain": best.gain,
-                               "p_value": best.p_value, "level": settings.alpha / len(trials)}
+                               "p_value": best.p_value, "level": level}
             break
         accepted_E.append(Ew)
         accepted.append(c)
@@ -268,7 +277,9 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
         c, item = accepted.pop(), named.pop()
         accepted_E.pop()
         refused.append({"effect": c.key, "search": dict(c.nonlinear), "cv_gain": item["trial"].gain,
-                        "worse": {channels[k].name: rel for k, rel in worse}})
+                        "worse": {channels[k].name: rel for k, rel, _ in worse}})
+        on_edge += [_edge("worse_channel", f"{c.key}: {channels[k].name}", rel, WORSE_TOLERANCE, "refused")
+                    for k, rel, near in worse if near]
         current = Design(np.concatenate([design.D] + accepted_E, axis=2), y, bounds) if accepted_E else design
         cur_cv = current.cv_sse(None)
 
@@ -282,19 +293,39 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
     for f, c, item in zip(fitted, accepted, named):
         tr: Trial = item["trial"]
         took = tr.cv_before - tr.cv_after
-        primary = next((name for chans, r0, name in removed
-                        if chans & set(tr.channels.tolist()) and took < SECONDARY * r0), None)
+        primary = None
+        for chans, r0, name in removed:  # on the band: secondary (tentative), the conservative answer
+            if chans & set(tr.channels.tolist()) and (took < SECONDARY * r0 or borderline(took, SECONDARY * r0)):
+                primary = name
+                if borderline(took, SECONDARY * r0):
+                    on_edge.append(_edge("secondary", f"{f.kind} on {f.where}", took / r0, SECONDARY, "tentative"))
+                break
         removed.append((set(tr.channels.tolist()), took, f"{f.kind} on {f.where}"))
         # An effect of the wrong shape also lowers a large residual by a fair share (a Stribeck curve on a quadratic
         # drag): it is trusted only when it removes most of its channels' excess over FLOOR.
         floor = explained_floor**2 * current.rows[:, tr.channels].sum()
         excess_before = max(float(base_cv[:, tr.channels].sum() - floor), 1e-12)
         explained = 1.0 - max(float(cur_cv[:, tr.channels].sum() - floor), 0.0) / excess_before
+        enough, near = above(explained, CONFIDENT)
+        if near:
+            on_edge.append(_edge("confident", f"{f.kind} on {f.where}", explained, CONFIDENT, "tentative"))
         effects.append({"name": f.kind, "where": f.where, "parameters": f.parameters,
                         "standard_errors": f.standard_errors, "search": dict(c.nonlinear), "cv_gain": tr.gain,
                         "p_value": tr.p_value, "explained": explained, "secondary_to": primary,
-                        "confident": explained >= CONFIDENT and primary is None})
+                        "confident": enough and primary is None})
     after = _rms_per_channel(cur_cv.sum(axis=0), current.rows.sum(axis=0))
+    # The augmented model holds what was named: a tentative effect is reported, but it enters the model file only
+    # when asked (--keep-tentative), refitted without it otherwise (its columns would have taken part of the fit).
+    kept = [i for i, e in enumerate(effects) if e["confident"] or settings.keep_tentative]
+    if len(kept) < len(accepted):
+        named_E = [accepted_E[i] for i in kept]
+        named_design = Design(np.concatenate([design.D] + named_E, axis=2), y, bounds) if named_E else design
+        phi, fitted = refit(named_design, V, [accepted[i] for i in kept], ctx,
+                            reference_phi(model, reference[1] if reference else None))
+        for i, f in zip(kept, fitted):  # what is reported of a named effect is what the model file holds
+            effects[i].update(parameters=f.parameters, standard_errors=f.standard_errors)
+    for i, e in enumerate(effects):
+        e["in_model"] = i in kept
 
     best_by_key: dict[str, Trial] = {}
     for tr in tried:
@@ -321,11 +352,17 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
         "ruled_out": ruled_out[:12],
         "not_significant": not_significant,
         "refused": refused,  # effects dropped because the fix with them made a channel worse on held-out blocks
+        "borderline": on_edge,
         "not_tried": [] if reference is not None else list(NEEDS_GIVEN_MODEL),  # effects that need a given model
         "_residual": resid_after,  # weighted rows after the named effects: the supply estimate of a second pass
         # the augmented model (`dynid gaps --out`): not part of the --json result (see cli_gaps)
         "_augmented": {"phi": phi, "effects": fitted},
     }
+
+
+def _edge(decision: str, subject: str, value: float, threshold: float, taken: str) -> dict:
+    return {"decision": decision, "subject": subject, "value": float(value), "threshold": float(threshold),
+            "taken_as": taken}
 
 
 def format_report(result: dict) -> str:
@@ -355,6 +392,14 @@ def format_report(result: dict) -> str:
         else:
             extra = f"; best candidate {best['effect']} lowers the held-out error only {100 * best['cv_gain']:.1f} %" if best else ""
         lines.append("named: nothing — no effect in the library explains a significant part of the residual" + extra)
+    for e in result.get("effects", []):
+        if not e.get("in_model", True):
+            lines.append(f"left out of the augmented model: {e['name']} on {e['where']} (tentative; "
+                         "--keep-tentative writes it)")
+    for edge in result.get("borderline", []):
+        lines.append(f"borderline: {edge['decision']} of {edge['subject']}: {edge['value']:.6g} against "
+                     f"{edge['threshold']:.6g}, taken as {edge['taken_as']} (on the threshold: another CPU's rounding "
+                     "could answer otherwise)")
     for refused in result.get("refused", []):
         worse = ", ".join(f"{ch} +{100 * rel:.0f} %" for ch, rel in refused["worse"].items())
         lines.append(f"refused: {refused['effect']} (held-out error on its channels −{100 * refused['cv_gain']:.1f} %): "

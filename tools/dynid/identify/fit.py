@@ -30,6 +30,7 @@ import numpy as np
 from ..errors import DataError
 from ..io.dataset import Dataset
 from ..io.derivatives import SavitzkyGolay
+from ..margins import BORDERLINE_RTOL, below
 from ..progress import track
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
@@ -49,6 +50,7 @@ IV_SETTLED = 1e-3
 # Rank threshold on singular values of the column-normalised system, from the Gram matrix: its rounding floor
 # sits near 1e-8 (the square root of machine precision), the iCub's last base direction near 1e-2.
 BASE_RTOL = 1e-6
+PRESS_TIE_RTOL = 1e-9  # held-out PRESS values this close to the least are a tie (cross_validate_nu)
 IDENTIFIED_RSE = 0.1  # a combination is identified when its standard error is below 10 % of its size …
 IDENTIFIED_SCALE = 0.05  # … or below 5 % of its CAD size (a physical quantity that is truly near zero)
 
@@ -60,7 +62,7 @@ class FitSettings:
     min_speed: float = DEFAULT_MIN_SPEED
     blocks: int = 10
     instrument_window_s: float = INSTRUMENT_WINDOW_S
-    iv_iterations: int = 30
+    iv_iterations: int = 100
     workers: int | None = None
     # Physically consistent estimation (dynid.identify.consistent, docs/consistency.md): the chosen estimator's Φ̂
     # projected onto physical parameters; the model keeps that one (estimate "consistent"), all others are reported.
@@ -102,6 +104,16 @@ class FitResult:
     @property
     def phi(self) -> np.ndarray:
         return self.estimates[self.chosen].phi
+
+    def borderline(self) -> dict:
+        """The fit's decisions that sit on their thresholds (dynid.margins), each taken the conservative way: base
+        combinations not determined, singular values not counted in the rank, an IV iteration not settled."""
+        chosen = self.estimates[self.chosen]
+        cad = np.abs(self.base.base(np.nan_to_num(self.model.cad_parameters(), nan=0.0)))
+        names = self.base.combinations()
+        return {"determined": [names[i] for i in np.flatnonzero(borderline_determined(chosen, cad))],
+                "rank_cut": [float(v) for v in self.base.on_the_cut],
+                "iv_settled": iv_settled(chosen.detail)[1]}
 
 
 def instrument_signals(sig: Signals, t: np.ndarray, window_s: float) -> Signals:
@@ -208,8 +220,33 @@ def _estimate(name: str, stats: Statistics, keep: np.ndarray | None, base: BaseP
                                                     IV_TOL, prior)
     # `step`: the last iteration's largest relative change (rounding keeps a short run's near 1e-8, above the 1e-10
     # that ends the iteration; far above, the iterate has not settled and only its jackknife error says how far off)
-    return beta, {"iterations": iterations, "converged": step < IV_TOL,
-                  "last_step": step if np.isfinite(step) else None, "instrument_window_s": settings.instrument_window_s}
+    detail = {"iterations": iterations, "converged": step < IV_TOL,
+              "last_step": step if np.isfinite(step) else None, "instrument_window_s": settings.instrument_window_s}
+    if start is None and prior is not None:
+        # A fixed point is only an answer if the iteration reaches it from elsewhere too. On a run too short for its
+        # rank the map is not a contraction: its iterates wander (steps of 1–100), and where the 30th lands depends
+        # on the last bit of every product (one CPU's kernels stop near 1e-5, another's at 10). A second start, the
+        # prior (CAD inertia, nominal gains), must end at the same β̂: then "settled" is the same answer everywhere.
+        other, _, other_step = instrumental_variables(cross, cross_b, ind, prior, inputs, settings.iv_iterations,
+                                                      IV_TOL, prior)
+        detail["start_spread"] = float(np.max(np.abs(other - beta) / np.maximum(np.abs(beta), 1e-12))) \
+            if np.all(np.isfinite(other)) and np.isfinite(other_step) else None
+    return beta, detail
+
+
+def iv_settled(detail: dict) -> tuple[bool, bool]:
+    """(settled, borderline) of an IV estimate's detail: its last step and, for the estimate on all blocks, the
+    spread between its two starts, both under IV_SETTLED past the margin's band (dynid.margins), and every jackknife
+    fold's iteration settled as well (a fold that wanders makes the standard errors, and so "determined", arbitrary:
+    on a 0.6 s run one fold's steps end near 5 on one CPU and 160 on another)."""
+    if "last_step" not in detail:
+        return True, False  # not an iteration
+    measures = [detail["last_step"]] + ([detail["start_spread"]] if "start_spread" in detail else [])
+    if any(m is None for m in measures) or detail.get("folds_unsettled"):
+        return False, False
+    settled = all(below(m, IV_SETTLED)[0] for m in measures)
+    near = any(below(m, IV_SETTLED)[1] for m in measures)
+    return settled, near
 
 
 def cross_validate_nu(stats: Statistics, max_components: int) -> dict:
@@ -228,7 +265,9 @@ def cross_validate_nu(stats: Statistics, max_components: int) -> dict:
         for i, coef in enumerate(path[:available]):
             press[i] += held[p, p] - 2 * coef @ held[:p, p] + coef @ held[:p, :p] @ coef
     press = press[:available]
-    best = int(np.argmin(press)) + 1
+    # PRESS flattens out near the rank: values within rounding of the least are ties, and the smallest ν among them
+    # is taken, so that the choice does not hang on the last bits of the sums (another CPU's kernels)
+    best = int(np.flatnonzero(press <= press.min() * (1 + PRESS_TIE_RTOL))[0]) + 1
     return {"n_components": best, "candidates": list(range(1, available + 1)), "press": press.tolist()}
 
 
@@ -268,7 +307,10 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
     folds_of: dict[str, np.ndarray] = {}
     for name in names:
         beta, detail = _estimate(name, stats, None, base, settings, nu, inputs, None, beta_prior)
-        jack = np.array([_estimate(name, stats, f, base, settings, nu, inputs, beta, beta_prior)[0] for f in folds])
+        replicates = [_estimate(name, stats, f, base, settings, nu, inputs, beta, beta_prior) for f in folds]
+        jack = np.array([b for b, _ in replicates])
+        if "last_step" in detail:  # an iteration: its jackknife error means something only if every fold settled too
+            detail["folds_unsettled"] = [k for k, (_, d) in enumerate(replicates) if not iv_settled(d)[0]]
         folds_of[name] = jack
         estimates[name] = Estimate(name, beta, _jackknife_se(jack), expand(base, beta, prior), detail)
     chosen_name = settings.estimator
@@ -283,15 +325,13 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
     variance = {name: channel_variance(stats, e.phi, model) for name, e in estimates.items()}
     chosen = estimates[chosen_name]
     cad = np.abs(base.base(np.nan_to_num(model.cad_parameters(), nan=0.0)))
-    determined = lambda e: (e.se <= IDENTIFIED_RSE * np.abs(e.beta)) | (e.se <= IDENTIFIED_SCALE * cad)  # noqa: E731
-    identified = determined(chosen)
+    identified = _determined(chosen, cad)
     if chosen_name == CONSISTENT:
         # The constraints narrow the folds' spread, but they do not make the run determine a combination: it must be
         # determined without them too, and not rest on a bound (a gain at its floor is the same in every fold)
-        identified &= determined(estimates[settings.estimator]) & ~_at_bound(base, model, consistent)
+        identified &= _determined(estimates[settings.estimator], cad) & ~_at_bound(base, model, consistent)
     identified &= ~unseen.any(axis=0)  # a fold cannot see them: the jackknife has no error to give
-    step = chosen.detail.get("last_step", 0.0)
-    settled = step is not None and step <= IV_SETTLED
+    settled, _ = iv_settled(chosen.detail)
     identified &= settled  # an iterate that still moves: neither it nor its jackknife spread means anything
     if not identified.any():
         hint = f"; the {chosen.name} iteration did not settle (try --estimator ols)" if not settled else ""
@@ -305,6 +345,29 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
         for k in range(B) if unseen[k].any()]}
     return FitResult(model, base, estimates, chosen_name, cv, variance, identified, stats, samples, rows_used,
                      jackknife, consistent)
+
+
+def _determined(e: Estimate, cad: np.ndarray) -> np.ndarray:
+    """(rank,) bool: combinations whose jackknife error is under 10 % of their value or 5 % of their CAD size, past
+    the margin's band (dynid.margins: on the band, not determined, and `borderline_determined` names them)."""
+    rse, rsc = _error_ratios(e, cad)
+    return (rse < IDENTIFIED_RSE) & ~_near(rse, IDENTIFIED_RSE) | (rsc < IDENTIFIED_SCALE) & ~_near(rsc, IDENTIFIED_SCALE)
+
+
+def _error_ratios(e: Estimate, cad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return (np.where(np.abs(e.beta) > 0, e.se / np.abs(e.beta), np.inf),
+                np.where(cad > 0, e.se / cad, np.inf))
+
+
+def _near(ratio: np.ndarray, threshold: float) -> np.ndarray:
+    return np.abs(ratio - threshold) <= BORDERLINE_RTOL * threshold
+
+
+def borderline_determined(e: Estimate, cad: np.ndarray) -> np.ndarray:
+    """(rank,) bool: combinations whose determination sits on its threshold (taken as not determined)."""
+    rse, rsc = _error_ratios(e, cad)
+    return (_near(rse, IDENTIFIED_RSE) | _near(rsc, IDENTIFIED_SCALE)) & ~_determined(e, cad)
 
 
 def _at_bound(base: BaseParameters, model: RobotModel, consistent: dict) -> np.ndarray:

@@ -222,11 +222,16 @@ def instrumental_variables(
     `restricted_solve`. Returns (β̂, iterations, the last step: max relative change of β̂, below `tol` once
     converged); an iteration that cannot go on (a gain at zero, a step that is not finite) ends with the last
     iterate and an infinite step.
+
+    The step is relaxed: β ← β + ω (F(β) − β), ω halved whenever the step grew and grown back towards 1 while it
+    shrinks. Where the plain iteration contracts (every run long enough for its rank) ω stays 1 and this is the plain
+    iteration; on a run too short for its rank the plain map can fall into a cycle (steps 1, 2, 11, 32, 15, …
+    repeating) on one CPU's rounding and reach the fixed point on another's, and the relaxed one reaches it on both.
     """
     r, p, _ = cross.shape
     beta = beta0.copy()
     x0 = beta0 if prior is None else prior
-    step = np.inf
+    step, last, omega = np.inf, np.inf, 1.0
     for it in range(1, iterations + 1):
         phi = np.zeros(p)
         phi[base] = beta
@@ -252,7 +257,12 @@ def instrumental_variables(
         if not np.all(np.isfinite(new)):
             return beta, it - 1, np.inf
         step = float(np.max(np.abs(new - beta) / np.maximum(np.abs(new), 1e-12)))
-        beta = new
+        omega = max(omega / 2, RELAX_MIN) if step > last else min(2 * omega, 1.0)
+        last = step
+        beta = new if omega == 1.0 else beta + omega * (new - beta)
         if step < tol:
             return beta, it, step
     return beta, iterations, step
+
+
+RELAX_MIN = 1 / 64  # the IV iteration's smallest relaxation

@@ -1,8 +1,9 @@
 """Base parameters: the numerical rank of A and the identifiable combinations of Φ.
 
 Columns are first scaled to unit norm (the rank must not depend on units). The rank is the number of
-singular values above `rtol` times the largest; column-pivoted QR then picks that many well-conditioned
-columns as the base parameters' representatives (Gautier's numerical method). Every other column is a
+singular values above `rtol` times the largest; column pivoting (`pivot_columns`, QR's rule with ties broken by
+the parameters' order) then picks that many well-conditioned columns as the base parameters' representatives
+(Gautier's numerical method). Every other column is a
 combination of them, A_d = A_b K, so only β = Φ_b + K Φ_d is identifiable. Everything works from a p×p
 triangular factor accumulated over chunks of rows, so a long experiment needs no fully stacked A.
 """
@@ -15,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from ...margins import borderline_log
 from ..model import RobotModel
 from .stack import DEFAULT_CHUNK, DEFAULT_MIN_SPEED, Signals, StackedSystem, build_stacked, iter_stacked, row_weights
 
@@ -30,6 +32,15 @@ class BaseParameters:
     K: np.ndarray  # (rank, n_dependent): β = Φ_b + K Φ_d
     singular_values: np.ndarray  # of the column-normalised weighted A, descending
     unidentifiable: tuple[str, ...]  # parameters with a zero column (they act on no row)
+    rtol: float = DEFAULT_RTOL  # the rank cut, relative to the largest singular value
+
+    @property
+    def on_the_cut(self) -> np.ndarray:
+        """Singular values (relative to the largest) that sit on the rank cut's band (dynid.margins): left out of
+        the rank, and worth saying so, since another CPU's rounding could count them in."""
+        rel = self.singular_values / self.singular_values[0] if self.singular_values.size and self.singular_values[0] > 0 \
+            else np.zeros(0)
+        return np.array([r for r in rel if borderline_log(float(r), self.rtol)])
 
     @property
     def condition_number(self) -> float:
@@ -70,10 +81,10 @@ def base_parameters_from_factor(R: np.ndarray, names: tuple[str, ...], rtol: flo
     scale = np.where(zero, 1.0, norms)
     Rn = R / scale  # a factor of the column-normalised A
     sv = scipy.linalg.svdvals(Rn)
-    rank = int(np.sum(sv > rtol * sv[0]))  # the singular values show a clean gap; a QR diagonal may not
-    # Column-pivoted QR picks `rank` well-conditioned columns (Gautier's numerical base parameters).
-    _, _, piv = scipy.linalg.qr(Rn, mode="economic", pivoting=True, check_finite=False)
-    independent, dependent = np.sort(piv[:rank]), np.sort(piv[rank:])
+    # The singular values show a clean gap; a QR diagonal may not. One on the cut's band is left out (dynid.margins).
+    rank = int(sum(1 for v in sv if v > rtol * sv[0] and not borderline_log(float(v / sv[0]), rtol)))
+    independent = pivot_columns(Rn, rank)
+    dependent = np.setdiff1d(np.arange(p), independent)
     Ks = np.linalg.lstsq(Rn[:, independent], Rn[:, dependent], rcond=None)[0] if dependent.size else np.zeros((rank, 0))
     K = Ks * scale[dependent][None, :] / scale[independent][:, None]
     K[np.abs(K) < 1e-12 * max(1.0, float(np.abs(K).max(initial=0.0)))] = 0.0  # round-off, not structure
@@ -85,7 +96,31 @@ def base_parameters_from_factor(R: np.ndarray, names: tuple[str, ...], rtol: flo
         K=K,
         singular_values=sv,
         unidentifiable=tuple(names[i] for i in np.flatnonzero(zero)),
+        rtol=rtol,
     )
+
+
+TIE_RTOL = 1e-6  # residual norms within this share of the largest are a tie, broken by the parameters' order
+
+
+def pivot_columns(X: np.ndarray, rank: int) -> np.ndarray:
+    """The `rank` columns of X that column-pivoted QR picks (Gautier's numerical base parameters: at each step the
+    column with the largest residual after projecting out those already picked), sorted, with ties broken by
+    column order. A tie is common (two links' Izz that only ever appear summed, twice the same column) and LAPACK's
+    pivoting breaks it by the last bits of the norms, which differ from CPU to CPU: the base parameters' names, and
+    which combinations are determined, would differ with them. Gram–Schmidt, projected twice for orthogonality."""
+    X = np.array(X, dtype=float)
+    picked: list[int] = []
+    for _ in range(rank):
+        norms = np.einsum("ij,ij->j", X, X)
+        norms[picked] = -1.0
+        j = int(np.flatnonzero(norms >= (1 - TIE_RTOL) * norms.max())[0])
+        picked.append(j)
+        q = X[:, j] / np.sqrt(norms[j])
+        for _ in range(2):
+            X -= np.outer(q, q @ X)
+        X[:, j] = 0.0
+    return np.sort(np.array(picked, dtype=int))
 
 
 def base_parameters(system: StackedSystem, rtol: float = DEFAULT_RTOL) -> BaseParameters:

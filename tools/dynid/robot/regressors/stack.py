@@ -226,10 +226,19 @@ def group_rows(model: RobotModel) -> Iterator[tuple[ActuationGroup, list[int], s
         yield g, [joint_col[j] for j in g.joints], rows
 
 
+STRUCTURAL_RTOL = 1e-12  # an entry of an inverted coupling below this share of its largest is rounding residue
+
+
 def group_row_maps(group: ActuationGroup) -> tuple[np.ndarray, np.ndarray]:
-    """(L, C) of a group: its rows are L times its joint equations, and motor terms enter them through C."""
+    """(L, C) of a group: its rows are L times its joint equations, and motor terms enter them through C.
+
+    L inverts the coupling: its structural zeros come out of LAPACK as rounding residue (1e-17) whose value, and
+    whether it is exactly zero, depends on the CPU's BLAS kernels. They are set to zero here, once, so that which
+    rows a term touches never depends on the machine (couplings have condition numbers near 10: the residue is
+    ~1e-15 of the largest entry, a true entry is ~1e-1)."""
     if motor_space(group):
-        return np.linalg.inv(group.coupling.T), np.eye(len(group.motors))
+        L = np.linalg.inv(group.coupling.T)
+        return np.where(np.abs(L) > STRUCTURAL_RTOL * np.abs(L).max(), L, 0.0), np.eye(len(group.motors))
     return np.eye(len(group.joints)), group.coupling.T
 
 
@@ -245,8 +254,7 @@ class FrictionCoordinate:
 def friction_coordinates(model: RobotModel, dq: np.ndarray) -> Iterator[tuple[slice, list[FrictionCoordinate]]]:
     """Per actuation group: its row channels and the friction coordinates that enter them."""
     for g, gj, rows in group_rows(model):
-        # L comes from inverting the coupling: its structural zeros may be rounding residue (1e-17).
-        L, C = (np.where(np.abs(M) > 1e-9 * np.abs(M).max(), M, 0.0) for M in group_row_maps(g))
+        L, C = group_row_maps(g)
         coordinates = [FrictionCoordinate(dq[:, c], L[:, li], ("joint_friction", j))
                        for li, (j, c) in enumerate(zip(g.joints, gj))]
         if g.input != "torque" and g.coupled:
