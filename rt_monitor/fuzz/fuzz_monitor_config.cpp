@@ -38,7 +38,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     CHECK(cfg.status_hz >= kStatusHzMin && cfg.status_hz <= kStatusHzMax);
     CHECK(status_period_us(cfg) >= 1000 && status_period_us(cfg) <= 10000000);  // as rt_monitor computes it
     CHECK(cfg.residual_every >= 1 && cfg.residual_every <= kResidualEveryMax);
-    CHECK(cfg.skins.size() <= kMaxSkins);
+    CHECK(cfg.skins.size() <= size_t(kMaxSkins));
     std::set<std::string> joints, motors;
     std::set<std::tuple<int, int, int>> axis_slots, pwm_slots;
     for (const auto& a : cfg.axes) {

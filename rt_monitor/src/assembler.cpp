@@ -227,7 +227,7 @@ bool parse_line(const std::vector<std::string>& tok, const std::string& raw, int
                    std::to_string(used->second) + ")";
             return false;
         }
-        if (out.skins.size() == kMaxSkins) {
+        if (out.skins.size() == size_t(kMaxSkins)) {
             what = "more than " + std::to_string(kMaxSkins) + " skin boards";
             return false;
         }

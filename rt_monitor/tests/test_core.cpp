@@ -160,10 +160,11 @@ TEST(Loader, RefusesAbsurdCountsBeforeDecoding) {
         size_t at;
         uint32_t value;
         LoadError error;
-        const char* message;
+        std::string message;
     };
     const Case cases[] = {
-        {"2^31 - 1 joints", n_joints, 0x7FFFFFFFu, LoadError::kCapacity, "too many joints: 2147483647 (this build's capacity is 8)"},
+        {"2^31 - 1 joints", n_joints, 0x7FFFFFFFu, LoadError::kCapacity,
+         "too many joints: 2147483647 (this build's capacity is " + std::to_string(kMaxJoints) + ")"},
         {"-1 joints", n_joints, 0xFFFFFFFFu, LoadError::kDecode, "not a dynid.coefficients_t"},
         {"string length -2^31", first_string, 0x80000000u, LoadError::kDecode, "not a dynid.coefficients_t"},
         {"string length 0", first_string, 0, LoadError::kDecode, "not a dynid.coefficients_t"},

@@ -51,8 +51,6 @@ struct MonitorConfig {
 };
 
 // The configuration's limits (rt_monitor/README.md, "Configuration"): a value outside them is refused, not clamped.
-constexpr int kMaxBuses = 8;                    // the sources' and the assembler's tables
-constexpr size_t kMaxSkins = 16;                // bits of the sample's skin mask
 constexpr double kStaleMsMin = 0.1, kStaleMsMax = 1000;  // beyond a second the staleness guard is as good as off
 constexpr long long kPairUsMin = 1, kPairUsMax = 10000;  // two halves further apart are not one conversion
 constexpr double kStatusHzMin = 0.1, kStatusHzMax = 1000;  // at most one status per 1 kHz sample

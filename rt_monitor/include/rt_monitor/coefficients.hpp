@@ -9,15 +9,10 @@
 #include <cstdint>
 #include <string>
 
+#include "rt_monitor/capacity.hpp"
+
 namespace dynid::rt {
 
-// Compile-time capacity: a file that needs more is refused, never truncated.
-constexpr int kMaxJoints = 8;
-constexpr int kMaxBodies = 12;
-constexpr int kMaxMotors = 8;
-constexpr int kMaxOutputs = 16;
-constexpr int kMaxWindow = 64;
-constexpr int kMaxEffects = 8;
 // The sample period a file may give: 100 kHz to 1 Hz (the sample clock counts periods between µs stamps in int64).
 constexpr double kMinSamplePeriod = 1e-5, kMaxSamplePeriod = 1.0;
 
