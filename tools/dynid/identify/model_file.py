@@ -233,14 +233,17 @@ def _check_sections(data: dict[str, Any], path: Path) -> None:
 
 
 def data_digest(path: str | Path) -> str | None:
-    """sha256 of the data behind a DATA argument: a file's bytes, a `dynid simulate` directory's dataset, or a
-    yarpdatadumper folder's `data.log` files (each with its path in the folder, in sorted order); None where there
-    are no such data."""
+    """sha256 of the data behind a DATA argument: a file's bytes, a `dynid simulate` directory's dataset, a ROS 2
+    bag folder's files (dynid.io.rosbag.bag_digest), or a yarpdatadumper folder's `data.log` files (each with its
+    path in the folder, in sorted order); None where there are no such data."""
+    from ..io.rosbag import bag_digest, is_bag
     from ..io.yarp import is_dumper_folder
 
     p = Path(path)
     if p.is_file():
         return file_digest(p)
+    if is_bag(p):
+        return bag_digest(p)
     if (p / SIMULATION_DATASET).is_file():
         return file_digest(p / SIMULATION_DATASET)
     if is_dumper_folder(p):

@@ -18,6 +18,7 @@ from .candump import read_candump
 from .bad_rows import DEFAULT_POLICY, MAX_ABS_VALUE, POLICIES
 from .csv_format import check_columns, read_csv
 from .headerless import looks_headerless, read_headerless
+from .rosbag import is_bag, looks_like_bag_file, read_bag
 from .yarp import is_dumper_folder, read_yarp
 from .dataset import _ZIP_MAGIC, SIMULATION_DATASET, Dataset, check_units
 
@@ -59,7 +60,9 @@ def load_data(
 ) -> Dataset:
     """Load experiment data in any supported form, checked against the robot configuration.
 
-    A directory written by `dynid simulate` stands for its dataset file. The form is told by content first, then by extension: a zip archive (or ``.npz``) is a dataset file, a
+    A directory written by `dynid simulate` stands for its dataset file; a folder with metadata.yaml, or a ``.mcap``
+    or ``.db3`` file, is a ROS 2 bag (dynid.io.rosbag); a folder of YARP ports a yarpdatadumper log. Otherwise the
+    form is told by content first, then by extension: a zip archive (or ``.npz``) is a dataset file, a
     ``.log`` or a file whose first line is a ``candump -L`` frame is a CAN log, a ``.csv`` is a CSV
     (`dynid.io.csv_format.read_csv`). Anything else raises `DataError`.
     Every form then passes `check_plausible` (enough samples, a sample period in seconds). A table's bad rows
@@ -82,8 +85,10 @@ def _load(
         raise DataError(f"data file not found: {path}")
     if path.is_dir() and (path / SIMULATION_DATASET).is_file():  # the output directory of `dynid simulate`
         path = path / SIMULATION_DATASET
+    elif is_bag(path):  # a ROS 2 bag: a rosbag2 folder, or one .mcap or .db3 file
+        return read_bag(path, config, joint_limits=joint_limits, require_all=require_all, bad_rows=bad_rows)
     elif is_dumper_folder(path):  # a YARP robot's log: one folder per port
-        return read_yarp(path, config, joint_limits=joint_limits, require_all=require_all)
+        return read_yarp(path, config, joint_limits=joint_limits, require_all=require_all, bad_rows=bad_rows)
     if not path.is_file():
         raise DataError(f"data path is not a file: {path}")
     try:
@@ -93,6 +98,9 @@ def _load(
         raise DataError(f"cannot read {path}: {e.strerror or e}") from None
     first_line = head.split(b"\n", 1)[0]
     suffix = path.suffix.lower()
+    if looks_like_bag_file(head):
+        raise DataError(f"{path}: an MCAP or SQLite file: a ROS 2 bag's storage file is named .mcap or .db3 (or give "
+                        "the bag's folder, with its metadata.yaml)")
     if head.startswith(_ZIP_MAGIC) or suffix == ".npz":
         dataset = Dataset.load(path)
         check_matches_config(dataset, config, require_all=require_all, source=str(path))
@@ -110,8 +118,8 @@ def _load(
     if suffix == ".csv":
         return read_csv(path, config, joint_limits=joint_limits, require_all=require_all, bad_rows=bad_rows)
     raise DataError(
-        f"{path}: unknown data format: expected a .csv (docs/design.md §4), a candump log (.log) "
-        "or a dynid dataset (.npz)"
+        f"{path}: unknown data format: expected a .csv (docs/design.md §4), a candump log (.log), a ROS 2 bag "
+        "(a folder with metadata.yaml, .mcap or .db3), a YARP dumper folder or a dynid dataset (.npz)"
     )
 
 
