@@ -52,6 +52,9 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
         + (f"\n  skipped {skipped} malformed line{'s' * (skipped != 1)} of the candump log" if skipped else "")
     )
     bad = skipped_rows(args.data, dataset.meta) if fresh else None
+    ros2 = dataset.meta.get("ros2") if fresh else None
+    if ros2:  # how the samples were formed (dynid.io.rosbag)
+        print_ros2(ros2)
     yarp = dataset.meta.get("yarp")
     if yarp:  # what aligning the ports did (dynid.io.yarp)
         print(f"  yarp ports on one {yarp['rate_hz']:g} Hz time base (time 0 = Unix {yarp['origin_unix_s']:.3f} s):")
@@ -70,7 +73,28 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
         **({"bad_rows": bad} if bad is not None else {}),
         "out": args.out,
         **({"yarp": dataset.meta["yarp"]} if "yarp" in dataset.meta else {}),
+        **({"ros2": ros2} if ros2 else {}),
     }
+
+
+def print_ros2(info: dict[str, Any]) -> None:
+    """How a bag's samples were formed: the clock, the wrenches' alignment, what was left out."""
+    clock = info["clock"]
+    if clock == "grid":
+        print(f"  ROS 2 bag ({info['storage']}): every topic on one {info['rate_hz']:g} Hz grid (time 0 = "
+              f"{info['origin_s']:.6f} s)")
+    else:
+        out = info["outside_wrench_span"]
+        align = (f"; wrenches {info['wrench_alignment']} within {info['wrench_tolerance_s']:g} s"
+                 if info["wrench_alignment"] else "")
+        left = (f"; {out['before']} joint states before and {out['after']} after the wrenches left out"
+                if out["before"] or out["after"] else "")
+        print(f"  ROS 2 bag ({info['storage']}): {clock} is the sample clock{align}{left}")
+    for topic, t in info["topics"].items():
+        notes = [f"{t[k]} {what}" for k, what in (("other_publishers", "of other publishers left out"),
+                                                  ("dropped_not_increasing", "dropped (stamp not increasing)"))
+                 if t.get(k)]
+        print(f"    {topic}: {t['messages']} messages" + (f", {', '.join(notes)}" if notes else ""))
 
 
 def cmd_structure(args: argparse.Namespace) -> dict[str, Any]:

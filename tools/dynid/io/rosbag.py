@@ -86,7 +86,16 @@ def read_bag(path: str | Path, config: RobotConfig, joint_limits: Mapping[str, t
     else:
         names, data, rows, info = _on_grid(path, spec, config, topics, firsts)
         label = _sample_label
-    columns = check_columns(names, config, require_all=require_all, source=str(path))
+    try:
+        columns = check_columns(names, config, require_all=require_all, source=str(path))
+    except DataError as e:
+        empty = [f for f in ("velocity", "effort") if getattr(spec, f) != IGNORE
+                 and not any(n.startswith(f"{getattr(spec, f)}.") for n in names)]
+        if not empty:
+            raise
+        raise DataError(f"{e} (the messages of {', '.join(spec.joint_states)} carry no {' and no '.join(empty)}, "
+                        f"which the configuration's ros2 field maps to {', '.join(getattr(spec, f) for f in empty)})"
+                        ) from None
     dataset = table_dataset(path, b"", names, columns, data, config, joint_limits, "ros2 bag", label,
                             table=_Rows(data, rows), bad_rows=bad_rows)
     dataset.meta["source_sha256"] = bag_digest(path)
@@ -284,19 +293,18 @@ def _joint_values(path: Path, spec: Ros2Topics, config: RobotConfig, topic: _Top
     n_names = [len(n) for n in topic.names]
     index = {j: i for i, j in enumerate(config.joints)}
     columns = _joint_columns(spec, config, joints)
-    blocks = []
+    blocks, names = [], []
     for name in ("position", "velocity", "effort"):
         wanted = [c for f, c in columns if f == name]
         if not wanted:
             continue
         ids = np.array([index[c.split(".", 1)[1]] if name != "effort" or spec.effort not in ("current", "pwm")
                         else index[_joint_of_motor(spec, c.split(".", 1)[1])] for c in wanted])
-        values = _field(getattr(topic, name), keep, slots, n_names, ids)
-        if name != "position" and np.isnan(values).all():
-            raise DataError(f"{path}: the messages of {topic.name} carry no {name} (empty arrays), but the "
-                            f"configuration's ros2.{name} is '{getattr(spec, name)}'")
-        blocks.append(values)
-    return [c for _, c in columns], np.hstack(blocks), keep, len(slots) - len(keep)
+        if name != "position" and not any(topic.__dict__[name][k].size for k in keep):
+            continue  # the publisher fills no velocity (effort): the columns are absent, as in a CSV without them
+        blocks.append(_field(getattr(topic, name), keep, slots, n_names, ids))
+        names += wanted
+    return names, np.hstack(blocks), keep, len(slots) - len(keep)
 
 
 def _joint_of_motor(spec: Ros2Topics, motor: str) -> str:
