@@ -104,8 +104,9 @@ def cmd_structure(args: argparse.Namespace) -> dict[str, Any]:
         data = load_data(Path(args.data), config, joint_limits=model.joint_limits, bad_rows=bad_rows(args))
         sig = signals_from_dataset(model, apply_window(data, *window(args), source=args.data))
         source = args.data
-        skipped_rows(args.data, data.meta)
+        skipped = skipped_rows(args.data, data.meta)
     else:
+        skipped = None
         sig = exciting_signals(model, args.samples, args.seed)
         source = f"{args.samples} random states within the joint limits (seed {args.seed})"
     bp = data_base_parameters(model, sig, min_speed=args.min_speed)
@@ -141,6 +142,7 @@ def cmd_structure(args: argparse.Namespace) -> dict[str, Any]:
         "unidentifiable": list(bp.unidentifiable),
         "base_parameters": bp.combinations(),
         "singular_values": bp.singular_values,
+        **({"bad_rows": skipped} if skipped is not None else {}),
     }
 
 

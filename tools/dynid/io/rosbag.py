@@ -332,9 +332,8 @@ def _on_joint_state_clock(path: Path, spec: Ros2Topics, config: RobotConfig, top
         info_topics[w.topic] = {"type": WRENCH, "messages": len(topics[w.topic].ns), "dropped_not_increasing": dropped}
     if not inside.any():
         raise DataError(f"{path}: no joint state of {clock.name} falls inside the time span of every wrench topic")
-    before, after = int(np.argmax(inside)), int(np.argmax(inside[::-1]))
-    if not inside[before: t.size - after].all():  # a wrench topic starts late and ends early only
-        raise DataError(f"{path}: the joint states of {clock.name} and the wrench topics share no single time span")
+    lo = max((s.stamps[0] for s in streams.values()), default=-np.inf)
+    before, after = int((t < lo).sum()), int((~inside).sum() - (t < lo).sum())
     t, values, rows = t[inside], values[inside], rows[inside]
     for w in spec.wrenches:
         wrench_columns.append(_wrench_at(path, spec, streams[w.sensor], t))
@@ -353,6 +352,9 @@ def _wrench_stream(path: Path, topic: _Topic, frame: str) -> tuple[Stream, int]:
             raise DataError(f"{path}: a wrench of {topic.name} is in frame '{wrong}', the configuration's is '{frame}'")
     stamps = np.asarray(topic.stamps)
     keep = keep_increasing(stamps)
+    if keep.sum() < 2:
+        raise DataError(f"{path}: topic {topic.name} has {int(keep.sum())} message(s) with increasing stamps: a wrench "
+                        "needs at least two to be taken at the joint states' times")
     return Stream(topic.name, stamps[keep], np.asarray(topic.wrench, dtype=float)[keep]), int((~keep).sum())
 
 
