@@ -92,7 +92,7 @@ CSV = [
     _csv("minus-inf-time", "column t is -inf", csv(cell("t", 30, "-inf"))),
     _csv("overflowing-cell", "column ft.r_arm_ft.fx is inf", csv(cell("ft.r_arm_ft.fx", 40, "1e999"))),
     # A finite 1e308 N: the fit's Gram overflowed (a traceback), validate printed inf (found by this sweep).
-    _csv("absurd-value", "ft.r_arm_ft.fx is 1e+308 at row 41: beyond ±1e+06", csv(cell("ft.r_arm_ft.fx", 40, "1e308"))),
+    _csv("absurd-value", "ft.r_arm_ft.fx is 1e+308 at row 41 (line 42): beyond ±1e+06", csv(cell("ft.r_arm_ft.fx", 40, "1e308"))),
     _csv("short-row", "has 20 fields, but the header has 21 columns", csv_text(lambda b: b[: b.rstrip().rfind(b",")] + b"\n")),
     _csv("extra-field", "row 51 (line 52) has 22 fields", csv(cell("contact", 50, "0,1"))),
     _csv("blank-line", "blank lines between data rows are not allowed", csv_text(lambda b: b.replace(b"\n", b"\n\n", 5))),

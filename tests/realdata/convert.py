@@ -141,6 +141,10 @@ def convert_tiago(source: str | Path = REALDATA / "tiago_wrist_ft", run: str = "
         raise ValueError(f"{folder}: tiago_wrist_ft.csv has columns {sorted(ft)}, expected {ft_names}")
     wrench = np.column_stack([ft[n] for n in ft_names])
 
+    # PAL's t is a difference of float64 Unix seconds: multiples of 2^-22 s (0.24 µs), none a whole nanosecond. ROS
+    # time is whole nanoseconds, so t is rounded to the nanosecond (a change under 0.12 µs): the run is then the same
+    # float64 samples as a CSV and as a ROS 2 bag (to_bag.py), which the bag tests assert bit for bit.
+    t = np.round(t * 1e9) / 1e9
     keep, note = keep_increasing(t)
     velocity, effort = columns["velocity"][1], columns["effort"][1]
     dataset = Dataset(
@@ -163,6 +167,7 @@ def convert_tiago(source: str | Path = REALDATA / "tiago_wrist_ft", run: str = "
                 note,
                 "velocity_filtered.<joint> is PAL's v[n] = 0.95 v[n-1] + 0.05 dq/dt: it lags q, so it is not dq",
                 "effort.<joint> are raw controller units, not torques",
+                "t is rounded to the nanosecond (PAL's float seconds step by 2^-22 s)",
                 "the F/T sensor is not tared (Fz about -69 N at rest)",
             ],
         },

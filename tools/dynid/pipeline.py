@@ -101,8 +101,8 @@ def build_model(model: RobotModel, phi: np.ndarray, datasets: Sequence[Dataset],
     if tracking is not None or "supply_tracking" in record:
         record["supply_tracking"] = tracking.as_dict() if tracking is not None else None
     record.setdefault("derivatives", derivatives_record(model))
-    record["data"] = [data_record(p, ds.n_samples, ds.duration, ds.meta.get("payload"))
-                      for p, ds in zip(data_paths, datasets)]
+    record["data"] = [data_record(p, ds.n_samples, ds.duration, ds.meta.get("payload"), ds.meta.get("window"),
+                                  ds.meta.get("bad_rows")) for p, ds in zip(data_paths, datasets)]
     identified = IdentifiedModel(robot or robot_record(model.config), dict(zip(model.layout.names, phi.tolist())),
                                  record)
     return Built(identified, detectors)

@@ -172,7 +172,7 @@ def test_a_fit_on_a_dumper_folder_is_recorded_and_export_finds_it_again(tmp_path
     identified = SimpleNamespace(record={"data": [record]}, path="model.json")
     model = RobotModel(config)
     # the synthetic wrist leaves the URDF's limits, which the reader holds real data to: read without them here
-    monkeypatch.setattr(model_export, "load_run", lambda path, robot: load_data(path, robot.config))
+    monkeypatch.setattr(model_export, "load_run", lambda path, robot, *_, **__: load_data(path, robot.config))
     runs, digests = calibration_data(identified, model, [])
     assert digests == record["sha256"] and runs[0].meta["source_format"] == "yarp dumper"
     log = root / "icub/right_arm/analog:o/data.log"

@@ -19,7 +19,7 @@ from ..config.robot_config import bundled_configs
 from ..errors import EXIT_BAD_INPUT, InputError
 from ..version import __version__
 from .commands import COMMANDS
-from .common import Parser, check_outputs, write_json
+from .common import Parser, check_outputs, split_data_windows, write_json
 
 __all__ = ["build_parser", "main"]
 
@@ -58,6 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     # With --json -, stdout carries the JSON alone: the human report goes to stderr.
     human = contextlib.redirect_stdout(sys.stderr) if json_target == "-" else contextlib.nullcontext()
     try:
+        split_data_windows(args)
         check_outputs(args)
         with human:
             result = args.func(args)

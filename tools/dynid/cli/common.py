@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -15,6 +16,8 @@ import numpy as np
 
 from ..config.robot_config import DEFAULT_ROBOT
 from ..errors import EXIT_BAD_INPUT, InputError
+from ..io.bad_rows import DEFAULT_POLICY, KINDS
+from ..io.bad_rows import POLICIES as BAD_ROW_POLICIES
 from ..io.dataset import atomic_write
 from ..robot.regressors.stack import DEFAULT_MIN_SPEED
 
@@ -196,14 +199,76 @@ def finite_float(text: str) -> float:
 
 
 def window_args(sp: argparse.ArgumentParser) -> None:
-    """--from S --to S: a time window of the data, in its own seconds (docs/design.md §7)."""
+    """--from S --to S: a time window of the data, in its own seconds, for every --data without a window of its own
+    (--data RUN@FROM:TO); --bad-rows: what to do with a log's bad rows (docs/design.md §7)."""
     sp.add_argument("--from", dest="t_from", type=finite_float, metavar="S",
-                    help="use the data from this time on (the data's own seconds, as in its t column)")
+                    help="use the data from this time on (the data's own seconds, as in its t column); applies to "
+                    "every --data that gives no window of its own: --data RUN@FROM:TO (either may be left out, e.g. "
+                    "RUN@12.5: or RUN@:80) cuts that run alone")
     sp.add_argument("--to", dest="t_to", type=finite_float, metavar="S", help="use the data up to this time (s)")
+    sp.add_argument("--bad-rows", choices=BAD_ROW_POLICIES, default=DEFAULT_POLICY,
+                    help="a log's bad rows (cut short, wrong field count, not a number, non-finite, beyond ±1e6, "
+                    "time negative or not increasing): refuse the run naming them (default), or skip them and "
+                    "report how many were dropped (in the output, --json and the model file)")
 
 
-def window(args: argparse.Namespace) -> tuple[float | None, float | None]:
+Window = tuple[float | None, float | None]
+# --data RUN@FROM:TO: a window of one run; FROM or TO may be empty (from the start, to the end).
+_RUN_WINDOW = re.compile(r"^(?P<path>.+)@(?P<start>[^:@]*):(?P<stop>[^:@]*)$")
+
+
+def split_data_window(text: str) -> tuple[str, Window | None]:
+    """`--data RUN@FROM:TO` as (RUN, (FROM, TO)); a path that exists as given, '@' and all, is a path."""
+    match = _RUN_WINDOW.match(text)
+    if match is None or os.path.exists(text):
+        return text, None
+    bounds: list[float | None] = []
+    for part in (match["start"], match["stop"]):
+        if not part.strip():
+            bounds.append(None)
+            continue
+        try:
+            bounds.append(finite_float(part))
+        except argparse.ArgumentTypeError as e:
+            raise InputError(f"--data {text}: the window @FROM:TO is in seconds; {part!r}: {e}") from None
+    if bounds == [None, None]:
+        raise InputError(f"--data {text}: the window @FROM:TO names neither FROM nor TO (leave out '@:' for the "
+                         "whole run)")
+    return match["path"], (bounds[0], bounds[1])
+
+
+def split_data_windows(args: argparse.Namespace) -> None:
+    """Turn every `--data RUN@FROM:TO` of a command that takes windows into its path, the windows kept aside in
+    `args.data_windows` (one per --data, None where the run gives none). Runs once, before any work."""
+    given = getattr(args, "data", None)
+    if not hasattr(args, "t_from") or not given:
+        return
+    split = [split_data_window(text) for text in (given if isinstance(given, list) else [given])]
+    args.data = [path for path, _ in split] if isinstance(given, list) else split[0][0]
+    args.data_windows = [own for _, own in split]
+
+
+def window(args: argparse.Namespace, run: int = 0) -> Window:
+    """The window of the `run`-th --data: its own (RUN@FROM:TO), else --from/--to."""
+    own = getattr(args, "data_windows", [])
+    if run < len(own) and own[run] is not None:
+        return own[run]
     return (getattr(args, "t_from", None), getattr(args, "t_to", None))
+
+
+def bad_rows(args: argparse.Namespace) -> str:
+    return getattr(args, "bad_rows", DEFAULT_POLICY)
+
+
+def skipped_rows(label: str, meta: dict[str, Any]) -> dict[str, Any] | None:
+    """Print what `--bad-rows skip` dropped from a run, and return it for --json (None when nothing was)."""
+    dropped = meta.get("bad_rows")
+    if not dropped:
+        return None
+    kinds = ", ".join(f"{n} {KINDS[k]}" for k, n in dropped["kinds"].items())
+    print(f"  {label}: skipped {plural(dropped['count'], 'bad row')} of {dropped['rows_read']} ({kinds}; first at "
+          f"{', '.join(dropped['first'])})")
+    return dropped
 
 
 def payload(text: str) -> dict[str, Any] | None:

@@ -19,7 +19,8 @@ from ..simulation.controller import GivenTrajectory
 from ..simulation.effects import CATALOG, catalog_text
 from ..simulation.output import write_simulation
 from .commands import COMMANDS
-from .common import int_in, json_arg, min_speed_arg, positive_float, robot_arg, seed, window, window_args
+from .common import (bad_rows, int_in, json_arg, min_speed_arg, positive_float, robot_arg, seed, skipped_rows, window,
+                     window_args)
 
 
 # `structure --samples`: 2000 random states give the structural rank; 10⁵ take about 0.7 GB, 10¹² ended in a
@@ -30,12 +31,13 @@ MAX_STATES = 100_000
 def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
     config = load_config(args.robot, args.urdf)
     model = RobotModel(config)
-    dataset = apply_window(load_data(Path(args.data), config, joint_limits=model.joint_limits), *window(args),
-                           source=args.data)
+    dataset = apply_window(load_data(Path(args.data), config, joint_limits=model.joint_limits,
+                                     bad_rows=bad_rows(args)), *window(args), source=args.data)
     dataset.meta.setdefault("robot", config.name)
     dataset.meta.setdefault("config_digest", config.digest)
     dataset.save(Path(args.out))
     skipped = int(dataset.meta.get("skipped_lines", 0)) if dataset.meta.get("source") == str(Path(args.data)) else 0
+    fresh = dataset.meta.get("source") == str(Path(args.data))  # not a dataset file's record of an earlier import
     channels = (
         [f"q.{j}" for j in dataset.joints]
         + [f"pwm.{m}" for m in dataset.pwm]
@@ -49,6 +51,10 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
         + ("" if dataset.dq is not None else "\n  no dq/ddq columns: derivatives will be estimated from q when needed")
         + (f"\n  skipped {skipped} malformed line{'s' * (skipped != 1)} of the candump log" if skipped else "")
     )
+    bad = skipped_rows(args.data, dataset.meta) if fresh else None
+    ros2 = dataset.meta.get("ros2") if fresh else None
+    if ros2:  # how the samples were formed (dynid.io.rosbag)
+        print_ros2(ros2)
     yarp = dataset.meta.get("yarp")
     if yarp:  # what aligning the ports did (dynid.io.yarp)
         print(f"  yarp ports on one {yarp['rate_hz']:g} Hz time base (time 0 = Unix {yarp['origin_unix_s']:.3f} s):")
@@ -64,19 +70,43 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
         "has_derivatives": dataset.dq is not None,
         "contact": dataset.contact is not None,
         "skipped_lines": skipped,
+        **({"bad_rows": bad} if bad is not None else {}),
         "out": args.out,
         **({"yarp": dataset.meta["yarp"]} if "yarp" in dataset.meta else {}),
+        **({"ros2": ros2} if ros2 else {}),
     }
+
+
+def print_ros2(info: dict[str, Any]) -> None:
+    """How a bag's samples were formed: the clock, the wrenches' alignment, what was left out."""
+    clock = info["clock"]
+    if clock == "grid":
+        print(f"  ROS 2 bag ({info['storage']}): every topic on one {info['rate_hz']:g} Hz grid (time 0 = "
+              f"{info['origin_s']:.6f} s)")
+    else:
+        out = info["outside_wrench_span"]
+        align = (f"; wrenches {info['wrench_alignment']} within {info['wrench_tolerance_s']:g} s"
+                 if info["wrench_alignment"] else "")
+        left = (f"; {out['before']} joint states before and {out['after']} after the wrenches left out"
+                if out["before"] or out["after"] else "")
+        print(f"  ROS 2 bag ({info['storage']}): {clock} is the sample clock{align}{left}")
+    for topic, t in info["topics"].items():
+        notes = [f"{t[k]} {what}" for k, what in (("other_publishers", "of other publishers left out"),
+                                                  ("dropped_not_increasing", "dropped (stamp not increasing)"))
+                 if t.get(k)]
+        print(f"    {topic}: {t['messages']} messages" + (f", {', '.join(notes)}" if notes else ""))
 
 
 def cmd_structure(args: argparse.Namespace) -> dict[str, Any]:
     config = load_config(args.robot, args.urdf)
     model = RobotModel(config)
     if args.data:
-        data = load_data(Path(args.data), config, joint_limits=model.joint_limits)
+        data = load_data(Path(args.data), config, joint_limits=model.joint_limits, bad_rows=bad_rows(args))
         sig = signals_from_dataset(model, apply_window(data, *window(args), source=args.data))
         source = args.data
+        skipped = skipped_rows(args.data, data.meta)
     else:
+        skipped = None
         sig = exciting_signals(model, args.samples, args.seed)
         source = f"{args.samples} random states within the joint limits (seed {args.seed})"
     bp = data_base_parameters(model, sig, min_speed=args.min_speed)
@@ -112,6 +142,7 @@ def cmd_structure(args: argparse.Namespace) -> dict[str, Any]:
         "unidentifiable": list(bp.unidentifiable),
         "base_parameters": bp.combinations(),
         "singular_values": bp.singular_values,
+        **({"bad_rows": skipped} if skipped is not None else {}),
     }
 
 
@@ -193,7 +224,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         description="Read an experiment (CSV as in docs/design.md §4, or a dataset file), check every "
                         "column against the robot configuration, and write the dataset file (.npz).")
     robot_arg(sp)
-    sp.add_argument("--data", required=True, metavar="DATA", help="the experiment: a .csv or a .npz dataset")
+    sp.add_argument("--data", required=True, metavar="DATA",
+                    help="the experiment: a .csv (with a header, or one the configuration's 'columns' describe), a "
+                    "candump log, a ROS 2 bag (MCAP or SQLite), a YARP dumper folder or a .npz dataset; RUN@FROM:TO "
+                    "for a window")
     window_args(sp)
     sp.add_argument("--out", required=True, metavar="DATASET", help="the dataset file to write (.npz, atomically)")
     json_arg(sp)

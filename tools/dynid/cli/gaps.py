@@ -14,22 +14,25 @@ from ..identify.validation import load_run
 from ..robot.model import RobotModel
 from ..pipeline import check_scale
 from .commands import COMMANDS
-from .common import json_arg, plural, robot_arg, window, window_args
+from .common import bad_rows, json_arg, plural, robot_arg, skipped_rows, window, window_args
 
 
 def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
     identified = load_model(args.model) if args.model else None
     config = identified.config if identified is not None else load_config(args.robot, args.urdf)
     model = RobotModel(config)
-    ds = load_run(args.data, model, window(args))
+    ds = load_run(args.data, model, window(args), bad_rows=bad_rows(args))
     check_scale(model, [ds], payload_possible=False)  # the workflow refits the standard model on these data alone
     if identified is not None and identified.effects:  # before minutes of work
         raise InputError(f"{args.model} is already an augmented model (it names effects); give the standard "
                          "model it came from")
     tracking = not args.no_supply_tracking and bool(config.motors_with_input("pwm"))  # a PWM's supply drifts
+    skipped = skipped_rows(args.data, ds.meta)
     found = find_gaps(model, ds, args.data, identified, supply_tracking=tracking, log=print,
                       keep_tentative=args.keep_tentative)
     result = found.result
+    if skipped is not None:
+        result["bad_rows"] = skipped
     print(format_report(result))
     if args.out:
         found.augmented_model().save(args.out)

@@ -25,8 +25,8 @@ from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from .commands import COMMANDS
 from .common import confidence as alpha
-from .common import (finite_float, json_arg, min_speed_arg, non_negative_float, payload_arg, payloads, plural,
-                     positive_float, positive_int, robot_arg, window, window_args)
+from .common import (bad_rows, finite_float, json_arg, min_speed_arg, non_negative_float, payload_arg, payloads,
+                     plural, positive_float, positive_int, robot_arg, skipped_rows, window, window_args)
 
 INPUT_WORD = {"pwm": "PWM", "current": "current", "tau": "joint torque"}
 GAIN_UNIT = {"pwm": "Nm per unit duty", "current": "Nm per A"}
@@ -40,7 +40,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
                          "--consistent on (or pseudo-inertia)")
     config = load_config(args.robot, args.urdf)
     model = RobotModel(config)
-    datasets = [load_run(p, model, window(args), w) for p, w in zip(args.data, payloads(args, len(args.data)))]
+    datasets = [load_run(p, model, window(args, i), w, bad_rows(args))
+                for i, (p, w) in enumerate(zip(args.data, payloads(args, len(args.data))))]
     settings = FitSettings(estimator=args.estimator, n_components=args.n_components, min_speed=args.min_speed,
                            blocks=args.blocks, consistent=args.consistent != "off",
                            cad_pull=args.cad_pull == "cv", consistent_sphere=args.consistent != PSEUDO_INERTIA_ONLY)
@@ -57,6 +58,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
 
     print(f"fitted {config.name} on {result.samples} samples in {elapsed:.1f} s ({elapsed_fit:.1f} s the regression) "
           f"-> {args.out}")
+    skipped = {p: s for p, ds in zip(args.data, datasets) if (s := skipped_rows(p, ds.meta)) is not None}
     print(f"  base parameters: rank {base.rank} of {len(model.layout)}; {int(result.identified.sum())} determined to "
           f"10 % or better; PLS ν = {result.cv['n_components']} "
           + (f"(cross-validated on {result.statistics.n_blocks} time blocks)" if args.n_components is None else
@@ -143,7 +145,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
             "estimators": record["estimators"],
             "base": record["base"], "residual_rms": dict(zip(record["outputs"]["channels"], rms.tolist())),
             "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed,
-            "plausibility": warnings, "consistent": result.consistent, "borderline": edges}
+            "plausibility": warnings, "consistent": result.consistent, "borderline": edges,
+            **({"bad_rows": skipped} if skipped else {})}
 
 
 def print_consistent(done: dict[str, Any] | None) -> None:
@@ -175,9 +178,11 @@ def input_words(config: RobotConfig) -> list[str]:
 
 
 def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
-    ev = evaluate(args.model, args.data, window=window(args), payload=args.payload)
+    ev = evaluate(args.model, args.data, window=window(args), payload=args.payload, bad_rows=bad_rows(args))
     result = validation(ev, args.model, args.data)
     print(f"validation of {args.model} on {args.data} ({result['samples']} samples)")
+    if (skipped := skipped_rows(args.data, ev.dataset.meta)) is not None:
+        result["bad_rows"] = skipped
     paper = ev.config.name == PAPER_ROBOT  # the paper's figures describe its arm only
     tables = result.get("table_ii_sensors", {})
     if tables:
@@ -224,7 +229,7 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
     labels = read_episodes(args.episodes) if args.episodes else None  # a bad file: exit 2 before any work
     if labels is not None:
         check_widening(labels, args.label_widening, args.episodes)
-    ev = evaluate(args.model, args.data, window=window(args), payload=args.payload)
+    ev = evaluate(args.model, args.data, window=window(args), payload=args.payload, bad_rows=bad_rows(args))
     if labels is not None:
         episodes_in_data(ev.dataset.t, labels, args.episodes)
         ds = replace(ev.dataset, contact=episodes_mask(ev.dataset.t, labels))
@@ -256,6 +261,8 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
     if skipped:
         found.result["momentum_skipped"] = skipped
     print(f"T² contact detection with {args.model} on {args.data} ({ev.dataset.n_samples} samples), α = {args.alpha}")
+    if (skipped_bad := skipped_rows(args.data, ev.dataset.meta)) is not None:
+        found.result["bad_rows"] = skipped_bad
     if labels is not None:
         print(f"  contact labels: {args.episodes} ({plural(len(labels), 'episode')}, "
               f"{found.result['episodes_file']['in_data']} in the data)"
@@ -305,7 +312,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         "then calibrate the T² contact detector on the same data. Writes MODEL (JSON).")
     robot_arg(sp)
     sp.add_argument("--data", action="append", required=True, metavar="DATA",
-                    help="an experiment (dataset, CSV, candump log or a `dynid simulate` directory); repeatable")
+                    help="an experiment (dataset, CSV, candump log, ROS 2 bag, YARP folder or a `dynid simulate` "
+                    "directory), RUN@FROM:TO for a window of its own; repeatable")
     sp.add_argument("--out", required=True, metavar="MODEL", help="the model file to write")
     window_args(sp)
     payload_arg(sp, repeatable=True)

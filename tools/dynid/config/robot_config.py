@@ -22,6 +22,7 @@ import yaml
 from ..errors import ConfigError
 from .fields import Fields, as_float
 from .log_columns import LogColumn, parse_columns
+from .ros2_topics import Ros2Topics, parse_ros2
 from .yarp_ports import YarpLayout, parse_yarp
 
 DEFAULT_ROBOT = "icub_right_arm"
@@ -137,6 +138,8 @@ class RobotConfig:
     payload_frame: str = ""
     # A yarpdatadumper folder: which port holds which joints and sensors (config/yarp_ports.py).
     yarp: YarpLayout | None = None
+    # A ROS 2 bag: which topics hold which joints and sensors (config/ros2_topics.py).
+    ros2: Ros2Topics | None = None
     # Gravity per sample for a base that tilts: the URDF frame of an accelerometer fixed to the base and its three
     # data columns (m/s², the specific force it measures: −g at rest); "" = the constant `gravity`.
     gravity_imu: str = ""
@@ -280,7 +283,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     name = root.string("name")
     f = Fields(name, "", data).only(
         "name", "urdf", "base_link", "gravity", "joints", "ft_sensors", "motors", "actuation", "noise", "can",
-        "derivatives", "columns", "payload_frame", "yarp", "limits",
+        "derivatives", "columns", "payload_frame", "yarp", "ros2", "limits",
     )
 
     joints = f.strings("joints")
@@ -404,8 +407,26 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         columns=parse_columns(name, f.raw("columns", None)),
         payload_frame=f.string("payload_frame") if f.has("payload_frame") else "",
         yarp=parse_yarp(name, f.raw("yarp", None), joints, tuple(s.name for s in sensors)),
+        ros2=parse_ros2(name, f.raw("ros2", None), joints, tuple(s.name for s in sensors), _motor_of(groups)),
         limits=_limits(f, joints),
     )
+
+
+def _motor_of(groups: list[ActuationGroup]) -> dict[str, dict[str, str] | None]:
+    """Per motor input (current, pwm): joint -> the motor that drives it alone, or None where a group of that input
+    is coupled (a motor's input is then no joint's effort)."""
+    out: dict[str, dict[str, str] | None] = {}
+    for kind in ("current", "pwm"):
+        of: dict[str, str] | None = {}
+        for g in groups:
+            if g.input != kind:
+                continue
+            if len(g.motors) != len(g.joints) or not np.array_equal(g.coupling, np.eye(len(g.joints))):
+                of = None
+                break
+            of.update(zip(g.joints, g.motors))
+        out[kind] = of if of else None
+    return out
 
 
 def _limits(f: Fields, joints: tuple[str, ...]) -> MotionLimits:

@@ -176,6 +176,7 @@ def contact_events(model: RobotModel, det: MomentumDetector, res: MomentumResidu
 
 def calibration_runs(identified, paths: Sequence[str] | None, window=(None, None)) -> tuple[list, list[str]]:
     """The contact-free runs to calibrate on: `paths` (cut to `window`), or the runs the model was fitted on."""
+    from ..identify.model_file import run_options
     from ..identify.validation import load_run
 
     model = identified.robot_model
@@ -189,9 +190,12 @@ def calibration_runs(identified, paths: Sequence[str] | None, window=(None, None
     runs = []
     records = {} if given else {d["path"]: d for d in identified.record.get("data", [])}
     for p in paths:
-        ds = load_run(str(p), model, window, records.get(p, {}).get("payload"))  # a payload the fit was told of
-        fitted = records.get(p, {}).get("samples")
-        if fitted is not None and window == (None, None) and fitted != ds.n_samples:  # a window the file does not name
+        entry = records.get(p, {})
+        own, policy = run_options(entry) if entry else ((None, None), "refuse")  # the fit's window and --bad-rows
+        run_window = window if window != (None, None) else own
+        ds = load_run(str(p), model, run_window, entry.get("payload"), policy)  # a payload the fit was told of
+        fitted = entry.get("samples")
+        if fitted is not None and run_window == (None, None) and fitted != ds.n_samples:  # a window the file does not name
             raise DataError(f"{identified.path} was fitted on {fitted} of the {ds.n_samples} samples of {p} (a --from/--to "
                             "window); give the contact-free runs to calibrate the momentum detector with --calibration "
                             "DATA --calibration-from S --calibration-to S")

@@ -18,7 +18,7 @@ from ..detect.momentum_t2 import MomentumDetector, calibrate_momentum
 from ..detect.online import FixedLagSavitzkyGolay, OnlineCalibration, calibrate_online, estimator_for
 from ..detect.t2 import f_threshold
 from ..errors import DataError
-from ..identify.model_file import IdentifiedModel, data_digest, file_digest
+from ..identify.model_file import IdentifiedModel, data_digest, file_digest, run_options
 from ..identify.supply import SupplyTracking
 from ..identify.validation import load_run
 from ..io.dataset import Dataset
@@ -84,12 +84,15 @@ class Exported:
 
 def calibration_data(identified: IdentifiedModel, model: RobotModel, data: Sequence[str]) -> tuple[list[Dataset], str]:
     """The contact-free data Λ and T²_α come from: `data`, else what the model was fitted on (checked by sha256)."""
+    options: list[tuple[tuple[float | None, float | None], str]] = []
     if data:
         paths = list(data)
         digests = [data_digest(p) for p in paths]
         missing = next((p for p, d in zip(paths, digests) if d is None), None)
         if missing is not None:
-            raise DataError(f"{missing}: no such data (a file, a `dynid simulate` directory or a yarpdatadumper folder)")
+            raise DataError(f"{missing}: no such data (a file, a `dynid simulate` directory, a yarpdatadumper folder "
+                            "or a ROS 2 bag)")
+        options = [((None, None), "refuse")] * len(paths)
     else:
         record = identified.record.get("data") or []
         if not record:
@@ -106,7 +109,9 @@ def calibration_data(identified: IdentifiedModel, model: RobotModel, data: Seque
                 raise DataError(f"the identification data {entry['path']} changed since the fit (sha256); pass --data")
             paths.append(entry["path"])
             digests.append(digest)
-    return [load_run(p, model) for p in paths], ",".join(str(d) for d in digests)
+            options.append(run_options(entry))  # the fit's --from/--to and --bad-rows skip, if it had them
+    runs = [load_run(p, model, window, bad_rows=policy) for p, (window, policy) in zip(paths, options)]
+    return runs, ",".join(str(d) for d in digests)
 
 
 def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportSettings = ExportSettings()) -> Exported:

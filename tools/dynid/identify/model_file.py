@@ -22,7 +22,7 @@ JSON (``format: dynid-model``, ``format_version: 1``), written atomically:
     outputs           {channels, units, noise_std, residual_variance}: Λ, per output channel, on the
                       identification data (rows at rest left out)
     derivatives       the offline derivative estimator (the configuration's)
-    data              [{path, sha256, samples, duration_s}]: what it was fitted on
+    data              [{path, sha256, samples, duration_s, payload?, window?, bad_rows?}]: what it was fitted on
     detector          calibration for T² (added by the fit; see dynid.detect.t2)
     effects           (format_version 2, written by `dynid gaps --out`) the named missing effects, refitted with
                       the standard parts (dynid.robot.effects); `gaps` what the refit was made on and its gap
@@ -233,14 +233,17 @@ def _check_sections(data: dict[str, Any], path: Path) -> None:
 
 
 def data_digest(path: str | Path) -> str | None:
-    """sha256 of the data behind a DATA argument: a file's bytes, a `dynid simulate` directory's dataset, or a
-    yarpdatadumper folder's `data.log` files (each with its path in the folder, in sorted order); None where there
-    are no such data."""
+    """sha256 of the data behind a DATA argument: a file's bytes, a `dynid simulate` directory's dataset, a ROS 2
+    bag folder's files (dynid.io.rosbag.bag_digest), or a yarpdatadumper folder's `data.log` files (each with its
+    path in the folder, in sorted order); None where there are no such data."""
+    from ..io.rosbag import bag_digest, is_bag
     from ..io.yarp import is_dumper_folder
 
     p = Path(path)
     if p.is_file():
         return file_digest(p)
+    if is_bag(p):
+        return bag_digest(p)
     if (p / SIMULATION_DATASET).is_file():
         return file_digest(p / SIMULATION_DATASET)
     if is_dumper_folder(p):
@@ -252,16 +255,28 @@ def data_digest(path: str | Path) -> str | None:
 
 
 def data_record(path: str | Path, samples: int, duration_s: float,
-                payload: dict[str, Any] | None = None) -> dict[str, Any]:
+                payload: dict[str, Any] | None = None, window: list[float | None] | None = None,
+                bad_rows: dict[str, Any] | None = None) -> dict[str, Any]:
     """What a model file says of the data it was fitted on (export checks the sha256 before reusing them), with the
-    known payload the run carried. Data that never was a file (a `Dataset` built in Python) has no path to resolve
-    and no sha256."""
+    known payload the run carried, its --from/--to window and the bad rows `--bad-rows skip` dropped (so a reload
+    takes the same samples). Data that never was a file (a `Dataset` built in Python) has no path to resolve and
+    no sha256."""
     digest = data_digest(path)
     out = {"path": str(path) if digest is None else str(Path(path).resolve()), "sha256": digest, "samples": samples,
            "duration_s": duration_s}
     if payload:
         out["payload"] = {"mass": float(payload["mass"]), "com": payload.get("com")}
+    if window is not None and any(w is not None for w in window):
+        out["window"] = [None if w is None else float(w) for w in window]
+    if bad_rows:
+        out["bad_rows"] = bad_rows
     return out
+
+
+def run_options(entry: dict[str, Any]) -> tuple[tuple[float | None, float | None], str]:
+    """The window and the bad-rows policy to reload a recorded run with (`data_record`'s window and bad_rows)."""
+    window = entry.get("window") or [None, None]
+    return (window[0], window[1]), "skip" if entry.get("bad_rows") else "refuse"
 
 
 def file_digest(path: str | Path) -> str:

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..config.robot_config import RobotConfig
 from ..errors import DataError
+from ..io.bad_rows import DEFAULT_POLICY
 from ..io.dataset import Dataset
 from ..io.load import apply_window, load_data
 from ..robot.effects import augmented_residuals
@@ -31,10 +32,12 @@ Window = tuple[float | None, float | None]
 
 
 def load_run(path: str, model: RobotModel, window: Window = (None, None),
-             payload: dict[str, Any] | None = None) -> Dataset:
+             payload: dict[str, Any] | None = None, bad_rows: str = DEFAULT_POLICY) -> Dataset:
     """A run of data for `model`, cut to `window` (--from/--to, the data's own seconds), marked with the known
-    `payload` it carries ({mass, com}); data recorded on another robot is refused."""
-    ds = apply_window(load_data(Path(path), model.config, joint_limits=model.joint_limits), *window, source=path)
+    `payload` it carries ({mass, com}), its bad rows refused or skipped (`bad_rows`, dynid.io.bad_rows); data
+    recorded on another robot is refused."""
+    ds = apply_window(load_data(Path(path), model.config, joint_limits=model.joint_limits, bad_rows=bad_rows),
+                      *window, source=path)
     if payload is not None:
         model.payload_parameters(float(payload["mass"]), payload.get("com"))  # the frame exists
         ds.meta["payload"] = payload
@@ -77,11 +80,11 @@ class Evaluated:
 
 def evaluate(model_path: str, data_path: str, identified: IdentifiedModel | None = None,
              dataset: Dataset | None = None, window: Window = (None, None),
-             payload: dict[str, Any] | None = None) -> Evaluated:
+             payload: dict[str, Any] | None = None, bad_rows: str = DEFAULT_POLICY) -> Evaluated:
     """Residuals of the model on the run; `identified` and `dataset` when the caller has loaded them already."""
     identified = identified or load_model(model_path)
     model = identified.robot_model
-    ds = dataset if dataset is not None else load_run(data_path, model, window, payload)
+    ds = dataset if dataset is not None else load_run(data_path, model, window, payload, bad_rows)
     sig = signals_from_dataset(model, ds, filter_outputs=True)
     effects = identified.effects  # an augmented model (`dynid gaps --out`) predicts with its named effects
     if effects:

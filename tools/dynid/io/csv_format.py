@@ -45,6 +45,7 @@ import numpy as np
 
 from ..config.robot_config import RobotConfig
 from ..errors import DataError
+from .bad_rows import DEFAULT_POLICY, Malformed, apply_policy, find_bad_rows
 from .dataset import FT_CHANNELS, Dataset, atomic_write, check_units
 
 JOINT_KINDS: tuple[str, ...] = ("q", "dq", "ddq", "tau")
@@ -239,36 +240,69 @@ def _header(raw: bytes, path: Path) -> list[str]:
     return names
 
 
-def _diagnose(raw: bytes, names: Sequence[str], path: Path, fallback: str) -> DataError:
-    """The first malformed line, found with a slow exact scan (only run after the fast parser failed)."""
-    lines = raw.decode("utf-8-sig", errors="replace").replace("\r\n", "\n").split("\n")
-    last = len(lines)
-    while last > 1 and not lines[last - 1].strip():
-        last -= 1
-    for k in range(1, last):
-        line, where = lines[k], _row(k - 1)
-        if not line.strip():
-            return DataError(f"{path}: line {k + 1} is empty: blank lines between data rows are not allowed")
-        cells = line.split(",")
-        if len(cells) != len(names):
-            return DataError(f"{path}: {where} has {len(cells)} fields, but the header has {len(names)} columns")
-        for name, cell in zip(names, cells, strict=True):
-            if not _NUMBER.fullmatch(cell):
-                shown = cell.strip()
-                shown = shown if len(shown) <= 40 else shown[:37] + "..."
-                return DataError(f"{path}: {where}, column {name}: {shown!r} is not a number")
-    return DataError(f"{path}: cannot read the data rows: {fallback}")
+_NUMBER_BYTES = re.compile(_NUMBER.pattern.encode(), re.IGNORECASE)
 
 
-def _parse(raw: bytes, names: Sequence[str], n_rows: int, path: Path) -> np.ndarray:
-    """All `n_rows` data rows as an (N, columns) float array, with the C parser of numpy (fast)."""
+@dataclass(frozen=True)
+class Table:
+    """Rows of a text table: the ones that parsed, their 0-based row numbers, and the lines that did not."""
+
+    data: np.ndarray  # (N, width) float64
+    rows: np.ndarray  # (N,) 0-based row numbers in the file
+    malformed: list[Malformed]
+    total: int  # rows in the file
+
+
+def parse_table(path: Path, raw: bytes, skip: int, width: int, names: Sequence[str] | None,
+                label: Callable[[int], str], width_is: str) -> Table:
+    """The data rows of a comma-separated file after `skip` header lines, each of `width` cells.
+
+    numpy's C parser reads a clean file at once; a file it refuses is read line by line, and every line that is
+    not `width` decimal numbers becomes a `Malformed` (dynid.io.bad_rows) instead of ending the read. `names`
+    name the columns in messages (None: by number); `width_is` completes "has 3 fields, but ..."."""
+    lines = raw.split(b"\n")
+    ends_with_newline = raw.endswith(b"\n")
+    while lines and not lines[-1].strip():  # trailing blank lines are no rows
+        lines.pop()
+    lines = lines[skip:]
+    total = len(lines)
     try:
-        data = np.loadtxt(path, dtype=float, delimiter=",", skiprows=1, comments=None, ndmin=2, encoding="utf-8-sig")
-    except (ValueError, UnicodeDecodeError) as e:
-        raise _diagnose(raw, names, path, str(e).splitlines()[0] if str(e) else type(e).__name__) from None
-    if data.shape != (n_rows, len(names)):  # a short first row, or blank lines numpy skipped
-        raise _diagnose(raw, names, path, f"expected {n_rows} rows of {len(names)} values, got {data.shape}")
-    return data
+        data = np.loadtxt(path, dtype=float, delimiter=",", skiprows=skip, comments=None, ndmin=2,
+                          encoding="utf-8-sig")
+        if data.shape == (total, width):
+            return Table(data, np.arange(total), [], total)
+    except (ValueError, UnicodeDecodeError):
+        pass
+    good: list[str] = []
+    rows: list[int] = []
+    malformed: list[Malformed] = []
+    for k, line in enumerate(lines):
+        if k == 0 and skip == 0:
+            line = line.removeprefix(b"\xef\xbb\xbf")
+        line = line.removesuffix(b"\r")
+        if not line.strip():
+            malformed.append(Malformed(k, "empty", f"line {k + skip + 1} is empty: blank lines between data rows "
+                                                   "are not allowed"))
+            continue
+        cells = line.split(b",")
+        if len(cells) != width:
+            cut = k == total - 1 and not ends_with_newline and len(cells) < width
+            malformed.append(Malformed(k, "cut_short" if cut else "column_count",
+                                       f"{label(k)} has {len(cells)} fields, but {width_is}"
+                                       + (": the last line, cut short" if cut else "")))
+            continue
+        bad = next((c for c, cell in enumerate(cells) if not _NUMBER_BYTES.fullmatch(cell)), None)
+        if bad is not None:
+            shown = cells[bad].decode("utf-8", errors="replace").strip()
+            shown = shown if len(shown) <= 40 else shown[:37] + "..."
+            column = names[bad] if names is not None else str(bad + 1)
+            malformed.append(Malformed(k, "not_a_number", f"{label(k)}, column {column}: {shown!r} is not a number"))
+            continue
+        good.append(line.decode("ascii"))
+        rows.append(k)
+    data = (np.loadtxt(good, dtype=float, delimiter=",", comments=None, ndmin=2) if good
+            else np.empty((0, width)))
+    return Table(data.reshape(-1, width), np.asarray(rows, dtype=np.int64), malformed, total)
 
 
 def read_csv(
@@ -276,6 +310,7 @@ def read_csv(
     config: RobotConfig,
     joint_limits: Mapping[str, tuple[float, float]] | None = None,
     require_all: bool = True,
+    bad_rows: str = DEFAULT_POLICY,
 ) -> Dataset:
     """Import a CSV of docs/design.md §4 (rules in the module docstring) as a `Dataset` of the configuration.
 
@@ -289,6 +324,8 @@ def read_csv(
         joint -> (lower, upper); when given, positions far outside the limits are refused as degrees.
     require_all
         Require every input and sensor channel the configuration declares (q is always required).
+    bad_rows
+        ``"refuse"`` (the default) or ``"skip"`` the bad rows of dynid.io.bad_rows.
 
     Raises
     ------
@@ -302,8 +339,9 @@ def read_csv(
     if n_rows == 0:
         raise DataError(f"{path}: the file has a header but no data rows")
     columns = check_columns(names, config, require_all=require_all, source=str(path))
-    data = _parse(raw, names, n_rows, path)
-    return table_dataset(path, raw, names, columns, data, config, joint_limits, "csv", _row)
+    table = parse_table(path, raw, 1, len(names), names, _row, f"the header has {len(names)} columns")
+    return table_dataset(path, raw, names, columns, table.data, config, joint_limits, "csv", _row, table=table,
+                         bad_rows=bad_rows)
 
 
 def table_dataset(
@@ -316,23 +354,25 @@ def table_dataset(
     joint_limits: Mapping[str, tuple[float, float]] | None,
     source_format: str,
     row: Callable[[int], str],
+    table: Table | None = None,
+    bad_rows: str = DEFAULT_POLICY,
 ) -> Dataset:
-    """A parsed table (N, columns) in the project's units as a checked `Dataset`; `row` names a 0-based row."""
-    _row = row
-
-    finite = np.isfinite(data)
-    if not finite.all():
-        c = int(np.flatnonzero(~finite.all(axis=0))[0])
-        r = int(np.argmax(~finite[:, c]))
-        raise DataError(f"{path}: column {names[c]} is {data[r, c]} at {_row(r)}: every value must be a finite number")
+    """A parsed table (N, columns) in the project's units as a checked `Dataset`; `row` names a 0-based row of the
+    file. `table` is what `parse_table` read (`data` its rows); its bad rows and those found here (dynid.io.bad_rows)
+    are refused or, with `bad_rows="skip"`, dropped and recorded in `meta["bad_rows"]`."""
     index = {col.name: i for i, col in enumerate(columns)}
+    rows = table.rows if table is not None else np.arange(data.shape[0])
+    found, keep = find_bad_rows(data, rows, names, [c.kind for c in columns],
+                                table.total if table is not None else data.shape[0],
+                                table.malformed if table is not None else (), row, index["t"])
+    dropped = apply_policy(found, keep, bad_rows, str(path), row)
+    if dropped is not None:
+        data, rows = data[keep], rows[keep]
+
+    def _row(i: int) -> str:  # a sample of the dataset, named by its row in the file
+        return row(int(rows[i]))
+
     t = data[:, index["t"]].copy()
-    steps = np.flatnonzero(np.diff(t) <= 0)
-    if steps.size:
-        i = int(steps[0]) + 1
-        raise DataError(
-            f"{path}: t is not strictly increasing at {_row(i)}: {float(t[i])!r} s follows {float(t[i - 1])!r} s"
-        )
 
     def joint_matrix(kind: str) -> np.ndarray | None:
         if f"{kind}.{config.joints[0]}" not in index:
@@ -365,6 +405,7 @@ def table_dataset(
             "source": str(path),
             "source_format": source_format,
             "source_sha256": hashlib.sha256(raw).hexdigest(),
+            **({"bad_rows": dropped} if dropped is not None else {}),
         },
     )
     try:

@@ -17,7 +17,8 @@ import numpy as np
 from ..config.log_columns import SKIP
 from ..config.robot_config import RobotConfig
 from ..errors import DataError
-from .csv_format import _NUMBER, _read_bytes, check_columns, table_dataset
+from .bad_rows import DEFAULT_POLICY
+from .csv_format import _read_bytes, check_columns, parse_table, table_dataset
 from .dataset import Dataset
 
 _FIRST_CELL = re.compile(rb"^\s*[+-]?(\d|\.\d)")
@@ -32,18 +33,15 @@ def _line(i: int) -> str:
     return f"line {i + 1}"
 
 
-def _diagnose(raw: bytes, width: int, path: Path, fallback: str) -> DataError:
-    lines = raw.decode("utf-8-sig", errors="replace").replace("\r\n", "\n").rstrip("\n").split("\n")
-    for k, line in enumerate(lines):
-        if not line.strip():
-            return DataError(f"{path}: line {k + 1} is empty: blank lines between data rows are not allowed")
-        cells = line.split(",")
-        if len(cells) != width:
-            return DataError(f"{path}: line {k + 1} has {len(cells)} fields, but line 1 has {width}")
-        for c, cell in enumerate(cells):
-            if not _NUMBER.fullmatch(cell):
-                return DataError(f"{path}: line {k + 1}, column {c + 1}: {cell.strip()[:40]!r} is not a number")
-    return DataError(f"{path}: cannot read the data rows: {fallback}")
+def _width(raw: bytes) -> int:
+    """The number of fields of the file's rows: the most common count over its first lines (a garbage first row, as
+    controller logs start with, must not set it)."""
+    counts = [line.count(b",") + 1 for line in raw[:1 << 20].split(b"\n")[:_WIDTH_LINES] if line.strip()]
+    values, times = np.unique(counts, return_counts=True)
+    return int(values[np.argmax(times)])
+
+
+_WIDTH_LINES = 200
 
 
 def read_headerless(
@@ -51,6 +49,7 @@ def read_headerless(
     config: RobotConfig,
     joint_limits: Mapping[str, tuple[float, float]] | None = None,
     require_all: bool = True,
+    bad_rows: str = DEFAULT_POLICY,
 ) -> Dataset:
     """Import a headerless CSV described by `config.columns` as a `Dataset` (module docstring)."""
     path = Path(path)
@@ -62,19 +61,14 @@ def read_headerless(
     raw = _read_bytes(path)
     if not raw.strip():
         raise DataError(f"{path}: the file is empty")
-    first = raw.split(b"\n", 1)[0]
-    width = first.count(b",") + 1
+    width = _width(raw)
     if width > len(config.columns):
         raise DataError(
-            f"{path}: line 1 has {width} fields, but the configuration {config.name} describes "
+            f"{path}: the rows have {width} fields, but the configuration {config.name} describes "
             f"{len(config.columns)} columns"
         )
-    try:
-        data = np.loadtxt(path, dtype=float, delimiter=",", comments=None, ndmin=2, encoding="utf-8-sig")
-    except (ValueError, UnicodeDecodeError) as e:
-        raise _diagnose(raw, width, path, str(e).splitlines()[0] if str(e) else type(e).__name__) from None
-    if data.shape[1] != width or data.shape[0] != raw.rstrip().count(b"\n") + 1:
-        raise _diagnose(raw, width, path, f"expected rows of {width} values, got {data.shape}")
+    table = parse_table(path, raw, 0, width, None, _line, f"the rows have {width}")
+    data = table.data
     described = config.columns[:width]
     keep = [i for i, c in enumerate(described) if c.name != SKIP]
     names = [described[i].name for i in keep]
@@ -85,4 +79,5 @@ def read_headerless(
         if width < len(config.columns):
             raise DataError(f"{e} (the file has {width} of the {len(config.columns)} columns described)") from None
         raise
-    return table_dataset(path, raw, names, columns, data, config, joint_limits, "headerless csv", _line)
+    return table_dataset(path, raw, names, columns, data, config, joint_limits, "headerless csv", _line, table=table,
+                         bad_rows=bad_rows)

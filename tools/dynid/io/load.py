@@ -15,8 +15,10 @@ import numpy as np
 from ..config.robot_config import RobotConfig
 from ..errors import DataError
 from .candump import read_candump
+from .bad_rows import DEFAULT_POLICY, MAX_ABS_VALUE, POLICIES
 from .csv_format import check_columns, read_csv
 from .headerless import looks_headerless, read_headerless
+from .rosbag import is_bag, looks_like_bag_file, read_bag
 from .yarp import is_dumper_folder, read_yarp
 from .dataset import _ZIP_MAGIC, SIMULATION_DATASET, Dataset, check_units
 
@@ -54,30 +56,39 @@ def load_data(
     config: RobotConfig,
     joint_limits: Mapping[str, tuple[float, float]] | None = None,
     require_all: bool = True,
+    bad_rows: str = DEFAULT_POLICY,
 ) -> Dataset:
     """Load experiment data in any supported form, checked against the robot configuration.
 
-    A directory written by `dynid simulate` stands for its dataset file. The form is told by content first, then by extension: a zip archive (or ``.npz``) is a dataset file, a
+    A directory written by `dynid simulate` stands for its dataset file; a folder with metadata.yaml, or a ``.mcap``
+    or ``.db3`` file, is a ROS 2 bag (dynid.io.rosbag); a folder of YARP ports a yarpdatadumper log. Otherwise the
+    form is told by content first, then by extension: a zip archive (or ``.npz``) is a dataset file, a
     ``.log`` or a file whose first line is a ``candump -L`` frame is a CAN log, a ``.csv`` is a CSV
     (`dynid.io.csv_format.read_csv`). Anything else raises `DataError`.
-    Every form then passes `check_plausible` (enough samples, a sample period in seconds).
+    Every form then passes `check_plausible` (enough samples, a sample period in seconds). A table's bad rows
+    (dynid.io.bad_rows) are refused, or dropped and counted with ``bad_rows="skip"``.
     """
     path = Path(path)
-    dataset = _load(path, config, joint_limits, require_all)
+    if bad_rows not in POLICIES:
+        raise DataError(f"--bad-rows must be one of {', '.join(POLICIES)}, got {bad_rows!r}")
+    dataset = _load(path, config, joint_limits, require_all, bad_rows)
     headerless = dataset.meta.get("source_format") == "headerless csv" and dataset.meta.get("source") == str(path)
     check_plausible(dataset, str(path), headerless=headerless)
     return dataset
 
 
 def _load(
-    path: Path, config: RobotConfig, joint_limits: Mapping[str, tuple[float, float]] | None, require_all: bool
+    path: Path, config: RobotConfig, joint_limits: Mapping[str, tuple[float, float]] | None, require_all: bool,
+    bad_rows: str,
 ) -> Dataset:
     if not path.exists():
         raise DataError(f"data file not found: {path}")
     if path.is_dir() and (path / SIMULATION_DATASET).is_file():  # the output directory of `dynid simulate`
         path = path / SIMULATION_DATASET
+    elif is_bag(path):  # a ROS 2 bag: a rosbag2 folder, or one .mcap or .db3 file
+        return read_bag(path, config, joint_limits=joint_limits, require_all=require_all, bad_rows=bad_rows)
     elif is_dumper_folder(path):  # a YARP robot's log: one folder per port
-        return read_yarp(path, config, joint_limits=joint_limits, require_all=require_all)
+        return read_yarp(path, config, joint_limits=joint_limits, require_all=require_all, bad_rows=bad_rows)
     if not path.is_file():
         raise DataError(f"data path is not a file: {path}")
     try:
@@ -87,6 +98,9 @@ def _load(
         raise DataError(f"cannot read {path}: {e.strerror or e}") from None
     first_line = head.split(b"\n", 1)[0]
     suffix = path.suffix.lower()
+    if looks_like_bag_file(head):
+        raise DataError(f"{path}: an MCAP or SQLite file: a ROS 2 bag's storage file is named .mcap or .db3 (or give "
+                        "the bag's folder, with its metadata.yaml)")
     if head.startswith(_ZIP_MAGIC) or suffix == ".npz":
         dataset = Dataset.load(path)
         check_matches_config(dataset, config, require_all=require_all, source=str(path))
@@ -100,12 +114,12 @@ def _load(
         check_matches_config(dataset, config, require_all=require_all, source=str(path))
         return dataset
     if suffix in (".csv", ".txt") and config.columns and looks_headerless(head):
-        return read_headerless(path, config, joint_limits=joint_limits, require_all=require_all)
+        return read_headerless(path, config, joint_limits=joint_limits, require_all=require_all, bad_rows=bad_rows)
     if suffix == ".csv":
-        return read_csv(path, config, joint_limits=joint_limits, require_all=require_all)
+        return read_csv(path, config, joint_limits=joint_limits, require_all=require_all, bad_rows=bad_rows)
     raise DataError(
-        f"{path}: unknown data format: expected a .csv (docs/design.md §4), a candump log (.log) "
-        "or a dynid dataset (.npz)"
+        f"{path}: unknown data format: expected a .csv (docs/design.md §4), a candump log (.log), a ROS 2 bag "
+        "(a folder with metadata.yaml, .mcap or .db3), a YARP dumper folder or a dynid dataset (.npz)"
     )
 
 
@@ -114,9 +128,9 @@ MIN_WINDOW_SAMPLES = MIN_SAMPLES
 # The sample period a dataset may have: the monitor's coefficient loader accepts 10 µs to 1 s (rt_monitor's
 # coefficients.cpp); one second itself is refused here, as it is t in milliseconds of a 1 kHz log.
 MIN_PERIOD_S, MAX_PERIOD_S = 1e-5, 1.0
-# No arm's sensor reads a million N, Nm, A, rad/s or rad/s²: a larger value is a wrong unit or a corrupt cell, and
-# near 1e154 its square overflows (a 1e308 N cell made the fit fail with a traceback and validate print inf).
-MAX_ABS_VALUE = 1e6
+# MAX_ABS_VALUE (dynid.io.bad_rows): no arm's sensor reads a million N, Nm, A, rad/s or rad/s²: a larger value is a
+# wrong unit or a corrupt cell, and near 1e154 its square overflows (a 1e308 N cell made the fit fail with a
+# traceback and validate print inf). A table's rows beyond it are bad rows; other forms are refused here.
 _TIME_UNITS = (("ms", "milliseconds", 1e-3), ("us", "microseconds", 1e-6), ("ns", "nanoseconds", 1e-9))
 
 
@@ -173,4 +187,6 @@ def apply_window(dataset: Dataset, start: float | None, stop: float | None, sour
             f"{where}the window --from {'start' if start is None else f'{start:g} s'} --to "
             f"{'end' if stop is None else f'{stop:g} s'} holds {what} (at least {MIN_WINDOW_SAMPLES} needed); {span}"
         )
-    return dataset.slice(lo, hi)
+    window = dataset.slice(lo, hi)
+    window.meta["window"] = [start, stop]  # what the model file records, so a reload cuts the same samples
+    return window

@@ -31,6 +31,7 @@ from ..config.log_columns import SKIP
 from ..config.robot_config import RobotConfig
 from ..config.yarp_ports import YarpPort
 from ..errors import DataError
+from .align import Stream, keep_increasing, on_grid, uniform_grid
 from .csv_format import check_columns, table_dataset
 from .dataset import FT_CHANNELS, Dataset
 
@@ -80,13 +81,7 @@ def _read_port(root: Path, spec: YarpPort) -> _PortLog:
         raise DataError(f"{path}: {len(stamps)} message(s): a port needs at least two")
     t = np.asarray(stamps)
     values = np.asarray(rows) * np.asarray(spec.scale)
-    keep = np.ones(t.size, bool)  # drop messages that do not move the port's clock forward
-    latest = t[0]
-    for i in range(1, t.size):
-        if t[i] <= latest:
-            keep[i] = False
-        else:
-            latest = t[i]
+    keep = keep_increasing(t)  # drop messages that do not move the port's clock forward
     return _PortLog(t[keep], values[keep], int((~keep).sum()), cut)
 
 
@@ -129,7 +124,8 @@ def _first_stamp(path: Path) -> float | None:
         return None
 
 
-def read_yarp(path: str | Path, config: RobotConfig, joint_limits=None, require_all: bool = True) -> Dataset:
+def read_yarp(path: str | Path, config: RobotConfig, joint_limits=None, require_all: bool = True,
+              bad_rows: str = "refuse") -> Dataset:
     """Import a yarpdatadumper folder described by `config.yarp` as a `Dataset` (module docstring)."""
     root = Path(path)
     layout = config.yarp
@@ -141,45 +137,28 @@ def read_yarp(path: str | Path, config: RobotConfig, joint_limits=None, require_
     logs = {spec.port: _read_port(root, spec) for spec in layout.ports}
     origin_candidates = [s for s in (_first_stamp(p) for p in root.glob("**/data.log")) if s is not None]
     origin = min([*origin_candidates, *(log.stamps[0] for log in logs.values())])
-    start = max(log.stamps[0] for log in logs.values())
-    stop = min(log.stamps[-1] for log in logs.values())
-    if stop - start < 2.0 / layout.rate:
-        raise DataError(f"{root}: the configured ports share no common time span (each port's first and last stamps)")
-    for spec in layout.ports:  # a silence inside the common span is refused, not interpolated over
-        t = logs[spec.port].stamps
-        inside = (t[1:] > start) & (t[:-1] < stop)
-        gaps = np.diff(t)[inside]
-        if gaps.size and gaps.max() > layout.max_gap:
-            i = int(np.flatnonzero(inside)[np.argmax(gaps)])
-            raise DataError(
-                f"{root}: port {spec.port} is silent for {gaps.max():.3f} s from t = {t[i] - origin:.3f} s (the "
-                f"configuration's yarp.max_gap is {layout.max_gap:g} s)"
-            )
-    # Relative seconds before interpolating: Unix stamps (~1.5e9 s) keep only ~0.2 µs of float64 resolution.
-    grid = (start - origin) + np.arange(int(np.floor((stop - start) * layout.rate)) + 1) / layout.rate
+    streams = [Stream(port, log.stamps, log.values) for port, log in logs.items()]
+    grid = uniform_grid(str(root), streams, origin, layout.rate, layout.max_gap, "port", "yarp.max_gap")
     for log in logs.values():
         log.stamps = log.stamps - origin
 
-    names, columns_data = ["t"], [grid]
-    for spec in layout.ports:
-        log = logs[spec.port]
+    names, columns_data = ["t"], [grid[:, None]]
+    for spec, stream in zip(layout.ports, streams):
+        values = on_grid(grid, stream, origin)
         if spec.joints:
-            for k, joint in enumerate(spec.joints):
-                if joint != SKIP:
-                    names.append(f"q.{joint}")
-                    columns_data.append(np.interp(grid, log.stamps, log.values[:, k]))
+            names += [f"q.{joint}" for joint in spec.joints if joint != SKIP]
+            columns_data.append(values[:, [k for k, joint in enumerate(spec.joints) if joint != SKIP]])
         else:
-            for k, channel in enumerate(FT_CHANNELS):
-                names.append(f"ft.{spec.sensor}.{channel}")
-                columns_data.append(np.interp(grid, log.stamps, log.values[:, k]))
-    data = np.column_stack(columns_data)
+            names += [f"ft.{spec.sensor}.{channel}" for channel in FT_CHANNELS]
+            columns_data.append(values)
+    data = np.hstack(columns_data)
     columns = check_columns(names, config, require_all=require_all, source=str(root))
     digest = hashlib.sha256()
     for spec in layout.ports:
         digest.update((root / spec.port / "data.log").read_bytes())
     dataset = table_dataset(
-        root, b"", names, columns, data, config, joint_limits, "yarp dumper", lambda i: f"sample {i + 1}"
-    )
+        root, b"", names, columns, data, config, joint_limits, "yarp dumper", lambda i: f"sample {i + 1}",
+        bad_rows=bad_rows)
     dataset.meta["source_sha256"] = digest.hexdigest()
     dataset.meta["yarp"] = {
         "origin_unix_s": float(origin),
