@@ -334,7 +334,7 @@ bool Assembler::init(const MonitorConfig& cfg, const Coefficients& coef, std::st
         const std::string& name = coef.channel_names[size_t(o)];
         int src = -1;
         for (int k = 0; k < 6; ++k)
-            if (name == "ft." + coef.sensor_name + "." + kFt[k]) src = k;
+            if (coef.n_sensors > 0 && name == "ft." + coef.sensor_names[0] + "." + kFt[k]) src = k;
         for (size_t p = 0; p < cfg.pwms.size(); ++p)
             if (name == "pwm." + cfg.pwms[p].motor) src = 6 + int(p);
         if (src < 0) {
