@@ -456,7 +456,7 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     out.order = c.order;
     out.lag = c.lag;
     for (int r = 0; r < 3; ++r)
-        for (int i = 0; i < c.window; ++i) out.filter(r, i) = c.filter[r][i];
+        for (int i = 0; i < c.window; ++i) out.filter(i, r) = c.filter[r][i];
     out.residual = Residual(c.residual);
     out.observer_bandwidth = c.observer_bandwidth;
     out.velocity_window = c.velocity_window;
