@@ -117,6 +117,7 @@ enum class LoadError : int {
     kDimension = 8,
     kNotFinite = 9,
     kRobot = 10,
+    kImplausible = 11,  // well formed, but a value no robot has (rt_monitor/plausibility.hpp)
 };
 constexpr int kExitBase = 10;
 
