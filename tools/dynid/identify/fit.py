@@ -34,7 +34,7 @@ from ..margins import BORDERLINE_RTOL, below
 from ..progress import track
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
-from ..robot.regressors.base import BaseParameters, base_parameters_from_factor
+from ..robot.regressors.base import BaseParameters, base_parameters_from_factor, structural_base_parameters
 from ..robot.regressors.stack import DEFAULT_MIN_SPEED, Signals, row_weights, signals_from_dataset
 from .consistent import LAMBDAS, ConsistentSettings, consistent_fit
 from .regression import InputColumns, base_least_squares, instrumental_variables, pls_path, unseen_directions
@@ -284,6 +284,7 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
     rows_used = stats.rows.sum(axis=0)
     if rows_used.sum() < 2 * base.rank:
         raise DataError(f"too few samples: {int(rows_used.sum())} usable rows for a rank of {base.rank}")
+    check_excitation(model, base)
     if stats.n_blocks < 2:
         if settings.blocks < 2:
             raise DataError(f"--blocks {settings.blocks}: cross-validation and the jackknife need at least 2 time "
@@ -323,6 +324,15 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
             estimates[est.name] = est
             chosen_name = est.name
     variance = {name: channel_variance(stats, e.phi, model) for name, e in estimates.items()}
+    # A channel with rows whose residual variance is not positive: the model reproduces it exactly (or rounding made
+    # it negative), so nothing is left to calibrate its Λ on. (A channel without rows, a motor that never moves,
+    # keeps its noise variance in the detector.)
+    flat = [o.name for o, v in zip(output_channels(model), variance[chosen_name])
+            if rows_used[o.row] > 0 and not (np.isfinite(v) and v > 0)]
+    if flat:
+        raise DataError(f"the residual of {', '.join(flat)} has no positive variance: the model reproduces it exactly, "
+                        "so the run holds no information to calibrate the detector on (a channel that never changes, "
+                        "or a run that does not move)")
     chosen = estimates[chosen_name]
     cad = np.abs(base.base(np.nan_to_num(model.cad_parameters(), nan=0.0)))
     identified = _determined(chosen, cad)
@@ -345,6 +355,27 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
         for k in range(B) if unseen[k].any()]}
     return FitResult(model, base, estimates, chosen_name, cv, variance, identified, stats, samples, rows_used,
                      jackknife, consistent)
+
+
+MIN_EXCITED_SHARE = 0.5  # a run that excites fewer than this share of the structure's base directions is refused
+
+
+def check_excitation(model: RobotModel, base: BaseParameters) -> None:
+    """Refuse a run that excites far fewer directions than the robot's structure allows (a still arm: rank 7 of 87),
+    naming what is missing: the joints that never move and the inputs that never change. A short run that misses a
+    few directions fits, with those combinations undetermined."""
+    structural = structural_base_parameters(model).rank
+    if base.rank >= MIN_EXCITED_SHARE * structural:
+        return
+    silent = set(base.unidentifiable)
+    joints = [j for j in model.config.joints if f"{j}.fc_pos" in silent and f"{j}.fc_neg" in silent]
+    inputs = [n.split(".")[0] for n in silent if n.endswith(".phi_m")]
+    missing = "; ".join(part for part in (
+        f"joints that never move: {', '.join(joints)}" if joints else "",
+        f"inputs that never change: {', '.join(inputs)}" if inputs else "") if part)
+    raise DataError(f"the run excites {base.rank} of the {structural} directions this robot's structure allows: too "
+                    f"little to fit ({missing or 'its motion is too small or too uniform'}); record a run that moves "
+                    "every joint both ways (dynid excite designs one)")
 
 
 def _determined(e: Estimate, cad: np.ndarray) -> np.ndarray:
