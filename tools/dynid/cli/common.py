@@ -19,6 +19,7 @@ from ..errors import EXIT_BAD_INPUT, InputError
 from ..io.bad_rows import DEFAULT_POLICY, KINDS
 from ..io.bad_rows import POLICIES as BAD_ROW_POLICIES
 from ..io.dataset import atomic_write
+from ..io.run_paths import expand, expand_all
 from ..robot.regressors.stack import DEFAULT_MIN_SPEED
 
 
@@ -254,6 +255,19 @@ def window(args: argparse.Namespace, run: int = 0) -> Window:
     if run < len(own) and own[run] is not None:
         return own[run]
     return (getattr(args, "t_from", None), getattr(args, "t_to", None))
+
+
+def expand_data(args: argparse.Namespace) -> tuple[list[str], list[Window]]:
+    """Every --data expanded (a glob, a folder, @LIST: dynid.io.run_paths) with its window: a spec's own
+    (RUN@FROM:TO) for each run it names, else --from/--to. A run named twice is refused."""
+    paths: list[str] = []
+    windows: list[Window] = []
+    for i, spec in enumerate(args.data):
+        for p in expand(spec):
+            paths.append(str(p))
+            windows.append(window(args, i))
+    expand_all(paths)  # the duplicate check
+    return paths, windows
 
 
 def bad_rows(args: argparse.Namespace) -> str:
