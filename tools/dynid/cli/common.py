@@ -49,7 +49,7 @@ def write_json(result: dict[str, Any], target: str | None) -> None:
 
 # Where a command writes: files (atomically, by dynid.io.dataset.atomic_write) and the two directories.
 OUTPUT_OPTIONS: tuple[str, ...] = ("out", "json", "figures")
-DIRECTORY_OUTPUTS: frozenset[tuple[str, str]] = frozenset({("simulate", "out"), ("gaps", "figures")})
+DIRECTORY_OUTPUTS: frozenset[tuple[str, str]] = frozenset({("simulate", "out"), ("gaps", "figures"), ("fleet", "out")})
 INPUT_OPTIONS: tuple[str, ...] = ("data", "model", "validation", "contact", "truth", "trajectory")
 
 
