@@ -38,7 +38,7 @@ from .dataset import (_ZIP_MAGIC, CHANNEL_FAMILIES, FORMAT_NAME, FORMAT_VERSION,
                       _check_members, check_units)
 from .load import MIN_WINDOW_SAMPLES, check_matches_config, check_plausible, check_values, load_data
 
-HEAD_ROWS = 20_000  # rows read at opening: the configuration's checks and the median sample period
+HEAD_ROWS = 5_000  # rows read at opening: the configuration's checks and the median sample period
 _LOCAL_HEADER = struct.Struct("<4s22xHH")  # zip local file header: signature, …, name length, extra length
 _ROW_MEMBERS = ("t", "q", "dq", "ddq", "contact")
 
