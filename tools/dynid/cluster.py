@@ -9,8 +9,11 @@ the same path on every worker (a shared file system), and no log travels through
 
 Results come back in the order the tasks were given, whatever order they finish in, so a fit on a cluster sums
 exactly what the serial fit sums, in the same order. A task that raises (bad data) raises the same error here; a
-cluster that fails (every worker that held a task died `distributed.scheduler.allowed-failures` times, the
-scheduler went away) raises `ClusterError`, one line and exit code 3.
+cluster that fails raises `ClusterError`, one line and exit code 3: a task whose worker died
+`distributed.scheduler.allowed-failures` times (3), no worker at all for longer than the scheduler's
+`distributed.scheduler.no-workers-timeout` (a LocalCluster's: 120 s; a running cluster's: its own, none by default,
+when the fit waits for workers to come back), the scheduler gone. A worker that dies once is replaced (its nanny
+restarts it) or its tasks move to the others: the fit goes on, with the same result.
 
 Layer: beside errors and progress; `distributed` is imported only when a cluster is asked for.
 """
@@ -25,6 +28,7 @@ from .errors import InputError
 from .progress import RunProgress
 
 CONNECT_TIMEOUT_S = 20.0
+NO_WORKERS_TIMEOUT = "120s"  # a LocalCluster's; a running cluster's is its scheduler's (docs/deployment.md)
 
 
 class ClusterError(InputError):
@@ -38,6 +42,7 @@ class DaskCluster:
 
     def __init__(self, workers: int | None = None, scheduler: str | None = None) -> None:
         try:
+            import dask
             from distributed import Client, LocalCluster
         except ImportError as e:  # pragma: no cover - distributed is a dependency
             raise ClusterError(f"Dask distributed is not installed ({e}): pip install distributed") from None
@@ -49,8 +54,10 @@ class DaskCluster:
             else:
                 self.name = f"a local Dask cluster of {workers} worker process{'es' * (workers != 1)}"
                 # One thread a worker: the tasks are numpy and Pinocchio loops that hold the GIL between calls
-                self._local = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                           dashboard_address=None, silence_logs=50)
+                # Tasks wait for a worker no longer than this (a cluster whose every worker died stops the fit)
+                with dask.config.set({"distributed.scheduler.no-workers-timeout": NO_WORKERS_TIMEOUT}):
+                    self._local = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                               dashboard_address=None, silence_logs=50)
                 self.client = Client(self._local, set_as_default=False)
         except (OSError, TimeoutError, ValueError) as e:
             self.close()
@@ -97,12 +104,16 @@ def _failures(name: str) -> Iterator[None]:
     """The cluster's own failures as one line each (the data's errors pass through unchanged)."""
     from distributed import KilledWorker
     from distributed.comm.core import CommClosedError
+    from distributed.scheduler import NoValidWorkerError
 
     try:
         yield
     except KilledWorker as e:
         raise ClusterError(f"{name}: a task was lost with its worker too many times ({e.args[0] if e.args else e}); "
                            "a worker that dies on every try (out of memory?) stops the fit") from None
+    except NoValidWorkerError:
+        raise ClusterError(f"{name}: no worker left to run the fit's tasks (every worker is gone, for longer than the "
+                           "scheduler's distributed.scheduler.no-workers-timeout)") from None
     except (CommClosedError, OSError, TimeoutError) as e:
         raise ClusterError(f"{name}: lost the connection to the cluster ({type(e).__name__}: {e})") from None
 

@@ -146,7 +146,8 @@ def test_data_takes_globs_folders_and_lists(runs: list[Path], tmp_path: Path) ->
     assert done.returncode == 2 and "matches no run" in done.stderr
 
 
-def test_a_local_cluster_of_two_workers_gives_the_serial_model(runs: list[Path], tmp_path: Path) -> None:
+def test_a_local_cluster_of_two_workers_gives_the_serial_model(runs: list[Path], model: RobotModel,
+                                                               tmp_path: Path) -> None:
     """`dynid fit --workers 2` (a Dask LocalCluster) against the in-process fit: the same model to 1e-10."""
     data = [arg for p in runs[:2] for arg in ("--data", str(p))] + ["--blocks", "4"]
     serial = dynid("fit", *data, "--out", str(tmp_path / "serial.json"))
@@ -161,6 +162,14 @@ def test_a_local_cluster_of_two_workers_gives_the_serial_model(runs: list[Path],
     for variant in ("calibrated", "paper"):
         assert b["detector"][variant]["threshold"] == pytest.approx(a["detector"][variant]["threshold"], rel=1e-10)
     assert b["base"]["standard_errors_runs"] == pytest.approx(a["base"]["standard_errors_runs"], rel=1e-10)
+
+    # A corrupt window found by a worker: the same one line and exit 2 as in-process, nothing written.
+    whole = load_data(runs[0], model.config, model.joint_limits)
+    whole.ft["r_arm_ft"][15_000, 2] = 3e7
+    whole.save(tmp_path / "bad.npz")
+    done = dynid("fit", "--data", str(tmp_path / "bad.npz"), "--workers", "2", "--out", str(tmp_path / "bad.json"))
+    assert done.returncode == 2 and "row 15001" in done.stderr and done.stderr.count("\n") == 1, done.stderr
+    assert not (tmp_path / "bad.json").exists()
 
 
 def test_a_scheduler_that_is_not_there_is_one_line(runs: list[Path], tmp_path: Path, monkeypatch) -> None:
