@@ -19,7 +19,7 @@ from ..errors import EXIT_BAD_INPUT, InputError
 from ..io.bad_rows import DEFAULT_POLICY, KINDS
 from ..io.bad_rows import POLICIES as BAD_ROW_POLICIES
 from ..io.dataset import atomic_write
-from ..io.run_paths import expand, expand_all
+from ..io.run_paths import expand
 from ..robot.regressors.stack import DEFAULT_MIN_SPEED
 
 
@@ -259,14 +259,19 @@ def window(args: argparse.Namespace, run: int = 0) -> Window:
 
 def expand_data(args: argparse.Namespace) -> tuple[list[str], list[Window]]:
     """Every --data expanded (a glob, a folder, @LIST: dynid.io.run_paths) with its window: a spec's own
-    (RUN@FROM:TO) for each run it names, else --from/--to. A run named twice is refused."""
+    (RUN@FROM:TO) for each run it names, else --from/--to. A run named twice with the same window is refused (it
+    would count twice); two windows of one run are two runs."""
     paths: list[str] = []
     windows: list[Window] = []
+    seen: set[tuple[str, Window]] = set()
     for i, spec in enumerate(args.data):
         for p in expand(spec):
+            key = (os.path.realpath(p), window(args, i))
+            if key in seen:
+                raise InputError(f"--data: the run {p} is named twice" + (" with the same window" if any(key[1]) else ""))
+            seen.add(key)
             paths.append(str(p))
-            windows.append(window(args, i))
-    expand_all(paths)  # the duplicate check
+            windows.append(key[1])
     return paths, windows
 
 
