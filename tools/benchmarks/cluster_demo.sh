@@ -62,11 +62,14 @@ echo "== 1. the fit on the cluster"
 /usr/bin/time -f "  %e s" "$bin/dynid" fit "${data[@]}" --scheduler tcp://10.233.0.1:8786 --out "$OUT/cluster.json" \
     2>&1 | sed -n '1,2p;$p'
 
-echo "== 2. the same fit, host1's worker process killed (SIGKILL) 10 s in; its nanny restarts it"
+# started FILE: wait until the fit writing FILE has connected to the cluster (its first line), then 5 s more
+started() { for _ in $(seq 300); do grep -q "^fitting" "$1" 2>/dev/null && break; sleep 1; done; sleep 5; }
+
+echo "== 2. the same fit, host1's worker process killed (SIGKILL) 5 s after the fit connected; its nanny restarts it"
 "$bin/dynid" fit "${data[@]}" --scheduler tcp://10.233.0.1:8786 --out "$OUT/killed.json" >"$OUT/killed.txt" 2>&1 &
 fit=$!
 pids+=($fit)
-sleep 10
+started "$OUT/killed.txt"
 victim=$(ip netns pids dynw1 | while read -r p; do
     if tr '\0' ' ' <"/proc/$p/cmdline" | grep -q "spawn_main"; then echo "$p"; fi; done | head -1)
 echo "  killing worker process $victim in dynw1"
@@ -84,11 +87,11 @@ except FileNotFoundError as e:
 EOF
 grep -h -i -E "restart|lost|died|closed|removing worker" "$OUT"/scheduler.log "$OUT"/worker1.log | sed 's/^/  log: /' | head -8
 
-echo "== 3. both workers' hosts stopped (every dask process in both namespaces killed) 10 s into a fit"
+echo "== 3. both workers' hosts stopped (every dask process in both namespaces killed) 5 s after a fit connected"
 "$bin/dynid" fit "${data[@]}" --scheduler tcp://10.233.0.1:8786 --out "$OUT/dead.json" >"$OUT/dead.txt" 2>&1 &
 fit=$!
 pids+=($fit)
-sleep 10
+started "$OUT/dead.txt"
 for n in 1 2; do ip netns pids "dynw$n" | xargs -r kill -9; done
 echo "  both hosts' workers killed; waiting up to 120 s for the fit (the scheduler's no-workers-timeout: 30 s)"
 for _ in $(seq 120); do kill -0 "$fit" 2>/dev/null || break; sleep 1; done

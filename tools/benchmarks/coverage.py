@@ -20,7 +20,7 @@ delete-one-run jackknife. Coverage is counted over every (repetition, base combi
 own rule: today's, blocks alone; after, both), and over all combinations.
 
     .venv/bin/python tools/benchmarks/coverage.py [--repetitions 20] [--runs 5] [--duration 40] [--jobs 2]
-        [--out DIR] [--json FILE]
+        [--out DIR] [--json FILE] [--start K]
 """
 
 from __future__ import annotations
@@ -110,6 +110,8 @@ def covered(record: dict, phi: np.ndarray, names: list[str]) -> dict:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--repetitions", type=int, default=20)
+    p.add_argument("--start", type=int, default=0, help="first repetition to run (several processes may share --out: "
+                   "a repetition already done there is read, not redone)")
     p.add_argument("--runs", type=int, default=5)
     p.add_argument("--duration", type=float, default=40.0)
     p.add_argument("--friction-drift", type=float, default=0.15)
@@ -127,7 +129,7 @@ def main() -> None:
     root.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     per_rep = []
-    for i in range(a.repetitions):
+    for i in range(a.start, a.repetitions):
         robot_seed = 100 + i
         rep = root / f"rep{i:02d}"
         specs = [run_spec(i, r, config.joints, a.friction_drift, a.payload_jitter, a.payload_mass) for r in range(a.runs)]

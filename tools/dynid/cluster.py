@@ -56,8 +56,9 @@ class DaskCluster:
                 # One thread a worker: the tasks are numpy and Pinocchio loops that hold the GIL between calls
                 # Tasks wait for a worker no longer than this (a cluster whose every worker died stops the fit)
                 with dask.config.set({"distributed.scheduler.no-workers-timeout": NO_WORKERS_TIMEOUT}):
+                    # ":0": the scheduler's HTTP server on a free port (8787 may be another cluster's)
                     self._local = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                               dashboard_address=None, silence_logs=50)
+                                               dashboard_address=":0", silence_logs=50)
                 self.client = Client(self._local, set_as_default=False)
         except (OSError, TimeoutError, ValueError) as e:
             self.close()
@@ -104,14 +105,14 @@ def _failures(name: str) -> Iterator[None]:
     """The cluster's own failures as one line each (the data's errors pass through unchanged)."""
     from distributed import KilledWorker
     from distributed.comm.core import CommClosedError
-    from distributed.scheduler import NoValidWorkerError
+    from distributed.scheduler import NoValidWorkerError, NoWorkerError
 
     try:
         yield
     except KilledWorker as e:
         raise ClusterError(f"{name}: a task was lost with its worker too many times ({e.args[0] if e.args else e}); "
                            "a worker that dies on every try (out of memory?) stops the fit") from None
-    except NoValidWorkerError:
+    except (NoWorkerError, NoValidWorkerError):
         raise ClusterError(f"{name}: no worker left to run the fit's tasks (every worker is gone, for longer than the "
                            "scheduler's distributed.scheduler.no-workers-timeout)") from None
     except (CommClosedError, OSError, TimeoutError) as e:

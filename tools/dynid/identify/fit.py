@@ -479,11 +479,12 @@ def fit(model: RobotModel, datasets: list[Dataset], settings: FitSettings = FitS
         raise DataError(f"unknown estimator '{settings.estimator}' (known: {', '.join(ESTIMATORS)})")
     total: Statistics | None = None
     samples = 0
-    for ds in datasets:
+    for i, ds in enumerate(datasets):
         # IV's instruments do not carry a payload's known torques yet: no IV when a run has one (pipeline.py)
         source = SignalSource(model, ds, settings, instruments=not ds.meta.get("payload"))
         source(0, min(ds.n_samples, 2 * source.margin))  # bad data fail here, before any worker starts
-        stats = accumulate(model, source, settings.blocks, settings.workers)
+        label = "building regressors" + (f", run {i + 1} of {len(datasets)}" if len(datasets) > 1 else "")
+        stats = accumulate(model, source, settings.blocks, settings.workers, label=label)
         total = stats if total is None else total + stats
         samples += ds.n_samples
     assert total is not None

@@ -18,7 +18,6 @@ from __future__ import annotations
 import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -123,21 +122,20 @@ def _accumulate_blocks(first: int, last: int) -> tuple[np.ndarray, ...]:
 
 def _accumulate(first: int, last: int) -> tuple[np.ndarray, ...]:
     return accumulate_blocks(_JOB["model"], _JOB["source"], _JOB["edges"], first, last, _JOB["chunk"],
-                             _JOB["progress"])
+                             _JOB["label"] if _JOB["progress"] else "")
 
 
 def accumulate_blocks(model: RobotModel, source: SignalChunks, edges: np.ndarray, first: int, last: int,
-                      chunk: int = DEFAULT_CHUNK, progress: bool = False,
-                      on_chunk: Callable[[], None] | None = None) -> tuple[np.ndarray | None, ...]:
+                      chunk: int = DEFAULT_CHUNK, progress: str = "") -> tuple[np.ndarray | None, ...]:
     """(gram, rows, cross, cross_b) of blocks [first, last) of `source`, a chunk at a time (also a Dask task's
-    work: dynid.identify.runs); `on_chunk` is called after each chunk."""
+    work: dynid.identify.runs); `progress`: the label of a progress line over the blocks ("" for none)."""
     r, p = len(row_channels(model)), len(model.layout)
     nb = last - first
     gram, rows = np.zeros((nb, r, p + 1, p + 1)), np.zeros((nb, r))
     cross, cross_b = np.zeros((nb, r, p, p)), np.zeros((nb, r, p))
     with_instruments = False
     blocks = range(first, last)
-    for k in track(blocks, nb, "building regressors") if progress else blocks:
+    for k in track(blocks, nb, progress) if progress else blocks:
         for lo in range(edges[k], edges[k + 1], chunk):
             sig, inst, w = source(lo, min(lo + chunk, edges[k + 1]))
             n = sig.q.shape[0]
@@ -155,8 +153,6 @@ def accumulate_blocks(model: RobotModel, source: SignalChunks, edges: np.ndarray
                 zx = np.matmul(Zw.transpose(0, 2, 1), X)  # (r, p, p+1): Zᵀ W² [A b]
                 cross[k - first] += zx[:, :, :p]
                 cross_b[k - first] += zx[:, :, p]
-            if on_chunk is not None:
-                on_chunk()
     return gram, rows, (cross if with_instruments else None), (cross_b if with_instruments else None)
 
 
@@ -191,6 +187,7 @@ def accumulate(
     n_blocks: int = 10,
     workers: int | None = None,
     chunk: int = DEFAULT_CHUNK,
+    label: str = "building regressors",
 ) -> Statistics:
     """Statistics of the experiment `source` yields a chunk at a time (`InMemory` for signals at hand).
 
@@ -199,7 +196,7 @@ def accumulate(
     edges = block_edges(n, n_blocks)
     nb = len(edges) - 1
     workers = max(1, min(workers or os.cpu_count() or 1, nb))
-    _JOB.update(model=model, source=source, edges=edges, chunk=chunk)
+    _JOB.update(model=model, source=source, edges=edges, chunk=chunk, label=label)
     try:
         if workers == 1:
             _JOB["progress"] = True
@@ -209,7 +206,7 @@ def accumulate(
             ctx = multiprocessing.get_context("fork")
             with ProcessPoolExecutor(workers, mp_context=ctx) as pool:
                 futures = [pool.submit(_accumulate_blocks, k, k + 1) for k in range(nb)]
-                for _ in track(as_completed(futures), nb, "building regressors"):
+                for _ in track(as_completed(futures), nb, label):
                     pass
                 parts = [f.result() for f in futures]
     finally:
