@@ -138,7 +138,7 @@ def run_calibration_residuals(model: RobotModel, ds, settings,  # noqa: ANN001 -
     """One run's part of `calibration_residuals` (a task of its own on a Dask cluster)."""
     source = SignalSource(model, ds, settings, instruments=False)
     keep = slice(None, None, stride)
-    chunk = stride * (CALIBRATION_CHUNK // CALIBRATION_STRIDE)  # a multiple of the stride: it stays aligned
+    chunk = stride * (CALIBRATION_CHUNK // stride)  # about CALIBRATION_CHUNK samples, a multiple of the stride
     t0 = float(ds.times(0, 1)[0])
     run_e, run_dq, run_t, run_inputs = [], [], [], []
     for lo in range(0, ds.n_samples, chunk):
