@@ -144,11 +144,12 @@ def run_calibration_residuals(model: RobotModel, ds, settings,  # noqa: ANN001 -
     for lo in range(0, ds.n_samples, chunk):
         hi = min(lo + chunk, ds.n_samples)
         sig = source(lo, hi)[0].slice(keep)
-        t = ds.times(lo, hi)[keep]
+        t = ds.times(lo, hi)[keep].copy()
         run_e.append(residual_of(sig, t - t0))
-        run_dq.append(sig.dq)
+        # Copies: a strided view would keep its whole chunk alive, and every chunk of the run with it
+        run_dq.append(sig.dq.copy())
         run_t.append(t)
-        run_inputs.append(sig.inputs)
+        run_inputs.append({m: v.copy() for m, v in sig.inputs.items()})
     e, dq = np.vstack(run_e), np.vstack(run_dq)
     constant = e
     if tracking is not None:  # two-sided over the whole run (the strided samples: the same seconds)
