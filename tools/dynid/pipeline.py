@@ -18,13 +18,14 @@ from typing import Any
 
 import numpy as np
 
+from .detect.momentum_t2 import observer_record
 from .detect.t2 import ALPHA, Detector, calibrate, calibration_residuals, detector_record
 from .identify.fit import CONSISTENT, FitResult, FitSettings, fit
 from .identify.model_file import IdentifiedModel, data_record, robot_record
 from .identify.plausibility import implausible
 from .identify.statistics import Statistics
 from .identify.supply import SupplyTracking
-from .errors import InputError
+from .errors import DataError, InputError
 from .io.dataset import Dataset
 from .robot.effects import Effect, augmented_residuals
 from .robot.model import RobotModel
@@ -148,6 +149,9 @@ class IdentifySettings:
     # Estimate each input channel's noise from the first fit's residuals (moving rows) and refit with it: the
     # weighting, the model file's noise, validation's ratios and the detector's prior then use the estimate.
     estimate_noise: bool = False
+    # Calibrate the momentum observer now, for `detect` and `export`, and keep it in the model file (its `observer`
+    # section): only for whole runs (a --from/--to window is recalibrated by those commands, as before).
+    observer: bool = True
 
     @property
     def tracking(self) -> SupplyTracking | None:
@@ -199,6 +203,11 @@ def identify(model: RobotModel, datasets: Sequence[Dataset], data_paths: Sequenc
                         # only a PWM input drifts with its supply (dynid.identify.supply)
                         tracking=settings.tracking if model.config.motors_with_input("pwm") else None,
                         residual_variance=result.residual_variance[result.chosen])
+    if settings.observer:
+        try:
+            built.model.record["observer"] = observer_record(built.model, datasets, settings.detector.alpha)
+        except DataError:  # e.g. too few contact-free samples: `detect` calibrates then, and says why, as before
+            pass
     total = time.perf_counter() - started
     built.model.record["fit_time_s"] = total
     # With --consistent off nothing keeps each body physical: say where the estimate is not (identify/plausibility.py)

@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 import argparse
+import functools
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ..config.robot_config import RobotConfig, load_config
 from ..detect.evaluation import detection
-from ..detect.momentum import DEFAULT_BANDWIDTH_HZ
-from ..detect.momentum_t2 import calibration_runs, momentum_detection
+from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S
+from ..detect.momentum_t2 import calibration_runs, momentum_detection, stored_detector
 from ..detect.t2 import ALPHA
 from ..errors import DataError, InputError
 from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_INERTIA_ONLY, FitSettings, iv_settled
@@ -47,7 +49,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
                            cad_pull=args.cad_pull == "cv", consistent_sphere=args.consistent != PSEUDO_INERTIA_ONLY)
     detector = DetectorSettings(args.alpha, args.n_mode)
     done = identify(model, datasets, args.data, IdentifySettings(settings, detector, args.supply_time_constant,
-                                                                 estimate_noise=args.noise == "estimate"))
+                                                                 estimate_noise=args.noise == "estimate",
+                                                                 observer=window(args) == (None, None)))
     model = done.robot or model
     done.model.save(args.out)
     result, record, detectors = done.fit, done.model.record, done.detectors
@@ -177,6 +180,17 @@ def input_words(config: RobotConfig) -> list[str]:
     return [f"{INPUT_WORD[k]}s" for k in kinds]
 
 
+def one_blas_thread(command):  # noqa: ANN001, ANN201 - a command function, wrapped
+    """Run a command with one BLAS thread: its products are long and thin ((N, 3) @ (3, 3) per run), where OpenBLAS's
+    threads cost more than they give (0.1 s a product on the shared 2-core machine; docs/benchmarks.md)."""
+    @functools.wraps(command)
+    def run(args: argparse.Namespace) -> dict[str, Any]:
+        with threadpool_limits(limits=1, user_api="blas"):
+            return command(args)
+    return run
+
+
+@one_blas_thread
 def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
     ev = evaluate(args.model, args.data, window=window(args), payload=args.payload, bad_rows=bad_rows(args))
     result = validation(ev, args.model, args.data)
@@ -221,6 +235,7 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
     return result
 
 
+@one_blas_thread
 def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
     calibration_given = bool(args.calibration) or (args.calibration_from, args.calibration_to) != (None, None)
     if calibration_given and args.residual == "acceleration":
@@ -245,10 +260,16 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
     momentum, skipped = None, None
     if args.residual in (None, "momentum"):
         try:
-            runs, paths = calibration_runs(ev.identified, args.calibration,
-                                           (args.calibration_from, args.calibration_to))
+            # the fit's own calibration where it matches (the model file's `observer` section), else calibrate now
+            stored = None if calibration_given or ev.identified.effects else stored_detector(
+                ev.identified, "detect", args.alpha, args.bandwidth, VELOCITY_WINDOW_S)
+            if stored is not None:
+                runs, paths = None, [d["path"] for d in ev.identified.record["data"]]
+            else:
+                runs, paths = calibration_runs(ev.identified, args.calibration,
+                                               (args.calibration_from, args.calibration_to))
             momentum = momentum_detection(ev.identified, ev.dataset, runs, args.alpha, args.bandwidth,
-                                          args.label_widening, found.side)
+                                          args.label_widening, found.side, detector=stored)
         except DataError as e:
             if args.residual == "momentum" or calibration_given:  # asked for: its failure is the command's
                 raise

@@ -1,0 +1,2 @@
+#include "bindings.hpp"
+namespace dynid { void register_plant(nb::module_&) {} }
