@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from .detect.momentum_t2 import observer_record
 from .detect.t2 import ALPHA, Detector, calibrate, calibration_residuals, detector_record
@@ -182,6 +183,15 @@ def check_scale(model: RobotModel, datasets: Sequence[Dataset], payload_possible
 def identify(model: RobotModel, datasets: Sequence[Dataset], data_paths: Sequence[str | Path],
              settings: IdentifySettings = IdentifySettings()) -> Identification:
     """Fit the model of docs/design.md §3 to the stacked runs, calibrate T² on them, and build the model file."""
+    # One BLAS thread: the products here are small (p × p Grams) or long and thin ((N, 3) @ (3, 3)), where OpenBLAS's
+    # threads cost more than they give on a shared 2-core machine (docs/benchmarks.md#compiled-kernels); the
+    # statistics' workers fill the cores.
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _identify(model, datasets, data_paths, settings)
+
+
+def _identify(model: RobotModel, datasets: Sequence[Dataset], data_paths: Sequence[str | Path],
+              settings: IdentifySettings) -> Identification:
     check_scale(model, datasets)
     fit_settings = settings.fit
     if fit_settings.estimator == "iv" and any(ds.meta.get("payload") for ds in datasets):
