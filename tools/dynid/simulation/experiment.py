@@ -259,7 +259,10 @@ def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
             raise RuntimeError(f"the plant diverged at t = {t[k]:.3f} s")
 
     # The sensors, from the true trajectory.
-    wrenches, at_sensor, tau_contact = plant.sensor_wrenches(Q, V, A, site_index, contact_wrench, sites, g_of_t)
+    measured = sim_kernel.sensor_wrenches(plant, Q, V, A, site_index, contact_wrench, sites, g_of_t)
+    if measured is None:  # the Python reference
+        measured = plant.sensor_wrenches(Q, V, A, site_index, contact_wrench, sites, g_of_t)
+    wrenches, at_sensor, tau_contact = measured
     ft_measured, ft_offsets, ft_saturated = {}, {}, {}
     for s in config.ft_sensors:
         offset = sensors.ft_offset_track(effects, s.name, t, truth.ft_offsets[s.name], rng_effects)

@@ -239,24 +239,6 @@ class RigidBodyPlant:
         on proximal, sensor frame, (N, 6) [f, τ]) and the part of it the contact adds; and the joint torques
         the contact adds, Jᵀ f (N, nv).
         """
-        from . import kernel  # (the kernel module builds on this one)
-
-        done = kernel.sensor_wrenches(self, q, v, a, contact_site, contact_wrench, sites, gravity)
-        if done is not None:  # the loop below, compiled
-            return done
-        return self.sensor_wrenches_reference(q, v, a, contact_site, contact_wrench, sites, gravity)
-
-    def sensor_wrenches_reference(
-        self,
-        q: np.ndarray,
-        v: np.ndarray,
-        a: np.ndarray,
-        contact_site: np.ndarray,
-        contact_wrench: np.ndarray,
-        sites: list[BodySite],
-        gravity: np.ndarray | None = None,
-    ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], np.ndarray]:
-        """The Python reference of `sensor_wrenches` (one Pinocchio call per sample)."""
         m, data = self.model, self._rnea_data
         n = q.shape[0]
         measured = {s.name: np.zeros((n, 6)) for s in self.sensors}
