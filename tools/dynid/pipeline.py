@@ -151,7 +151,7 @@ class IdentifySettings:
     # weighting, the model file's noise, validation's ratios and the detector's prior then use the estimate.
     estimate_noise: bool = False
     # Calibrate the momentum observer now, for `detect` and `export`, and keep it in the model file (its `observer`
-    # section): only for whole runs (a --from/--to window is recalibrated by those commands, as before).
+    # section): on the runs as fitted (window, bad rows), which is what those commands calibrate on.
     observer: bool = True
 
     @property

@@ -49,8 +49,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
                            cad_pull=args.cad_pull == "cv", consistent_sphere=args.consistent != PSEUDO_INERTIA_ONLY)
     detector = DetectorSettings(args.alpha, args.n_mode)
     done = identify(model, datasets, args.data, IdentifySettings(settings, detector, args.supply_time_constant,
-                                                                 estimate_noise=args.noise == "estimate",
-                                                                 observer=window(args) == (None, None)))
+                                                                 estimate_noise=args.noise == "estimate"))
     model = done.robot or model
     done.model.save(args.out)
     result, record, detectors = done.fit, done.model.record, done.detectors
