@@ -157,9 +157,12 @@ void Chain::regressor(const double* q, const double* dq, const double* ddq, cons
         for (int j : ancestors_[i]) {
             const Joint& J = joints_[j];
             double* out = Y + J.v_row * ld + 10 * i;
+            // j == i: the joint's own frame, taken as it is (not through the world frame and back), so that what
+            // is structurally zero there is exactly zero, as in Pinocchio's regressor (a column that only rounding
+            // fills would become a unit-norm predictor once PLS scales its columns)
             if (J.kind == Held) {  // six rows: the body's wrench regressor in the sensor frame (j_M_i acting)
-                const Mat3 R = oR[j].transpose() * oR[i];
-                const Vec3 p = oR[j].transpose() * (op[i] - op[j]);
+                const Mat3 R = j == i ? Mat3::Identity() : Mat3(oR[j].transpose() * oR[i]);
+                const Vec3 p = j == i ? Vec3::Zero() : Vec3(oR[j].transpose() * (op[i] - op[j]));
                 BodyRegressor Yb;
                 body_regressor(v, w, s.a_lin[i], alpha, Yb);
                 for (int c = 0; c < 10; ++c) {
@@ -173,6 +176,11 @@ void Chain::regressor(const double* q, const double* dq, const double* ddq, cons
                 continue;
             }
             // the joint's axis in body i's frame (SE3::actInv of the world axis), against the body's regressor
+            if (j == i) {
+                const Vec3 zero = Vec3::Zero();
+                axis_row(J.kind == Revolute ? zero : J.axis, J.kind == Revolute ? J.axis : zero, acc, B, w, alpha, out);
+                continue;
+            }
             const Vec3 sa = Rt * s.axis_ang[j];
             const Vec3 sl = Rt * (s.axis_lin[j] - op[i].cross(s.axis_ang[j]));
             axis_row(sl, sa, acc, B, w, alpha, out);
