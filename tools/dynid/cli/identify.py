@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import functools
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from ..config.robot_config import RobotConfig, load_config
 from ..detect.evaluation import detection
@@ -27,6 +25,7 @@ from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from .commands import COMMANDS
 from .common import confidence as alpha
+from .common import one_blas_thread
 from .common import (bad_rows, finite_float, json_arg, min_speed_arg, non_negative_float, payload_arg, payloads,
                      plural, positive_float, positive_int, robot_arg, skipped_rows, window, window_args)
 
@@ -177,16 +176,6 @@ def input_words(config: RobotConfig) -> list[str]:
     """What the set-up's motor rows predict, in words: ["current"], ["PWM"], ["joint torque"], ..."""
     kinds = sorted({"tau" if g.input == "torque" else g.input for g in config.actuation})
     return [f"{INPUT_WORD[k]}s" for k in kinds]
-
-
-def one_blas_thread(command):  # noqa: ANN001, ANN201 - a command function, wrapped
-    """Run a command with one BLAS thread: its products are long and thin ((N, 3) @ (3, 3) per run), where OpenBLAS's
-    threads cost more than they give (0.1 s a product on the shared 2-core machine; docs/benchmarks.md)."""
-    @functools.wraps(command)
-    def run(args: argparse.Namespace) -> dict[str, Any]:
-        with threadpool_limits(limits=1, user_api="blas"):
-            return command(args)
-    return run
 
 
 @one_blas_thread
