@@ -99,15 +99,16 @@ LoadResult check_shape(const uint8_t* p, size_t n) {
     LoadResult r;
     if (w.u64() != uint64_t(dynid::coefficients_t::getHash())) return not_this;
     w.strings(6);  // robot_name … estimator
-    int32_t nj = 0, nb = 0, nm = 0, no = 0, win = 0, ne = 0;
+    int32_t nj = 0, nb = 0, ns = 0, nm = 0, no = 0, win = 0, ne = 0;
     if (!w.count(nj, "joints", kMaxJoints, r)) return r ? not_this : r;
     w.strings(nj);
     if (!w.count(nb, "bodies", kMaxBodies, r)) return r ? not_this : r;
     w.strings(nb);
     w.array(nb, 4 + 1 + 4 + 8 * (3 + 9 + 3 + 10));  // parent, joint_type, joint_index, axis, rotation, translation, φ
     w.array(3, 8);                                  // gravity
-    w.array(1, 4);                                  // sensor_body
-    w.strings(1);                                   // sensor_name
+    if (!w.count(ns, "F/T sensors", kMaxSensors, r)) return r ? not_this : r;
+    w.strings(ns);                                  // sensor_names
+    w.array(ns, 4);                                 // sensor_body
     if (!w.count(nm, "motors", kMaxMotors, r)) return r ? not_this : r;
     w.strings(nm);
     w.array(int64_t(nm) * nj, 8);                   // motor_velocity
@@ -116,11 +117,13 @@ LoadResult check_shape(const uint8_t* p, size_t n) {
     if (!w.count(no, "outputs", kMaxOutputs, r)) return r ? not_this : r;
     w.strings(no);
     w.array(no, 1);                                 // channel_kind
-    w.array(6, 8);                                  // ft_offset
+    w.array(int64_t(ns) * 6, 8);                    // ft_offset
     w.array(int64_t(no) * nj, 8);                   // row_map
     w.array(no, 4 + 8 + 8 + 8 + 8);                 // channel_motor, divisor, residual_variance, gate_joints, gate_motors
-    w.array(1, 4 * 8 + 3 * 4 + 8 + 8);              // min_speed … ft_threshold, calibration_samples, debounce_on/off,
-                                                    // hysteresis, sample_period
+    w.array(3, 8);                                  // min_speed, alpha, threshold
+    w.array(ns, 8);                                 // ft_threshold
+    w.array(nj, 8);                                 // accel_tau_variance
+    w.array(1, 3 * 4 + 8 + 8);                      // calibration_samples, debounce_on/off, hysteresis, sample_period
     if (!w.count(win, "filter samples", kMaxWindow, r)) return r ? not_this : r;
     w.array(2, 4);                                  // order, lag
     w.array(int64_t(3) * win, 8);                   // filter
@@ -134,7 +137,8 @@ LoadResult check_shape(const uint8_t* p, size_t n) {
     w.array(vw, 8);                                 // velocity_filter
     w.array(int64_t(nj + nm) * 2, 8);               // joint_band, motor_band
     w.array(no, 8);                                 // observer_variance
-    w.array(3, 8);                                  // observer thresholds
+    w.array(2, 8);                                  // observer_threshold, observer_rest_threshold
+    w.array(ns, 8);                                 // observer_ft_threshold
     w.array(int64_t(nj) * no + nj + 1, 8);          // tau_map, tau_variance, isolation_sigmas
     if (!w.ok() || w.at() != n) return not_this;
     return LoadResult{};
@@ -160,11 +164,13 @@ LoadResult check_observer(const dynid::coefficients_t& c) {
         if (!finite_all(b)) return nf("the static-friction band");
     for (const auto& row : c.tau_map)
         if (!finite_all(row)) return nf("the external-torque map");
-    for (double v : {c.observer_bandwidth, c.observer_threshold, c.observer_rest_threshold, c.observer_ft_threshold,
-                     c.isolation_sigmas})
+    for (double v : {c.observer_bandwidth, c.observer_threshold, c.observer_rest_threshold, c.isolation_sigmas})
         if (!std::isfinite(v)) return nf("the momentum observer's settings");
-    if (!(c.observer_bandwidth > 0) || !(c.observer_threshold > 0) || !(c.observer_rest_threshold > 0) ||
-        !(c.observer_ft_threshold > 0) || !(c.isolation_sigmas > 0))
+    if (!finite_all(c.observer_ft_threshold)) return nf("the momentum observer's settings");
+    bool sides = true;
+    for (double v : c.observer_ft_threshold) sides = sides && v > 0;
+    if (!(c.observer_bandwidth > 0) || !(c.observer_threshold > 0) || !(c.observer_rest_threshold > 0) || !sides ||
+        !(c.isolation_sigmas > 0))
         return dim("momentum observer settings out of range (bandwidth, thresholds, isolation level must be positive)");
     for (int i = 0; i < c.n_outputs; ++i)
         if (!(c.observer_variance[i] > 0)) return dim("observer Λ of " + shown_name(c.channel_names[i]) + " is not positive");
@@ -279,13 +285,21 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     if (c.velocity_window > kMaxWindow) return cap("velocity filter samples", c.velocity_window, kMaxWindow);
     if (c.n_effects > kMaxEffects) return cap("effects", c.n_effects, kMaxEffects);
     auto dim = [](const std::string& m) { return fail(LoadError::kDimension, m); };
-    if (c.n_joints < 1 || c.n_bodies < c.n_joints || c.n_outputs < 6 || c.n_motors < 0)
-        return dim("dimensions out of range (joints " + str(c.n_joints) + ", bodies " + str(c.n_bodies) + ", outputs " +
-                   str(c.n_outputs) + ")");
+    if (c.n_sensors > kMaxSensors) return cap("F/T sensors", c.n_sensors, kMaxSensors);
+    if (c.n_joints < 1 || c.n_bodies < c.n_joints || c.n_sensors < 0 || c.n_outputs < 1 || c.n_outputs < 6 * c.n_sensors ||
+        c.n_motors < 0)
+        return dim("dimensions out of range (joints " + str(c.n_joints) + ", bodies " + str(c.n_bodies) + ", F/T sensors " +
+                   str(c.n_sensors) + ", outputs " + str(c.n_outputs) + ")");
     if (c.window < 3 || c.order < 2 || c.order >= c.window || c.lag < 0 || c.lag >= c.window)
         return dim("derivative filter settings out of range (window " + str(c.window) + ", order " + str(c.order) +
                    ", lag " + str(c.lag) + ")");
-    if (c.sensor_body < 0 || c.sensor_body >= c.n_bodies) return dim("F/T sensor body out of range");
+    for (int k = 0; k < c.n_sensors; ++k) {
+        const int b = c.sensor_body[k];
+        if (b < 0 || b >= c.n_bodies || c.joint_type[b] != 0)
+            return dim("F/T sensor " + shown_name(c.sensor_names[k]) + ": its body must be a fixed split of the chain");
+        for (int m = 0; m < k; ++m)
+            if (c.sensor_body[m] == b) return dim("two F/T sensors on one body");
+    }
     if (c.debounce_on < 1 || c.debounce_off < 1) return dim("debounce counts must be at least 1");
     if (c.n_effects < 0) return dim("negative effect count");
     for (int k = 0; k < c.n_effects; ++k) {
@@ -306,7 +320,8 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
         if (!seen[j]) return dim("joint " + str(j) + " moves no body");
     for (int i = 0; i < c.n_outputs; ++i) {
         if (c.channel_kind[i] < 0 || c.channel_kind[i] > 2) return dim("channel " + str(i) + ": unknown kind");
-        if ((c.channel_kind[i] == 0) != (i < 6)) return dim("the six F/T channels must come first, and only they");
+        if ((c.channel_kind[i] == 0) != (i < 6 * c.n_sensors))
+            return dim("the six channels of each F/T sensor must come first, and only they");
         if (c.channel_motor[i] < -1 || c.channel_motor[i] >= c.n_motors) return dim("channel " + str(i) + ": motor out of range");
         if ((c.gate_joints[i] >> c.n_joints) != 0 || (c.n_motors < 64 && (c.gate_motors[i] >> c.n_motors) != 0))
             return dim("channel " + str(i) + ": gate names a joint or motor that does not exist");
@@ -325,7 +340,9 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
         if (!finite_all(c.motor_velocity[k]) || !finite_all(c.motor_friction[k])) return nf("the motors");
     for (int j = 0; j < c.n_joints; ++j)
         if (!finite_all(c.joint_friction[j])) return nf("the joint friction");
-    if (!finite_all(c.ft_offset)) return nf("the F/T offsets");
+    for (const auto& o : c.ft_offset)
+        if (!finite_all(o)) return nf("the F/T offsets");
+    if (!finite_all(c.ft_threshold) || !finite_all(c.accel_tau_variance)) return nf("the detector or filter settings");
     for (int i = 0; i < c.n_outputs; ++i)
         if (!finite_all(c.row_map[i])) return nf("the output rows");
     if (!finite_all(c.divisor) || !finite_all(c.residual_variance)) return nf("the divisors or Λ");
@@ -336,7 +353,7 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     for (int k = 0; k < c.n_effects; ++k)
         if (c.effect_kind[k] == 1 && !(c.effect_param[k][1] > 0))
             return dim("effect " + str(k) + ": the Stribeck velocity must be positive");
-    for (double v : {c.min_speed, c.alpha, c.threshold, c.ft_threshold, c.hysteresis, c.sample_period})
+    for (double v : {c.min_speed, c.alpha, c.threshold, c.hysteresis, c.sample_period})
         if (!std::isfinite(v)) return nf("the detector or filter settings");
     if (!std::isfinite(c.supply_time_constant) || !std::isfinite(c.supply_prior) || !finite_all(c.supply_gate))
         return nf("the supply tracking");
@@ -349,9 +366,12 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
         if (c.residual_variance[i] <= 0) return dim("Λ of " + shown_name(c.channel_names[i]) + " is not positive");
         if (c.divisor[i] == 0) return dim("the divisor (motor gain) of " + shown_name(c.channel_names[i]) + " is zero");
     }
-    if (c.threshold <= 0 || c.ft_threshold <= 0 || c.hysteresis <= 0 || c.hysteresis > 1 || c.sample_period <= 0 ||
-        c.alpha <= 0 || c.alpha >= 1 || c.min_speed < 0)
-        return dim("detector settings out of range (threshold, hysteresis, α, period)");
+    bool sides = true;
+    for (double v : c.ft_threshold) sides = sides && v > 0;
+    for (double v : c.accel_tau_variance) sides = sides && v >= 0;
+    if (c.threshold <= 0 || !sides || c.hysteresis <= 0 || c.hysteresis > 1 || c.sample_period <= 0 || c.alpha <= 0 ||
+        c.alpha >= 1 || c.min_speed < 0)
+        return dim("detector settings out of range (thresholds, hysteresis, α, period, τ_ext variances)");
     // The sample clock counts periods between stamps in int64: a period of 1e-300 s overflowed it (fuzzer finding).
     if (c.sample_period < kMinSamplePeriod || c.sample_period > kMaxSamplePeriod) {
         std::ostringstream m;
@@ -391,8 +411,17 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
         out.inertia[i] << p[4], p[5], p[7], p[5], p[6], p[8], p[7], p[8], p[9];
     }
     out.gravity = Vec3(c.gravity[0], c.gravity[1], c.gravity[2]);
-    out.sensor_body = c.sensor_body;
-    out.sensor_name = c.sensor_name;
+    out.n_sensors = c.n_sensors;
+    out.sensor_of_body.fill(-1);
+    for (int i = 0; i < c.n_bodies; ++i) out.body_names[i] = c.body_names[i];
+    for (int k = 0; k < c.n_sensors; ++k) {
+        out.sensor_body[k] = c.sensor_body[k];
+        out.sensor_of_body[c.sensor_body[k]] = k;
+        out.sensor_names[k] = c.sensor_names[k];
+        for (int m = 0; m < 6; ++m) out.ft_offset[k][m] = c.ft_offset[k][m];
+        out.ft_threshold[k] = c.ft_threshold[k];
+        out.observer_ft_threshold[k] = c.observer_ft_threshold[k];
+    }
     for (int k = 0; k < c.n_motors; ++k) {
         for (int j = 0; j < c.n_joints; ++j) out.motor_velocity(k, j) = c.motor_velocity[k][j];
         out.motor_friction_on[k] = c.motor_friction_on[k] != 0;
@@ -402,7 +431,6 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
         out.joint_names[j] = c.joint_names[j];
         for (int m = 0; m < 4; ++m) out.joint_friction(j, m) = c.joint_friction[j][m];
     }
-    for (int k = 0; k < 6; ++k) out.ft_offset[k] = c.ft_offset[k];
     for (int i = 0; i < c.n_outputs; ++i) {
         out.channel_names[i] = c.channel_names[i];
         out.channel_kind[i] = ChannelKind(c.channel_kind[i]);
@@ -419,7 +447,6 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     out.min_speed = c.min_speed;
     out.alpha = c.alpha;
     out.threshold = c.threshold;
-    out.ft_threshold = c.ft_threshold;
     out.hysteresis = c.hysteresis;
     out.calibration_samples = c.calibration_samples;
     out.debounce_on = c.debounce_on;
@@ -438,6 +465,7 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
         out.joint_band(j, 0) = c.joint_band[j][0];
         out.joint_band(j, 1) = c.joint_band[j][1];
         out.tau_variance[j] = c.tau_variance[j];
+        out.accel_tau_variance[j] = c.accel_tau_variance[j];
         for (int i = 0; i < c.n_outputs; ++i) out.tau_map(j, i) = c.tau_map[j][i];
     }
     for (int k = 0; k < c.n_motors; ++k) {
@@ -447,7 +475,6 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     for (int i = 0; i < c.n_outputs; ++i) out.observer_variance[i] = c.observer_variance[i];
     out.observer_threshold = c.observer_threshold;
     out.observer_rest_threshold = c.observer_rest_threshold;
-    out.observer_ft_threshold = c.observer_ft_threshold;
     out.isolation_sigmas = c.isolation_sigmas;
     out.n_effects = c.n_effects;
     for (int k = 0; k < c.n_effects; ++k) {

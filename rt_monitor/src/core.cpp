@@ -56,7 +56,8 @@ bool Core::set_residual(Residual r) noexcept {
     return true;
 }
 
-void Core::rnea(const VecJ& q, const VecJ& dq, const VecJ& ddq, VecJ& tau, Vec6& sensor_force) const noexcept {
+void Core::rnea(const VecJ& q, const VecJ& dq, const VecJ& ddq, VecJ& tau,
+                std::array<Vec6, kMaxSensors>& sensor_force) const noexcept {
     // Forward pass: body velocities and accelerations in body frames; the base accelerates at −g.
     std::array<Mat3, kMaxBodies> R;  // orientation of body i in its parent (parent-from-child)
     std::array<Vec3, kMaxBodies> r, v, w, a, al, f, n;
@@ -101,9 +102,9 @@ void Core::rnea(const VecJ& q, const VecJ& dq, const VecJ& ddq, VecJ& tau, Vec6&
         const int j = c_.joint_index[i], p = c_.parent[i];
         if (c_.joint_type[i] == JointType::kRevolute) tau[j] = c_.axis[i].dot(n[i]);
         else if (c_.joint_type[i] == JointType::kPrismatic) tau[j] = c_.axis[i].dot(f[i]);
-        if (i == c_.sensor_body) {
-            sensor_force.head<3>() = f[i];
-            sensor_force.tail<3>() = n[i];
+        if (const int s = c_.sensor_of_body[i]; s >= 0) {
+            sensor_force[s].head<3>() = f[i];
+            sensor_force[s].tail<3>() = n[i];
         }
         if (p >= 0) {
             const Vec3 fp = R[i] * f[i];
@@ -115,12 +116,12 @@ void Core::rnea(const VecJ& q, const VecJ& dq, const VecJ& ddq, VecJ& tau, Vec6&
 }
 
 void Core::predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y, Prediction& out) const noexcept {
-    Vec6 fs;
+    std::array<Vec6, kMaxSensors> fs;
     out.tau.setZero();
     rnea(q, dq, ddq, out.tau, fs);
-    // The sensor reports the wrench the distal sub-body exerts on the proximal one: minus the force it receives.
-    out.y_hat.head<6>() = c_.ft_offset - fs;
-    const int nj = c_.n_joints;
+    // A sensor reports the wrench its distal sub-body exerts on the proximal one: minus the force that receives.
+    for (int k = 0; k < c_.n_sensors; ++k) out.y_hat.segment<6>(6 * k) = c_.ft_offset[k] - fs[k];
+    const int nj = c_.n_joints, nft = c_.n_ft();
     VecJ load = out.tau;  // τ + τ_f
     for (int j = 0; j < nj; ++j) {
         const double jf[4] = {c_.joint_friction(j, 0), c_.joint_friction(j, 1), c_.joint_friction(j, 2),
@@ -139,10 +140,11 @@ void Core::predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y
             load[j] += p[0] * (q[j] - p[1]);
         }
     }
-    out.t2 = out.t2_ft = 0;
+    out.t2 = 0;
+    out.t2_sensor.fill(0.0);
     for (int i = 0; i < c_.n_outputs; ++i) {
         out.active[i] = true;
-        if (i >= 6) {
+        if (i >= nft) {
             double s = 0;
             for (int j = 0; j < nj; ++j) s += c_.row_map(i, j) * load[j];
             const int m = c_.channel_motor[i];
@@ -170,7 +172,7 @@ void Core::predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y
         out.e[i] = y[i] - out.y_hat[i];
         const double z = out.e[i] * out.e[i] / c_.variance[i];
         if (out.active[i]) out.t2 += z;
-        if (i < 6) out.t2_ft += z;
+        if (i < nft) out.t2_sensor[i / 6] += z;
     }
 }
 
@@ -206,7 +208,12 @@ void Core::accelerate() noexcept {
         for (int k = 0; k < no; ++k) out_.y[k] += w0 * col[nj + k];
     }
     predict(out_.q, out_.dq, out_.ddq, out_.y, out_.p);
-    out_.wrench = out_.p.e.head<6>();
+    for (int k = 0; k < c_.n_sensors; ++k) out_.wrench[k] = out_.p.e.segment<6>(6 * k);
+    // Each row's residual as a torque on it, τ_ext = tau_map · (divisor ⊙ e), over the rows in T² (a row at rest
+    // carries the static friction the model lacks)
+    VecO rows = VecO::Zero();
+    for (int i = c_.n_ft(); i < c_.n_outputs; ++i) rows[i] = out_.p.active[i] ? c_.divisor[i] * out_.p.e[i] : 0.0;
+    isolate(rows, c_.accel_tau_variance);
     detect(c_.threshold, c_.ft_threshold);
     track_supply();  // after this sample's residual: the sample never explains itself
 }
@@ -214,7 +221,7 @@ void Core::accelerate() noexcept {
 void Core::observe(const double* q, const double* y) noexcept {
     // dynid.detect.momentum term for term: r = low-pass of τ_meas − τ_model with τ_model = ṗ − β (no q̈), on the raw
     // q and the causal q̇ estimate; ṗ is the difference of p over the step (0 on the observer's first sample).
-    const int W = window_, nj = c_.n_joints, no = c_.n_outputs;
+    const int W = window_, nj = c_.n_joints, no = c_.n_outputs, nft = c_.n_ft();
     const double T = c_.sample_period, ms = c_.min_speed;
     out_.dq.setZero();
     for (int s = 0; s < W; ++s) {
@@ -228,10 +235,10 @@ void Core::observe(const double* q, const double* y) noexcept {
     const VecJ& dq = out_.dq;
     momentum_terms(c_, q, dq.data(), terms_);
     VecJ x_joint = terms_.beta;  // β − ṗ: minus the model's torque, per joint
-    Vec6 x_sensor = terms_.beta_sensor;
+    std::array<Vec6, kMaxSensors> x_sensor = terms_.beta_sensor;
     if (observing_) {
         x_joint -= (terms_.p - p_prev_) / T;
-        x_sensor -= (terms_.p_sensor - ps_prev_) / T;
+        for (int k = 0; k < c_.n_sensors; ++k) x_sensor[k] -= (terms_.p_sensor[k] - ps_prev_[k]) / T;
     }
     observing_ = true;
     p_prev_ = terms_.p;
@@ -243,8 +250,8 @@ void Core::observe(const double* q, const double* y) noexcept {
     std::array<bool, kMaxOutputs> rest{};
     bool all_rest = true;
     for (int i = 0; i < no; ++i) {
-        if (i < 6) {  // the sensor's coordinate: τ_meas = −(w − w_O), its row w − ŵ = −(τ_meas − τ_model)
-            x[i] = (y[i] - c_.ft_offset[i]) - x_sensor[i];
+        if (i < nft) {  // a sensor's coordinate: τ_meas = −(w − w_O), its row w − ŵ = −(τ_meas − τ_model)
+            x[i] = (y[i] - c_.ft_offset[i / 6][i % 6]) - x_sensor[i / 6][i % 6];
             all_rest = false;
             continue;
         }
@@ -287,7 +294,8 @@ void Core::observe(const double* q, const double* y) noexcept {
         }
     }
     Prediction& p = out_.p;
-    p.t2 = p.t2_ft = 0;
+    p.t2 = 0;
+    p.t2_sensor.fill(0.0);
     for (int i = 0; i < no; ++i) {
         const double ri = out_.r[i];
         p.e[i] = rest[i] ? ri - std::clamp(ri, lo[i], hi[i]) : ri;  // at rest: the distance outside the band
@@ -295,14 +303,19 @@ void Core::observe(const double* q, const double* y) noexcept {
         p.y_model[i] = p.y_hat[i] = 0;
         const double z = p.e[i] * p.e[i] / c_.observer_variance[i];
         p.t2 += z;
-        if (i < 6) p.t2_ft += z;
+        if (i < nft) p.t2_sensor[i / 6] += z;
     }
-    out_.tau_ext.head(nj).noalias() = c_.tau_map.topLeftCorner(nj, no) * out_.r.head(no);
+    isolate(out_.r, c_.tau_variance);
+    for (int k = 0; k < c_.n_sensors; ++k) out_.wrench[k] = out_.r.segment<6>(6 * k);
+    detect(all_rest ? c_.observer_rest_threshold : c_.observer_threshold, c_.observer_ft_threshold);
+}
+
+void Core::isolate(const VecO& rows, const std::array<double, kMaxJoints>& variance) noexcept {
+    const int nj = c_.n_joints, no = c_.n_outputs;
+    out_.tau_ext.head(nj).noalias() = c_.tau_map.topLeftCorner(nj, no) * rows.head(no);
     out_.joint = -1;
     for (int j = nj - 1; j >= 0 && out_.joint < 0; --j)
-        if (std::abs(out_.tau_ext[j]) > c_.isolation_sigmas * std::sqrt(c_.tau_variance[j])) out_.joint = j;
-    out_.wrench = out_.r.head<6>();
-    detect(all_rest ? c_.observer_rest_threshold : c_.observer_threshold, c_.observer_ft_threshold);
+        if (variance[j] > 0 && std::abs(out_.tau_ext[j]) > c_.isolation_sigmas * std::sqrt(variance[j])) out_.joint = j;
 }
 
 void Core::track_supply() noexcept {
@@ -319,10 +332,11 @@ void Core::track_supply() noexcept {
     }
 }
 
-void Core::detect(double threshold, double ft_threshold) noexcept {
+void Core::detect(double threshold, const std::array<double, kMaxSensors>& ft_threshold) noexcept {
     const double t2 = out_.p.t2;
     out_.above = t2 > threshold;
-    out_.side = !out_.above ? Side::kNone : (out_.p.t2_ft > ft_threshold ? Side::kDistal : Side::kProximal);
+    for (int k = 0; k < c_.n_sensors; ++k)
+        out_.side[k] = !out_.above ? Side::kNone : (out_.p.t2_sensor[k] > ft_threshold[k] ? Side::kDistal : Side::kProximal);
     if (!out_.in_contact) {
         above_run_ = out_.above ? above_run_ + 1 : 0;
         if (above_run_ >= det_.debounce_on) {

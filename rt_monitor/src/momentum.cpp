@@ -42,9 +42,9 @@ void momentum_terms(const Coefficients& c, const double* q, const double* dq, Mo
             out.p[j] = ax.dot(hl[i]);
             out.beta[j] = w[i].cross(ax).dot(hl[i]) - ax.dot(gl[i]);
         }
-        if (i == c.sensor_body) {  // β = −v ×* h − f_g, v ×* h = (w × h_l, w × h_a + v × h_l)
-            out.p_sensor << hl[i], ha[i];
-            out.beta_sensor << -w[i].cross(hl[i]) - gl[i], -w[i].cross(ha[i]) - v[i].cross(hl[i]) - ga[i];
+        if (const int s = c.sensor_of_body[i]; s >= 0) {  // β = −v ×* h − f_g, v ×* h = (w × h_l, w × h_a + v × h_l)
+            out.p_sensor[s] << hl[i], ha[i];
+            out.beta_sensor[s] << -w[i].cross(hl[i]) - gl[i], -w[i].cross(ha[i]) - v[i].cross(hl[i]) - ga[i];
         }
         if (p >= 0) {
             const Vec3 fl = R[i] * hl[i], gp = R[i] * gl[i];

@@ -120,10 +120,10 @@ TEST(Loader, RefusesDamagedBytes) {
     crc[200] ^= 0x40;
     cases.push_back({"flipped bit", crc, LoadError::kCrc, "CRC mismatch"});
     auto version = good;
-    put_le32(version, 8, 3);  // a file of the format before the momentum observer: refused, not misread
+    put_le32(version, 8, 4);  // a file of the format before any number of F/T sensors: refused, not misread
     reseal(version);
-    cases.push_back({"version 3", version, LoadError::kVersion,
-                     "format version 3, this monitor reads 4: export the model again"});
+    cases.push_back({"version 4", version, LoadError::kVersion,
+                     "format version 4, this monitor reads 5: export the model again"});
     auto magic = good;
     magic[0] = 'X';
     cases.push_back({"magic", magic, LoadError::kMagic, "bad magic"});
@@ -329,11 +329,11 @@ TEST(Detector, DebounceHysteresisAndSide) {
         if (o.above && first_above < 0) first_above = k;
         if (o.event == Event::kOnset) {
             onset = k;
-            EXPECT_EQ(o.side, Side::kDistal);
+            EXPECT_EQ(o.side[0], Side::kDistal);
         }
         if (k == 399) {  // settled: the F/T residual is the external wrench
-            EXPECT_NEAR(o.wrench[0], big, 1e-3 * big);
-            EXPECT_NEAR(o.wrench.tail<5>().norm(), 0.0, 1e-3 * big);
+            EXPECT_NEAR(o.wrench[0][0], big, 1e-3 * big);
+            EXPECT_NEAR(o.wrench[0].tail<5>().norm(), 0.0, 1e-3 * big);
         }
     }
     ASSERT_GE(first_above, 200);
@@ -363,7 +363,7 @@ TEST(Detector, MotorChannelsAloneMeanProximal) {
         const Output& o = s.step(k, push);
         if (o.above) {
             seen = true;
-            EXPECT_EQ(o.side, Side::kProximal);
+            EXPECT_EQ(o.side[0], Side::kProximal);
         }
     }
     EXPECT_TRUE(seen);
@@ -450,7 +450,7 @@ TEST(Observer, ExactDataThenAFirstOrderStepOnAPush) {
         for (int i = 0; i < 9; ++i) EXPECT_NEAR(o.r[i], r_before[i], 1e-3 * std::sqrt(c.observer_variance[i])) << i;
         if (o.event == Event::kOnset) {
             onset = n;
-            EXPECT_EQ(o.side, Side::kProximal);
+            EXPECT_EQ(o.side[0], Side::kProximal);
         }
     }
     const Output& o = s.core->output();

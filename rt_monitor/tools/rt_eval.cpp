@@ -1,9 +1,10 @@
 // rt_eval: the core on files, for tests and offline replays (not the real-time loop).
+//   rt_eval --capacity                                    this build's capacity (capacity.hpp), one `name N` a line
 //   rt_eval --coef FILE [--robot NAME] --check
-//   rt_eval --coef FILE [--robot NAME] --predict IN OUT   IN rows: q, q̇, q̈, y   OUT: ŷ, e, active, T², T²_FT
+//   rt_eval --coef FILE [--robot NAME] --predict IN OUT   IN rows: q, q̇, q̈, y   OUT: ŷ, e, active, T², T²_s (per sensor)
 //   rt_eval --coef FILE [--robot NAME] [--residual acceleration|momentum] --stream IN OUT
-//       IN rows: raw q, y    OUT: ready, q, q̇, q̈, y, ŷ, e, T², T²_FT, above, in_contact, event, side, r, τ_ext, joint
-//       (the residual the file selects, or the one named; r, τ_ext and joint are the observer's: zero, −1 else)
+//       IN rows: raw q, y    OUT: ready, q, q̇, q̈, y, ŷ, e, T², T²_s (per sensor), above, in_contact, event,
+//       side (per sensor), r, τ_ext, joint (the residual the file selects, or the one named; r is the observer's)
 // Matrices: "DYMX", int64 rows, int64 cols, then float64 row-major (little-endian). Exit 2 on bad usage or
 // data, 10 + LoadError on a refused coefficient file.
 #include "rt_monitor/core.hpp"
@@ -61,12 +62,19 @@ int main(int argc, char** argv) {
         if (a == "--coef" && i + 1 < argc) coef = argv[++i];
         else if (a == "--robot" && i + 1 < argc) robot = argv[++i];
         else if (a == "--check") mode = "check";
+        else if (a == "--capacity") mode = "capacity";
         else if (a == "--residual" && i + 1 < argc) residual = argv[++i];
         else if ((a == "--predict" || a == "--stream") && i + 2 < argc) {
             mode = a.substr(2);
             in = argv[++i];
             out = argv[++i];
         } else return usage(("unknown or incomplete argument '" + a + "'").c_str());
+    }
+    if (mode == "capacity") {
+        std::printf("joints %d\nsensors %d\nbodies %d\nmotors %d\noutputs %d\nwindow %d\neffects %d\nbuses %d\n"
+                    "frames %d\nsignals %d\nskins %d\n", kMaxJoints, kMaxSensors, kMaxBodies, kMaxMotors, kMaxOutputs,
+                    kMaxWindow, kMaxEffects, kMaxBuses, kMaxFrames, kMaxSignals, kMaxSkins);
+        return 0;
     }
     if (coef.empty() || mode.empty()) return usage("need --coef FILE and one of --check, --predict IN OUT, --stream IN OUT");
     auto c = std::make_unique<Coefficients>();
@@ -75,10 +83,10 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "rt_eval: refused: %s\n", r.message.c_str());
         return kExitBase + int(r.error);
     }
-    const int nj = c->n_joints, no = c->n_outputs;
+    const int nj = c->n_joints, no = c->n_outputs, ns = c->n_sensors;
     if (mode == "check") {
-        std::printf("ok: %s, %d joints, %d bodies, %d outputs, window %d lag %d, T2_alpha %.6g\n", c->robot_name.c_str(),
-                    nj, c->n_bodies, no, c->window, c->lag, c->threshold);
+        std::printf("ok: %s, %d joints, %d bodies, %d F/T sensors, %d outputs, window %d lag %d, T2_alpha %.6g\n",
+                    c->robot_name.c_str(), nj, c->n_bodies, ns, no, c->window, c->lag, c->threshold);
         return 0;
     }
     Matrix x;
@@ -93,7 +101,7 @@ int main(int argc, char** argv) {
     y.rows = x.rows;
     if (mode == "predict") {
         if (x.cols != 3 * nj + no) return usage("--predict input needs 3·n_joints + n_outputs columns");
-        y.cols = 3 * no + 2;
+        y.cols = 3 * no + 1 + ns;
         y.v.resize(size_t(y.rows * y.cols));
         Prediction p;
         for (int64_t k = 0; k < x.rows; ++k) {
@@ -106,11 +114,11 @@ int main(int argc, char** argv) {
             double* o = &y.v[size_t(k * y.cols)];
             for (int i = 0; i < no; ++i) o[i] = p.y_hat[i], o[no + i] = p.e[i], o[2 * no + i] = p.active[i];
             o[3 * no] = p.t2;
-            o[3 * no + 1] = p.t2_ft;
+            for (int k = 0; k < ns; ++k) o[3 * no + 1 + k] = p.t2_sensor[k];
         }
     } else {
         if (x.cols != nj + no) return usage("--stream input needs n_joints + n_outputs columns");
-        y.cols = 1 + 3 * nj + 3 * no + 6 + no + nj + 1;
+        y.cols = 1 + 3 * nj + 3 * no + 4 + 2 * ns + no + nj + 1;
         y.v.resize(size_t(y.rows * y.cols));
         for (int64_t k = 0; k < x.rows; ++k) {
             const double* row = &x.v[size_t(k * x.cols)];
@@ -121,9 +129,12 @@ int main(int argc, char** argv) {
             double* oo = o + 1 + 3 * nj;
             for (int i = 0; i < no; ++i) oo[i] = s.y[i], oo[no + i] = s.p.y_hat[i], oo[2 * no + i] = s.p.e[i];
             oo += 3 * no;
-            oo[0] = s.p.t2, oo[1] = s.p.t2_ft, oo[2] = s.above, oo[3] = s.in_contact, oo[4] = int(s.event),
-            oo[5] = int(s.side);
-            oo += 6;
+            oo[0] = s.p.t2;
+            for (int k = 0; k < ns; ++k) oo[1 + k] = s.p.t2_sensor[k];
+            oo += 1 + ns;
+            oo[0] = s.above, oo[1] = s.in_contact, oo[2] = int(s.event);
+            for (int k = 0; k < ns; ++k) oo[3 + k] = int(s.side[k]);
+            oo += 3 + ns;
             for (int i = 0; i < no; ++i) oo[i] = s.r[i];
             for (int j = 0; j < nj; ++j) oo[no + j] = s.tau_ext[j];
             oo[no + nj] = s.joint;

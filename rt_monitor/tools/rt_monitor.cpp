@@ -323,6 +323,21 @@ int main(int argc, char** argv) {
     ev.joint.assign(coef->joint_names.begin(), coef->joint_names.begin() + n_joints);
     ev.tau_ext.assign(size_t(n_joints), 0.0);
     ev.isolated_joint = -1;
+    const int n_sensors = coef->n_sensors;
+    ev.n_sensors = n_sensors;
+    ev.sensor.assign(coef->sensor_names.begin(), coef->sensor_names.begin() + n_sensors);
+    ev.side.assign(size_t(n_sensors), 0);
+    ev.wrench.assign(size_t(n_sensors), std::vector<double>(6, 0.0));
+    // The link each joint moves (the isolated link's name), and room for the longest: the event's size then never
+    // grows in the loop (its string keeps its capacity, the encode buffer is sized for it).
+    std::vector<std::string> link_of_joint(static_cast<size_t>(n_joints));
+    for (int i = 0; i < coef->n_bodies; ++i)
+        if (coef->joint_index[i] >= 0) link_of_joint[size_t(coef->joint_index[i])] = coef->body_names[i];
+    size_t longest_link = 0;
+    for (const auto& l : link_of_joint) longest_link = std::max(longest_link, l.size());
+    ev.isolated_link.assign(longest_link, ' ');
+    const int event_size = ev.getEncodedSize();
+    ev.isolated_link.clear();
     dynid::residual_t res;
     res.n_channels = n_out;
     res.normalized_residual.assign(size_t(n_out), 0.0);
@@ -337,7 +352,7 @@ int main(int argc, char** argv) {
     // the way lcm::LCM::publish(channel, const T*) does; channel names built once too.
     enum { kContact, kResidual, kStatus };
     const std::string channels[3] = {"DYNID_CONTACT", "DYNID_RESIDUAL", "DYNID_STATUS"};
-    std::vector<uint8_t> wire(size_t(std::max({ev.getEncodedSize(), res.getEncodedSize(), st.getEncodedSize()})));
+    std::vector<uint8_t> wire(size_t(std::max({event_size, res.getEncodedSize(), st.getEncodedSize()})));
     // Per channel: messages published, and refused (lcm_publish's error); allocations made inside lcm_publish (the
     // provider's: liblcm's file:// provider mallocs an event record per message, its udpm provider nothing).
     int64_t published[3] = {}, publish_failed = 0, unencoded = 0;
@@ -430,14 +445,17 @@ int main(int argc, char** argv) {
             if (o.event == Event::kOnset) onset_utime = x.t_us;
             ev.utime = x.t_us;
             ev.kind = int8_t(o.event);
-            ev.side = int8_t(o.side);
             ev.onset_utime = onset_utime;
             ev.sample = evaluated - 1;
             ev.t2 = o.p.t2;
             fill_residual(ev.normalized_residual, o);
-            for (int k = 0; k < 6; ++k) ev.wrench[k] = o.wrench[k];
+            for (int k = 0; k < n_sensors; ++k) {
+                ev.side[size_t(k)] = int8_t(o.side[k]);
+                for (int m = 0; m < 6; ++m) ev.wrench[size_t(k)][size_t(m)] = o.wrench[k][m];
+            }
             for (int j = 0; j < n_joints; ++j) ev.tau_ext[size_t(j)] = o.tau_ext[j];
             ev.isolated_joint = o.joint;
+            ev.isolated_link.assign(o.joint >= 0 ? link_of_joint[size_t(o.joint)] : std::string());  // within capacity
             send(kContact, ev);
             if (o.event == Event::kOnset && latency.size() < latency.capacity()) latency.push_back(mono_us() - rx_mono);
         }

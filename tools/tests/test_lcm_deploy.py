@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pytest
 
+from dynid.cli.spy import plain
 from dynid.config.robot_config import load_config
 from dynid.export.monitor_config import monitor_config_text
 from dynid.export.monitor_log import read_lcm_log
@@ -152,12 +153,16 @@ def test_java_types_decode_the_published_messages(run: dict, tmp_path: Path) -> 
             assert set(j) == set(m.__slots__)
             for name in m.__slots__:
                 want = getattr(m, name)
-                items = list(want) if isinstance(want, (list, tuple)) else [want]
+                items = _flat(want) if isinstance(want, (list, tuple)) else [want]  # Java prints arrays flat
                 got = j[name].split(",") if isinstance(want, (list, tuple)) else [j[name]]
                 conv = [type(w)(g) if not isinstance(w, bool) else g == "true" for w, g in zip(items, got)]
                 assert conv == items, f"{channel}.{name}: Java {j[name]!r}, Python {want!r}"
     kinds = [int(j["kind"]) for j in by_channel["DYNID_CONTACT"]]
     assert kinds and kinds[0] == 1  # the contact's onset, decoded in Java
+
+
+def _flat(v) -> list:
+    return [y for x in v for y in _flat(x)] if isinstance(v, (list, tuple)) else [v]
 
 
 def test_lcm_spy_launcher_puts_the_jar_on_the_classpath(tmp_path: Path) -> None:
@@ -194,8 +199,7 @@ def test_spy_json_is_every_message_of_the_log(run: dict) -> None:
         got = [l for l in lines if l["channel"] == channel]
         assert len(got) == len(msgs[channel])
         for g, m in zip(got, msgs[channel]):
-            assert all(g["message"][k] == (list(v) if isinstance(v, (list, tuple)) else v) for k, v in
-                       ((k, getattr(m, k)) for k in m.__slots__))
+            assert all(g["message"][k] == plain(getattr(m, k)) for k in m.__slots__)
     assert summary["stopped"] == "end of the log"
     assert summary["messages"] == {c: len(m) for c, m in msgs.items()}
     kinds = [m.kind for m in msgs["DYNID_CONTACT"]]

@@ -64,7 +64,7 @@ def live(default_experiments: dict, exported: Path, tmp_path_factory: pytest.Tem
     stop = start + len(rows)
     stretch = {k: truth[k][start:stop] for k in truth.files if k in ("contact", "dq") or k.startswith("extra/contact.")}
     visible = [v.visible for v in monitor_visibility(RobotModel(load_config("icub_right_arm")), c, stretch)]
-    return {"r": r, "visible": visible, "replay": [(int(m.kind), round((m.utime - 1_700_000_000_000_000) / 1000), int(m.side))
+    return {"r": r, "visible": visible, "replay": [(int(m.kind), round((m.utime - 1_700_000_000_000_000) / 1000), int(m.side[0]))
                                for m in replay], "msgs": read_lcm_log(Path(r["lcm_log"])), "data": table[start:start + len(rows)], "head": head,
             "slack": c.lag + c.debounce_on + 5, "fifo": fifo}
 
@@ -87,7 +87,7 @@ def test_every_distal_contact_found_and_no_event_without_contact(live: dict, pat
     contact, side = data[:, head.index("contact")], data[:, head.index("skin.side")]
     t0 = sample0_us(live["r"]["boards"])
     events = live["replay"] if path == "replay" else \
-        [(int(m.kind), round((m.utime - t0) / 1000), int(m.side)) for m in live["msgs"]["DYNID_CONTACT"]]
+        [(int(m.kind), round((m.utime - t0) / 1000), int(m.side[0])) for m in live["msgs"]["DYNID_CONTACT"]]
     eps = episodes(contact)
     slack = live["slack"]
     onsets = [(k, s) for kind, k, s in events if kind == 1]

@@ -15,6 +15,7 @@ from scipy.signal import savgol_coeffs
 from dynid.config.robot_config import load_config
 from dynid.detect.online import FixedLagSavitzkyGolay, online_signals, online_times, raw_signals
 from dynid.detect.t2 import Detector
+from dynid.export.capacity import capacity
 from dynid.export.coefficients import read_coefficients, unwrap, wrap
 from dynid.export.lcm_coefficients import coefficients_t
 from dynid.export.rt_eval_io import detector_columns, raw_samples, read_matrix, run_stream, write_matrix  # noqa: F401 (the other rt tests import them from here)
@@ -217,6 +218,24 @@ def test_cad_fixture_is_current(tmp_path: Path) -> None:
     assert_same_coefficients(read_coefficients(out), read_coefficients(FIXTURE))
 
 
+PREVIOUS_VERSION = ROOT / "tools" / "tests" / "data" / "icub_cad_version4.dcoef"  # `dynid export --cad` of 5bbb0bd
+
+
+@pytest.mark.parametrize("exe", BUILDS, ids=lambda p: p.name)
+def test_a_previous_version_file_is_refused_saying_what_to_do(exe: Path, tmp_path: Path) -> None:
+    """A genuine version-4 file (one F/T sensor, before any number of them): the monitor and dynid refuse it in one
+    line that says to export again; it is never misread."""
+    done = rt_eval("--coef", str(PREVIOUS_VERSION), "--check", exe=exe / "rt_monitor" / "rt_eval")
+    assert done.returncode == EXIT_BASE + 4, done.stderr
+    assert done.stderr.count("\n") == 1 and "format version 4, this monitor reads 5: export the model again" in done.stderr
+    done = dynid("export", "--print", str(PREVIOUS_VERSION))
+    assert done.returncode == 2 and "format version 4, this dynid reads 5: export the model again" in done.stderr
+    done = subprocess.run([str(exe / "rt_monitor" / "rt_monitor"), "--model", str(PREVIOUS_VERSION), "--config",
+                           str(ROOT / "rt_monitor" / "config" / "icub_right_arm.conf"), "--replay", "/dev/null",
+                           "--lcm-url", "memq://"], capture_output=True, text=True, timeout=60)
+    assert done.returncode == EXIT_BASE + 4 and "export the model again" in done.stderr, done.stderr
+
+
 @pytest.mark.numerics
 def test_the_fixture_comparison_sees_a_real_change() -> None:
     """The value comparison is not blind: a change far below any physical meaning but far above rounding fails."""
@@ -260,19 +279,21 @@ def _bad_files(good: bytes) -> dict[str, tuple[bytes, int, str]]:
     flipped = bytearray(good)
     flipped[len(good) // 2] ^= 0x01
     bad["wrong CRC"] = (bytes(flipped), EXIT_BASE + 5, "CRC mismatch")
-    bad["wrong version"] = (wrap(payload, version=3), EXIT_BASE + 4, "format version 3, this monitor reads 4")
+    bad["wrong version"] = (wrap(payload, version=3), EXIT_BASE + 4, "format version 3, this monitor reads 5")
 
     c = coefficients_t.decode(payload)
-    nj = 9  # capacity is 8
+    nj = capacity().joints + 1  # one above the capacity
+    extra = nj - c.n_joints
     c.n_joints = nj
-    c.joint_names = list(c.joint_names) + ["extra1", "extra2"]
-    c.joint_friction = list(c.joint_friction) + [[0.0] * 4] * 2
-    c.motor_velocity = [list(r) + [0.0, 0.0] for r in c.motor_velocity]
-    c.row_map = [list(r) + [0.0, 0.0] for r in c.row_map]
-    c.joint_band = list(c.joint_band) + [[0.0, 0.0]] * 2
-    c.tau_map = list(c.tau_map) + [[0.0] * c.n_outputs] * 2
-    c.tau_variance = list(c.tau_variance) + [1.0] * 2
-    bad["too many joints"] = (_reencode(c), EXIT_BASE + 7, "too many joints: 9")
+    c.joint_names = list(c.joint_names) + [f"extra{k}" for k in range(extra)]
+    c.joint_friction = list(c.joint_friction) + [[0.0] * 4] * extra
+    c.motor_velocity = [list(r) + [0.0] * extra for r in c.motor_velocity]
+    c.row_map = [list(r) + [0.0] * extra for r in c.row_map]
+    c.joint_band = list(c.joint_band) + [[0.0, 0.0]] * extra
+    c.tau_map = list(c.tau_map) + [[0.0] * c.n_outputs] * extra
+    c.tau_variance = list(c.tau_variance) + [1.0] * extra
+    c.accel_tau_variance = list(c.accel_tau_variance) + [0.0] * extra
+    bad["too many joints"] = (_reencode(c), EXIT_BASE + 7, f"too many joints: {nj}")
 
     c = coefficients_t.decode(payload)
     c.inertial = [list(r) for r in c.inertial]
@@ -361,7 +382,7 @@ def test_contact_run_side_and_detection(exported: Path, default_experiments: dic
     truth, side = np.zeros(len(out), bool), np.zeros(len(out))
     truth[lag:], side[lag:] = ds.contact[:-lag] != 0, ds.extra["skin.side"][:-lag]
     col = detector_columns(c)
-    ready, above, named = out[:, 0] == 1, out[:, col["above"]] == 1, out[:, col["side"]]
+    ready, above, named = out[:, 0] == 1, out[:, col["above"]] == 1, out[:, col["side"]][:, 0]  # the one sensor
     for code, name in ((1, "distal"), (-1, "proximal")):
         sel = ready & truth & (side == code) & above
         assert sel.sum() > 100, f"too few detected {name} samples to judge the side"

@@ -32,7 +32,7 @@ def stream_momentum(coef: Path, raw: np.ndarray, work: Path) -> dict[str, np.nda
     assert done.returncode == 0, done.stderr
     y = read_matrix(work / "out.mx")
     col = detector_columns(c)
-    obs = col["side"] + 1  # the observer's columns follow the detector's
+    obs = col["r"]  # the observer's columns follow the detector's
     return {"ready": y[:, 0] > 0, "dq": y[:, 1 + nj : 1 + 2 * nj], "e": y[:, 1 + 3 * nj + 2 * no : col["t2"]],
             "t2": y[:, col["t2"]], "above": y[:, col["above"]] > 0,
             "r": y[:, obs : obs + no], "tau_ext": y[:, obs + no : obs + no + nj], "joint": y[:, obs + no + nj]}
@@ -134,8 +134,8 @@ def test_observer_section_is_checked(exported: Path, tmp_path: Path) -> None:
     old.write_bytes(wrap(unwrap(good), version=3))
     done = rt_eval("--coef", str(old), "--check")
     assert done.returncode == EXIT_BASE + 4
-    assert "format version 3, this monitor reads 4: export the model again" in done.stderr
-    with pytest.raises(Exception, match="format version 3, this dynid reads 4"):
+    assert "format version 3, this monitor reads 5: export the model again" in done.stderr
+    with pytest.raises(Exception, match="format version 3, this dynid reads 5"):
         read_coefficients(old)
     # the observer's q̇ weights are the causal quadratic slope dynid uses
     np.testing.assert_allclose(c.velocity_filter, causal_velocity_weights(c.velocity_window, c.sample_period),

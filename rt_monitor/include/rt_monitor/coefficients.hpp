@@ -16,8 +16,9 @@ namespace dynid::rt {
 // The sample period a file may give: 100 kHz to 1 Hz (the sample clock counts periods between µs stamps in int64).
 constexpr double kMinSamplePeriod = 1e-5, kMaxSamplePeriod = 1.0;
 
-// 2: effects (Stribeck, spring) of an augmented model; 3: supply tracking; 4: the momentum observer
-constexpr uint32_t kFileVersion = 4;
+// 2: effects (Stribeck, spring) of an augmented model; 3: supply tracking; 4: the momentum observer; 5: any number
+// of F/T sensors (0 to kMaxSensors), the acceleration residuals' external-torque variance
+constexpr uint32_t kFileVersion = 5;
 constexpr char kMagic[8] = {'D', 'Y', 'N', 'I', 'D', 'C', 'O', 'F'};
 
 using Vec3 = Eigen::Vector3d;
@@ -44,7 +45,12 @@ struct Coefficients {
     std::array<Vec3, kMaxBodies> first_moment{};  //    m·c,
     std::array<Mat3, kMaxBodies> inertia{};       //    I about the body frame origin
     Vec3 gravity = Vec3::Zero();
-    int sensor_body = -1;
+    // F/T sensors: the distal sub-body of each (its frame is the sensor frame); their 6·n_sensors channels come
+    // first in the outputs, sensor by sensor (fx fy fz tx ty tz).
+    int n_sensors = 0;
+    std::array<int, kMaxSensors> sensor_body{};
+    std::array<int, kMaxBodies> sensor_of_body{};  // derived at load: the sensor whose distal sub-body it is, or -1
+    int n_ft() const { return 6 * n_sensors; }
 
     Eigen::Matrix<double, kMaxMotors, kMaxJoints> motor_velocity = decltype(motor_velocity)::Zero();
     std::array<bool, kMaxMotors> motor_friction_on{};
@@ -52,12 +58,14 @@ struct Coefficients {
     Eigen::Matrix<double, kMaxJoints, 4> joint_friction = decltype(joint_friction)::Zero();
 
     std::array<ChannelKind, kMaxOutputs> channel_kind{};
-    Vec6 ft_offset = Vec6::Zero();
+    std::array<Vec6, kMaxSensors> ft_offset{};
     Eigen::Matrix<double, kMaxOutputs, kMaxJoints> row_map = decltype(row_map)::Zero();
     std::array<int, kMaxOutputs> channel_motor{};
     std::array<double, kMaxOutputs> divisor{}, variance{};
     std::array<uint64_t, kMaxOutputs> gate_joints{}, gate_motors{};
-    double min_speed = 0, alpha = 0, threshold = 0, ft_threshold = 0, hysteresis = 1;
+    double min_speed = 0, alpha = 0, threshold = 0, hysteresis = 1;
+    std::array<double, kMaxSensors> ft_threshold{};   // per sensor: its channels' share of T² at α (its side)
+    std::array<double, kMaxJoints> accel_tau_variance{};  // τ_ext from the acceleration residuals: its variance (Nm²)
     int calibration_samples = 0, debounce_on = 1, debounce_off = 1;
 
     double sample_period = 0;
@@ -81,7 +89,8 @@ struct Coefficients {
     Eigen::Matrix<double, kMaxJoints, 2> joint_band = decltype(joint_band)::Zero();  // static friction fc⁺, fc⁻ (Nm)
     Eigen::Matrix<double, kMaxMotors, 2> motor_band = decltype(motor_band)::Zero();
     std::array<double, kMaxOutputs> observer_variance{};
-    double observer_threshold = 0, observer_rest_threshold = 0, observer_ft_threshold = 0;
+    double observer_threshold = 0, observer_rest_threshold = 0;
+    std::array<double, kMaxSensors> observer_ft_threshold{};
     Eigen::Matrix<double, kMaxJoints, kMaxOutputs> tau_map = decltype(tau_map)::Zero();  // τ_ext = tau_map · r
     std::array<double, kMaxJoints> tau_variance{};
     double isolation_sigmas = 0;
@@ -89,7 +98,8 @@ struct Coefficients {
 
     std::array<std::string, kMaxJoints> joint_names;
     std::array<std::string, kMaxOutputs> channel_names;
-    std::string sensor_name;
+    std::array<std::string, kMaxSensors> sensor_names;
+    std::array<std::string, kMaxBodies> body_names;
 };
 
 // Why a file was refused; each has its own exit code (kExitBase + value) in the command-line tools.

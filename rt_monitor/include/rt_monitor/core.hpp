@@ -13,15 +13,15 @@ namespace dynid::rt {
 using VecO = Eigen::Matrix<double, kMaxOutputs, 1>;
 
 enum class Event : int8_t { kNone = 0, kOnset = 1, kEnd = 2 };
-enum class Side : int8_t { kNone = 0, kDistal = 1, kProximal = -1 };  // of the F/T sensor
+enum class Side : int8_t { kNone = 0, kDistal = 1, kProximal = -1 };  // of an F/T sensor
 
 struct Prediction {
-    VecO y_hat = VecO::Zero();   // predicted outputs (F/T wrench in the sensor frame, then motor inputs)
+    VecO y_hat = VecO::Zero();   // predicted outputs (each F/T wrench in its sensor frame, then motor inputs)
     VecO y_model = VecO::Zero(); // the same before the supply ratio (differs on tracked motor inputs only)
     VecO e = VecO::Zero();       // residuals y − ŷ
     std::array<bool, kMaxOutputs> active{};  // channels in T² (motor channels at rest are left out)
     double t2 = 0;               // eᵀ Λ⁻¹ e over the active channels
-    double t2_ft = 0;            // the F/T channels' share
+    std::array<double, kMaxSensors> t2_sensor{};  // each F/T sensor's channels' share
     VecJ tau = VecJ::Zero();     // rigid-body joint torques (diagnostics)
 };
 
@@ -33,12 +33,15 @@ struct Output {
     bool above = false;          // T² > T²_α at this sample
     bool in_contact = false;     // the debounced detector's state
     Event event = Event::kNone;
-    Side side = Side::kNone;     // while above: distal if the F/T channels fire, else proximal
-    Vec6 wrench = Vec6::Zero();  // estimated external wrench at the sensor (sensor frame): the F/T residual
-    // The momentum observer only (zero, −1 otherwise): its output r per channel (before the static-friction band),
-    // the external joint torques τ_ext = tau_map·r (Nm) and the isolated joint: the most distal one whose |τ_ext|
-    // exceeds isolation_sigmas of its noise (the contact is on its link or beyond).
+    // Per F/T sensor, while above: distal if its channels fire, else proximal.
+    std::array<Side, kMaxSensors> side{};
+    // Per F/T sensor, the estimated external wrench at it (sensor frame): its residual.
+    std::array<Vec6, kMaxSensors> wrench{};
+    // The observer's output r per channel (before the static-friction band; zero with the acceleration residuals).
     VecO r = VecO::Zero();
+    // The external joint torques (Nm): tau_map·r with the observer, tau_map·(divisor ⊙ e) with the acceleration
+    // residuals; and the isolated joint: the most distal one whose |τ_ext| exceeds isolation_sigmas of its
+    // calibration noise (the contact is on its link or beyond), −1 if none (or no variance was calibrated).
     VecJ tau_ext = VecJ::Zero();
     int joint = -1;
 };
@@ -77,10 +80,12 @@ public:
     const Output& output() const noexcept { return out_; }
 
 private:
-    void rnea(const VecJ& q, const VecJ& dq, const VecJ& ddq, VecJ& tau, Vec6& sensor_force) const noexcept;
+    void rnea(const VecJ& q, const VecJ& dq, const VecJ& ddq, VecJ& tau,
+              std::array<Vec6, kMaxSensors>& sensor_force) const noexcept;
     void accelerate() noexcept;
     void observe(const double* q, const double* y) noexcept;
-    void detect(double threshold, double ft_threshold) noexcept;
+    void isolate(const VecO& rows, const std::array<double, kMaxJoints>& variance) noexcept;
+    void detect(double threshold, const std::array<double, kMaxSensors>& ft_threshold) noexcept;
     void track_supply() noexcept;
 
     const Coefficients& c_;
@@ -105,7 +110,7 @@ private:
     bool observing_ = false;
     VecO r_ = VecO::Zero(), inputs_ = VecO::Zero();
     VecJ p_prev_ = VecJ::Zero();
-    Vec6 ps_prev_ = Vec6::Zero();
+    std::array<Vec6, kMaxSensors> ps_prev_{};
     MomentumTerms terms_;
     Output out_;
 };

@@ -10,8 +10,9 @@ using VecJ = Eigen::Matrix<double, kMaxJoints, 1>;
 
 struct MomentumTerms {
     VecJ p = VecJ::Zero(), beta = VecJ::Zero();  // per joint (entries of q)
-    Vec6 p_sensor = Vec6::Zero();                 // the F/T sensor's 6 coordinates: the distal subtree's momentum,
-    Vec6 beta_sensor = Vec6::Zero();              // sensor frame (linear, angular about its origin)
+    // Each F/T sensor's 6 coordinates: its distal subtree's momentum, in the sensor frame (linear, angular about its
+    // origin).
+    std::array<Vec6, kMaxSensors> p_sensor{}, beta_sensor{};
 };
 
 // For every joint i: p_i = S_iᵀ h_i and β_i = (v_i × S_i)ᵀ h_i − S_iᵀ f_g,i, with h_i the spatial momentum of the

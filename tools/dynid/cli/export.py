@@ -158,6 +158,10 @@ def _export_urdf(args: argparse.Namespace) -> dict[str, Any]:
     return result
 
 
+def _sides(thresholds: dict[str, float]) -> str:
+    return ", ".join(f"{s} {t:.4g}" for s, t in thresholds.items()) or "none (no F/T sensor)"
+
+
 def _export_coefficients(args: argparse.Namespace) -> dict[str, Any]:
     identified = load_model(args.model)
     done = export_model(identified, args.out, _settings(args))
@@ -172,14 +176,14 @@ def _export_coefficients(args: argparse.Namespace) -> dict[str, Any]:
     if tracking is not None:
         print(f"  supply tracking: time constant {tracking.time_constant_s:g} s, gate {tracking.gate:g} noise stds")
     print(f"  T²_α (α = {alpha}) through the online filter: {cal.threshold:.4g} (offline "
-          f"{det.get('threshold', float('nan')):.4g}); F/T-side threshold {cal.ft_threshold:.4g}; {cal.samples} "
+          f"{det.get('threshold', float('nan')):.4g}); F/T-side thresholds {_sides(cal.ft_thresholds)}; {cal.samples} "
           "calibration samples")
     print("  Λ online / offline: " + ", ".join(f"{n} {a / b:.2f}" for n, a, b in zip(done.channels, cal.variance, offline)))
     obs = done.observer
     if obs is not None:
         d = obs.detector
         print(f"  momentum observer: bandwidth {d.bandwidth_hz:g} Hz, causal q̇ over {obs.velocity_window} samples; "
-              f"T²_α {d.threshold:.4g}, F/T-side threshold {next(iter(d.ft_thresholds.values())):.4g}; {d.samples} "
+              f"T²_α {d.threshold:.4g}, F/T-side thresholds {_sides(d.ft_thresholds)}; {d.samples} "
               "calibration samples")
     else:
         print(f"  momentum observer: not carried ({done.observer_note})")
@@ -188,13 +192,13 @@ def _export_coefficients(args: argparse.Namespace) -> dict[str, Any]:
           f"T²_α, end after {ev.debounce_off} below {ev.hysteresis:g}·T²_α")
     momentum = None if obs is None else {
         "bandwidth_hz": obs.detector.bandwidth_hz, "velocity_window": obs.velocity_window,
-        "threshold": obs.detector.threshold, "ft_threshold": next(iter(obs.detector.ft_thresholds.values())),
+        "threshold": obs.detector.threshold, "ft_thresholds": obs.detector.ft_thresholds,
         "residual_variance": dict(zip(done.channels, obs.detector.variance.tolist())),
         "calibration_samples": obs.detector.samples}
     return {"model": args.model, "out": args.out, "residual": done.residual, "momentum": momentum,
             "events": {"debounce_on": ev.debounce_on, "debounce_off": ev.debounce_off, "hysteresis": ev.hysteresis},
             "bytes": done.size, "threshold": cal.threshold,
-            "ft_threshold": cal.ft_threshold, "alpha": alpha,
+            "ft_thresholds": cal.ft_thresholds, "alpha": alpha,
             "residual_variance": dict(zip(done.channels, cal.variance.tolist())),
             "filter": est.as_dict(), "calibration_samples": cal.samples,
             "effects": [{"kind": e.kind, "where": e.where, "parameters": e.parameters} for e in done.effects]}

@@ -80,8 +80,13 @@ def liblcm_stderr(capture: bool) -> Iterator[dict[str, Any]]:
             out["text"] = " ".join(err.read().decode(errors="replace").split())
 
 
+def plain(v: Any) -> Any:
+    """A decoded LCM field as JSON has it: arrays (of any depth, e.g. each sensor's wrench) as lists."""
+    return [plain(x) for x in v] if isinstance(v, (list, tuple)) else v
+
+
 def message_dict(msg: Any) -> dict[str, Any]:
-    return {k: (list(v) if isinstance(v, (list, tuple)) else v) for k, v in ((k, getattr(msg, k)) for k in msg.__slots__)}
+    return {k: plain(getattr(msg, k)) for k in msg.__slots__}
 
 
 class View:
@@ -108,10 +113,18 @@ class View:
         self.out.flush()
 
     def event(self, m: Any) -> None:
-        w = list(m.wrench)
-        self._write(f"{self._t(m.utime):10.3f} s  contact {KIND.get(m.kind, m.kind):5}  {SIDE.get(m.side, m.side):8}  "
-                    f"T² {m.t2:9.1f} (threshold {m.threshold:.1f})  "
-                    f"F [{w[0]:7.2f} {w[1]:7.2f} {w[2]:7.2f}] N  τ [{w[3]:6.3f} {w[4]:6.3f} {w[5]:6.3f}] Nm")
+        """An onset or end: T², then every sensor's side and residual wrench, the isolated link and the largest
+        external joint torques (the event carries all of them: `--json` prints each field)."""
+        line = f"{self._t(m.utime):10.3f} s  contact {KIND.get(m.kind, m.kind):5}  T² {m.t2:9.1f} (threshold {m.threshold:.1f})"
+        for name, side, w in zip(m.sensor, m.side, m.wrench):
+            line += (f"  {name}: {SIDE.get(side, side)} F [{w[0]:7.2f} {w[1]:7.2f} {w[2]:7.2f}] N "
+                     f"τ [{w[3]:6.3f} {w[4]:6.3f} {w[5]:6.3f}] Nm")
+        if m.isolated_joint >= 0:
+            line += f"  on {m.isolated_link or m.joint[m.isolated_joint]} or beyond"
+        largest = sorted(zip(m.joint, m.tau_ext), key=lambda jt: -abs(jt[1]))[:3]
+        if largest and abs(largest[0][1]) > 0:
+            line += "  τ_ext " + ", ".join(f"{j} {t:+.2f}" for j, t in largest) + " Nm"
+        self._write(line)
 
     def status(self, m: Any) -> None:
         t = self._t(m.utime)

@@ -23,7 +23,7 @@ from ..identify.supply import SupplyTracking, tracked_residuals
 from ..io.derivatives import SavitzkyGolay
 from ..robot.effects import augmented_residuals
 from ..robot.model import RobotModel
-from ..robot.outputs import output_channels
+from ..robot.outputs import divisors, output_channels
 from ..robot.regressors.stack import Signals, gravity_per_sample
 from .t2 import calibrate
 
@@ -139,8 +139,10 @@ def raw_signals(model: RobotModel, dataset) -> tuple[np.ndarray, np.ndarray, dic
 class OnlineCalibration:
     variance: np.ndarray  # Λ (n_out,), through the online filter
     threshold: float  # T²_α of the calibrated detector (dynid.detect.t2), through the online filter
-    ft_threshold: float  # α-quantile of the F/T channels' share of T²
+    ft_thresholds: dict[str, float]  # sensor -> α-quantile of its six channels' share of T² (the contact's side)
     samples: int
+    # (n_joints,) variance of τ_ext = map · (divisor ⊙ e) over the rows in T² (rt_monitor's acceleration isolation)
+    tau_variance: np.ndarray | None = None
 
 
 def online_times(est: FixedLagSavitzkyGolay, t: np.ndarray) -> np.ndarray:
@@ -150,7 +152,7 @@ def online_times(est: FixedLagSavitzkyGolay, t: np.ndarray) -> np.ndarray:
 
 def calibrate_online(model: RobotModel, phi: np.ndarray, datasets: list, est: FixedLagSavitzkyGolay, alpha: float,
                      min_speed: float, stride: int = 2, effects: list | None = None,
-                     tracking: SupplyTracking | None = None) -> OnlineCalibration:
+                     tracking: SupplyTracking | None = None, tau_map: np.ndarray | None = None) -> OnlineCalibration:
     """Λ and the thresholds of dynid's calibrated detector, on contact-free data seen through the online filter
     (with the augmented model's `effects`, dynid.robot.effects, and the supply `tracking`, as the monitor evaluates
     them; the tracker sees every `stride`-th sample, with the same time constant in seconds)."""
@@ -164,6 +166,22 @@ def calibrate_online(model: RobotModel, phi: np.ndarray, datasets: list, est: Fi
         dqs.append(sig.dq)
     e, dq = np.vstack(es), np.vstack(dqs)
     det = calibrate(model, phi, e, dq, alpha, min_speed, variants=("calibrated",))["calibrated"]
-    ft = [o.row for o in output_channels(model) if o.kind == "ft"]
-    t2_ft = np.sum(e[:, ft] ** 2 / det.variance[ft], axis=1)
-    return OnlineCalibration(det.variance, det.threshold, float(np.quantile(t2_ft, alpha)), int(e.shape[0]))
+    outs = output_channels(model)
+    ft_thresholds = {}
+    for s in model.config.ft_sensors:
+        rows = [o.row for o in outs if o.kind == "ft" and o.name.startswith(f"ft.{s.name}.")]
+        ft_thresholds[s.name] = float(np.quantile(np.sum(e[:, rows] ** 2 / det.variance[rows], axis=1), alpha))
+    return OnlineCalibration(det.variance, det.threshold, ft_thresholds, int(e.shape[0]),
+                             accel_tau_variance(model, phi, e, det.active(model, dq), tau_map))
+
+
+def accel_tau_variance(model: RobotModel, phi: np.ndarray, e: np.ndarray, active: np.ndarray,
+                       tau_map: np.ndarray | None) -> np.ndarray | None:
+    """(n_joints,) variance of the external joint torques the monitor estimates from the acceleration residuals,
+    τ_ext = map · (divisor ⊙ e) over the rows in T², on contact-free residuals e; 0 where no row sees a joint."""
+    if tau_map is None:
+        return None
+    rows = np.where(active, e * divisors(model, phi), 0.0)
+    rows[:, [o.row for o in output_channels(model) if o.kind == "ft"]] = 0.0
+    tau = rows @ tau_map.T
+    return np.mean(tau**2, axis=0)

@@ -34,16 +34,17 @@ from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from ..robot.regressors.stack import group_row_maps, group_rows
 from ..version import __version__
+from .capacity import capacity
 from .lcm_coefficients import coefficients_t
 
 MAGIC = b"DYNIDCOF"
-# 2: the effects of an augmented model (Stribeck, spring); 3: supply tracking; 4: the momentum observer. Older files
-# are refused, named: re-export them.
-FILE_VERSION = 4
+# 2: the effects of an augmented model (Stribeck, spring); 3: supply tracking; 4: the momentum observer; 5: any number
+# of F/T sensors, the acceleration residuals' τ_ext variance. Older files are refused, named: re-export them.
+FILE_VERSION = 5
 HEADER = struct.Struct("<8sII")
-# The monitor's compile-time filter capacity (kMaxWindow, rt_monitor/include/rt_monitor/coefficients.hpp): a longer
+# The monitor's compile-time filter capacity (kMaxWindow, rt_monitor/include/rt_monitor/capacity.hpp): a longer
 # window was exported without a word and the monitor then refused the file (exit 17).
-MAX_WINDOW = 64
+MAX_WINDOW = capacity().window
 KIND = {"ft": 0, "input": 1, "torque": 2}
 RESIDUAL = {"acceleration": 0, "momentum": 1}
 JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
@@ -129,11 +130,12 @@ class MonitorDetector:
 
     variance: np.ndarray  # Λ (n_out,)
     threshold: float  # T²_α
-    ft_threshold: float  # the F/T channels' share of T² at α
+    ft_thresholds: dict[str, float]  # sensor -> its channels' share of T² at α (the side of that sensor)
     alpha: float
     min_speed: float
     samples: int  # calibration samples
     events: EventSettings = EventSettings()
+    tau_variance: np.ndarray | None = None  # (n_joints,) of τ_ext from the residuals; None: no isolation
 
 
 @dataclass(frozen=True)
@@ -154,11 +156,25 @@ class Provenance:
     estimator: str = ""
 
 
-def check_monitor_supports(model: RobotModel) -> None:
-    """Refuse a robot the monitor's core cannot run, before any data is read: it holds exactly one F/T sensor."""
-    cfg = model.config
-    if len(cfg.ft_sensors) != 1:
-        raise DataError(f"the monitor needs exactly one F/T sensor; {cfg.name} has {len(cfg.ft_sensors)}")
+def check_monitor_supports(model: RobotModel, effects: Sequence[Effect] = ()) -> None:
+    """Refuse a robot the monitor's core cannot run, before any data is read or anything is written: every count
+    within the compiled capacity (rt_monitor/include/rt_monitor/capacity.hpp), every joint of a kind it knows."""
+    cfg, cap = model.config, capacity()
+    counts = (("joints", len(cfg.joints), cap.joints), ("F/T sensors", len(cfg.ft_sensors), cap.sensors),
+              ("bodies", len(model.bodies), cap.bodies), ("motors", len(_motors(model)), cap.motors),
+              ("output channels", len(output_channels(model)), cap.outputs), ("effects", len(effects), cap.effects))
+    for what, n, most in counts:
+        if n > most:
+            raise DataError(f"{cfg.name} has {n} {what}; the monitor holds at most {most} (rt_monitor/include/"
+                            "rt_monitor/capacity.hpp: raise it and rebuild)")
+    for k, b in enumerate(model.bodies):
+        if b.joint_id != k + 1:
+            raise DataError("the model's bodies are not in joint order")
+        _joint(model, b.joint_id)  # a joint the monitor cannot move is refused here, named
+
+
+def _motors(model: RobotModel) -> list[str]:
+    return [m for g in model.config.actuation if g.input != "torque" for m in g.motors]
 
 
 def check_window(est: FixedLagSavitzkyGolay) -> None:
@@ -179,7 +195,7 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDete
         raise DataError(f"the monitor's residual is acceleration or momentum (with an observer), not '{residual}'")
     cfg, layout, pm = model.config, model.layout, model.pin_model
     exportable_effects(effects)
-    check_monitor_supports(model)
+    check_monitor_supports(model, effects)
     check_window(est)
     c = coefficients_t()
     c.robot_name, c.config_digest, c.dynid_version = cfg.name, cfg.digest, __version__
@@ -192,8 +208,6 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDete
     c.parent, c.joint_type, c.joint_index, c.axis, c.rotation, c.translation, c.inertial = [], [], [], [], [], [], []
     inertial = phi[layout.span("inertial")]
     for k, b in enumerate(model.bodies):
-        if b.joint_id != k + 1:
-            raise DataError("the model's bodies are not in joint order")
         kind, axis = _joint(model, b.joint_id)
         c.parent.append(int(pm.parents[b.joint_id]) - 1)
         c.joint_type.append(kind)
@@ -204,12 +218,12 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDete
         c.translation.append(np.asarray(M.translation).tolist())
         c.inertial.append(inertial[10 * k : 10 * k + 10].tolist())
     c.gravity = np.asarray(pm.gravity.linear).tolist()
-    sensor = cfg.ft_sensors[0]
-    c.sensor_body = [b.name for b in model.bodies].index(model.sensor_bodies[sensor.name].name)
-    c.sensor_name = sensor.name
+    sensors = list(cfg.ft_sensors)
+    c.n_sensors, c.sensor_names = len(sensors), [s.name for s in sensors]
+    c.sensor_body = [[b.name for b in model.bodies].index(model.sensor_bodies[s.name].name) for s in sensors]
 
     col = {j: i for i, j in enumerate(joints)}
-    motors = [m for g in cfg.actuation if g.input != "torque" for m in g.motors]
+    motors = _motors(model)
     c.n_motors, c.motor_names = len(motors), motors
     c.motor_velocity = [[0.0] * len(joints) for _ in motors]
     c.motor_friction_on, c.motor_friction = [0] * len(motors), [[0.0] * 4 for _ in motors]
@@ -246,7 +260,7 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDete
     c.n_outputs = len(outs)
     c.channel_names = [o.name for o in outs]
     c.channel_kind = [KIND[o.kind] for o in outs]
-    c.ft_offset = phi[layout.block("ft_offset", sensor.name).slice].tolist()
+    c.ft_offset = [phi[layout.block("ft_offset", s.name).slice].tolist() for s in sensors]
     c.row_map, c.channel_motor, c.divisor, c.gate_joints, c.gate_motors = [], [], [], [], []
     for o in outs:
         full, motor = rows.get(o.name, (np.zeros(len(joints)), -1))
@@ -258,7 +272,9 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDete
         c.gate_motors.append(mb)
     d, ev = detector, detector.events
     c.residual_variance = np.asarray(d.variance, float).tolist()
-    c.min_speed, c.alpha, c.threshold, c.ft_threshold = float(d.min_speed), float(d.alpha), float(d.threshold), float(d.ft_threshold)
+    c.min_speed, c.alpha, c.threshold = float(d.min_speed), float(d.alpha), float(d.threshold)
+    c.ft_threshold = [float(d.ft_thresholds[s.name]) for s in sensors]
+    c.accel_tau_variance = (np.zeros(len(joints)) if d.tau_variance is None else np.asarray(d.tau_variance, float)).tolist()
     c.calibration_samples = int(d.samples)
     c.debounce_on, c.debounce_off, c.hysteresis = int(ev.debounce_on), int(ev.debounce_off), float(ev.hysteresis)
     c.sample_period, c.window, c.order, c.lag = est.sample_period, est.window, est.order, est.lag
@@ -275,8 +291,20 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDete
     c.supply_time_constant = tracking.time_constant_s if tracking is not None else 0.0
     c.supply_prior = tracking.prior_input ** 2 if tracking is not None else 0.0
     c.supply_gate = [tracking.gate_of(o.sigma) if tracking is not None and tracked(o) else 0.0 for o in outs]
+    c.tau_map, c.isolation_sigmas = external_torque_map(model).tolist(), float(ISOLATION_SIGMAS)
     _observer_section(c, model, est, observer, residual)
     return c
+
+
+def external_torque_map(model: RobotModel) -> np.ndarray:
+    """(n_joints, n_outputs) τ_ext = map · r, r the rows' residuals as torques on them: −L⁻¹ per actuation group
+    (dynid.detect.momentum); zero on the F/T rows."""
+    no = len(output_channels(model))
+    tau_map = np.zeros((len(model.config.joints), no))
+    for g, gj, rows in group_rows(model):
+        L, _ = group_row_maps(g)
+        tau_map[np.ix_(gj, np.arange(no)[rows])] = -np.linalg.inv(L)
+    return tau_map
 
 
 def _observer_section(c: coefficients_t, model: RobotModel, est: FixedLagSavitzkyGolay,
@@ -289,8 +317,9 @@ def _observer_section(c: coefficients_t, model: RobotModel, est: FixedLagSavitzk
         c.observer_bandwidth, c.velocity_window, c.velocity_filter = 0.0, 0, []
         c.joint_band, c.motor_band = [[0.0, 0.0] for _ in range(nj)], [[0.0, 0.0] for _ in motors]
         c.observer_variance = [0.0] * no
-        c.observer_threshold = c.observer_rest_threshold = c.observer_ft_threshold = 0.0
-        c.tau_map, c.tau_variance, c.isolation_sigmas = [[0.0] * no for _ in range(nj)], [0.0] * nj, 0.0
+        c.observer_threshold = c.observer_rest_threshold = 0.0
+        c.observer_ft_threshold = [0.0] * c.n_sensors
+        c.tau_variance = [0.0] * nj
         return
     d = observer.detector
     if observer.velocity_window > MAX_WINDOW:
@@ -302,16 +331,8 @@ def _observer_section(c: coefficients_t, model: RobotModel, est: FixedLagSavitzk
     c.motor_band = [list(observer.band.get(("motor_friction", m), (0.0, 0.0))) for m in motors]
     c.observer_variance = np.asarray(d.variance, float).tolist()
     c.observer_threshold, c.observer_rest_threshold = float(d.threshold), float(d.rest_threshold)
-    if len(d.ft_thresholds) != 1:
-        raise DataError("the monitor's observer needs exactly one F/T sensor")
-    c.observer_ft_threshold = float(next(iter(d.ft_thresholds.values())))
-    tau_map = np.zeros((nj, no))
-    for g, gj, rows in group_rows(model):  # τ_ext = −L⁻¹ r per actuation group (dynid.detect.momentum)
-        L, _ = group_row_maps(g)
-        tau_map[np.ix_(gj, np.arange(no)[rows])] = -np.linalg.inv(L)
-    c.tau_map = tau_map.tolist()
+    c.observer_ft_threshold = [float(d.ft_thresholds[s]) for s in c.sensor_names]
     c.tau_variance = np.asarray(d.tau_variance, float).tolist()
-    c.isolation_sigmas = float(ISOLATION_SIGMAS)
 
 
 def exportable_effects(effects: Sequence[Effect]) -> None:
@@ -337,7 +358,8 @@ def describe(c: coefficients_t) -> str:
     lines = [f"robot {c.robot_name} (config sha256 {c.config_digest[:16]}…), exported by dynid {c.dynid_version}",
              f"  model sha256 {c.model_sha256 or '-'}; data sha256 {c.data_sha256 or '-'}; estimator {c.estimator}",
              f"chain: {c.n_bodies} bodies, {c.n_joints} joints; gravity [{f(c.gravity)}] m/s²; "
-             f"F/T sensor {c.sensor_name} at body {_name(c.body_names, c.sensor_body)}"]
+             + (", ".join(f"F/T sensor {n} at body {_name(c.body_names, b)}" for n, b in zip(c.sensor_names, c.sensor_body))
+                or "no F/T sensor")]
     for i in range(c.n_bodies):
         j = _name(c.joint_names, c.joint_index[i]) if c.joint_index[i] >= 0 else "-"
         parent = _name(c.body_names, c.parent[i]) if c.parent[i] >= 0 else "base"
@@ -350,11 +372,12 @@ def describe(c: coefficients_t) -> str:
         lines.append(f"  {c.motor_names[k]}: q̇_m = [{f(c.motor_velocity[k])}]·q̇; {fr}")
     for j in range(c.n_joints):
         lines.append(f"  {c.joint_names[j]:18s} friction fc+ fc- fv+ fv- [{f(c.joint_friction[j])}]")
-    lines.append(f"outputs ({c.n_outputs}); F/T offset [{f(c.ft_offset)}]")
+    lines.append(f"outputs ({c.n_outputs})" + "".join(f"; {n} offset [{f(o)}]" for n, o in zip(c.sensor_names, c.ft_offset)))
     for i in range(c.n_outputs):
         lines.append(f"  {c.channel_names[i]:18s} Λ {c.residual_variance[i]:.4g}  divisor {c.divisor[i]:.6g}"
                      f"  gates joints 0x{c.gate_joints[i]:x} motors 0x{c.gate_motors[i]:x}")
-    lines.append(f"T²: α {c.alpha}, threshold {c.threshold:.6g}, F/T-side threshold {c.ft_threshold:.6g}, "
+    sides = ", ".join(f"{n} {t:.6g}" for n, t in zip(c.sensor_names, c.ft_threshold)) or "none"
+    lines.append(f"T²: α {c.alpha}, threshold {c.threshold:.6g}, F/T-side thresholds {sides}, "
                  f"min speed {c.min_speed} rad/s, from {c.calibration_samples} samples; debounce on {c.debounce_on} "
                  f"off {c.debounce_off}, hysteresis {c.hysteresis}")
     lines.append(f"derivatives: fixed-lag Savitzky-Golay, window {c.window}, order {c.order}, lag {c.lag} "
@@ -369,7 +392,8 @@ def describe(c: coefficients_t) -> str:
         chosen = "the monitor runs it" if c.residual == 1 else "carried; the monitor runs the acceleration residuals"
         lines.append(f"momentum observer ({chosen}): bandwidth {c.observer_bandwidth:g} Hz, causal q̇ over "
                      f"{c.velocity_window} samples; T²_α {c.observer_threshold:.6g} (all rows at rest "
-                     f"{c.observer_rest_threshold:.6g}), F/T-side threshold {c.observer_ft_threshold:.6g}")
+                     f"{c.observer_rest_threshold:.6g}), F/T-side thresholds "
+                     + (", ".join(f"{n} {t:.6g}" for n, t in zip(c.sensor_names, c.observer_ft_threshold)) or "none"))
         for i in range(c.n_outputs):
             lines.append(f"  {c.channel_names[i]:18s} Λ {c.observer_variance[i]:.4g}")
         for j in range(c.n_joints):

@@ -14,11 +14,11 @@ import struct
 
 class coefficients_t(object):
 
-    __slots__ = ["robot_name", "config_digest", "dynid_version", "model_sha256", "data_sha256", "estimator", "n_joints", "joint_names", "n_bodies", "body_names", "parent", "joint_type", "joint_index", "axis", "rotation", "translation", "inertial", "gravity", "sensor_body", "sensor_name", "n_motors", "motor_names", "motor_velocity", "motor_friction_on", "motor_friction", "joint_friction", "n_outputs", "channel_names", "channel_kind", "ft_offset", "row_map", "channel_motor", "divisor", "residual_variance", "gate_joints", "gate_motors", "min_speed", "alpha", "threshold", "ft_threshold", "calibration_samples", "debounce_on", "debounce_off", "hysteresis", "sample_period", "window", "order", "lag", "filter", "n_effects", "effect_kind", "effect_joint", "effect_param", "supply_time_constant", "supply_prior", "supply_gate", "residual", "observer_bandwidth", "velocity_window", "velocity_filter", "joint_band", "motor_band", "observer_variance", "observer_threshold", "observer_rest_threshold", "observer_ft_threshold", "tau_map", "tau_variance", "isolation_sigmas"]
+    __slots__ = ["robot_name", "config_digest", "dynid_version", "model_sha256", "data_sha256", "estimator", "n_joints", "joint_names", "n_bodies", "body_names", "parent", "joint_type", "joint_index", "axis", "rotation", "translation", "inertial", "gravity", "n_sensors", "sensor_names", "sensor_body", "n_motors", "motor_names", "motor_velocity", "motor_friction_on", "motor_friction", "joint_friction", "n_outputs", "channel_names", "channel_kind", "ft_offset", "row_map", "channel_motor", "divisor", "residual_variance", "gate_joints", "gate_motors", "min_speed", "alpha", "threshold", "ft_threshold", "accel_tau_variance", "calibration_samples", "debounce_on", "debounce_off", "hysteresis", "sample_period", "window", "order", "lag", "filter", "n_effects", "effect_kind", "effect_joint", "effect_param", "supply_time_constant", "supply_prior", "supply_gate", "residual", "observer_bandwidth", "velocity_window", "velocity_filter", "joint_band", "motor_band", "observer_variance", "observer_threshold", "observer_rest_threshold", "observer_ft_threshold", "tau_map", "tau_variance", "isolation_sigmas"]
 
-    __typenames__ = ["string", "string", "string", "string", "string", "string", "int32_t", "string", "int32_t", "string", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "double", "int32_t", "string", "int32_t", "string", "double", "int8_t", "double", "double", "int32_t", "string", "int8_t", "double", "double", "int32_t", "double", "double", "int64_t", "int64_t", "double", "double", "double", "double", "int32_t", "int32_t", "int32_t", "double", "double", "int32_t", "int32_t", "int32_t", "double", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "int8_t", "double", "int32_t", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double"]
+    __typenames__ = ["string", "string", "string", "string", "string", "string", "int32_t", "string", "int32_t", "string", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "double", "int32_t", "string", "int32_t", "int32_t", "string", "double", "int8_t", "double", "double", "int32_t", "string", "int8_t", "double", "double", "int32_t", "double", "double", "int64_t", "int64_t", "double", "double", "double", "double", "double", "int32_t", "int32_t", "int32_t", "double", "double", "int32_t", "int32_t", "int32_t", "double", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "int8_t", "double", "int32_t", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double"]
 
-    __dimensions__ = [None, None, None, None, None, None, None, ["n_joints"], None, ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies", 3], ["n_bodies", 9], ["n_bodies", 3], ["n_bodies", 10], [3], None, None, None, ["n_motors"], ["n_motors", "n_joints"], ["n_motors"], ["n_motors", 4], ["n_joints", 4], None, ["n_outputs"], ["n_outputs"], [6], ["n_outputs", "n_joints"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], None, None, None, None, None, None, None, None, None, None, None, None, [3, "window"], None, ["n_effects"], ["n_effects"], ["n_effects", 3], None, None, ["n_outputs"], None, None, None, ["velocity_window"], ["n_joints", 2], ["n_motors", 2], ["n_outputs"], None, None, None, ["n_joints", "n_outputs"], ["n_joints"], None]
+    __dimensions__ = [None, None, None, None, None, None, None, ["n_joints"], None, ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies", 3], ["n_bodies", 9], ["n_bodies", 3], ["n_bodies", 10], [3], None, ["n_sensors"], ["n_sensors"], None, ["n_motors"], ["n_motors", "n_joints"], ["n_motors"], ["n_motors", 4], ["n_joints", 4], None, ["n_outputs"], ["n_outputs"], ["n_sensors", 6], ["n_outputs", "n_joints"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], None, None, None, ["n_sensors"], ["n_joints"], None, None, None, None, None, None, None, None, [3, "window"], None, ["n_effects"], ["n_effects"], ["n_effects", 3], None, None, ["n_outputs"], None, None, None, ["velocity_window"], ["n_joints", 2], ["n_motors", 2], ["n_outputs"], None, None, ["n_sensors"], ["n_joints", "n_outputs"], ["n_joints"], None]
 
     def __init__(self):
         self.robot_name = ""
@@ -115,14 +115,17 @@ class coefficients_t(object):
         LCM Type: double[3]
         """
 
-        self.sensor_body = 0
+        self.n_sensors = 0
         """
-        the distal sub-body of the F/T sensor (its frame is the sensor frame)
+        F/T sensors inside the chain (format version 5: any number, 0 included); each splits a body, and
+        sensor_body is its distal sub-body, whose frame is the sensor frame
         LCM Type: int32_t
         """
 
-        self.sensor_name = ""
-        """ LCM Type: string """
+        self.sensor_names = []
+        """ LCM Type: string[n_sensors] """
+        self.sensor_body = []
+        """ LCM Type: int32_t[n_sensors] """
         self.n_motors = 0
         """
         actuation: motors, coupling, friction, gains
@@ -157,7 +160,7 @@ class coefficients_t(object):
 
         self.n_outputs = 0
         """
-        outputs y = [w_s (6); inputs], residuals e = y - ŷ
+        outputs y = [w_s (6 per sensor, sensor by sensor); inputs], residuals e = y - ŷ
         LCM Type: int32_t
         """
 
@@ -169,8 +172,12 @@ class coefficients_t(object):
         LCM Type: int8_t[n_outputs]
         """
 
-        self.ft_offset = [ 0.0 for dim0 in range(6) ]
-        """ LCM Type: double[6] """
+        self.ft_offset = []
+        """
+        each sensor's offset w_O (N, Nm)
+        LCM Type: double[n_sensors][6]
+        """
+
         self.row_map = []
         """
         non-F/T rows: ŷ_i = (row_map_i·(τ + τ_f) + f_m(q̇_m))/divisor_i
@@ -218,10 +225,17 @@ class coefficients_t(object):
         LCM Type: double
         """
 
-        self.ft_threshold = 0.0
+        self.ft_threshold = []
         """
-        α-quantile of the F/T channels' share of T²: the contact side
-        LCM Type: double
+        per sensor, the α-quantile of its six channels' share of T²: the side of that sensor a contact is on
+        LCM Type: double[n_sensors]
+        """
+
+        self.accel_tau_variance = []
+        """
+        the external joint torques from the acceleration residuals, tau_map · (divisor ⊙ e): their variance on the
+        calibration data (Nm²; 0 where no row sees the joint)
+        LCM Type: double[n_joints]
         """
 
         self.calibration_samples = 0
@@ -349,12 +363,13 @@ class coefficients_t(object):
         """ LCM Type: double """
         self.observer_rest_threshold = 0.0
         """ LCM Type: double """
-        self.observer_ft_threshold = 0.0
-        """ LCM Type: double """
+        self.observer_ft_threshold = []
+        """ LCM Type: double[n_sensors] """
         self.tau_map = []
         """
-        external joint torque τ_ext = tau_map · r (Nm), its calibration variance, and the isolation level: the
-        contact is on or beyond the most distal joint whose |τ_ext| exceeds isolation_sigmas of its noise
+        external joint torque τ_ext = tau_map · r (Nm; with the acceleration residuals tau_map · (divisor ⊙ e)), its
+        calibration variance, and the isolation level: the contact is on or beyond the most distal joint whose
+        |τ_ext| exceeds isolation_sigmas of its noise
         LCM Type: double[n_joints][n_outputs]
         """
 
@@ -418,11 +433,13 @@ class coefficients_t(object):
         for i0 in range(self.n_bodies):
             buf.write(struct.pack('>10d', *self.inertial[i0][:10]))
         buf.write(struct.pack('>3d', *self.gravity[:3]))
-        buf.write(struct.pack(">i", self.sensor_body))
-        __sensor_name_encoded = self.sensor_name.encode('utf-8')
-        buf.write(struct.pack('>I', len(__sensor_name_encoded)+1))
-        buf.write(__sensor_name_encoded)
-        buf.write(b"\0")
+        buf.write(struct.pack(">i", self.n_sensors))
+        for i0 in range(self.n_sensors):
+            __sensor_names_encoded = self.sensor_names[i0].encode('utf-8')
+            buf.write(struct.pack('>I', len(__sensor_names_encoded)+1))
+            buf.write(__sensor_names_encoded)
+            buf.write(b"\0")
+        buf.write(struct.pack('>%di' % self.n_sensors, *self.sensor_body[:self.n_sensors]))
         buf.write(struct.pack(">i", self.n_motors))
         for i0 in range(self.n_motors):
             __motor_names_encoded = self.motor_names[i0].encode('utf-8')
@@ -443,7 +460,8 @@ class coefficients_t(object):
             buf.write(__channel_names_encoded)
             buf.write(b"\0")
         buf.write(struct.pack('>%db' % self.n_outputs, *self.channel_kind[:self.n_outputs]))
-        buf.write(struct.pack('>6d', *self.ft_offset[:6]))
+        for i0 in range(self.n_sensors):
+            buf.write(struct.pack('>6d', *self.ft_offset[i0][:6]))
         for i0 in range(self.n_outputs):
             buf.write(struct.pack('>%dd' % self.n_joints, *self.row_map[i0][:self.n_joints]))
         buf.write(struct.pack('>%di' % self.n_outputs, *self.channel_motor[:self.n_outputs]))
@@ -451,7 +469,10 @@ class coefficients_t(object):
         buf.write(struct.pack('>%dd' % self.n_outputs, *self.residual_variance[:self.n_outputs]))
         buf.write(struct.pack('>%dq' % self.n_outputs, *self.gate_joints[:self.n_outputs]))
         buf.write(struct.pack('>%dq' % self.n_outputs, *self.gate_motors[:self.n_outputs]))
-        buf.write(struct.pack(">ddddiiiddiii", self.min_speed, self.alpha, self.threshold, self.ft_threshold, self.calibration_samples, self.debounce_on, self.debounce_off, self.hysteresis, self.sample_period, self.window, self.order, self.lag))
+        buf.write(struct.pack(">ddd", self.min_speed, self.alpha, self.threshold))
+        buf.write(struct.pack('>%dd' % self.n_sensors, *self.ft_threshold[:self.n_sensors]))
+        buf.write(struct.pack('>%dd' % self.n_joints, *self.accel_tau_variance[:self.n_joints]))
+        buf.write(struct.pack(">iiiddiii", self.calibration_samples, self.debounce_on, self.debounce_off, self.hysteresis, self.sample_period, self.window, self.order, self.lag))
         for i0 in range(3):
             buf.write(struct.pack('>%dd' % self.window, *self.filter[i0][:self.window]))
         buf.write(struct.pack(">i", self.n_effects))
@@ -468,7 +489,8 @@ class coefficients_t(object):
         for i0 in range(self.n_motors):
             buf.write(struct.pack('>2d', *self.motor_band[i0][:2]))
         buf.write(struct.pack('>%dd' % self.n_outputs, *self.observer_variance[:self.n_outputs]))
-        buf.write(struct.pack(">ddd", self.observer_threshold, self.observer_rest_threshold, self.observer_ft_threshold))
+        buf.write(struct.pack(">dd", self.observer_threshold, self.observer_rest_threshold))
+        buf.write(struct.pack('>%dd' % self.n_sensors, *self.observer_ft_threshold[:self.n_sensors]))
         for i0 in range(self.n_joints):
             buf.write(struct.pack('>%dd' % self.n_outputs, *self.tau_map[i0][:self.n_outputs]))
         buf.write(struct.pack('>%dd' % self.n_joints, *self.tau_variance[:self.n_joints]))
@@ -525,9 +547,12 @@ class coefficients_t(object):
         for i0 in range(self.n_bodies):
             self.inertial.append(struct.unpack('>10d', buf.read(80)))
         self.gravity = struct.unpack('>3d', buf.read(24))
-        self.sensor_body = struct.unpack(">i", buf.read(4))[0]
-        __sensor_name_len = struct.unpack('>I', buf.read(4))[0]
-        self.sensor_name = buf.read(__sensor_name_len)[:-1].decode('utf-8', 'replace')
+        self.n_sensors = struct.unpack(">i", buf.read(4))[0]
+        self.sensor_names = []
+        for i0 in range(self.n_sensors):
+            __sensor_names_len = struct.unpack('>I', buf.read(4))[0]
+            self.sensor_names.append(buf.read(__sensor_names_len)[:-1].decode('utf-8', 'replace'))
+        self.sensor_body = struct.unpack('>%di' % self.n_sensors, buf.read(self.n_sensors * 4))
         self.n_motors = struct.unpack(">i", buf.read(4))[0]
         self.motor_names = []
         for i0 in range(self.n_motors):
@@ -549,7 +574,9 @@ class coefficients_t(object):
             __channel_names_len = struct.unpack('>I', buf.read(4))[0]
             self.channel_names.append(buf.read(__channel_names_len)[:-1].decode('utf-8', 'replace'))
         self.channel_kind = struct.unpack('>%db' % self.n_outputs, buf.read(self.n_outputs))
-        self.ft_offset = struct.unpack('>6d', buf.read(48))
+        self.ft_offset = []
+        for i0 in range(self.n_sensors):
+            self.ft_offset.append(struct.unpack('>6d', buf.read(48)))
         self.row_map = []
         for i0 in range(self.n_outputs):
             self.row_map.append(struct.unpack('>%dd' % self.n_joints, buf.read(self.n_joints * 8)))
@@ -558,7 +585,10 @@ class coefficients_t(object):
         self.residual_variance = struct.unpack('>%dd' % self.n_outputs, buf.read(self.n_outputs * 8))
         self.gate_joints = struct.unpack('>%dq' % self.n_outputs, buf.read(self.n_outputs * 8))
         self.gate_motors = struct.unpack('>%dq' % self.n_outputs, buf.read(self.n_outputs * 8))
-        self.min_speed, self.alpha, self.threshold, self.ft_threshold, self.calibration_samples, self.debounce_on, self.debounce_off, self.hysteresis, self.sample_period, self.window, self.order, self.lag = struct.unpack(">ddddiiiddiii", buf.read(72))
+        self.min_speed, self.alpha, self.threshold = struct.unpack(">ddd", buf.read(24))
+        self.ft_threshold = struct.unpack('>%dd' % self.n_sensors, buf.read(self.n_sensors * 8))
+        self.accel_tau_variance = struct.unpack('>%dd' % self.n_joints, buf.read(self.n_joints * 8))
+        self.calibration_samples, self.debounce_on, self.debounce_off, self.hysteresis, self.sample_period, self.window, self.order, self.lag = struct.unpack(">iiiddiii", buf.read(40))
         self.filter = []
         for i0 in range(3):
             self.filter.append(struct.unpack('>%dd' % self.window, buf.read(self.window * 8)))
@@ -579,7 +609,8 @@ class coefficients_t(object):
         for i0 in range(self.n_motors):
             self.motor_band.append(struct.unpack('>2d', buf.read(16)))
         self.observer_variance = struct.unpack('>%dd' % self.n_outputs, buf.read(self.n_outputs * 8))
-        self.observer_threshold, self.observer_rest_threshold, self.observer_ft_threshold = struct.unpack(">ddd", buf.read(24))
+        self.observer_threshold, self.observer_rest_threshold = struct.unpack(">dd", buf.read(16))
+        self.observer_ft_threshold = struct.unpack('>%dd' % self.n_sensors, buf.read(self.n_sensors * 8))
         self.tau_map = []
         for i0 in range(self.n_joints):
             self.tau_map.append(struct.unpack('>%dd' % self.n_outputs, buf.read(self.n_outputs * 8)))
@@ -590,7 +621,7 @@ class coefficients_t(object):
     @staticmethod
     def _get_hash_recursive(parents):
         if coefficients_t in parents: return 0
-        tmphash = (0x2b242849955679ae) & 0xffffffffffffffff
+        tmphash = (0x9935f0eb2df21e54) & 0xffffffffffffffff
         tmphash  = (((tmphash<<1)&0xffffffffffffffff) + (tmphash>>63)) & 0xffffffffffffffff
         return tmphash
     _packed_fingerprint = None

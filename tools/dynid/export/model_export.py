@@ -33,6 +33,7 @@ from .coefficients import (
     Provenance,
     build_coefficients,
     check_monitor_supports,
+    external_torque_map,
     check_window,
     exportable_effects,
     write_coefficients,
@@ -122,8 +123,8 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
         raise DataError(f"{model.config.name} takes gravity per sample from the accelerometer at "
                         f"{model.config.gravity_imu}; the monitor takes it constant: export a configuration with a "
                         "constant 'gravity' (the base held still) instead")
-    check_monitor_supports(model)  # before any data is read: a robot the core cannot run is refused at once
     effects = identified.effects
+    check_monitor_supports(model, effects)  # before any data is read: a robot the core cannot run is refused at once
     exportable_effects(effects)  # before the (slow) calibration: an effect the monitor lacks is refused at once
     datasets, calibration_digest = calibration_data(identified, model, settings.data)
     est = estimator_for(model, datasets[0].t, settings.lag, settings.window)
@@ -140,8 +141,10 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
         raise DataError(f"{identified.path}: an augmented model (named effects) has no momentum residual yet; export "
                         "it with --residual acceleration")
     events = settings.events_for(residual)
-    cal = calibrate_online(model, identified.phi, datasets, est, alpha, min_speed, effects=effects, tracking=tracking)
-    detector = MonitorDetector(cal.variance, cal.threshold, cal.ft_threshold, alpha, min_speed, cal.samples, events)
+    cal = calibrate_online(model, identified.phi, datasets, est, alpha, min_speed, effects=effects, tracking=tracking,
+                           tau_map=external_torque_map(model))
+    detector = MonitorDetector(cal.variance, cal.threshold, cal.ft_thresholds, alpha, min_speed, cal.samples, events,
+                               cal.tau_variance)
     observer, note = None, "an augmented model's effects have no momentum form yet" if effects else ""
     if not effects:
         try:
@@ -182,11 +185,22 @@ def export_cad(config: RobotConfig, out: str | Path, settings: ExportSettings = 
     t = np.arange(3) / settings.cad_rate_hz
     est = estimator_for(model, t, settings.lag, settings.window)
     residual = settings.residual or "acceleration"
-    detector = MonitorDetector(variance, f_threshold(len(outs), CAD_SAMPLES, alpha), f_threshold(6, CAD_SAMPLES, alpha),
-                               alpha, 0.01, CAD_SAMPLES, settings.events_for(residual))
+    detector = MonitorDetector(variance, f_threshold(len(outs), CAD_SAMPLES, alpha),
+                               {s.name: f_threshold(6, CAD_SAMPLES, alpha) for s in config.ft_sensors}, alpha, 0.01,
+                               CAD_SAMPLES, settings.events_for(residual), cad_tau_variance(model, variance * divisors(model, phi) ** 2))
     observer = cad_observer(model, phi, variance, alpha, t, settings.bandwidth_hz)
+    check_monitor_supports(model)
     c = build_coefficients(model, phi, detector, est, Provenance(estimator="cad"), observer=observer, residual=residual)
     return write_coefficients(c, out)
+
+
+def cad_tau_variance(model: RobotModel, row_variance: np.ndarray) -> np.ndarray:
+    """τ_ext = −L⁻¹ r per actuation group: its variance from the rows' (in row units), for an uncalibrated export."""
+    tau_variance = np.ones(len(model.config.joints))
+    for g, gj, r in group_rows(model):
+        Li = np.linalg.inv(group_row_maps(g)[0])
+        tau_variance[gj] = Li**2 @ row_variance[r]
+    return tau_variance
 
 
 def cad_observer(model: RobotModel, phi: np.ndarray, variance: np.ndarray, alpha: float, t: np.ndarray,
@@ -196,10 +210,7 @@ def cad_observer(model: RobotModel, phi: np.ndarray, variance: np.ndarray, alpha
     from scipy import stats
 
     row_variance = variance * divisors(model, phi) ** 2
-    tau_variance = np.ones(len(model.config.joints))
-    for g, gj, r in group_rows(model):  # τ_ext = −L⁻¹ r: its variance from the rows'
-        Li = np.linalg.inv(group_row_maps(g)[0])
-        tau_variance[gj] = Li**2 @ row_variance[r]
+    tau_variance = cad_tau_variance(model, row_variance)
     det = MomentumDetector(bandwidth_hz, row_variance, tau_variance,
                            float(stats.chi2.ppf(alpha, row_variance.size)), alpha, 0.01, 0.0,
                            {s.name: float(stats.chi2.ppf(alpha, 6)) for s in model.config.ft_sensors}, CAD_SAMPLES)

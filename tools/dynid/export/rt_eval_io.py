@@ -32,14 +32,24 @@ def read_matrix(path: Path) -> np.ndarray:
 
 
 def raw_samples(ds, c: coefficients_t) -> np.ndarray:
-    """(N, joints + 6 + motors): what the monitor receives per sample, in the coefficient file's order."""
-    return np.hstack([ds.q, ds.ft[c.sensor_name]] + [ds.pwm[m][:, None] for m in c.motor_names])
+    """(N, joints + outputs): what the monitor receives per sample, in the coefficient file's joint and channel order
+    (channels by name: `ft.<sensor>.<fx…tz>`, `pwm.<motor>`, `current.<motor>`, `tau.<joint>`)."""
+    columns = dict(ds.columns())
+    missing = [n for n in c.channel_names if n not in columns]
+    if missing:
+        raise KeyError(f"the data have no column {missing[0]} for the coefficient file's channel")
+    return np.column_stack([ds.q] + [columns[n] for n in c.channel_names])
 
 
-def detector_columns(c: coefficients_t) -> dict[str, int]:
-    """Where `rt_eval --stream` writes T², the detector's state and the side (the observer's columns follow)."""
+def detector_columns(c: coefficients_t) -> dict[str, int | slice]:
+    """Where `rt_eval --stream` writes T², each sensor's share, the detector's state and each sensor's side; then r
+    (`n_outputs`), τ_ext (`n_joints`) and the isolated joint."""
+    ns = c.n_sensors
     at = 1 + 3 * c.n_joints + 3 * c.n_outputs
-    return {"t2": at, "t2_ft": at + 1, "above": at + 2, "in_contact": at + 3, "event": at + 4, "side": at + 5}
+    state = at + 1 + ns
+    return {"t2": at, "t2_sensor": slice(at + 1, at + 1 + ns), "above": state, "in_contact": state + 1,
+            "event": state + 2, "side": slice(state + 3, state + 3 + ns), "r": state + 3 + ns,
+            "tau_ext": state + 3 + ns + c.n_outputs, "joint": state + 3 + ns + c.n_outputs + c.n_joints}
 
 
 def run_stream(exe: Path, coef: Path, raw: np.ndarray, work: Path, *options: str) -> np.ndarray:

@@ -8,13 +8,13 @@ from io import BytesIO
 import struct
 
 class contact_event_t(object):
-    """ A contact onset or end, published by rt_monitor on channel DYNID_CONTACT (rt_monitor/README.md). """
+    """ A contact onset or end, published by rt_monitor on channel DYNID_CONTACT (rt_monitor/README.md), sized to the robot. """
 
-    __slots__ = ["utime", "kind", "side", "onset_utime", "sample", "t2", "threshold", "n_channels", "channel", "normalized_residual", "wrench", "residual", "n_joints", "joint", "tau_ext", "isolated_joint"]
+    __slots__ = ["utime", "kind", "onset_utime", "sample", "t2", "threshold", "n_channels", "channel", "normalized_residual", "residual", "n_sensors", "sensor", "side", "wrench", "n_joints", "joint", "tau_ext", "isolated_joint", "isolated_link"]
 
-    __typenames__ = ["int64_t", "int8_t", "int8_t", "int64_t", "int64_t", "double", "double", "int32_t", "string", "double", "double", "int8_t", "int32_t", "string", "double", "int32_t"]
+    __typenames__ = ["int64_t", "int8_t", "int64_t", "int64_t", "double", "double", "int32_t", "string", "double", "int8_t", "int32_t", "string", "int8_t", "double", "int32_t", "string", "double", "int32_t", "string"]
 
-    __dimensions__ = [None, None, None, None, None, None, None, None, ["n_channels"], ["n_channels"], [6], None, None, ["n_joints"], ["n_joints"], None]
+    __dimensions__ = [None, None, None, None, None, None, None, ["n_channels"], ["n_channels"], None, None, ["n_sensors"], ["n_sensors"], ["n_sensors", 6], None, ["n_joints"], ["n_joints"], None, None]
 
     def __init__(self):
         self.utime = 0
@@ -25,15 +25,9 @@ class contact_event_t(object):
         LCM Type: int8_t
         """
 
-        self.side = 0
-        """
-        1 onset, 2 end
-        LCM Type: int8_t
-        """
-
         self.onset_utime = 0
         """
-        1 distal of the F/T sensor, -1 proximal, 0 unknown
+        1 onset, 2 end
         LCM Type: int64_t
         """
 
@@ -65,21 +59,33 @@ class contact_event_t(object):
         """ LCM Type: string[n_channels] """
         self.normalized_residual = []
         """ LCM Type: double[n_channels] """
-        self.wrench = [ 0.0 for dim0 in range(6) ]
-        """
-        e_i / sqrt(Λ_ii); 0 for a channel outside T²
-        LCM Type: double[6]
-        """
-
         self.residual = 0
         """
-        estimated external wrench at the sensor, sensor frame: N, N, N, Nm, Nm, Nm
+        e_i / sqrt(Λ_ii); 0 for a channel outside T²
         LCM Type: int8_t
+        """
+
+        self.n_sensors = 0
+        """
+        0 acceleration residuals, 1 momentum observer
+        every F/T sensor of the chain (none on a robot without one)
+        LCM Type: int32_t
+        """
+
+        self.sensor = []
+        """ LCM Type: string[n_sensors] """
+        self.side = []
+        """ LCM Type: int8_t[n_sensors] """
+        self.wrench = []
+        """
+        the contact is 1 distal of the sensor, -1 proximal, 0 unknown
+        LCM Type: double[n_sensors][6]
         """
 
         self.n_joints = 0
         """
-        0 acceleration residuals (wrench: the F/T residual), 1 momentum observer
+        the residual wrench at the sensor, its frame: N, N, N, Nm, Nm, Nm
+        every joint: the external joint torques and the link the contact is isolated to
         LCM Type: int32_t
         """
 
@@ -89,8 +95,14 @@ class contact_event_t(object):
         """ LCM Type: double[n_joints] """
         self.isolated_joint = 0
         """
-        estimated external joint torque, Nm (momentum observer; 0 otherwise)
+        estimated external joint torque, Nm
         LCM Type: int32_t
+        """
+
+        self.isolated_link = ""
+        """
+        the contact is on or beyond this joint's link (index into joint), -1 unknown
+        LCM Type: string
         """
 
 
@@ -101,15 +113,23 @@ class contact_event_t(object):
         return buf.getvalue()
 
     def _encode_one(self, buf):
-        buf.write(struct.pack(">qbbqqddi", self.utime, self.kind, self.side, self.onset_utime, self.sample, self.t2, self.threshold, self.n_channels))
+        buf.write(struct.pack(">qbqqddi", self.utime, self.kind, self.onset_utime, self.sample, self.t2, self.threshold, self.n_channels))
         for i0 in range(self.n_channels):
             __channel_encoded = self.channel[i0].encode('utf-8')
             buf.write(struct.pack('>I', len(__channel_encoded)+1))
             buf.write(__channel_encoded)
             buf.write(b"\0")
         buf.write(struct.pack('>%dd' % self.n_channels, *self.normalized_residual[:self.n_channels]))
-        buf.write(struct.pack('>6d', *self.wrench[:6]))
-        buf.write(struct.pack(">bi", self.residual, self.n_joints))
+        buf.write(struct.pack(">bi", self.residual, self.n_sensors))
+        for i0 in range(self.n_sensors):
+            __sensor_encoded = self.sensor[i0].encode('utf-8')
+            buf.write(struct.pack('>I', len(__sensor_encoded)+1))
+            buf.write(__sensor_encoded)
+            buf.write(b"\0")
+        buf.write(struct.pack('>%db' % self.n_sensors, *self.side[:self.n_sensors]))
+        for i0 in range(self.n_sensors):
+            buf.write(struct.pack('>6d', *self.wrench[i0][:6]))
+        buf.write(struct.pack(">i", self.n_joints))
         for i0 in range(self.n_joints):
             __joint_encoded = self.joint[i0].encode('utf-8')
             buf.write(struct.pack('>I', len(__joint_encoded)+1))
@@ -117,6 +137,10 @@ class contact_event_t(object):
             buf.write(b"\0")
         buf.write(struct.pack('>%dd' % self.n_joints, *self.tau_ext[:self.n_joints]))
         buf.write(struct.pack(">i", self.isolated_joint))
+        __isolated_link_encoded = self.isolated_link.encode('utf-8')
+        buf.write(struct.pack('>I', len(__isolated_link_encoded)+1))
+        buf.write(__isolated_link_encoded)
+        buf.write(b"\0")
 
     @staticmethod
     def decode(data: bytes):
@@ -131,26 +155,36 @@ class contact_event_t(object):
     @staticmethod
     def _decode_one(buf):
         self = contact_event_t()
-        self.utime, self.kind, self.side, self.onset_utime, self.sample, self.t2, self.threshold, self.n_channels = struct.unpack(">qbbqqddi", buf.read(46))
+        self.utime, self.kind, self.onset_utime, self.sample, self.t2, self.threshold, self.n_channels = struct.unpack(">qbqqddi", buf.read(45))
         self.channel = []
         for i0 in range(self.n_channels):
             __channel_len = struct.unpack('>I', buf.read(4))[0]
             self.channel.append(buf.read(__channel_len)[:-1].decode('utf-8', 'replace'))
         self.normalized_residual = struct.unpack('>%dd' % self.n_channels, buf.read(self.n_channels * 8))
-        self.wrench = struct.unpack('>6d', buf.read(48))
-        self.residual, self.n_joints = struct.unpack(">bi", buf.read(5))
+        self.residual, self.n_sensors = struct.unpack(">bi", buf.read(5))
+        self.sensor = []
+        for i0 in range(self.n_sensors):
+            __sensor_len = struct.unpack('>I', buf.read(4))[0]
+            self.sensor.append(buf.read(__sensor_len)[:-1].decode('utf-8', 'replace'))
+        self.side = struct.unpack('>%db' % self.n_sensors, buf.read(self.n_sensors))
+        self.wrench = []
+        for i0 in range(self.n_sensors):
+            self.wrench.append(struct.unpack('>6d', buf.read(48)))
+        self.n_joints = struct.unpack(">i", buf.read(4))[0]
         self.joint = []
         for i0 in range(self.n_joints):
             __joint_len = struct.unpack('>I', buf.read(4))[0]
             self.joint.append(buf.read(__joint_len)[:-1].decode('utf-8', 'replace'))
         self.tau_ext = struct.unpack('>%dd' % self.n_joints, buf.read(self.n_joints * 8))
         self.isolated_joint = struct.unpack(">i", buf.read(4))[0]
+        __isolated_link_len = struct.unpack('>I', buf.read(4))[0]
+        self.isolated_link = buf.read(__isolated_link_len)[:-1].decode('utf-8', 'replace')
         return self
 
     @staticmethod
     def _get_hash_recursive(parents):
         if contact_event_t in parents: return 0
-        tmphash = (0x36a18f601c715d18) & 0xffffffffffffffff
+        tmphash = (0x1adaf945679fb8d7) & 0xffffffffffffffff
         tmphash  = (((tmphash<<1)&0xffffffffffffffff) + (tmphash>>63)) & 0xffffffffffffffff
         return tmphash
     _packed_fingerprint = None
