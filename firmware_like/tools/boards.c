@@ -357,6 +357,10 @@ int main(int argc, char **argv)
         if (realtime) {
             fprintf(out, "boards: sample 0 at CLOCK_REALTIME %lld us\n", real0_us);
         }
+        if (g_player.n_clamped) { /* data lost: a value beyond its signal's range was sent at the range's end */
+            fprintf(out, "boards: %llu values clamped at their signal's range (the first: %s)\n",
+                    (unsigned long long)g_player.n_clamped, g_conf.values[g_player.first_clamped]);
+        }
         for (i = 0; i < g_conf.n_buses; ++i) {
             const double load = (double)g_bits[i] / (duration * BITRATE);
             fprintf(out, "boards: bus %s load %.1f %% (%llu frames; worst-case bit stuffing, 1 Mbit/s)\n", g_conf.buses[i],

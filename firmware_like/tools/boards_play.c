@@ -214,6 +214,7 @@ int boards_player_init(boards_player_t *p, const boards_conf_t *c, int encoder, 
     p->conf = c;
     p->encoder = encoder;
     memcpy(p->long_node, long_node, sizeof p->long_node);
+    p->first_clamped = -1;
     for (i = 0; i < c->n_frames; ++i) { /* send order: by offset, ties as listed (an insertion sort: stable) */
         const int64_t off = c->frames[i].offset_us;
         for (k = i; k > 0 && c->frames[p->order[k - 1]].offset_us > off; --k) {
@@ -335,7 +336,9 @@ int boards_player_sample(boards_player_t *p, const double *row, const boards_col
         uint8_t clamped = 0u;
         (void)bus_signal_raw(&c->signals[p->value_signal[i]].layout, row[cols->value[i]], &clamped);
         p->clamped[i] = clamped;
+        if (clamped && p->n_clamped++ == 0u) p->first_clamped = i;
     }
+    ++p->samples;
     if (p->encoder == BOARDS_ENCODER_ICUB) icub_latch(p, row, cols);
     for (k = 0; k < c->n_frames; ++k) {
         const int i2 = p->order[k];

@@ -136,6 +136,9 @@ typedef struct {
     uint8_t node_restarted[BOARDS_MAX_FRAMES]; /* a restart flag pending for the node's next frame that has one */
     uint64_t seq[BOARDS_MAX_FRAMES];
     uint8_t clamped[BOARDS_MAX_SIGNALS]; /* per value: it clamped in this sample */
+    uint64_t n_clamped;                  /* values clamped at their signal's range, over the run */
+    int first_clamped;                   /* the first value that did (-1: none) */
+    uint64_t samples;
     int value_signal[BOARDS_MAX_SIGNALS]; /* per value: the signal carrying it */
     /* iCub emulators */
     board_mc_t mc[BOARDS_MAX_FRAMES];

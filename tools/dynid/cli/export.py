@@ -90,8 +90,9 @@ def _export_bus(args: argparse.Namespace) -> dict[str, Any]:
 
 def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
     if args.dbc or args.monitor_config:
-        if args.cad or args.print or args.urdf:
-            raise InputError("--dbc and --monitor-config go with --model MODEL or --robot CFG (and --out COEF_FILE)")
+        if args.cad or args.print or (args.urdf and args.model):
+            raise InputError("--dbc and --monitor-config go with --model MODEL or --robot CFG [--urdf FILE] (and --out "
+                             "COEF_FILE)")
         result = _export_bus(args)
         if args.model and args.out:
             result["coefficients"] = _export_coefficients(args)

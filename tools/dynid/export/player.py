@@ -4,18 +4,22 @@ a YARP dumper folder, a ROS 2 bag, a simulated run, a dataset, a candump log), h
 and `boards` encodes the frames from the compiled bus table onto the sink: a candump log, the loopback transport or
 SocketCAN, paced (`realtime`) or as fast as possible.
 
-Unevenly sampled runs (the UR10e's and TIAGo's controller logs jitter) are sent at their recorded stamps, never
-resampled: the player's samples are then the run's own, one for one (an interpolated F/T or current sample is one
-no robot sent), the monitor's sample clock meets the jitter a real bus has, and `dynid import` of the log gives the
-run back. Samples closer together than the bus table spreads one sample's frames (it sends them between its earliest
-offset and the clock frame) are refused, as they would mix.
+Unevenly sampled runs (the UR10e's, the Panda's and TIAGo's logs jitter) are never resampled: the samples played are
+the run's own, one for one (an interpolated F/T or current sample is one no robot sent). By default they are sent at
+their recorded stamps (`stamps="recorded"`): the log's time is kept, `dynid import` of the candump gives the run back,
+and the monitor's sample clock meets the jitter as recorded (a gap of more than 1.5 periods is a lost sample it
+bridges). `stamps="nominal"` sends sample k at t0 + k · the run's median step (its nominal period, to the µs)
+instead: the monitor then evaluates
+exactly the run's samples in order, none bridged, as the offline analysis does (the way to compare the two sample for
+sample); a controller's log jitter is its logger's, not its bus's. Samples closer together than the bus table spreads
+one sample's frames (it sends them between its earliest offset and the clock frame) are refused, as they would mix.
 """
 
 from __future__ import annotations
 
 import subprocess
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +33,7 @@ from .monitor_config import check_capacity, monitor_config_text
 
 BOARDS = Path(__file__).resolve().parents[3] / "build" / "firmware_like" / "boards"
 ENCODERS = ("auto", "generic", "icub")
+STAMPS = ("recorded", "nominal")
 
 
 @dataclass(frozen=True)
@@ -37,7 +42,7 @@ class Played:
     frames: int
     load: dict[str, float]  # per bus, fraction of 1 Mbit/s over the run (worst-case bit stuffing)
     summary: str  # boards' own lines
-    period_s: float  # the run's mean sample period
+    period_s: float  # the run's mean sample period, as recorded
     step_range_s: tuple[float, float]  # its smallest and largest step (the jitter sent as recorded)
 
 
@@ -65,14 +70,19 @@ def player_csv(data: Dataset, bus: BusDescription, robot: str) -> str:
 
 
 def play_run(config: RobotConfig, data: Dataset, sink: str, realtime: bool = False, encoder: str = "auto",
-             t0: float | None = None, long_form: str = "auto") -> Played:
+             t0: float | None = None, long_form: str = "auto", stamps: str = "recorded") -> Played:
     """Play `data` onto `sink` (candump:PATH, loopback:DIR, socketcan) through the robot's bus, with `boards`."""
     bus = check_capacity(config)
     if encoder not in ENCODERS:
         raise InputError(f"--encoder must be one of {', '.join(ENCODERS)}, got {encoder!r}")
+    if stamps not in STAMPS:
+        raise InputError(f"--stamps must be one of {', '.join(STAMPS)}, got {stamps!r}")
     if not BOARDS.is_file():
         raise InputError(f"{BOARDS} is not built: run scripts/setup")
     steps = np.diff(data.t)
+    if stamps == "nominal":  # the run's own samples, on the grid of its nominal period (the median step, to the µs)
+        nominal = round(float(np.median(steps)) * 1e6) * 1e-6
+        data = replace(data, t=data.t[0] + np.arange(data.n_samples) * nominal)
     with tempfile.TemporaryDirectory(prefix="dynid-play-") as tmp:
         conf, csv = Path(tmp) / "monitor.conf", Path(tmp) / "data.csv"
         conf.write_text(monitor_config_text(config))
