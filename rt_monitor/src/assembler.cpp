@@ -51,9 +51,13 @@ bool Assembler::init(const MonitorConfig& cfg, const Coefficients& coef, std::st
                 node_slots_[size_t(at++)] = s.slot;
     }
     node_first_[b.nodes.size()] = at;
+    // Every table written once here: its pages are touched at start-up, not in the loop.
     last_seq_.fill(-1);
     t_first_.fill(-1);
     slots_.fill(Slot{});
+    for (auto& v : first_values_) v.fill(0.0);
+    first_saturated_.fill(false);
+    scratch_.fill(0.0);
     t_clock_ = t_boundary_ = -1;
     skin_mask_ = 0;
     n_ = MonitorCounters{};

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from typing import Any
 
 from ..config.robot_config import load_config
@@ -25,11 +26,12 @@ def cmd_play(args: argparse.Namespace) -> dict[str, Any]:
     dropped = skipped_rows(args.data, data.meta)
     played = play_run(config, data, args.sink, args.realtime, args.encoder, args.t0, args.strain_sat, args.stamps)
     lo, hi = played.step_range_s
-    if kind != "candump" or where != "-":
-        print(played.summary)
-    where = "their recorded stamps" if args.stamps == "recorded" else "stamps every median step"
-    print(f"played {args.data} ({config.name}) -> {args.sink}: {played.samples} samples at {where} (mean step "
-          f"{1e3 * played.period_s:.4g} ms, recorded {1e3 * lo:.4g} to {1e3 * hi:.4g} ms), {played.frames} frames")
+    out = sys.stderr if args.sink == "candump:-" else sys.stdout  # the log itself is on standard output
+    print(played.summary, file=out)
+    stamps = "their recorded stamps" if args.stamps == "recorded" else "stamps every median step"
+    print(f"played {args.data} ({config.name}) -> {args.sink}: {played.samples} samples at {stamps} (mean step "
+          f"{1e3 * played.period_s:.4g} ms, recorded {1e3 * lo:.4g} to {1e3 * hi:.4g} ms), {played.frames} frames",
+          file=out)
     return {"robot": config.name, "data": args.data, "sink": args.sink, "samples": played.samples,
             "frames": played.frames, "load": played.load, "period_s": played.period_s,
             "step_min_s": lo, "step_max_s": hi, "stamps": args.stamps, "realtime": args.realtime, "encoder": args.encoder,

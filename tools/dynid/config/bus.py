@@ -360,7 +360,7 @@ def _frame(fr: Fields, buses: tuple[str, ...], rate: float, joints: tuple[str, .
         signals.append(s)
     if long_dlc and not any(s.end_byte > dlc for s in signals):
         raise fr.fail("long_dlc", f"is given, but no signal of '{name}' lies beyond its {dlc} bytes")
-    if fr.has("signals") is False or not signals:
+    if not signals:
         raise fr.fail("signals", f"must list the signals of frame '{name}'")
     return BusFrame(name=name, bus=bus, id=can_id, dlc=dlc, signals=tuple(signals), node=node, period_ms=period,
                     offset_us=int(offset), long_dlc=long_dlc)

@@ -17,6 +17,7 @@ one sample's frames (it sends them between its earliest offset and the clock fra
 
 from __future__ import annotations
 
+import signal
 import subprocess
 import tempfile
 from dataclasses import dataclass, replace
@@ -93,8 +94,12 @@ def play_run(config: RobotConfig, data: Dataset, sink: str, realtime: bool = Fal
             args.append("--realtime")
         if t0 is not None:
             args += ["--t0", repr(float(t0))]
-        done = subprocess.run(args, capture_output=True, text=True)
-    text = done.stdout if done.stdout.startswith("boards:") else done.stderr
+        # candump:- streams the log to our standard output (boards then puts its summary on stderr)
+        to_stdout = sink == "candump:-"
+        done = subprocess.run(args, stdout=None if to_stdout else subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    text = done.stderr if to_stdout else done.stdout
+    if done.returncode < 0:  # e.g. SIGPIPE: whatever read `candump:-` went away
+        raise DataError(f"boards was stopped by signal {-done.returncode} ({signal.Signals(-done.returncode).name})")
     if done.returncode != 0:
         why = (done.stderr.strip().splitlines() or [f"boards exited {done.returncode}"])[0]
         raise DataError(why.removeprefix("boards: error: "))
