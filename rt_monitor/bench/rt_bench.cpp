@@ -1,6 +1,6 @@
 // rt_bench: time per sample of the full real-time core (filter, RNEA prediction, residuals, T², detector), of the
 // core running the momentum observer instead (momentum terms, observer, band, T², detector, τ_ext), and in the same
-// run Pinocchio's rnea on the same 7-joint chain (built from the same coefficient file).
+// run Pinocchio's rnea on the same chain (built from the same coefficient file: any robot dynid exports).
 //   rt_bench [COEF_FILE] [--samples N]
 // Each call is timed alone (steady_clock; its own overhead is reported and not subtracted).
 #include "rt_monitor/core.hpp"
@@ -45,7 +45,9 @@ pinocchio::Model pinocchio_chain(const Coefficients& c) {
             m.appendBodyToJoint(pj, inertia, placement);
         } else {
             const std::string name = c.joint_names[c.joint_index[i]];
-            joint_of[i] = m.addJoint(pj, pinocchio::JointModelRevoluteUnaligned(c.axis[i]), placement, name);
+            joint_of[i] = c.joint_type[i] == JointType::kPrismatic
+                              ? m.addJoint(pj, pinocchio::JointModelPrismaticUnaligned(c.axis[i]), placement, name)
+                              : m.addJoint(pj, pinocchio::JointModelRevoluteUnaligned(c.axis[i]), placement, name);
             m.appendBodyToJoint(joint_of[i], inertia, pinocchio::SE3::Identity());
         }
     }
@@ -106,6 +108,10 @@ int main(int argc, char** argv) {
     pinocchio::Model pm = pinocchio_chain(*c);
     pinocchio::Data pd(pm);
     Eigen::VectorXd q(pm.nq), v(pm.nv), a(pm.nv);
+    // Pinocchio numbers its joints in body order; the core, in the configuration's (a chain re-rooted at a sole runs
+    // some joints backwards): where each of the core's joints sits in Pinocchio's q.
+    std::vector<int> at(static_cast<size_t>(nj));
+    for (int j = 0; j < nj; ++j) at[size_t(j)] = pm.joints[pm.getJointId(c->joint_names[j])].idx_q();
 
     std::vector<double> t_core(static_cast<size_t>(n)), t_rnea(static_cast<size_t>(n)), t_clock(static_cast<size_t>(n));
     std::vector<double> t_obs(static_cast<size_t>(n));
@@ -115,7 +121,7 @@ int main(int argc, char** argv) {
         const Output& o = core->step(&Q[k * nj], &Y[k * no]);
         const auto t1 = Clock::now();
         sink = sink + o.p.t2;
-        for (int j = 0; j < nj; ++j) q[j] = Q[k * nj + j], v[j] = V[k * nj + j], a[j] = A[k * nj + j];
+        for (int j = 0; j < nj; ++j) q[at[j]] = Q[k * nj + j], v[at[j]] = V[k * nj + j], a[at[j]] = A[k * nj + j];
         const auto t2 = Clock::now();
         pinocchio::rnea(pm, pd, q, v, a);
         const auto t3 = Clock::now();
@@ -133,11 +139,13 @@ int main(int argc, char** argv) {
     double worst = 0, worst_p = 0, worst_beta = 0;
     for (long k = 0; k < n; k += 1000) {
         VecJ qq = VecJ::Zero(), vv = VecJ::Zero(), aa = VecJ::Zero();
-        for (int j = 0; j < nj; ++j) qq[j] = q[j] = Q[k * nj + j], vv[j] = v[j] = V[k * nj + j], aa[j] = a[j] = A[k * nj + j];
+        for (int j = 0; j < nj; ++j)
+            qq[j] = q[at[j]] = Q[k * nj + j], vv[j] = v[at[j]] = V[k * nj + j], aa[j] = a[at[j]] = A[k * nj + j];
         Prediction p;
         core->predict(qq, vv, aa, VecO::Zero(), p);
         pinocchio::rnea(pm, pd, q, v, a);
-        for (int j = 0; j < nj; ++j) worst = std::max(worst, std::abs(p.tau[j] - pd.tau[j]) / (1e-12 + pd.tau.cwiseAbs().maxCoeff()));
+        for (int j = 0; j < nj; ++j)
+            worst = std::max(worst, std::abs(p.tau[j] - pd.tau[at[j]]) / (1e-12 + pd.tau.cwiseAbs().maxCoeff()));
         // The observer's momentum terms: p = M q̇ and β = Cᵀq̇ − g against Pinocchio's crba, Coriolis matrix, gravity.
         MomentumTerms m;
         momentum_terms(*c, qq.data(), vv.data(), m);
@@ -147,8 +155,8 @@ int main(int argc, char** argv) {
         const Eigen::VectorXd beta = pinocchio::computeCoriolisMatrix(pm, pd, q, v).transpose() * v -
                                      pinocchio::computeGeneralizedGravity(pm, pd, q);
         for (int j = 0; j < nj; ++j) {
-            worst_p = std::max(worst_p, std::abs(m.p[j] - mv[j]) / (1e-12 + mv.cwiseAbs().maxCoeff()));
-            worst_beta = std::max(worst_beta, std::abs(m.beta[j] - beta[j]) / (1e-12 + beta.cwiseAbs().maxCoeff()));
+            worst_p = std::max(worst_p, std::abs(m.p[j] - mv[at[j]]) / (1e-12 + mv.cwiseAbs().maxCoeff()));
+            worst_beta = std::max(worst_beta, std::abs(m.beta[j] - beta[at[j]]) / (1e-12 + beta.cwiseAbs().maxCoeff()));
         }
     }
     const long warm = std::min<long>(n / 10, 1000);  // first calls: cold caches, filter warm-up

@@ -2,6 +2,7 @@
 // robot. Every check names what failed; nothing of a refused file is used.
 #include "rt_monitor/coefficients.hpp"
 
+#include "coefficient_checks.hpp"
 #include "dynid/coefficients_t.hpp"
 
 #include <cerrno>
@@ -20,170 +21,6 @@ constexpr size_t kMaxFileBytes = size_t(1) << 24;  // 16 MB: a full-capacity coe
 
 uint32_t read_le32(const uint8_t* p) {
     return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24;
-}
-
-LoadResult fail(LoadError e, const std::string& msg) { return LoadResult{e, msg}; }
-
-template <class V>
-bool finite_all(const V& v) {
-    for (const auto& x : v)
-        if (!std::isfinite(double(x))) return false;
-    return true;
-}
-
-std::string str(int v) { return std::to_string(v); }
-
-
-// The payload's shape, walked before LCM's decoder sees it: lcm-gen's decoder sizes each array from its count field
-// before it reads one element (a 4-byte count of 2³¹ − 1 asked for gigabytes) and computes a string's length minus
-// one in int (undefined for a length of −2³¹). This walk reads the counts and lengths in the order of
-// lcmtypes/coefficients_t.lcm, allocating nothing: a count above this build's capacity is refused as such (kCapacity,
-// the loader's message), a negative count, a string length below 1 or anything running past the end as not this
-// type (kDecode). The decoder then only runs on payloads whose every array fits the capacity and the bytes.
-class Shape {
-public:
-    Shape(const uint8_t* p, size_t n) : p_(p), n_(n) {}
-    bool ok() const { return ok_; }
-    size_t at() const { return at_; }
-    void skip(uint64_t k) {
-        if (ok_ && k <= n_ - at_) at_ += size_t(k);
-        else ok_ = false;
-    }
-    uint64_t u64() {
-        uint64_t v = 0;
-        if (ok_ && n_ - at_ >= 8)
-            for (int i = 0; i < 8; ++i) v = v << 8 | p_[at_ + size_t(i)];  // LCM is big-endian
-        skip(8);
-        return v;
-    }
-    int32_t i32() {
-        uint32_t v = 0;
-        if (ok_ && n_ - at_ >= 4)
-            for (int i = 0; i < 4; ++i) v = v << 8 | p_[at_ + size_t(i)];
-        skip(4);
-        return int32_t(v);
-    }
-    void strings(int64_t count) {
-        for (int64_t k = 0; k < count && ok_; ++k) {
-            const int32_t len = i32();
-            if (len < 1) ok_ = false;
-            skip(uint64_t(len < 1 ? 0 : len));
-        }
-    }
-    // count elements of `size` bytes; count is within the capacity here (at most 64), so no product overflows.
-    void array(int64_t count, uint64_t size) { skip(uint64_t(count) * size); }
-    // A count field: negative is not this type; above the capacity is refused as too many.
-    bool count(int32_t& n, const char* what, int max, LoadResult& r) {
-        n = i32();
-        if (!ok_ || n < 0) {
-            ok_ = false;
-            return false;
-        }
-        if (n > max) {
-            r = fail(LoadError::kCapacity, std::string("too many ") + what + ": " + str(n) + " (this build's capacity is " +
-                                               str(max) + ")");
-            return false;
-        }
-        return true;
-    }
-
-private:
-    const uint8_t* p_;
-    size_t n_, at_ = 0;
-    bool ok_ = true;
-};
-
-LoadResult check_shape(const uint8_t* p, size_t n) {
-    const LoadResult not_this = fail(LoadError::kDecode, "payload is not a dynid.coefficients_t (fingerprint or size)");
-    Shape w(p, n);
-    LoadResult r;
-    if (w.u64() != uint64_t(dynid::coefficients_t::getHash())) return not_this;
-    w.strings(6);  // robot_name … estimator
-    int32_t nj = 0, nb = 0, ns = 0, nm = 0, no = 0, win = 0, ne = 0;
-    if (!w.count(nj, "joints", kMaxJoints, r)) return r ? not_this : r;
-    w.strings(nj);
-    if (!w.count(nb, "bodies", kMaxBodies, r)) return r ? not_this : r;
-    w.strings(nb);
-    w.array(nb, 4 + 1 + 4 + 8 * (3 + 9 + 3 + 10));  // parent, joint_type, joint_index, axis, rotation, translation, φ
-    w.array(3, 8);                                  // gravity
-    if (!w.count(ns, "F/T sensors", kMaxSensors, r)) return r ? not_this : r;
-    w.strings(ns);                                  // sensor_names
-    w.array(ns, 4);                                 // sensor_body
-    if (!w.count(nm, "motors", kMaxMotors, r)) return r ? not_this : r;
-    w.strings(nm);
-    w.array(int64_t(nm) * nj, 8);                   // motor_velocity
-    w.array(nm, 1 + 8 * 4);                         // motor_friction_on, motor_friction
-    w.array(nj, 8 * 4);                             // joint_friction
-    if (!w.count(no, "outputs", kMaxOutputs, r)) return r ? not_this : r;
-    w.strings(no);
-    w.array(no, 1);                                 // channel_kind
-    w.array(int64_t(ns) * 6, 8);                    // ft_offset
-    w.array(int64_t(no) * nj, 8);                   // row_map
-    w.array(no, 4 + 8 + 8 + 8 + 8);                 // channel_motor, divisor, residual_variance, gate_joints, gate_motors
-    w.array(3, 8);                                  // min_speed, alpha, threshold
-    w.array(ns, 8);                                 // ft_threshold
-    w.array(nj, 8);                                 // accel_tau_variance
-    w.array(1, 3 * 4 + 8 + 8);                      // calibration_samples, debounce_on/off, hysteresis, sample_period
-    if (!w.count(win, "filter samples", kMaxWindow, r)) return r ? not_this : r;
-    w.array(2, 4);                                  // order, lag
-    w.array(int64_t(3) * win, 8);                   // filter
-    if (!w.count(ne, "effects", kMaxEffects, r)) return r ? not_this : r;
-    w.array(ne, 1 + 4 + 3 * 8);                     // effect_kind, effect_joint, effect_param
-    w.array(2, 8);                                  // supply_time_constant, supply_prior
-    w.array(no, 8);                                 // supply_gate
-    int32_t vw = 0;
-    w.array(1, 1 + 8);                              // residual, observer_bandwidth
-    if (!w.count(vw, "velocity filter samples", kMaxWindow, r)) return r ? not_this : r;
-    w.array(vw, 8);                                 // velocity_filter
-    w.array(int64_t(nj + nm) * 2, 8);               // joint_band, motor_band
-    w.array(no, 8);                                 // observer_variance
-    w.array(2, 8);                                  // observer_threshold, observer_rest_threshold
-    w.array(ns, 8);                                 // observer_ft_threshold
-    w.array(int64_t(nj) * no + nj + 1, 8);          // tau_map, tau_variance, isolation_sigmas
-    if (!w.ok() || w.at() != n) return not_this;
-    return LoadResult{};
-}
-
-// The observer's section: absent (velocity_window 0) unless the file selects it; when present, complete and usable.
-LoadResult check_observer(const dynid::coefficients_t& c) {
-    auto dim = [](const std::string& m) { return fail(LoadError::kDimension, m); };
-    if (c.residual != 0 && c.residual != 1)
-        return dim("unknown residual " + str(c.residual) + " (this monitor knows 0 acceleration, 1 momentum)");
-    if (c.velocity_window == 0) {
-        if (c.residual == 1) return dim("the file selects the momentum residual but carries no observer");
-        return LoadResult{};
-    }
-    if (c.residual == 1 && c.n_effects > 0) return dim("the momentum observer has no form for named effects");
-    if (c.velocity_window < 3) return dim("velocity filter window " + str(c.velocity_window) + " below 3 samples");
-    auto nf = [](const char* what) { return fail(LoadError::kNotFinite, std::string("non-finite value in ") + what); };
-    if (!finite_all(c.velocity_filter) || !finite_all(c.observer_variance) || !finite_all(c.tau_variance))
-        return nf("the momentum observer");
-    for (const auto& b : c.joint_band)
-        if (!finite_all(b)) return nf("the static-friction band");
-    for (const auto& b : c.motor_band)
-        if (!finite_all(b)) return nf("the static-friction band");
-    for (const auto& row : c.tau_map)
-        if (!finite_all(row)) return nf("the external-torque map");
-    for (double v : {c.observer_bandwidth, c.observer_threshold, c.observer_rest_threshold, c.isolation_sigmas})
-        if (!std::isfinite(v)) return nf("the momentum observer's settings");
-    if (!finite_all(c.observer_ft_threshold)) return nf("the momentum observer's settings");
-    bool sides = true;
-    for (double v : c.observer_ft_threshold) sides = sides && v > 0;
-    if (!(c.observer_bandwidth > 0) || !(c.observer_threshold > 0) || !(c.observer_rest_threshold > 0) || !sides ||
-        !(c.isolation_sigmas > 0))
-        return dim("momentum observer settings out of range (bandwidth, thresholds, isolation level must be positive)");
-    for (int i = 0; i < c.n_outputs; ++i)
-        if (!(c.observer_variance[i] > 0)) return dim("observer Λ of " + shown_name(c.channel_names[i]) + " is not positive");
-    for (int j = 0; j < c.n_joints; ++j) {
-        if (!(c.tau_variance[j] > 0))
-            return dim("joint " + shown_name(c.joint_names[j]) + ": the τ_ext variance must be positive");
-        if (c.joint_band[j][0] < 0 || c.joint_band[j][1] < 0)
-            return dim("joint " + shown_name(c.joint_names[j]) + ": its static-friction band must be ≥ 0");
-    }
-    for (int k = 0; k < c.n_motors; ++k)
-        if (c.motor_band[k][0] < 0 || c.motor_band[k][1] < 0)
-            return dim("motor " + shown_name(c.motor_names[k]) + ": its static-friction band must be ≥ 0");
-    return LoadResult{};
 }
 
 }  // namespace
@@ -381,6 +218,7 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     }
 
     if (LoadResult obs = check_observer(c); !obs) return obs;
+    if (LoadResult p = check_plausible(c); !p) return p;
 
     if (!expected_robot.empty() && c.robot_name != expected_robot)
         return fail(LoadError::kRobot, "exported for robot '" + shown_name(c.robot_name) + "', not for '" + shown_name(expected_robot) + "'");
@@ -456,7 +294,7 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     out.order = c.order;
     out.lag = c.lag;
     for (int r = 0; r < 3; ++r)
-        for (int i = 0; i < c.window; ++i) out.filter(r, i) = c.filter[r][i];
+        for (int i = 0; i < c.window; ++i) out.filter(i, r) = c.filter[r][i];
     out.residual = Residual(c.residual);
     out.observer_bandwidth = c.observer_bandwidth;
     out.velocity_window = c.velocity_window;

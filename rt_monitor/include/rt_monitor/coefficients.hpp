@@ -70,7 +70,9 @@ struct Coefficients {
 
     double sample_period = 0;
     int window = 0, order = 0, lag = 0;
-    Eigen::Matrix<double, 3, kMaxWindow> filter = decltype(filter)::Zero();
+    // Weights, oldest sample first: one column each for the value, the first and the second derivative (contiguous:
+    // the core takes dot products with them).
+    Eigen::Matrix<double, kMaxWindow, 3> filter = decltype(filter)::Zero();
 
     int n_effects = 0;
     std::array<EffectKind, kMaxEffects> effect_kind{};
@@ -115,6 +117,7 @@ enum class LoadError : int {
     kDimension = 8,
     kNotFinite = 9,
     kRobot = 10,
+    kImplausible = 11,  // well formed, but a value no robot has (rt_monitor/plausibility.hpp)
 };
 constexpr int kExitBase = 10;
 

@@ -93,11 +93,13 @@ private:
     Residual residual_ = Residual::kAcceleration;
     int width_ = 0;  // channels per raw sample: n_joints + n_outputs
     int window_ = 0;  // samples in the ring: the derivative filter's window, or the observer's velocity window
-    // Each sample is stored twice, at slot and slot + window, so the window is always contiguous. Plain storage: a
-    // fixed-size Eigen matrix of the capacity is above Eigen's stack limit.
-    static constexpr int kRingRows = kMaxJoints + kMaxOutputs;
-    std::array<double, size_t(kRingRows) * 2 * kMaxWindow> ring_storage_{};
-    Eigen::Map<Eigen::Matrix<double, kRingRows, 2 * kMaxWindow>> ring_{ring_storage_.data()};
+    // The last samples, one row a sample and one column a channel (q, then y): each sample is stored twice, at rows
+    // slot and slot + window, so the window is always a contiguous block, and each channel's window is a contiguous
+    // column the filter takes dot products with. Plain storage: a fixed-size Eigen matrix of the capacity is above
+    // Eigen's stack limit.
+    static constexpr int kRingCols = kMaxJoints + kMaxOutputs;
+    std::array<double, size_t(kRingCols) * 2 * kMaxWindow> ring_storage_{};
+    Eigen::Map<Eigen::Matrix<double, 2 * kMaxWindow, kRingCols>> ring_{ring_storage_.data()};
     int slot_ = 0;
     long count_ = 0;
     int above_run_ = 0, below_run_ = 0;

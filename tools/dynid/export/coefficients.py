@@ -36,6 +36,7 @@ from ..robot.regressors.stack import group_row_maps, group_rows
 from ..version import __version__
 from .capacity import capacity
 from .lcm_coefficients import coefficients_t
+from .plausible import Implausible, check_plausible
 
 MAGIC = b"DYNIDCOF"
 # 2: the effects of an augmented model (Stribeck, spring); 3: supply tracking; 4: the momentum observer; 5: any number
@@ -83,12 +84,19 @@ def read_coefficients(path: str | Path) -> coefficients_t:
         raise DataError(f"coefficient file not found: {path}")
     payload = unwrap(path.read_bytes(), str(path))
     try:
-        return coefficients_t.decode(payload)
+        c = coefficients_t.decode(payload)
     except (ValueError, struct.error) as e:
         raise DataError(f"{path}: payload is not a dynid.coefficients_t ({e})") from None
+    try:
+        check_plausible(c)
+    except Implausible as e:
+        raise Implausible(f"{path}: {e}") from None
+    return c
 
 
 def write_coefficients(c: coefficients_t, path: str | Path) -> int:
+    """Write the file atomically; one the monitor would refuse as implausible is never written (Implausible)."""
+    check_plausible(c)
     data = wrap(c.encode())
     atomic_write(Path(path), lambda f: f.write(data))
     return len(data)

@@ -26,6 +26,7 @@ from ..robot.effects import Effect
 from ..robot.model import RobotModel
 from ..robot.outputs import divisors, output_channels
 from ..robot.regressors.stack import group_row_maps, group_rows
+from .plausible import Implausible, check_plausible
 from .coefficients import (
     EventSettings,
     MonitorDetector,
@@ -156,6 +157,14 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
     provenance = Provenance(file_digest(identified.path) if identified.path else "", calibration_digest,
                             str(identified.record.get("estimator", "")))
     c = build_coefficients(model, identified.phi, detector, est, provenance, effects, tracking, observer, residual)
+    if observer is not None and residual == "acceleration":
+        try:
+            check_plausible(c)
+        except Implausible as e:  # an observer calibrated on too little: dropped, said; the file is checked again
+            without = build_coefficients(model, identified.phi, detector, est, provenance, effects, tracking, None,
+                                         residual)
+            check_plausible(without)
+            c, observer, note = without, None, f"its calibration is implausible ({e})"
     size = write_coefficients(c, out)
     return Exported(str(out), size, alpha, est, cal, list(c.channel_names), effects, tracking, residual, observer,
                     events, note)

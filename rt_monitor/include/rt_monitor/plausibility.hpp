@@ -1,0 +1,55 @@
+// What a coefficient file may hold, from physics and the sensors' ranges: a file that passes its CRC but carries an
+// absurd value (an exporter bug, a hand edit) is refused at load with one line (LoadError::kImplausible), never run.
+// A monitor that runs on such a file is blind or alarms forever, in silence (issue 31's sweep: rotation 1e200, mass
+// 1e308, Λ 1e-300, threshold 1e300, gravity 0, debounce 2³¹−1).
+//
+// One place: the loader checks these (src/coefficient_checks.cpp), and dynid reads them from this file
+// (dynid.export.plausible) to refuse writing such a file. Keep the form `constexpr double kName = value;`.
+#pragma once
+
+namespace dynid::rt::plausible {
+
+// The chain: a robot's links are metres, not kilometres; its rotations are rotations.
+constexpr double kMaxTranslation = 10.0;      // m, a joint frame's offset from its parent's
+constexpr double kRotationTolerance = 1e-6;   // ‖RᵀR − I‖ and ‖axis‖ − 1
+// Inertial parameters of one body (identified ones need not be physical one by one, only of the robot's scale).
+constexpr double kMaxMass = 1000.0;           // kg
+constexpr double kMaxFirstMoment = 1000.0;    // kg m
+constexpr double kMaxInertia = 1000.0;        // kg m²
+// Gravity on Earth: 9.76–9.84 m/s² at its surface.
+constexpr double kMinGravity = 9.7;
+constexpr double kMaxGravity = 9.9;
+// A residual's standard deviation √Λ, per channel kind (F/T force N, F/T torque Nm, motor input in duty or A, joint
+// torque Nm): below the finest sensor's resolution, or above any sensor's range, Λ is not a calibration.
+constexpr double kMinForceSigma = 1e-6;
+constexpr double kMaxForceSigma = 1e4;
+constexpr double kMinTorqueSigma = 1e-8;
+constexpr double kMaxTorqueSigma = 1e3;
+constexpr double kMinInputSigma = 1e-9;
+constexpr double kMaxInputSigma = 1e3;
+// T²_α per channel it sums: a χ² quantile of n channels lies between about 0.1·n (α small) and 10·n (α 0.9999).
+constexpr double kMinThresholdPerChannel = 0.05;
+constexpr double kMaxThresholdPerChannel = 1e4;
+// Debounce: at most this many seconds of samples (2³¹ − 1 samples never raise an onset).
+constexpr double kMaxDebounceSeconds = 10.0;
+// A motor gain (a PWM duty or an ampere to Nm), a friction coefficient, an offset, a coupling ratio.
+constexpr double kMinGain = 1e-6;
+constexpr double kMaxGain = 1e6;
+constexpr double kMaxFriction = 1e4;          // Nm, Nm·s/rad
+constexpr double kMaxOffset = 1e5;            // N, Nm
+constexpr double kMaxRatio = 1e3;             // row map, coupling
+// A polynomial fit reproduces a constant: the value weights sum to 1, the derivatives' to 0.
+constexpr double kFilterSumTolerance = 1e-6;
+// Effects: a Stribeck bump and a spring of a joint.
+constexpr double kMaxEffectTorque = 1e3;      // Nm
+constexpr double kMaxStribeckVelocity = 100;  // rad/s
+constexpr double kMaxStiffness = 1e5;         // Nm/rad
+constexpr double kMaxRest = 100;              // rad
+// Detector settings.
+constexpr double kMaxMinSpeed = 10;           // rad/s
+constexpr double kMinAlpha = 0.5;
+constexpr double kMaxSupplyTimeConstant = 1e4;  // s
+constexpr double kMaxIsolationSigmas = 100;
+constexpr double kMaxTauSigma = 1e4;          // Nm, the external joint torque's calibration noise
+
+}  // namespace dynid::rt::plausible
