@@ -132,9 +132,14 @@ bool Assembler::push(const RxFrame& f, Sample& out) noexcept {
     double* v = scratch_.data();
     bool saturated = false, fault = false, restarted = false;
     int seq = -1;
+    const FrameDecoder::Words words = FrameDecoder::words(f.frame.data, len);
     for (int i = 0; i < fr.n_signals; ++i) {
         const SignalDef& s = b.signals[size_t(fr.first_signal + i)];
-        v[i] = FrameDecoder::value(s, f.frame.data, len);
+        if (s.target == Target::kNone) {  // read by nobody
+            v[i] = 0;
+            continue;
+        }
+        v[i] = FrameDecoder::value(s, words);
         if (!std::isfinite(v[i]) || (s.target == Target::kReserved && v[i] != 0)) {
             ++n_.bad_length;
             return false;

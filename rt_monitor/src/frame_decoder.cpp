@@ -13,26 +13,31 @@ void FrameDecoder::init(const BusTable& table) noexcept {
     }
 }
 
-uint64_t FrameDecoder::raw_bits(const SignalDef& s, const uint8_t* data, int len) noexcept {
+FrameDecoder::Words FrameDecoder::words(const uint8_t* data, int len) noexcept {
     uint8_t b[8] = {};
     std::memcpy(b, data, size_t(len < 0 ? 0 : len > 8 ? 8 : len));
-    const uint64_t mask = s.length >= 64 ? ~uint64_t(0) : (uint64_t(1) << s.length) - 1;
-    if (!s.big_endian) {
-        uint64_t w = 0;
-        for (int i = 7; i >= 0; --i) w = w << 8 | b[i];
-        return (w >> s.start) & mask;
+    Words w;
+    for (int i = 0; i < 8; ++i) {
+        w.le |= uint64_t(b[i]) << (8 * i);
+        w.be = w.be << 8 | b[i];
     }
-    // Motorola: `start` is the most significant bit in the DBC's sawtooth numbering (bit 7 of byte 0 is 7). In the
-    // payload read as one big-endian word, MSB first from bit 0, it is bit 8·(start / 8) + 7 − start % 8.
-    uint64_t w = 0;
-    for (int i = 0; i < 8; ++i) w = w << 8 | b[i];
-    const int msb = 8 * (s.start / 8) + 7 - s.start % 8;
-    const int shift = 64 - msb - s.length;  // the parser keeps the signal inside the payload: 0 <= shift
-    return (w >> shift) & mask;
+    return w;
 }
 
-double FrameDecoder::value(const SignalDef& s, const uint8_t* data, int len) noexcept {
-    const uint64_t raw = raw_bits(s, data, len);
+void FrameDecoder::place(SignalDef& s) noexcept {
+    s.mask = s.length >= 64 ? ~uint64_t(0) : (uint64_t(1) << s.length) - 1;
+    // Motorola: `start` is the most significant bit in the DBC's sawtooth numbering (bit 7 of byte 0 is 7). In the
+    // payload read as one big-endian word, MSB first from bit 0, it is bit 8·(start / 8) + 7 − start % 8.
+    const int msb = 8 * (s.start / 8) + 7 - s.start % 8;
+    s.shift = s.big_endian ? 64 - msb - s.length : s.start;  // the parser keeps the signal inside: 0 <= shift
+}
+
+uint64_t FrameDecoder::raw_bits(const SignalDef& s, const Words& w) noexcept {
+    return ((s.big_endian ? w.be : w.le) >> s.shift) & s.mask;
+}
+
+double FrameDecoder::value(const SignalDef& s, const Words& w) noexcept {
+    const uint64_t raw = raw_bits(s, w);
     double v = 0;
     if (s.type == SignalType::kFloat) {
         if (s.length == 32) {

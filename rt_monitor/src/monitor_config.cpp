@@ -257,6 +257,7 @@ struct Parser {
         }
         used_bits[size_t(fi)] |= mask;
         if (!target(tok[8], s, fi, line)) return false;
+        FrameDecoder::place(s);
         signals[size_t(fi)].push_back(s);
         signal_lines.push_back(line);
         return true;

@@ -17,6 +17,7 @@ namespace {
 SignalDef sig(int start, int length, bool big_endian, SignalType type, double scale = 1, double offset = 0) {
     SignalDef s;
     s.start = start, s.length = length, s.big_endian = big_endian, s.type = type, s.scale = scale, s.offset = offset;
+    FrameDecoder::place(s);
     return s;
 }
 
@@ -67,7 +68,7 @@ namespace {
 
 // A six-frame CANopen-style robot: two joints (position µrad, velocity µrad/s), two currents (mA) in the clock frame
 // CUR, sent last; an F/T sensor in two frames paired (not clocking); a heartbeat with a 4-bit counter, a fault bit and
-// reserved bits; a float sensor. Node "drive" sends POS0, POS1 and the heartbeat.
+// reserved bits; a float (a torque sensor the coefficient file does not read). Node "drive" sends POS0, POS1 and the heartbeat.
 const char* kTable =
     "robot arm\nbuses can0 can1\nstale_ms 5\npair_us 500\n"
     "frame POS0 can0 0x181 8 0 drive 0 -400\n"
@@ -81,7 +82,7 @@ const char* kTable =
     "frame FT_T can1 0x282 7 0 ft 0 -200\n"
     "signal FT_T 0 16 le s 0.001 0 ft.w.tx\nsignal FT_T 16 16 le s 0.001 0 ft.w.ty\nsignal FT_T 32 16 le s 0.001 0 ft.w.tz\n"
     "signal FT_T 48 1 le u 1 0 saturated\n"
-    "frame TEMP can1 0x381 4 0 temp 0 -100\nsignal TEMP 0 32 le f 1 0 -\n"
+    "frame TEMP can1 0x381 4 0 temp 0 -100\nsignal TEMP 0 32 le f 1 0 tau.j1\n"
     "frame CUR can0 0x191 4 0 amps 0 0\n"
     "signal CUR 7 16 be s 0.001 0 current.m0\nsignal CUR 23 16 be s 0.001 0 current.m1\n"
     "clock CUR\npair FT_F FT_T\n";

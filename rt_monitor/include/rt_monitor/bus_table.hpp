@@ -33,6 +33,8 @@ struct SignalDef {
     Target target = Target::kNone;
     std::string name;              // the target's text ("q.r_elbow", "ft.r_arm_ft.fx", "skin.hand", "fault", ...)
     int slot = -1;                 // values: index into BusTable::values; skin: the patch's index
+    int shift = 0;                 // where its bits sit in the little- or big-endian word of the payload (FrameDecoder)
+    uint64_t mask = 1;
 };
 
 // Frames are counted by what they carry (MonitorCounters): the clock pair's halves (or the clock frame), health
@@ -77,10 +79,22 @@ public:
         if (id & (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_ERR_FLAG) || bus < 0 || bus >= kMaxBuses) return -1;
         return index_[size_t(bus) * kIds + (id & CAN_SFF_MASK)] - 1;
     }
-    // The raw bits of a signal from a payload of `len` bytes (bytes beyond it read as 0).
-    static uint64_t raw_bits(const SignalDef& s, const uint8_t* data, int len) noexcept;
+    // A payload of `len` bytes (bytes beyond it read as 0) as one word read little-endian and one read big-endian:
+    // every signal of the frame is then a shift and a mask of one of them.
+    struct Words {
+        uint64_t le = 0, be = 0;
+    };
+    static Words words(const uint8_t* data, int len) noexcept;
+    // Fills a signal's shift and mask from its start, length and byte order (the parser does, for every signal).
+    static void place(SignalDef& s) noexcept;
+    // The raw bits of a signal.
+    static uint64_t raw_bits(const SignalDef& s, const Words& w) noexcept;
+    static uint64_t raw_bits(const SignalDef& s, const uint8_t* data, int len) noexcept {
+        return raw_bits(s, words(data, len));
+    }
     // Its physical value: raw (sign-extended, or an IEEE float) · scale + offset.
-    static double value(const SignalDef& s, const uint8_t* data, int len) noexcept;
+    static double value(const SignalDef& s, const Words& w) noexcept;
+    static double value(const SignalDef& s, const uint8_t* data, int len) noexcept { return value(s, words(data, len)); }
 
 private:
     static constexpr size_t kIds = 2048;  // 11-bit IDs
