@@ -176,6 +176,9 @@ int main(int argc, char** argv) {
     std::printf("  timer overhead       median %7.1f ns (included in both)\n", sk.median);
     std::printf("  ratio core / rnea (medians): %.2f\n", sc.median / sr.median);
     std::printf("  ratio observer core / rnea (medians): %.2f\n", so.median / sr.median);
+    const bool observes = c->residual == Residual::kMomentum;
+    std::printf("  the file selects the %s residuals: core / rnea %.2f\n", observes ? "momentum-observer" : "acceleration",
+                (observes ? so.median : sc.median) / sr.median);
     std::printf("  joint torques, core vs Pinocchio: max relative difference %.2e\n", worst);
     std::printf("  momentum M q̇ and Cᵀq̇ − g, core vs Pinocchio: max relative difference %.2e, %.2e\n", worst_p,
                 worst_beta);

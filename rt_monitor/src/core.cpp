@@ -24,45 +24,19 @@ inline double observed_friction(double v, const Row& row, double min_speed) noex
 }
 
 // The fixed-lag filter over a window: for each of `channels` contiguous columns x (length W, `stride` apart),
-// o_r = Σ_s w_r[s]·x[s] for the weight columns w_r given (w1, w2 may be null: the value only). The one hot loop
-// of a long window (151 samples at 500 Hz is 3 600 multiply-adds): where the CPU has AVX2 and FMA (x86-64-v3) a
-// clone of it compiled for them is chosen at load time, so the build stays portable.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-__attribute__((target_clones("arch=x86-64-v3", "default")))
-#endif
+// o_r = Σ_s w_r[s]·x[s] for the weight columns w_r given (w1, w2 null: the value only). The hot loop of a long
+// window (151 samples at 500 Hz is 3 600 multiply-adds a sample): Eigen's dot products, which keep several packet
+// accumulators (a plain running sum may not be reordered, so the compiler cannot vectorise it).
 void filter_window(const double* x, int stride, int channels, int W, const double* w0, const double* w1,
                    const double* w2, double* o0, double* o1, double* o2) noexcept {
-    // Eight partial sums per weight (two vectors of four): independent chains the compiler vectorises, since a
-    // single running sum may not be reordered. The order differs from dynid's mirror only at rounding (1e-16).
-    constexpr int L = 8;
-    const int whole = W - W % L;
+    using Column = Eigen::Map<const Eigen::VectorXd>;
+    const Column a(w0, W);
     for (int k = 0; k < channels; ++k) {
-        const double* c = x + size_t(k) * size_t(stride);
-        double a0[L] = {}, a1[L] = {}, a2[L] = {};
+        const Column c(x + size_t(k) * size_t(stride), W);
+        o0[k] = c.dot(a);
         if (w1 != nullptr) {
-            for (int s = 0; s < whole; s += L)
-                for (int l = 0; l < L; ++l) {
-                    a0[l] += w0[s + l] * c[s + l];
-                    a1[l] += w1[s + l] * c[s + l];
-                    a2[l] += w2[s + l] * c[s + l];
-                }
-            for (int s = whole; s < W; ++s) {
-                a0[0] += w0[s] * c[s];
-                a1[0] += w1[s] * c[s];
-                a2[0] += w2[s] * c[s];
-            }
-        } else {
-            for (int s = 0; s < whole; s += L)
-                for (int l = 0; l < L; ++l) a0[l] += w0[s + l] * c[s + l];
-            for (int s = whole; s < W; ++s) a0[0] += w0[s] * c[s];
-        }
-        auto total = [](const double* a) {
-            return ((a[0] + a[4]) + (a[1] + a[5])) + ((a[2] + a[6]) + (a[3] + a[7]));
-        };
-        o0[k] = total(a0);
-        if (w1 != nullptr) {
-            o1[k] = total(a1);
-            o2[k] = total(a2);
+            o1[k] = c.dot(Column(w1, W));
+            o2[k] = c.dot(Column(w2, W));
         }
     }
 }

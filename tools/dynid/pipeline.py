@@ -17,15 +17,20 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
-from .detect.t2 import ALPHA, Detector, calibrate, calibration_residuals, detector_record
-from .identify.fit import CONSISTENT, FitResult, FitSettings, fit
+from .config.robot_config import RobotConfig
+from .detect.t2 import (ALPHA, Detector, calibrate, calibration_residuals, calibration_stride, detector_record,
+                        join_calibration, run_calibration_residuals)
+from .identify.fit import CONSISTENT, Estimate, FitResult, FitSettings, fit
 from .identify.model_file import IdentifiedModel, data_record, robot_record
 from .identify.plausibility import implausible
+from .identify.runs import RunRef, fit_on_cluster, worker_model, worker_run
 from .identify.statistics import Statistics
 from .identify.supply import SupplyTracking
 from .errors import InputError
 from .io.dataset import Dataset
+from .io.stream import Run
 from .robot.effects import Effect, augmented_residuals
 from .robot.model import RobotModel
 from .robot.outputs import output_channels, residuals
@@ -80,17 +85,25 @@ def cad_ft_offsets(model: RobotModel, stats: Statistics) -> np.ndarray:
 def build_model(model: RobotModel, phi: np.ndarray, datasets: Sequence[Dataset], data_paths: Sequence[str | Path],
                 record: dict[str, Any], settings: FitSettings, *, detector: DetectorSettings = DetectorSettings(),
                 tracking: SupplyTracking | None = None, effects: Sequence[Effect] = (), nu: int | None = None,
-                residual_variance: np.ndarray | None = None, robot: dict[str, str] | None = None) -> Built:
+                residual_variance: np.ndarray | None = None, robot: dict[str, str] | None = None,
+                cluster: Any = None, refs: Sequence[RunRef] | None = None) -> Built:
     """Calibrate T² for Φ (and the effects) on the contact-free `datasets` (read with `settings`' derivatives and
     min_speed), and write the sections every model
     file has into `record`: outputs (Λ: `residual_variance`, else the calibrated detector's), detector,
-    supply_tracking, derivatives, data. `record` brings the rest (the fit's sections, or the gap workflow's)."""
+    supply_tracking, derivatives, data. `record` brings the rest (the fit's sections, or the gap workflow's).
+    With a `cluster` (dynid.cluster) and the runs' `refs`, each run's calibration residuals are a task on it."""
     effects = list(effects)
 
     def residual_of(sig, t):  # noqa: ANN001, ANN202 - (Signals, s since the run's start) -> e
         return augmented_residuals(model, phi, effects, sig, t) if effects else residuals(model, phi, sig)
 
-    e, dq, e_constant = calibration_residuals(model, datasets, settings, residual_of, tracking)
+    if cluster is not None and refs is not None and not effects:  # each run's residuals a task of its own
+        stride = calibration_stride(sum(ds.n_samples for ds in datasets))
+        parts = cluster.map(calibration_task, [(model.config, ref, settings, phi, tracking, stride) for ref in refs],
+                            "calibrating T²", runs=list(range(len(refs))))
+        e, dq, e_constant = join_calibration(parts)
+    else:
+        e, dq, e_constant = calibration_residuals(model, datasets, settings, residual_of, tracking)
     detectors = calibrate(model, phi, e, dq, detector.alpha, settings.min_speed, detector.n_mode, nu, e_constant=e_constant)
     outs = output_channels(model)
     variance = detectors["calibrated"].variance if residual_variance is None else residual_variance
@@ -131,11 +144,26 @@ def fit_record(model: RobotModel, result: FitResult, settings: FitSettings, dete
                  "dependent": [names[i] for i in base.dependent], "K": base.K.tolist(),
                  "values": result.estimates[result.chosen].beta.tolist(),
                  "standard_errors": result.estimates[result.chosen].se.tolist(),
-                 "identified": result.identified.tolist()},
+                 "identified": result.identified.tolist(),
+                 **uncertainty_record(result.estimates[result.chosen])},
         "estimators": {k: {"values": v.beta.tolist(), "standard_errors": v.se.tolist(), "detail": v.detail,
-                           "parameters": dict(zip(names, v.phi.tolist()))}
+                           "parameters": dict(zip(names, v.phi.tolist())), **uncertainty_record(v)}
                        for k, v in result.estimates.items()},
     }
+
+
+def uncertainty_record(estimate: Estimate) -> dict[str, Any]:
+    """An estimate's two standard errors (time blocks within runs; runs or pairs left out) and each unit's own
+    estimate with their spread (the sample standard deviation across units), where runs were jackknifed."""
+    out: dict[str, Any] = {}
+    if estimate.se_blocks is not None:
+        out["standard_errors_blocks"] = estimate.se_blocks.tolist()
+    if estimate.se_runs is not None:
+        out["standard_errors_runs"] = estimate.se_runs.tolist()
+    if estimate.units is not None:
+        out["unit_values"] = estimate.units.tolist()
+        out["unit_spread"] = estimate.units.std(axis=0, ddof=1).tolist()
+    return out
 
 
 @dataclass(frozen=True)
@@ -175,9 +203,23 @@ def check_scale(model: RobotModel, datasets: Sequence[Dataset], payload_possible
     )
 
 
-def identify(model: RobotModel, datasets: Sequence[Dataset], data_paths: Sequence[str | Path],
-             settings: IdentifySettings = IdentifySettings()) -> Identification:
-    """Fit the model of docs/design.md §3 to the stacked runs, calibrate T² on them, and build the model file."""
+def calibration_task(config: RobotConfig, ref: RunRef, settings: FitSettings, phi: np.ndarray,
+                     tracking: SupplyTracking | None, stride: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A worker's task: one run's T² calibration residuals for Φ (dynid.detect.t2.run_calibration_residuals)."""
+    model = worker_model(config)
+    run = worker_run(ref, model)
+    with threadpool_limits(limits=1, user_api="blas"):
+        return run_calibration_residuals(model, run, settings, lambda sig, t: residuals(model, phi, sig), tracking,
+                                         stride)
+
+
+def identify(model: RobotModel, datasets: Sequence[Run], data_paths: Sequence[str | Path],
+             settings: IdentifySettings = IdentifySettings(), cluster: Any = None,
+             refs: Sequence[RunRef] | None = None) -> Identification:
+    """Fit the model of docs/design.md §3 to the stacked runs, calibrate T² on them, and build the model file.
+
+    With a `cluster` (dynid.cluster.DaskCluster) and each run's `refs`, the runs' statistics and calibration
+    residuals are tasks on it; the model is the in-process one's (the same sums, in the same order)."""
     check_scale(model, datasets)
     fit_settings = settings.fit
     if fit_settings.estimator == "iv" and any(ds.meta.get("payload") for ds in datasets):
@@ -186,10 +228,16 @@ def identify(model: RobotModel, datasets: Sequence[Dataset], data_paths: Sequenc
         fit_settings = replace(fit_settings, estimator="ols")
         settings = replace(settings, fit=fit_settings)
     started = time.perf_counter()
-    result = fit(model, list(datasets), settings.fit)
+
+    def fitted(model: RobotModel) -> FitResult:
+        if cluster is None or refs is None:
+            return fit(model, list(datasets), settings.fit)
+        return fit_on_cluster(model, list(refs), list(datasets), settings.fit, cluster)
+
+    result = fitted(model)
     if settings.estimate_noise:
         model = with_estimated_noise(model, result)
-        result = fit(model, list(datasets), settings.fit)
+        result = fitted(model)
     fit_time = time.perf_counter() - started
     record = fit_record(model, result, settings.fit, settings.detector, settings.fit.n_components)
     record["cad_ft_offsets"] = cad_ft_offsets(model, result.statistics).tolist()
@@ -198,7 +246,7 @@ def identify(model: RobotModel, datasets: Sequence[Dataset], data_paths: Sequenc
                         detector=settings.detector, nu=result.cv["n_components"],
                         # only a PWM input drifts with its supply (dynid.identify.supply)
                         tracking=settings.tracking if model.config.motors_with_input("pwm") else None,
-                        residual_variance=result.residual_variance[result.chosen])
+                        residual_variance=result.residual_variance[result.chosen], cluster=cluster, refs=refs)
     total = time.perf_counter() - started
     built.model.record["fit_time_s"] = total
     # With --consistent off nothing keeps each body physical: say where the estimate is not (identify/plausibility.py)

@@ -20,6 +20,7 @@ COMMANDS: dict[str, Command] = {
     "simulate": Command("data", "simulate an experiment of the arm, with known truth"),
     "excite": Command("excite", "design an excitation trajectory for the fit (Fourier series, well conditioned)"),
     "fit": Command("identify", "identify inertia, F/T offsets, friction and motor gains in one regression"),
+    "fleet": Command("fleet", "runs of many robots of one kind: a model each, compared, the robot that stands out named"),
     "validate": Command("identify", "the paper's Table II on a validation experiment"),
     "detect": Command("identify", "offline T² contact detection (momentum-observer residuals) against ground truth or labels"),
     "report": Command("report", "the identification report: one HTML page with figures and tables"),

@@ -19,6 +19,7 @@ from ..errors import EXIT_BAD_INPUT, InputError
 from ..io.bad_rows import DEFAULT_POLICY, KINDS
 from ..io.bad_rows import POLICIES as BAD_ROW_POLICIES
 from ..io.dataset import atomic_write
+from ..io.run_paths import expand
 from ..robot.regressors.stack import DEFAULT_MIN_SPEED
 
 
@@ -48,7 +49,7 @@ def write_json(result: dict[str, Any], target: str | None) -> None:
 
 # Where a command writes: files (atomically, by dynid.io.dataset.atomic_write) and the two directories.
 OUTPUT_OPTIONS: tuple[str, ...] = ("out", "json", "figures")
-DIRECTORY_OUTPUTS: frozenset[tuple[str, str]] = frozenset({("simulate", "out"), ("gaps", "figures")})
+DIRECTORY_OUTPUTS: frozenset[tuple[str, str]] = frozenset({("simulate", "out"), ("gaps", "figures"), ("fleet", "out")})
 INPUT_OPTIONS: tuple[str, ...] = ("data", "model", "validation", "contact", "truth", "trajectory")
 
 
@@ -254,6 +255,24 @@ def window(args: argparse.Namespace, run: int = 0) -> Window:
     if run < len(own) and own[run] is not None:
         return own[run]
     return (getattr(args, "t_from", None), getattr(args, "t_to", None))
+
+
+def expand_data(args: argparse.Namespace) -> tuple[list[str], list[Window]]:
+    """Every --data expanded (a glob, a folder, @LIST: dynid.io.run_paths) with its window: a spec's own
+    (RUN@FROM:TO) for each run it names, else --from/--to. A run named twice with the same window is refused (it
+    would count twice); two windows of one run are two runs."""
+    paths: list[str] = []
+    windows: list[Window] = []
+    seen: set[tuple[str, Window]] = set()
+    for i, spec in enumerate(args.data):
+        for p in expand(spec):
+            key = (os.path.realpath(p), window(args, i))
+            if key in seen:
+                raise InputError(f"--data: the run {p} is named twice" + (" with the same window" if any(key[1]) else ""))
+            seen.add(key)
+            paths.append(str(p))
+            windows.append(key[1])
+    return paths, windows
 
 
 def bad_rows(args: argparse.Namespace) -> str:

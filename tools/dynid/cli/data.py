@@ -7,6 +7,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..config.robot_config import load_config
 from ..errors import InputError
 from ..io.csv_format import read_csv
@@ -171,6 +173,27 @@ def _trajectory(path: str | None, config) -> GivenTrajectory | None:  # config: 
     return GivenTrajectory(data.t - data.t[0], data.q, data.dq, str(path))
 
 
+def friction_scales(given: list[str], config) -> tuple[tuple[str, float], ...]:  # noqa: ANN001 - RobotConfig
+    """--friction-scale [JOINT=]K, repeatable: (joint, factor) pairs; without JOINT, every joint. Later ones
+    multiply earlier ones."""
+    out: dict[str, float] = {}
+    for text in given:
+        joint, eq, value = text.rpartition("=")
+        try:
+            factor = float(value)
+        except ValueError:
+            factor = float("nan")
+        if not np.isfinite(factor) or factor <= 0:
+            raise InputError(f"--friction-scale {text}: the factor must be a positive number (e.g. 2, or "
+                             f"{config.joints[-1]}=2)")
+        if eq and joint not in config.joints:
+            raise InputError(f"--friction-scale {text}: no joint '{joint}' in {config.name} (joints: "
+                             f"{', '.join(config.joints)})")
+        for j in ([joint] if eq else config.joints):
+            out[j] = out.get(j, 1.0) * factor
+    return tuple(out.items())
+
+
 def cmd_simulate(args: argparse.Namespace) -> dict[str, Any]:
 
     if args.list_effects:
@@ -187,6 +210,7 @@ def cmd_simulate(args: argparse.Namespace) -> dict[str, Any]:
         kind=args.kind, duration=args.duration, seed=args.seed, robot_seed=args.robot_seed,
         noise=args.noise == "realistic", disturbance=args.disturbance == "realistic", effects=effects,
         rate_hz=args.rate, tilt_deg=args.tilt, trajectory=_trajectory(args.trajectory, config),
+        friction_scale=friction_scales(args.friction_scale, config),
     )
     started = time.perf_counter()
     sim = simulate(config, settings)
@@ -214,6 +238,7 @@ def cmd_simulate(args: argparse.Namespace) -> dict[str, Any]:
     return {
         "robot": config.name, "kind": args.kind, "duration_s": settings.seconds, "rate_hz": args.rate,
         "samples": truth["samples"], "seed": args.seed, "robot_seed": args.robot_seed, "noise": args.noise,
+        "friction_scale": dict(settings.friction_scale),
         "disturbance": truth["disturbance"], "effects": truth["effects"], "contacts": len(truth["contacts"]),
         "realism": realism, "wall_time_s": elapsed, "files": files,
     }
@@ -267,6 +292,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--effect", action="append", default=[], metavar="NAME[:k=v,...]",
                     help="switch on a hidden effect (repeatable); --list-effects shows them")
     sp.add_argument("--list-effects", action="store_true", help="list the hidden effects and their parameters")
+    sp.add_argument("--friction-scale", action="append", default=[], metavar="[JOINT=]K",
+                    help="scale the true arm's friction of JOINT (every joint without JOINT=) by K: a worn joint "
+                    "(2), or friction that drifts between runs; repeatable (docs/simulation.md#the-true-robot)")
     sp.add_argument("--rate", type=positive_float, default=1000.0, metavar="HZ", help="sample rate (default 1000)")
     sp.add_argument("--tilt", type=tilt_degrees, default=0.0, metavar="DEG",
                     help="a base that tilts by up to DEG degrees about the root's x and y (periods 17 s and 23 s), "

@@ -14,9 +14,12 @@ from ..detect.momentum import DEFAULT_BANDWIDTH_HZ
 from ..detect.momentum_t2 import calibration_runs, momentum_detection
 from ..detect.t2 import ALPHA
 from ..errors import DataError, InputError
-from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_INERTIA_ONLY, FitSettings, iv_settled
+from ..cluster import executor
+from ..identify.fit import (DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_INERTIA_ONLY, FitResult, FitSettings,
+                            iv_settled)
+from ..identify.runs import RunRef, stream_run
 from ..identify.supply import SupplyTracking
-from ..identify.validation import evaluate, load_run, validation
+from ..identify.validation import evaluate, validation
 from ..io.dataset import contact_episodes
 from ..io.episodes import check_widening, episodes_in_data, episodes_mask, read_episodes
 from ..paper import PAPER, PAPER_ROBOT
@@ -25,7 +28,7 @@ from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from .commands import COMMANDS
 from .common import confidence as alpha
-from .common import (bad_rows, finite_float, json_arg, min_speed_arg, non_negative_float, payload_arg, payloads,
+from .common import (bad_rows, expand_data, finite_float, json_arg, min_speed_arg, non_negative_float, payload_arg, payloads,
                      plural, positive_float, positive_int, robot_arg, skipped_rows, window, window_args)
 
 INPUT_WORD = {"pwm": "PWM", "current": "current", "tau": "joint torque"}
@@ -40,14 +43,24 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
                          "--consistent on (or pseudo-inertia)")
     config = load_config(args.robot, args.urdf)
     model = RobotModel(config)
-    datasets = [load_run(p, model, window(args, i), w, bad_rows(args))
-                for i, (p, w) in enumerate(zip(args.data, payloads(args, len(args.data))))]
+    paths, windows = expand_data(args)
+    refs = [RunRef(p, w, payload, bad_rows(args))
+            for p, w, payload in zip(paths, windows, payloads(args, len(paths)))]
     settings = FitSettings(estimator=args.estimator, n_components=args.n_components, min_speed=args.min_speed,
                            blocks=args.blocks, consistent=args.consistent != "off",
                            cad_pull=args.cad_pull == "cv", consistent_sphere=args.consistent != PSEUDO_INERTIA_ONLY)
     detector = DetectorSettings(args.alpha, args.n_mode)
-    done = identify(model, datasets, args.data, IdentifySettings(settings, detector, args.supply_time_constant,
-                                                                 estimate_noise=args.noise == "estimate"))
+    runs = [stream_run(ref, model) for ref in refs]  # every run checked before any work; a dataset file streamed
+    cluster = executor(args.workers, args.scheduler)
+    try:
+        if cluster is not None:
+            print(f"fitting {plural(len(runs), 'run')} on {cluster.name} ({plural(cluster.workers, 'worker')})")
+        done = identify(model, runs, paths, IdentifySettings(settings, detector, args.supply_time_constant,
+                                                             estimate_noise=args.noise == "estimate"),
+                        cluster=cluster, refs=refs)
+    finally:
+        if cluster is not None:
+            cluster.close()
     model = done.robot or model
     done.model.save(args.out)
     result, record, detectors = done.fit, done.model.record, done.detectors
@@ -56,9 +69,11 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     base = result.base
     names = list(base.combinations())
 
-    print(f"fitted {config.name} on {result.samples} samples in {elapsed:.1f} s ({elapsed_fit:.1f} s the regression) "
-          f"-> {args.out}")
-    skipped = {p: s for p, ds in zip(args.data, datasets) if (s := skipped_rows(p, ds.meta)) is not None}
+    print(f"fitted {config.name} on {result.samples} samples"
+          + (f" of {len(runs)} runs" if len(runs) > 1 else "")
+          + f" in {elapsed:.1f} s ({elapsed_fit:.1f} s the regression) -> {args.out}")
+    print_run_uncertainty(result)
+    skipped = {p: s for p, ds in zip(paths, runs) if (s := skipped_rows(p, ds.meta)) is not None}
     print(f"  base parameters: rank {base.rank} of {len(model.layout)}; {int(result.identified.sum())} determined to "
           f"10 % or better; PLS ν = {result.cv['n_components']} "
           + (f"(cross-validated on {result.statistics.n_blocks} time blocks)" if args.n_components is None else
@@ -71,6 +86,14 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         values = ", ".join(f"{record['base']['independent'][i].split('.')[0]} {est.beta[i]:.3f}±{est.se[i]:.3f}"
                            for i in gains)
         print(f"   {mark}{name:4s} {values}")
+    unit_word = "pair" if any(ref.payload for ref in refs) else "run"
+    chosen_units = result.estimates[result.chosen].units
+    if gains and chosen_units is not None:
+        print(f"  {result.chosen} gains of each {unit_word} alone, and their spread across {unit_word}s (sample std):")
+        for i in gains:
+            motor = record["base"]["independent"][i].split(".")[0]
+            each = chosen_units[:, i]
+            print(f"    {motor:16s} " + ", ".join(f"{v:.3f}" for v in each) + f"   spread {each.std(ddof=1):.3f}")
     if gains:
         chosen_est = result.estimates[result.chosen]
         print(f"  {result.chosen} gains beside the configuration's nominal ones (a published or datasheet value; "
@@ -80,7 +103,9 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
             nominal = config.motor(motor).nominal_gain
             value, se = chosen_est.beta[i], chosen_est.se[i]
             status = "determined" if result.identified[i] else "NOT determined by these runs (standard error over 10 %)"
-            print(f"    {motor:16s} {value:8.3f} ± {se:.3f}   nominal {nominal:8.3f}   "
+            both = (f" (blocks {chosen_est.se_blocks[i]:.3f}, {unit_word}s {chosen_est.se_runs[i]:.3f})"
+                    if chosen_est.se_runs is not None else "")
+            print(f"    {motor:16s} {value:8.3f} ± {se:.3f}{both}   nominal {nominal:8.3f}   "
                   f"{100 * (value / nominal - 1):+6.1f} %   {status}")
     for name, est in result.estimates.items():
         settled, near = iv_settled(est.detail)
@@ -147,6 +172,21 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
             "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed,
             "plausibility": warnings, "consistent": result.consistent, "borderline": edges,
             **({"bad_rows": skipped} if skipped else {})}
+
+
+def print_run_uncertainty(result: FitResult) -> None:
+    """With several runs (or pairs): the two jackknifes, and what "determined" then takes."""
+    jack = result.jackknife
+    if jack.get("units", 1) < 2:
+        return
+    pairs = jack["units"] < jack["runs"]
+    unit = "pair" if pairs else "run"
+    print(f"  standard errors: the larger of two jackknifes, over {jack['folds']} time blocks (within runs) and over "
+          f"the {jack['units']} {unit}s (one left out at a time: what differs between runs); a combination is "
+          "determined only when both put it within 10 %")
+    for fold in jack.get("unit_rank_deficient", []):
+        print(f"  without {unit} {fold['unit'] + 1} the others miss {len(fold['unseen'])} combination(s): not "
+              "determined")
 
 
 def print_consistent(done: dict[str, Any] | None) -> None:
@@ -313,8 +353,17 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     robot_arg(sp)
     sp.add_argument("--data", action="append", required=True, metavar="DATA",
                     help="an experiment (dataset, CSV, candump log, ROS 2 bag, YARP folder or a `dynid simulate` "
-                    "directory), RUN@FROM:TO for a window of its own; repeatable")
+                    "directory), RUN@FROM:TO for a window of its own, a glob of runs ('runs/*.csv', quoted), a "
+                    "folder (every run beneath it) or @LIST (a file naming runs, one a line); repeatable. A dataset "
+                    "file is read a window at a time, never whole")
     sp.add_argument("--out", required=True, metavar="MODEL", help="the model file to write")
+    where = sp.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=positive_int, metavar="N",
+                       help="map the runs' time blocks on a Dask LocalCluster of N worker processes started here "
+                       "(default: in this process, with a process pool per run)")
+    where.add_argument("--scheduler", metavar="ADDRESS",
+                       help="map them on a running Dask cluster (e.g. tcp://10.0.0.1:8786); every worker must read "
+                       "the runs at the same paths (docs/deployment.md#many-runs-on-a-dask-cluster)")
     window_args(sp)
     payload_arg(sp, repeatable=True)
     sp.add_argument("--estimator", choices=ESTIMATORS, default=DEFAULT_ESTIMATOR,

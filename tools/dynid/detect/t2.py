@@ -34,6 +34,10 @@ ALPHA = 0.99
 VARIANTS: tuple[str, ...] = ("calibrated", "paper")
 CALIBRATION_CHUNK = 30_000  # samples (even, so the stride stays aligned across chunks)
 CALIBRATION_STRIDE = 2  # every other sample of the identification run calibrates T² (quantiles need no more)
+# At most this many samples calibrate T², all runs together: a coarser stride past it (an hour at 1 kHz: every 6th
+# sample, 10 per tracker time constant of the tracked supply at 1.5 s still). The residuals, q̇ and the inputs of these
+# samples are what the calibration holds in memory (about 0.2 GB at the cap on the default arm).
+MAX_CALIBRATION_SAMPLES = 600_000
 QUANTILE_LEVELS = np.sort(1.0 - np.logspace(-4, np.log10(0.5), 240))  # α in 0.5 … 0.9999, ascending
 
 
@@ -105,34 +109,54 @@ def static_band_residuals(model: RobotModel, phi: np.ndarray, dq: np.ndarray, e:
     return out
 
 
+def calibration_stride(total_samples: int) -> int:
+    """Every how many samples calibrate T²: `CALIBRATION_STRIDE`, coarser once the runs hold more than
+    `MAX_CALIBRATION_SAMPLES` together (the calibration's memory then stays bounded, whatever the logs' length)."""
+    return max(CALIBRATION_STRIDE, -(-int(total_samples) // MAX_CALIBRATION_SAMPLES))
+
+
 def calibration_residuals(model: RobotModel, datasets: Sequence, settings,
                           residual_of: Callable[[Signals, np.ndarray], np.ndarray],
                           tracking: SupplyTracking | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(e, q̇, e with constant gains) on every CALIBRATION_STRIDE-th sample of the contact-free runs, a chunk at
+    """(e, q̇, e with constant gains) on every `calibration_stride`-th sample of the contact-free runs, a chunk at
     a time (bounded memory), with offline derivatives; residual_of(signals, t since the run's start) gives e of a
     chunk. With `tracking`, e's input channels are those of the offline, two-sided supply estimate
     (dynid.identify.supply.smoothed_residuals) of each run; without, the two residual arrays are the same."""
-    es, dqs, constant = [], [], []
-    keep = slice(None, None, CALIBRATION_STRIDE)
-    for ds in datasets:
-        source = SignalSource(model, ds, settings, instruments=False)
-        run_e, run_dq, run_inputs = [], [], []
-        for lo in range(0, ds.n_samples, CALIBRATION_CHUNK):
-            hi = min(lo + CALIBRATION_CHUNK, ds.n_samples)
-            sig = source(lo, hi)[0].slice(keep)
-            run_e.append(residual_of(sig, ds.t[lo:hi][keep] - ds.t[0]))
-            run_dq.append(sig.dq)
-            run_inputs.append(sig.inputs)
-        e, dq = np.vstack(run_e), np.vstack(run_dq)
-        constant.append(e)
-        dqs.append(dq)
-        if tracking is not None:  # two-sided over the whole run (the strided samples: the same seconds)
-            inputs = {m: np.concatenate([part[m] for part in run_inputs]) for m in run_inputs[0]}
-            whole = Signals(dq, dq, dq, inputs, {}, {})  # the tracker reads q̇ and the inputs only
-            e = smoothed_residuals(model, tracking, settings.min_speed, e, whole, ds.t[keep])
-        es.append(e)
-    e = np.vstack(es)
-    return e, np.vstack(dqs), (e if tracking is None else np.vstack(constant))
+    stride = calibration_stride(sum(ds.n_samples for ds in datasets))
+    parts = [run_calibration_residuals(model, ds, settings, residual_of, tracking, stride) for ds in datasets]
+    return join_calibration(parts)
+
+
+def join_calibration(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> tuple[np.ndarray, ...]:
+    """`calibration_residuals`' three arrays from each run's, in the runs' order."""
+    return tuple(np.vstack([p[i] for p in parts]) for i in range(3))  # type: ignore[return-value]
+
+
+def run_calibration_residuals(model: RobotModel, ds, settings,  # noqa: ANN001 - a Run, FitSettings
+                              residual_of: Callable[[Signals, np.ndarray], np.ndarray],
+                              tracking: SupplyTracking | None, stride: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One run's part of `calibration_residuals` (a task of its own on a Dask cluster)."""
+    source = SignalSource(model, ds, settings, instruments=False)
+    keep = slice(None, None, stride)
+    chunk = stride * (CALIBRATION_CHUNK // stride)  # about CALIBRATION_CHUNK samples, a multiple of the stride
+    t0 = float(ds.times(0, 1)[0])
+    run_e, run_dq, run_t, run_inputs = [], [], [], []
+    for lo in range(0, ds.n_samples, chunk):
+        hi = min(lo + chunk, ds.n_samples)
+        sig = source(lo, hi)[0].slice(keep)
+        t = ds.times(lo, hi)[keep].copy()
+        run_e.append(residual_of(sig, t - t0))
+        # Copies: a strided view would keep its whole chunk alive, and every chunk of the run with it
+        run_dq.append(sig.dq.copy())
+        run_t.append(t)
+        run_inputs.append({m: v.copy() for m, v in sig.inputs.items()})
+    e, dq = np.vstack(run_e), np.vstack(run_dq)
+    constant = e
+    if tracking is not None:  # two-sided over the whole run (the strided samples: the same seconds)
+        inputs = {m: np.concatenate([part[m] for part in run_inputs]) for m in run_inputs[0]}
+        whole = Signals(dq, dq, dq, inputs, {}, {})  # the tracker reads q̇ and the inputs only
+        e = smoothed_residuals(model, tracking, settings.min_speed, e, whole, np.concatenate(run_t))
+    return e, dq, constant
 
 
 def detector_record(model: RobotModel, detectors: dict[str, Detector], e: np.ndarray, dq: np.ndarray) -> dict:

@@ -23,18 +23,20 @@ every base combination they involve is reported as not determined, the fold name
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import DataError
 from ..io.dataset import Dataset
+from ..io.stream import Run
 from ..io.derivatives import SavitzkyGolay
 from ..margins import BORDERLINE_RTOL, below
 from ..progress import track
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
-from ..robot.regressors.base import BaseParameters, base_parameters_from_factor
+from ..robot.regressors.base import BaseParameters, base_parameters_from_factor, structural_base_parameters
 from ..robot.regressors.stack import DEFAULT_MIN_SPEED, Signals, row_weights, signals_from_dataset
 from .consistent import LAMBDAS, ConsistentSettings, consistent_fit
 from .regression import InputColumns, base_least_squares, instrumental_variables, pls_path, unseen_directions
@@ -81,9 +83,12 @@ PSEUDO_INERTIA_ONLY = "pseudo-inertia"  # `--consistent pseudo-inertia`: every J
 class Estimate:
     name: str
     beta: np.ndarray  # base parameters (rank,)
-    se: np.ndarray  # jackknife standard errors (rank,)
+    se: np.ndarray  # standard errors (rank,): the larger of the two jackknifes' where runs were jackknifed
     phi: np.ndarray  # a full Φ with these base parameters (dependent entries from the prior)
     detail: dict = field(default_factory=dict)
+    se_blocks: np.ndarray | None = None  # delete-one-time-block jackknife (within runs): today's only error
+    se_runs: np.ndarray | None = None  # delete-one-unit jackknife over runs (or pairs); None with one unit
+    units: np.ndarray | None = None  # (units, rank) the estimate of each unit alone (directions it misses: prior)
 
 
 @dataclass
@@ -135,13 +140,12 @@ class SignalSource:
     """
 
     model: RobotModel
-    dataset: Dataset
+    dataset: Run  # in memory, or a file read a window at a time (dynid.io.stream)
     settings: FitSettings
     instruments: bool
 
     def __post_init__(self) -> None:
-        t = self.dataset.t
-        dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+        dt = self.dataset.median_step()
         window_s = float(self.model.config.derivatives.get("window_s", SavitzkyGolay.window_s))
         if self.instruments:
             window_s += self.settings.instrument_window_s
@@ -271,8 +275,28 @@ def cross_validate_nu(stats: Statistics, max_components: int) -> dict:
     return {"n_components": best, "candidates": list(range(1, available + 1)), "press": press.tolist()}
 
 
-def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, samples: int) -> FitResult:
-    """Every estimator, its jackknife errors and the base structure, from the run's statistics."""
+def run_units(payloads: Sequence[object]) -> list[int]:
+    """The jackknife's units over runs, from each run's payload (falsy: none): each run is a unit, except that a
+    run carrying a known payload joins the unloaded run before it (a loaded/unloaded pair fixes the scale only
+    together, so the pair is the unit; loaded runs before the first unloaded one join it)."""
+    units: list[int] = []
+    unit, unloaded = -1, False
+    for payload in payloads:
+        if unit < 0 or (not payload and unloaded):
+            unit, unloaded = unit + 1, False
+        unloaded |= not payload
+        units.append(unit)
+    return units
+
+
+def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, samples: int,
+                   units: Sequence[int] | None = None) -> FitResult:
+    """Every estimator, its jackknife errors and the base structure, from the runs' statistics.
+
+    With two or more units (runs, or loaded/unloaded pairs: `run_units`), each estimate has a second jackknife,
+    over the units (one left out at a time), which sees what differs between runs (friction that drifts with
+    temperature, a payload mounted differently); its standard error is reported beside the within-run one
+    (time blocks), `se` is the larger, and a combination is determined only when both determine it."""
     p = stats.p
     G = stats.system()
     base = base_parameters_from_factor(_factor(G)[:, :p], model.layout.names, BASE_RTOL)
@@ -284,6 +308,7 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
     rows_used = stats.rows.sum(axis=0)
     if rows_used.sum() < 2 * base.rank:
         raise DataError(f"too few samples: {int(rows_used.sum())} usable rows for a rank of {base.rank}")
+    check_excitation(model, base)
     if stats.n_blocks < 2:
         if settings.blocks < 2:
             raise DataError(f"--blocks {settings.blocks}: cross-validation and the jackknife need at least 2 time "
@@ -303,6 +328,10 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
     B = stats.n_blocks
     folds = [np.arange(B) != k for k in range(B)]
     unseen = np.array([_unseen(stats.system(f), base) for f in folds])  # (B, rank)
+    block_unit = np.asarray(units if units is not None else range(stats.n_runs))[stats.block_run]
+    n_units = int(block_unit.max()) + 1
+    unit_folds = [block_unit != u for u in range(n_units)] if n_units >= 2 else []
+    unit_unseen = np.array([_unseen(stats.system(f), base) for f in unit_folds]).reshape(-1, base.rank)
     estimates: dict[str, Estimate] = {}
     folds_of: dict[str, np.ndarray] = {}
     for name in names:
@@ -312,7 +341,16 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
         if "last_step" in detail:  # an iteration: its jackknife error means something only if every fold settled too
             detail["folds_unsettled"] = [k for k, (_, d) in enumerate(replicates) if not iv_settled(d)[0]]
         folds_of[name] = jack
-        estimates[name] = Estimate(name, beta, _jackknife_se(jack), expand(base, beta, prior), detail)
+        se_blocks = _jackknife_se(jack)
+        se_runs, alone = None, None
+        if unit_folds:
+            runs = np.array([_estimate(name, stats, f, base, settings, nu, inputs, beta, beta_prior)[0]
+                             for f in unit_folds])
+            se_runs = _jackknife_se(runs)
+            alone = np.array([_estimate(name, stats, ~f, base, settings, nu, inputs, beta, beta_prior)[0]
+                              for f in unit_folds])
+        se = se_blocks if se_runs is None else np.maximum(se_blocks, se_runs)
+        estimates[name] = Estimate(name, beta, se, expand(base, beta, prior), detail, se_blocks, se_runs, alone)
     chosen_name = settings.estimator
     consistent = None
     if settings.consistent:
@@ -323,6 +361,15 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
             estimates[est.name] = est
             chosen_name = est.name
     variance = {name: channel_variance(stats, e.phi, model) for name, e in estimates.items()}
+    # A channel with rows whose residual variance is not positive: the model reproduces it exactly (or rounding made
+    # it negative), so nothing is left to calibrate its Λ on. (A channel without rows, a motor that never moves,
+    # keeps its noise variance in the detector.)
+    flat = [o.name for o, v in zip(output_channels(model), variance[chosen_name])
+            if rows_used[o.row] > 0 and not (np.isfinite(v) and v > 0)]
+    if flat:
+        raise DataError(f"the residual of {', '.join(flat)} has no positive variance: the model reproduces it exactly, "
+                        "so the run holds no information to calibrate the detector on (a channel that never changes, "
+                        "or a run that does not move)")
     chosen = estimates[chosen_name]
     cad = np.abs(base.base(np.nan_to_num(model.cad_parameters(), nan=0.0)))
     identified = _determined(chosen, cad)
@@ -331,6 +378,7 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
         # determined without them too, and not rest on a bound (a gain at its floor is the same in every fold)
         identified &= _determined(estimates[settings.estimator], cad) & ~_at_bound(base, model, consistent)
     identified &= ~unseen.any(axis=0)  # a fold cannot see them: the jackknife has no error to give
+    identified &= ~unit_unseen.any(axis=0)  # the same for a run (or pair) left out
     settled, _ = iv_settled(chosen.detail)
     identified &= settled  # an iterate that still moves: neither it nor its jackknife spread means anything
     if not identified.any():
@@ -342,9 +390,34 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
     jackknife = {"folds": B, "rank_deficient": [
         {"block": k, "samples": [int(edges[k]), int(edges[k + 1])],
          "unseen": [combinations[i] for i in np.flatnonzero(unseen[k])]}
-        for k in range(B) if unseen[k].any()]}
+        for k in range(B) if unseen[k].any()],
+        "runs": stats.n_runs, "units": n_units,
+        "unit_of_run": [int(block_unit[stats.block_run == r][0]) for r in range(stats.n_runs)],
+        "unit_rank_deficient": [{"unit": u, "unseen": [combinations[i] for i in np.flatnonzero(unit_unseen[u])]}
+                                for u in range(len(unit_folds)) if unit_unseen[u].any()]}
     return FitResult(model, base, estimates, chosen_name, cv, variance, identified, stats, samples, rows_used,
                      jackknife, consistent)
+
+
+MIN_EXCITED_SHARE = 0.5  # a run that excites fewer than this share of the structure's base directions is refused
+
+
+def check_excitation(model: RobotModel, base: BaseParameters) -> None:
+    """Refuse a run that excites far fewer directions than the robot's structure allows (a still arm: rank 7 of 87),
+    naming what is missing: the joints that never move and the inputs that never change. A short run that misses a
+    few directions fits, with those combinations undetermined."""
+    structural = structural_base_parameters(model).rank
+    if base.rank >= MIN_EXCITED_SHARE * structural:
+        return
+    silent = set(base.unidentifiable)
+    joints = [j for j in model.config.joints if f"{j}.fc_pos" in silent and f"{j}.fc_neg" in silent]
+    inputs = [n.split(".")[0] for n in silent if n.endswith(".phi_m")]
+    missing = "; ".join(part for part in (
+        f"joints that never move: {', '.join(joints)}" if joints else "",
+        f"inputs that never change: {', '.join(inputs)}" if inputs else "") if part)
+    raise DataError(f"the run excites {base.rank} of the {structural} directions this robot's structure allows: too "
+                    f"little to fit ({missing or 'its motion is too small or too uniform'}); record a run that moves "
+                    "every joint both ways (dynid excite designs one)")
 
 
 def _determined(e: Estimate, cad: np.ndarray) -> np.ndarray:
@@ -437,12 +510,13 @@ def fit(model: RobotModel, datasets: list[Dataset], settings: FitSettings = FitS
         raise DataError(f"unknown estimator '{settings.estimator}' (known: {', '.join(ESTIMATORS)})")
     total: Statistics | None = None
     samples = 0
-    for ds in datasets:
+    for i, ds in enumerate(datasets):
         # IV's instruments do not carry a payload's known torques yet: no IV when a run has one (pipeline.py)
         source = SignalSource(model, ds, settings, instruments=not ds.meta.get("payload"))
         source(0, min(ds.n_samples, 2 * source.margin))  # bad data fail here, before any worker starts
-        stats = accumulate(model, source, settings.blocks, settings.workers)
+        label = "building regressors" + (f", run {i + 1} of {len(datasets)}" if len(datasets) > 1 else "")
+        stats = accumulate(model, source, settings.blocks, settings.workers, label=label)
         total = stats if total is None else total + stats
         samples += ds.n_samples
     assert total is not None
-    return fit_statistics(model, total, settings, samples)
+    return fit_statistics(model, total, settings, samples, run_units([ds.meta.get("payload") for ds in datasets]))

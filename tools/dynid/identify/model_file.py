@@ -124,7 +124,10 @@ class IdentifiedModel:
                 "parameters": self.parameters, **self.record}
 
     def save(self, path: str | Path) -> None:
-        text = json.dumps(self.to_json(), indent=1, allow_nan=False) + "\n"
+        """Write the model file atomically; one that every command would refuse (check_values) is never written."""
+        data = self.to_json()
+        check_values(data, str(path))
+        text = json.dumps(data, indent=1, allow_nan=False) + "\n"
         atomic_write(Path(path), lambda f: f.write(text.encode()))
         self.path = str(path)
 
@@ -202,8 +205,35 @@ def load_model(path: str | Path) -> IdentifiedModel:
         raise DataError(f"{path}: every parameter must be a finite number")
     _check_sections(data, path)
     check_sections(data, str(path))
+    check_values(data, str(path))
     record = {k: v for k, v in data.items() if k not in ("format", "format_version", "robot", "parameters")}
     return IdentifiedModel(data["robot"], {k: float(v) for k, v in params.items()}, record, str(path))
+
+
+MAX_BODY_MASS = 1000.0  # kg: rt_monitor/include/rt_monitor/plausibility.hpp's kMaxMass (no robot link weighs more)
+
+
+def check_values(data: dict[str, Any], path: str) -> None:
+    """Values no model can hold, refused by every command in one line (issue 31): a motor gain that is not positive
+    (the PWM or current would have to be infinite, or of the wrong sign, to move the motor), a body mass beyond any
+    robot link's, a detector's Λ or threshold that is not positive (T² would be NaN, or above it on every sample)."""
+    for name, v in data["parameters"].items():
+        if name.endswith(".phi_m") and not v > 0:
+            raise DataError(f"{path}: motor {name[: -len('.phi_m')]}'s gain is {v:g}: a motor gain must be positive "
+                            "(refit on a run that moves that motor, or give its known gain in the configuration)")
+        if name.endswith(".m") and not abs(v) <= MAX_BODY_MASS:
+            raise DataError(f"{path}: {name} is {v:g} kg, beyond any robot link's ({MAX_BODY_MASS:g} kg): an edited or "
+                            "damaged model file")
+    detectors = data.get("detector")
+    for variant, d in (detectors.items() if isinstance(detectors, dict) else ()):
+        if not isinstance(d, dict):
+            continue
+        variance = d.get("variance")
+        if isinstance(variance, list) and not all(finite_number(x) and x > 0 for x in variance):
+            raise DataError(f"{path}: detector.{variant}.variance must be positive on every channel (Λ of T²)")
+        threshold = d.get("threshold")
+        if threshold is not None and not (finite_number(threshold) and threshold > 0):
+            raise DataError(f"{path}: detector.{variant}.threshold is {threshold}: T²_α must be a positive number")
 
 
 def _check_sections(data: dict[str, Any], path: Path) -> None:

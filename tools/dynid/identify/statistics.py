@@ -40,6 +40,19 @@ class Statistics:
     rows: np.ndarray  # (B, r)
     cross: np.ndarray | None = None  # (B, r, p, p)
     cross_b: np.ndarray | None = None  # (B, r, p)
+    block_run: np.ndarray | None = None  # (B,) the run each block belongs to (None: all to run 0)
+
+    def __post_init__(self) -> None:
+        if self.block_run is None:
+            self.block_run = np.zeros(self.n_blocks, dtype=int)
+
+    @property
+    def n_runs(self) -> int:
+        return int(self.block_run.max()) + 1 if self.n_blocks else 0
+
+    def run_blocks(self, run: int) -> np.ndarray:
+        """(B,) bool: the blocks of run `run`."""
+        return self.block_run == run
 
     @property
     def n_blocks(self) -> int:
@@ -63,8 +76,22 @@ class Statistics:
             None if self.cross_b is None else self.cross_b[k].sum(axis=0)[None],
         )
 
+    def of_blocks(self, keep: np.ndarray) -> Statistics:
+        """The statistics of the blocks `keep` (bool), runs renumbered in order (e.g. one pair of runs)."""
+        runs = np.unique(self.block_run[keep])
+        sub = lambda a: None if a is None else a[keep]  # noqa: E731
+        sizes = np.diff(self.block_samples)[keep]
+        return Statistics(self.parameter_names, self.channels, np.concatenate([[0], np.cumsum(sizes)]),
+                          self.gram[keep], self.rows[keep], sub(self.cross), sub(self.cross_b),
+                          np.searchsorted(runs, self.block_run[keep]))
+
     def __add__(self, other: Statistics) -> Statistics:
-        """Statistics of two experiments, stacked (their blocks side by side)."""
+        """Statistics of two sets of runs, merged: their blocks side by side, `other`'s runs numbered after these.
+
+        The merge concatenates and never adds, so it is exact, and associative: (a + b) + c and a + (b + c) hold the
+        same arrays bit for bit. Every solve sums the blocks it keeps in block order (`system`), so a fit depends on
+        which runs were merged in which order, never on how the merges were grouped (on a cluster, in a reduction
+        tree, or one run at a time)."""
         if other.parameter_names != self.parameter_names:
             raise ValueError("statistics of different parameter layouts")
         cat = lambda a, b: None if a is None or b is None else np.concatenate([a, b])  # noqa: E731
@@ -73,6 +100,7 @@ class Statistics:
             self.parameter_names, self.channels, np.concatenate([self.block_samples, other.block_samples[1:] + end]),
             np.concatenate([self.gram, other.gram]), np.concatenate([self.rows, other.rows]),
             cat(self.cross, other.cross), cat(self.cross_b, other.cross_b),
+            np.concatenate([self.block_run, other.block_run + self.n_runs]),
         )
 
 
@@ -93,17 +121,21 @@ def _accumulate_blocks(first: int, last: int) -> tuple[np.ndarray, ...]:
 
 
 def _accumulate(first: int, last: int) -> tuple[np.ndarray, ...]:
-    model: RobotModel = _JOB["model"]
-    source = _JOB["source"]
-    edges: np.ndarray = _JOB["edges"]
-    chunk: int = _JOB["chunk"]
+    return accumulate_blocks(_JOB["model"], _JOB["source"], _JOB["edges"], first, last, _JOB["chunk"],
+                             _JOB["label"] if _JOB["progress"] else "")
+
+
+def accumulate_blocks(model: RobotModel, source: SignalChunks, edges: np.ndarray, first: int, last: int,
+                      chunk: int = DEFAULT_CHUNK, progress: str = "") -> tuple[np.ndarray | None, ...]:
+    """(gram, rows, cross, cross_b) of blocks [first, last) of `source`, a chunk at a time (also a Dask task's
+    work: dynid.identify.runs); `progress`: the label of a progress line over the blocks ("" for none)."""
     r, p = len(row_channels(model)), len(model.layout)
     nb = last - first
     gram, rows = np.zeros((nb, r, p + 1, p + 1)), np.zeros((nb, r))
     cross, cross_b = np.zeros((nb, r, p, p)), np.zeros((nb, r, p))
     with_instruments = False
     blocks = range(first, last)
-    for k in track(blocks, nb, "building regressors") if _JOB["progress"] else blocks:
+    for k in track(blocks, nb, progress) if progress else blocks:
         for lo in range(edges[k], edges[k + 1], chunk):
             sig, inst, w = source(lo, min(lo + chunk, edges[k + 1]))
             n = sig.q.shape[0]
@@ -155,6 +187,7 @@ def accumulate(
     n_blocks: int = 10,
     workers: int | None = None,
     chunk: int = DEFAULT_CHUNK,
+    label: str = "building regressors",
 ) -> Statistics:
     """Statistics of the experiment `source` yields a chunk at a time (`InMemory` for signals at hand).
 
@@ -163,7 +196,7 @@ def accumulate(
     edges = block_edges(n, n_blocks)
     nb = len(edges) - 1
     workers = max(1, min(workers or os.cpu_count() or 1, nb))
-    _JOB.update(model=model, source=source, edges=edges, chunk=chunk)
+    _JOB.update(model=model, source=source, edges=edges, chunk=chunk, label=label)
     try:
         if workers == 1:
             _JOB["progress"] = True
@@ -173,11 +206,16 @@ def accumulate(
             ctx = multiprocessing.get_context("fork")
             with ProcessPoolExecutor(workers, mp_context=ctx) as pool:
                 futures = [pool.submit(_accumulate_blocks, k, k + 1) for k in range(nb)]
-                for _ in track(as_completed(futures), nb, "building regressors"):
+                for _ in track(as_completed(futures), nb, label):
                     pass
                 parts = [f.result() for f in futures]
     finally:
         _JOB.clear()
+    return assemble(model, edges, parts)
+
+
+def assemble(model: RobotModel, edges: np.ndarray, parts: list[tuple[np.ndarray | None, ...]]) -> Statistics:
+    """One run's statistics from its blocks' parts (`accumulate_blocks`), in block order."""
     gram = np.concatenate([x[0] for x in parts])
     rows = np.concatenate([x[1] for x in parts])
     with_instruments = all(x[2] is not None for x in parts)

@@ -116,6 +116,14 @@ class Dataset:
         """t[-1] - t[0], s (0 for a single sample)."""
         return float(self.t[-1] - self.t[0]) if self.n_samples else 0.0
 
+    def median_step(self) -> float:
+        """The median sample period, s (1 for a single sample)."""
+        return float(np.median(np.diff(self.t))) if self.n_samples > 1 else 1.0
+
+    def times(self, start: int, stop: int) -> np.ndarray:
+        """t of rows [start, stop) (what `dynid.io.stream.DatasetFile` reads from disk)."""
+        return self.t[start:stop]
+
     def column_names(self) -> list[str]:
         """CSV column names (docs/design.md §4) of every signal held, in the canonical order."""
         return [name for name, _ in self.columns()]

@@ -134,28 +134,23 @@ MIN_PERIOD_S, MAX_PERIOD_S = 1e-5, 1.0
 _TIME_UNITS = (("ms", "milliseconds", 1e-3), ("us", "microseconds", 1e-6), ("ns", "nanoseconds", 1e-9))
 
 
-def check_plausible(dataset: Dataset, source: str = "", headerless: bool = False) -> None:
+def check_plausible(dataset: Dataset, source: str = "", headerless: bool = False, n_samples: int | None = None) -> None:
     """Refuse data no command can use, before any command writes or fits anything (issue 22's sweep): fewer than
     `MIN_SAMPLES` samples (a one-row CSV was imported as a dataset of 0 s), a measured value beyond
     `MAX_ABS_VALUE`, or a median step of `t` outside `MIN_PERIOD_S` to below `MAX_PERIOD_S` (a time column in
-    milliseconds was imported as 3000 s of data). A `headerless` log is told where its unit is declared."""
+    milliseconds was imported as 3000 s of data). A `headerless` log is told where its unit is declared.
+    `n_samples`: the run's count when `dataset` is its first rows only (a streamed run, dynid.io.stream)."""
     where = f"{source}: " if source else ""
-    n = dataset.n_samples
+    n = dataset.n_samples if n_samples is None else n_samples
     if n < MIN_SAMPLES:
         raise DataError(
             f"{where}only {n} sample{'s' * (n != 1)}: a run needs at least {MIN_SAMPLES} (the derivative filters, "
             "the fit and the monitor's calibration all need a stretch of samples)"
         )
-    for name, values in dataset.columns():
-        if name == "t" or name == "contact" or name.startswith(("q.", "pwm.")) or name in dataset.extra:
-            continue  # time, labels, positions and duties have checks of their own; extra columns are not used
-        big = np.flatnonzero(np.abs(values) > MAX_ABS_VALUE)
-        if big.size:
-            i = int(big[0])
-            raise DataError(
-                f"{where}{name} is {values[i]:g} at row {i + 1}: beyond ±{MAX_ABS_VALUE:g}, which no sensor of an arm "
-                "reads (N, Nm, A, rad/s, rad/s²): a wrong unit or a corrupt value"
-            )
+    try:
+        check_values(dataset)
+    except DataError as e:
+        raise DataError(f"{where}{e}") from None
     period = float(np.median(np.diff(dataset.t)))
     if MIN_PERIOD_S <= period < MAX_PERIOD_S:
         return
@@ -168,6 +163,20 @@ def check_plausible(dataset: Dataset, source: str = "", headerless: bool = False
         f"{where}t steps by {period:.6g} s between samples (the median step), outside the sample periods a run may "
         f"have ({MIN_PERIOD_S * 1e6:g} µs to under {MAX_PERIOD_S:g} s): {hint}{declare}"
     )
+
+
+def check_values(dataset: Dataset, row_offset: int = 0) -> None:
+    """Refuse a measured value beyond `MAX_ABS_VALUE` (rows named from `row_offset`, for a window of a run)."""
+    for name, values in dataset.columns():
+        if name == "t" or name == "contact" or name.startswith(("q.", "pwm.")) or name in dataset.extra:
+            continue  # time, labels, positions and duties have checks of their own; extra columns are not used
+        big = np.flatnonzero(np.abs(values) > MAX_ABS_VALUE)
+        if big.size:
+            i = int(big[0])
+            raise DataError(
+                f"{name} is {values[i]:g} at row {row_offset + i + 1}: beyond ±{MAX_ABS_VALUE:g}, which no sensor of "
+                "an arm reads (N, Nm, A, rad/s, rad/s²): a wrong unit or a corrupt value"
+            )
 
 
 def apply_window(dataset: Dataset, start: float | None, stop: float | None, source: str = "") -> Dataset:

@@ -33,7 +33,7 @@ from .controller import (BANDWIDTH_HZ, GivenTrajectory, ImpedanceController, Ref
                          reaching_reference)
 from .effects import Effect
 from .plant import RigidBodyPlant
-from .true_robot import draw_true_robot
+from .true_robot import TrueRobot, draw_true_robot
 
 KINDS: dict[str, float] = {"identification": 300.0, "validation": 120.0, "contact": 120.0}  # default durations, s
 _KIND_STREAM = {"identification": 1, "validation": 2, "contact": 3}
@@ -62,6 +62,9 @@ class SimulationSettings:
     tilt_deg: float = 0.0
     # A reference to follow instead of the reaching moves (`--trajectory`); the duration defaults to its length
     trajectory: GivenTrajectory | None = None
+    # The true arm's friction scaled, per joint (all four coefficients; `scale_friction`): a worn joint (×2), or
+    # friction that drifts between runs with temperature (`--friction-scale [JOINT=]K`); truth.json has the result
+    friction_scale: tuple[tuple[str, float], ...] = ()
 
     @property
     def seconds(self) -> float:
@@ -128,6 +131,18 @@ def _given(traj: GivenTrajectory, joints: tuple[str, ...], limits: np.ndarray, s
     return followed_reference(traj, n, dt)
 
 
+def scale_friction(truth: TrueRobot, config: RobotConfig, joint: str, factor: float) -> None:
+    """Scale everything the fit sees as `joint`'s friction: the joint's own and, where one motor drives it alone,
+    that motor's friction and back-EMF (docs/design.md §3 folds them into the joint's); a coupled group's motor
+    friction has parameters of its own and is left as it is."""
+    truth.joint_friction[joint] = truth.joint_friction[joint] * factor
+    for g in config.actuation:
+        if joint in g.joints and g.input != "torque" and not g.coupled:
+            m = g.motors[g.joints.index(joint)]
+            truth.motor_friction[m] = truth.motor_friction[m] * factor
+            truth.back_emf[m] = truth.back_emf[m] * factor
+
+
 def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
     if settings.kind not in KINDS:
         raise InputError(f"unknown experiment kind '{settings.kind}' (known: {', '.join(KINDS)})")
@@ -154,6 +169,8 @@ def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
     rng_ref, rng_contact, rng_noise, rng_disturbance, rng_effects = (np.random.default_rng(s) for s in streams)
     effects = list(settings.effects)
     truth = draw_true_robot(model, settings.robot_seed)
+    for joint, factor in settings.friction_scale:
+        scale_friction(truth, config, joint, factor)
     joints, motors = config.joints, config.motor_names
     nj, nm = len(joints), len(motors)
 
@@ -321,6 +338,7 @@ def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
         "robot": config.name, "config_digest": config.digest, "kind": settings.kind,
         "duration_s": settings.seconds, "rate_hz": settings.rate_hz, "samples": n,
         "seed": settings.seed, "robot_seed": settings.robot_seed, "noise": settings.noise,
+        "friction_scale": dict(settings.friction_scale),
         "disturbance": disturbed,
         "parameters": truth.parameters(model),
         "cad_parameters": {n: (None if np.isnan(x) else x) for n, x in zip(model.layout.names, model.cad_parameters().tolist())},

@@ -1,0 +1,106 @@
+"""`dynid fleet`: runs of many robots of one kind → one model per robot, compared, the one that stands out named."""
+
+from __future__ import annotations
+
+import argparse
+import re
+from collections import OrderedDict
+from pathlib import Path
+from typing import Any
+
+from ..cluster import executor
+from ..config.robot_config import load_config
+from ..errors import InputError
+from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, FitSettings
+from ..identify.runs import RunRef, stream_run
+from ..io.dataset import atomic_write
+from ..io.run_paths import expand_named
+from ..pipeline import IdentifySettings, identify
+from ..report.fleet import compare, page
+from ..robot.model import RobotModel
+from .commands import COMMANDS
+from .common import json_arg, min_speed_arg, plural, positive_int, robot_arg
+
+LAYOUT_KINDS = {"joint_friction": "friction", "motor_friction": "friction", "motor_gain": "gain",
+                "ft_offset": "ft_offset"}
+MIN_ROBOTS = 3
+
+
+def _file_name(robot: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", robot) or "robot"
+
+
+def cmd_fleet(args: argparse.Namespace) -> dict[str, Any]:
+    config = load_config(args.robot, args.urdf)
+    model = RobotModel(config)
+    named = expand_named(args.data)
+    fleet: OrderedDict[str, list[str]] = OrderedDict()
+    for run in named:
+        fleet.setdefault(run.name, []).append(run.path)
+    if len(fleet) < MIN_ROBOTS:
+        raise InputError(f"--data names {plural(len(fleet), 'robot')} ({', '.join(fleet)}): a fleet needs at least "
+                         f"{MIN_ROBOTS} to have a spread (name each run's robot: --data NAME=RUN, or one folder per "
+                         "robot)")
+    files = {r: _file_name(r) for r in fleet}
+    if len(set(files.values())) != len(files):
+        raise InputError("two robots' names map to the same model file name: " + ", ".join(fleet))
+    out = Path(args.out)
+    if not out.parent.is_dir():
+        raise InputError(f"cannot write to '{args.out}' (--out): the directory {out.parent} does not exist")
+    refs = {r: [RunRef(p) for p in paths] for r, paths in fleet.items()}
+    runs = {r: [stream_run(ref, model) for ref in rr] for r, rr in refs.items()}  # all checked before any fit
+    settings = IdentifySettings(FitSettings(estimator=args.estimator, min_speed=args.min_speed, blocks=args.blocks))
+    cluster = executor(args.workers, args.scheduler)
+    models = {}
+    try:
+        for i, (robot, robot_runs) in enumerate(runs.items()):
+            print(f"  [{i + 1}/{len(runs)}] {robot}: {plural(len(robot_runs), 'run')}", flush=True)
+            done = identify(model, robot_runs, fleet[robot], settings, cluster=cluster, refs=refs[robot])
+            models[robot] = done.model
+    finally:
+        if cluster is not None:
+            cluster.close()
+    kinds = {name: LAYOUT_KINDS[b.kind] for b in model.layout.blocks if b.kind in LAYOUT_KINDS for name in b.names}
+    result = compare(models, kinds)
+    out.mkdir(exist_ok=True)
+    (out / "models").mkdir(exist_ok=True)
+    for robot, m in models.items():
+        m.save(out / "models" / f"{files[robot]}.json")
+    text = page(result, config.name)
+    atomic_write(out / "fleet.html", lambda f: f.write(text.encode()))
+    result["models"] = {r: str(out / "models" / f"{files[r]}.json") for r in fleet}
+    result["runs"] = dict(fleet)
+    result["report"] = str(out / "fleet.html")
+    print(f"fleet of {len(fleet)} {config.name} robots, {plural(len(named), 'run')} -> {out} (fleet.html, models/)")
+    print(f"  {len(result['parameters'])} shared base parameters compared; {len(result['groups'])} groups tested "
+          f"(friction, gains, F/T offsets), bound |S| > {result['bound']:.2f}")
+    if not result["outliers"]:
+        print("  no robot stands out beyond the fleet's spread")
+    for o in result["outliers"]:
+        for g in o["groups"]:
+            ratios = ", ".join(f"{x:.2f}" for x in g["ratio_to_median"])
+            print(f"  STANDS OUT: {o['robot']}: {g['group']} (S = {g['statistic']:.1f}; × {ratios} the others' median)")
+    return result
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    sp = sub.add_parser("fleet", help=COMMANDS["fleet"].help,
+                        description="Runs of many robots of one kind: one model per robot (dynid fit on its runs), "
+                        "the robots compared parameter by parameter with their standard errors, and the robot whose "
+                        "friction, gains or F/T offsets stand out beyond the fleet's spread named "
+                        "(docs/validation.md#a-fleet). Writes DIR/fleet.html (the robots side by side, in figures) "
+                        "and DIR/models/ROBOT.json.")
+    robot_arg(sp)
+    sp.add_argument("--data", action="append", required=True, metavar="[NAME=]RUN",
+                    help="a run of robot NAME (a file, `dynid simulate` directory, glob, folder or @LIST); without "
+                    "NAME= a run belongs to the folder that holds it (one folder per robot); repeatable")
+    sp.add_argument("--out", required=True, metavar="DIR", help="the directory to write (created)")
+    where = sp.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=positive_int, metavar="N", help="fit on a Dask LocalCluster of N workers")
+    where.add_argument("--scheduler", metavar="ADDRESS", help="fit on the running Dask cluster at ADDRESS")
+    sp.add_argument("--estimator", choices=ESTIMATORS, default=DEFAULT_ESTIMATOR,
+                    help=f"the estimator each robot's model keeps (default {DEFAULT_ESTIMATOR})")
+    sp.add_argument("--blocks", type=positive_int, default=10, help="time blocks per run (default 10)")
+    min_speed_arg(sp)
+    json_arg(sp)
+    sp.set_defaults(func=cmd_fleet)

@@ -1,0 +1,126 @@
+"""Where a fit's tasks run: in this process (the default: a process pool forked per run), or on a Dask
+`distributed` cluster.
+
+`dynid fit --workers N` starts a `LocalCluster` of N single-threaded worker processes on this machine;
+`--scheduler ADDRESS` connects to a running cluster (`dask scheduler` and `dask worker` processes, on other hosts:
+docs/deployment.md#many-runs-on-a-dask-cluster). Tasks are plain functions with picklable arguments (a robot
+configuration, a run's path, the settings, a block range), so a worker reads the data itself: the data must be at
+the same path on every worker (a shared file system), and no log travels through the scheduler.
+
+Results come back in the order the tasks were given, whatever order they finish in, so a fit on a cluster sums
+exactly what the serial fit sums, in the same order. A task that raises (bad data) raises the same error here; a
+cluster that fails raises `ClusterError`, one line and exit code 3: a task whose worker died
+`distributed.scheduler.allowed-failures` times (3), no worker at all for longer than the scheduler's
+`distributed.scheduler.no-workers-timeout` (a LocalCluster's: 120 s; a running cluster's: its own, none by default,
+when the fit waits for workers to come back), the scheduler gone. A worker that dies once is replaced (its nanny
+restarts it) or its tasks move to the others: the fit goes on, with the same result.
+
+Layer: beside errors and progress; `distributed` is imported only when a cluster is asked for.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any
+
+from .errors import InputError
+from .progress import RunProgress
+
+CONNECT_TIMEOUT_S = 20.0
+NO_WORKERS_TIMEOUT = "120s"  # a LocalCluster's; a running cluster's is its scheduler's (docs/deployment.md)
+
+
+class ClusterError(InputError):
+    """The cluster could not be reached or failed during the run (not the data's fault)."""
+
+    exit_code = 3
+
+
+class DaskCluster:
+    """Tasks on a Dask cluster: a new `LocalCluster` of `workers` processes, or the one at `scheduler`."""
+
+    def __init__(self, workers: int | None = None, scheduler: str | None = None) -> None:
+        try:
+            import dask
+            from distributed import Client, LocalCluster
+        except ImportError as e:  # pragma: no cover - distributed is a dependency
+            raise ClusterError(f"Dask distributed is not installed ({e}): pip install distributed") from None
+        self._local = None
+        try:
+            if scheduler is not None:
+                self.name = f"the Dask cluster at {scheduler}"
+                self.client = Client(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+            else:
+                self.name = f"a local Dask cluster of {workers} worker process{'es' * (workers != 1)}"
+                # One thread a worker: the tasks are numpy and Pinocchio loops that hold the GIL between calls
+                # Tasks wait for a worker no longer than this (a cluster whose every worker died stops the fit)
+                with dask.config.set({"distributed.scheduler.no-workers-timeout": NO_WORKERS_TIMEOUT}):
+                    # ":0": the scheduler's HTTP server on a free port (8787 may be another cluster's)
+                    self._local = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                               dashboard_address=":0", silence_logs=50)
+                self.client = Client(self._local, set_as_default=False)
+        except (OSError, TimeoutError, ValueError) as e:
+            self.close()
+            where = f"--scheduler {scheduler}" if scheduler else f"--workers {workers}"
+            raise ClusterError(f"{where}: no Dask cluster there ({type(e).__name__}: {e})") from None
+        info = self.client.scheduler_info()
+        self.workers = len(info.get("workers", {}))
+        if self.workers == 0:
+            self.close()
+            raise ClusterError(f"{self.name} has no worker")
+
+    def map(self, fn: Callable[..., Any], tasks: Sequence[tuple], label: str, runs: Sequence[int] | None = None,
+            chunks: Sequence[int] | None = None) -> list[Any]:
+        from distributed import as_completed
+
+        progress = RunProgress(label, runs, chunks)
+        # pure=False: a task reads a file, which may change between two fits with the same arguments
+        futures = [self.client.submit(fn, *args, pure=False, key=f"{label}-{i}") for i, args in enumerate(tasks)]
+        index = {f.key: i for i, f in enumerate(futures)}
+        with _failures(self.name):
+            try:
+                for future in as_completed(futures, loop=self.client.loop):
+                    future.result()  # raises the task's own error (a DataError: exit 2) as soon as it comes
+                    progress.done(index[future.key])
+                out = self.client.gather(futures)
+            except BaseException:
+                self.client.cancel(futures)
+                raise
+            finally:
+                progress.close()
+        return out
+
+    def close(self) -> None:
+        with contextlib.suppress(Exception):
+            if getattr(self, "client", None) is not None:
+                self.client.close()
+        with contextlib.suppress(Exception):
+            if self._local is not None:
+                self._local.close()
+
+
+@contextlib.contextmanager
+def _failures(name: str) -> Iterator[None]:
+    """The cluster's own failures as one line each (the data's errors pass through unchanged)."""
+    from distributed import KilledWorker
+    from distributed.comm.core import CommClosedError
+    from distributed.scheduler import NoValidWorkerError, NoWorkerError
+
+    try:
+        yield
+    except KilledWorker as e:
+        raise ClusterError(f"{name}: a task was lost with its worker too many times ({e.args[0] if e.args else e}); "
+                           "a worker that dies on every try (out of memory?) stops the fit") from None
+    except (NoWorkerError, NoValidWorkerError):
+        raise ClusterError(f"{name}: no worker left to run the fit's tasks (every worker is gone, for longer than the "
+                           "scheduler's distributed.scheduler.no-workers-timeout)") from None
+    except (CommClosedError, OSError, TimeoutError) as e:
+        raise ClusterError(f"{name}: lost the connection to the cluster ({type(e).__name__}: {e})") from None
+
+
+def executor(workers: int | None = None, scheduler: str | None = None) -> DaskCluster | None:
+    """The cluster the command line asks for (`--workers N`, `--scheduler ADDRESS`); None: in-process."""
+    if scheduler is not None or workers is not None:
+        return DaskCluster(workers, scheduler)
+    return None

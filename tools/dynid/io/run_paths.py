@@ -1,0 +1,100 @@
+"""Many runs named at once: `--data` takes a run, a glob, a folder of runs, or `@LIST` (a file of such, one a line).
+
+A run is a data file (.csv, .txt, .npz, .log, .mcap, .db3), a `dynid simulate` directory, a YARP dumper folder or
+a rosbag2 folder (with its metadata.yaml). A folder that is none of these stands for every run beneath it, in
+sorted order, at any depth (README files and anything else are passed over); a glob for every path it matches,
+sorted, each expanded the same way. In a list file, blank lines and `#` comments are skipped and relative paths
+are relative to the list's folder. A glob, folder or list that yields no run is refused with one line.
+
+A run may be named `NAME=PATH` (`dynid fleet`: the robot it was recorded on); unnamed, it belongs to the folder
+that holds it (a fleet laid out one folder per robot).
+"""
+
+from __future__ import annotations
+
+import glob
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import DataError
+from .dataset import SIMULATION_DATASET
+from .yarp import is_dumper_folder
+
+DATA_SUFFIXES = (".csv", ".txt", ".npz", ".log", ".mcap", ".db3")
+_GLOB = set("*?[")
+
+
+@dataclass(frozen=True)
+class NamedRun:
+    path: str
+    name: str  # the NAME of NAME=PATH, else the name of the folder holding the run
+
+
+def is_run(path: Path) -> bool:
+    if path.is_file():
+        return path.suffix.lower() in DATA_SUFFIXES
+    return path.is_dir() and ((path / SIMULATION_DATASET).is_file() or (path / "metadata.yaml").is_file()
+                              or is_dumper_folder(path))
+
+
+def _folder(path: Path) -> list[Path]:
+    out: list[Path] = []
+    for entry in sorted(path.iterdir()):
+        if is_run(entry):
+            out.append(entry)
+        elif entry.is_dir():
+            out.extend(_folder(entry))
+    return out
+
+
+def expand(spec: str, base: Path | None = None) -> list[Path]:
+    """The runs `spec` names (module docstring), in order."""
+    if spec.startswith("@"):
+        listing = Path(spec[1:]) if base is None or Path(spec[1:]).is_absolute() else base / spec[1:]
+        try:
+            lines = listing.read_text().splitlines()
+        except (OSError, UnicodeDecodeError) as e:
+            raise DataError(f"--data {spec}: cannot read the list of runs: {getattr(e, 'strerror', None) or e}") from None
+        out = [run for line in lines if (entry := line.split("#", 1)[0].strip())
+               for run in expand(entry, listing.parent)]
+        if not out:
+            raise DataError(f"--data {spec}: the list names no run")
+        return out
+    path = Path(spec) if base is None or Path(spec).is_absolute() else base / spec
+    if _GLOB & set(spec):
+        matches = [Path(m) for m in sorted(glob.glob(str(path)))]
+        out = [run for m in matches for run in ([m] if is_run(m) else _folder(m) if m.is_dir() else [])]
+        if not out:
+            raise DataError(f"--data {spec}: the pattern matches no run")
+        return out
+    if path.is_dir() and not is_run(path):
+        out = _folder(path)
+        if not out:
+            raise DataError(f"--data {spec}: the folder holds no run (data files {', '.join(DATA_SUFFIXES)}, "
+                            "`dynid simulate` directories, YARP or rosbag2 folders)")
+        return out
+    return [path]  # a run, or a missing path: the reader names the problem
+
+
+def expand_all(specs: list[str]) -> list[str]:
+    """Every `--data` expanded, in order; a run named twice is refused (it would count twice)."""
+    out = [str(p) for spec in specs for p in expand(spec)]
+    seen: set[str] = set()
+    for p in out:
+        key = str(Path(p).resolve())
+        if key in seen:
+            raise DataError(f"--data: the run {p} is named twice")
+        seen.add(key)
+    return out
+
+
+def expand_named(specs: list[str]) -> list[NamedRun]:
+    """`expand_all` with each run's robot: NAME of NAME=PATH, else the folder that holds the run."""
+    out = []
+    for spec in specs:
+        name, eq, rest = spec.partition("=")
+        named = bool(eq) and name and not Path(spec).exists() and "/" not in name
+        for p in expand(rest if named else spec):
+            out.append(NamedRun(str(p), name if named else (p.resolve().parent.name or str(p))))
+    expand_all([r.path for r in out])  # the duplicate check
+    return out

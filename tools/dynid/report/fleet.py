@@ -1,0 +1,228 @@
+"""`dynid fleet`: robots of one kind compared parameter by parameter, the one that stands out named, one HTML page.
+
+Each robot has its own model (`dynid fit` on its runs). What is compared are the base combinations that every robot's
+fit shares, word for word (the same runs' structure: on one kind of robot driven the same way, all of them), each
+robot's value with its standard error.
+
+**The rule.** For robot r and a group of parameters g (one joint's or motor's four friction coefficients, one motor's
+gain, one F/T sensor's six offsets), each coefficient k is set against the *other* robots: their median m and robust
+spread s = 1.4826 · MAD (a fleet of a dozen has no room for a variance that one worn joint would inflate), on a log
+scale for what is positive by nature (friction and gains: a wear or a wrong gain is a factor, and the fleet's spread
+is proportional), else as it is (offsets). z_k = (x_rk − m_k) / √(s_k² + se_rk²), and the group's statistic is
+S = Σ_k z_k / √n (every coefficient of a worn joint moves the same way, which a sum adds up and a maximum does
+not). A robot is named when |S| exceeds the two-sided Bonferroni bound for the whole comparison,
+Φ⁻¹(1 − α / (2 · robots · groups)) with α = 1 %: under a fleet whose robots differ only by chance, the chance of
+naming any robot at all is about 1 %.
+
+What it cannot see: a factor smaller than the fleet's own spread. The simulated fleet draws each friction
+coefficient within ×2.4 (5–12 % of a joint's load); a joint whose friction was at the bottom of that range and
+doubled can stay within it (docs/validation.md#a-fleet).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from matplotlib.figure import Figure
+from scipy.stats import norm
+
+from ..identify.model_file import IdentifiedModel
+from . import html as H
+from .figures import png
+
+FAMILY_ALPHA = 0.01
+MAD_SCALE = 1.4826  # MAD → standard deviation of a normal
+SE_FLOOR = 1e-12
+KINDS = ("friction", "gain", "ft_offset", "inertial")
+FLAGGED_KINDS = ("friction", "gain", "ft_offset")
+COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#e377c2"]
+
+
+@dataclass(frozen=True)
+class Compared:
+    combination: str  # the base combination, as the model files write it
+    name: str  # its leading parameter (layout name)
+    kind: str  # friction | gain | ft_offset | inertial
+    group: str  # e.g. "friction r_elbow", "gain m3", "F/T offset r_arm_ft", "inertial r_hand"
+    values: np.ndarray  # (robots,)
+    errors: np.ndarray  # (robots,) standard errors
+    log: bool  # compared on a log scale
+
+
+def _kind(name: str, layout_kinds: dict[str, str]) -> tuple[str, str]:
+    kind = layout_kinds.get(name, "inertial")
+    owner = name.rsplit(".", 1)[0]
+    if kind == "ft_offset":
+        owner = name.split(".")[1]
+    label = {"friction": "friction", "gain": "gain", "ft_offset": "F/T offset", "inertial": "inertial"}[kind]
+    return kind, f"{label} {owner}"
+
+
+def shared_parameters(models: dict[str, IdentifiedModel], layout_kinds: dict[str, str]) -> list[Compared]:
+    """The base combinations every robot's fit has, with each robot's value and standard error."""
+    robots = list(models)
+    per_robot = []
+    for r in robots:
+        base = models[r].record["base"]
+        K = np.asarray(base["K"], float).reshape(len(base["independent"]), len(base["dependent"]))
+        per_robot.append({_key(name, k, base["dependent"]): (float(v), float(e), c) for name, k, c, v, e in
+                          zip(base["independent"], K, base["combinations"], base["values"], base["standard_errors"])})
+    shared = [key for key in per_robot[0] if all(key in p for p in per_robot[1:])]
+    out = []
+    for key in shared:
+        name, c = key[0], per_robot[0][key][2]
+        kind, group = _kind(name, layout_kinds)
+        values = np.array([p[key][0] for p in per_robot])
+        errors = np.array([p[key][1] for p in per_robot])
+        log = kind in ("friction", "gain") and bool(np.all(values > 0))
+        out.append(Compared(c, name, kind, group, values, errors, log))
+    return out
+
+
+def _key(name: str, k_row: np.ndarray, dependent: list[str]) -> tuple:
+    """What makes two robots' base combinations the same: the leading parameter and the others' coefficients, to 4
+    significant digits, rounding-level ones (|k| < 1e-6, a rank decision's dust) left out."""
+    return (name, *((d, float(f"{k:.4g}")) for d, k in zip(dependent, k_row) if abs(k) >= 1e-6))
+
+
+def _scaled(p: Compared) -> tuple[np.ndarray, np.ndarray]:
+    if p.log:
+        return np.log(p.values), p.errors / p.values
+    return p.values, p.errors
+
+
+def z_scores(p: Compared) -> np.ndarray:
+    """Each robot's z against the others' median and robust spread (module docstring)."""
+    y, se = _scaled(p)
+    z = np.zeros(y.size)
+    for r in range(y.size):
+        others = np.delete(y, r)
+        m = np.median(others)
+        s = MAD_SCALE * np.median(np.abs(others - m))
+        z[r] = (y[r] - m) / max(math.hypot(s, se[r]), SE_FLOOR)
+    return z
+
+
+def compare(models: dict[str, IdentifiedModel], layout_kinds: dict[str, str],
+            alpha: float = FAMILY_ALPHA) -> dict[str, Any]:
+    """The fleet's comparison (JSON-able): every shared parameter, each group's statistic per robot, the bound, the
+    robots named with the groups that make them stand out."""
+    robots = list(models)
+    if len(robots) < 3:
+        raise ValueError("a fleet needs at least 3 robots")
+    params = shared_parameters(models, layout_kinds)
+    groups: dict[str, list[tuple[Compared, np.ndarray]]] = {}
+    for p in params:
+        if p.kind in FLAGGED_KINDS:
+            groups.setdefault(p.group, []).append((p, z_scores(p)))
+    n_tests = max(1, len(robots) * len(groups))
+    bound = float(norm.isf(alpha / (2 * n_tests)))
+    group_rows = []
+    outliers: dict[str, list[dict[str, Any]]] = {}
+    for g, members in groups.items():
+        z = np.array([zk for _, zk in members])  # (k, robots)
+        stat = z.sum(axis=0) / math.sqrt(len(members))
+        group_rows.append({"group": g, "kind": members[0][0].kind, "parameters": [p.combination for p, _ in members],
+                           "statistic": dict(zip(robots, stat.tolist()))})
+        for r, s in zip(robots, stat):
+            if abs(s) > bound:
+                ratio = [float(p.values[robots.index(r)] / np.median(np.delete(p.values, robots.index(r))))
+                         for p, _ in members]
+                outliers.setdefault(r, []).append({"group": g, "statistic": float(s), "ratio_to_median": ratio})
+    return {
+        "robots": robots, "alpha": alpha, "bound": bound, "tests": n_tests,
+        "parameters": [{"combination": p.combination, "name": p.name, "kind": p.kind, "group": p.group,
+                        "log_scale": p.log, "values": dict(zip(robots, p.values.tolist())),
+                        "standard_errors": dict(zip(robots, p.errors.tolist())),
+                        "median": float(np.median(p.values))} for p in params],
+        "groups": group_rows,
+        "outliers": [{"robot": r, "groups": g} for r, g in outliers.items()],
+    }
+
+
+# ------------------------------------------------------------------------------------------------------------
+# The page
+
+
+def _group_figure(result: dict[str, Any], kind: str, title: str) -> bytes | None:
+    """One panel per group of `kind`, the robots side by side: each coefficient's value over the fleet's median
+    (log scale) or its value (offsets), with ±1.96 standard errors; a named robot's panel edge in red."""
+    robots = result["robots"]
+    params = [p for p in result["parameters"] if p["kind"] == kind]
+    if not params:
+        return None
+    groups = list(dict.fromkeys(p["group"] for p in params))
+    named = {(o["robot"], g["group"]) for o in result["outliers"] for g in o["groups"]}
+    cols = min(3, len(groups))
+    rows = math.ceil(len(groups) / cols)
+    fig = Figure(figsize=(4.2 * cols, 2.8 * rows + 0.4))
+    x = np.arange(len(robots))
+    for i, g in enumerate(groups):
+        ax = fig.add_subplot(rows, cols, i + 1)
+        members = [p for p in params if p["group"] == g]
+        for j, p in enumerate(members):
+            v = np.array([p["values"][r] for r in robots])
+            e = np.array([p["standard_errors"][r] for r in robots])
+            if p["log_scale"]:
+                med = np.median(v)
+                v, e = v / med, e / med
+            off = (j - (len(members) - 1) / 2) * 0.12
+            ax.errorbar(x + off, v, yerr=1.96 * e, fmt="o", ms=3, lw=0.8, color=COLORS[j % len(COLORS)],
+                        label=p["name"].rsplit(".", 1)[-1])
+        if members[0]["log_scale"]:
+            ax.set_yscale("log")
+            ax.axhline(1.0, color="#888", lw=0.8)
+        for r in range(len(robots)):
+            if (robots[r], g) in named:
+                ax.axvspan(r - 0.45, r + 0.45, color="#d62728", alpha=0.15)
+        ax.set_title(g, fontsize=9)
+        ax.set_xticks(x, robots, rotation=60, fontsize=7)
+        ax.tick_params(axis="y", labelsize=7)
+        ax.legend(fontsize=6, loc="best")
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return png(fig)
+
+
+def page(result: dict[str, Any], robot_kind: str) -> str:
+    robots = result["robots"]
+    if result["outliers"]:
+        items = "".join(
+            f"<li><b>{H.esc(o['robot'])}</b>: " + "; ".join(
+                f"{H.esc(g['group'])} (S = {g['statistic']:.1f}; × "
+                + ", ".join(f"{r:.2f}" for r in g["ratio_to_median"]) + " the others' median)" for g in o["groups"])
+            + "</li>" for o in result["outliers"])
+        summary = f"<p>Standing out beyond the fleet's spread:</p><ul>{items}</ul>"
+    else:
+        summary = "<p>No robot stands out beyond the fleet's spread.</p>"
+    summary += (f'<p class="note">{len(robots)} robots; a group is named when |S| exceeds {result["bound"]:.2f} (the '
+                f'Bonferroni bound of α = {result["alpha"]:g} over {result["tests"]} robot-group tests): '
+                "S sums each coefficient's z against the other robots' median and robust spread (docs/validation.md#a-fleet).</p>")
+    stat_rows = []
+    for g in result["groups"]:
+        cells = []
+        for r in robots:
+            s = g["statistic"][r]
+            style = ' style="background:#f6c8c8"' if abs(s) > result["bound"] else ""
+            cells.append(f'<td{style} data-key="groups/{H.esc(g["group"])}/{H.esc(r)}" data-value="{s!r}">{s:.1f}</td>')
+        stat_rows.append(f"<tr>{H.text(g['group'])}{''.join(cells)}</tr>")
+    sections = [f"<h2>Summary</h2>{summary}",
+                "<h2>Each group's statistic S, robot by robot</h2>" + H.table(["group", *robots], stat_rows)]
+    figures = []
+    for kind, title in (("friction", "Friction: each coefficient over the fleet's median (±1.96 SE)"),
+                        ("gain", "Motor gains over the fleet's median (±1.96 SE)"),
+                        ("ft_offset", "F/T offsets (N, Nm; ±1.96 SE)")):
+        fig = _group_figure(result, kind, title)
+        if fig is not None:
+            figures.append(H.figure(f"fig-{kind}", fig, title))
+    sections.append("<h2>The robots side by side</h2>" + "".join(figures))
+    rows = []
+    for p in result["parameters"]:
+        cells = "".join(f'<td data-value="{p["values"][r]!r}">{p["values"][r]:.4g} ± {p["standard_errors"][r]:.2g}</td>'
+                        for r in robots)
+        rows.append(f'<tr><td class="combo">{H.esc(p["combination"])}</td>{cells}</tr>')
+    sections.append("<h2>Every shared base parameter (value ± standard error)</h2>" + H.table(["combination", *robots], rows))
+    return H.page(f"Fleet of {len(robots)} {robot_kind} robots", sections)

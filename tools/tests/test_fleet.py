@@ -1,0 +1,86 @@
+"""`dynid fleet` (issue 33): twelve simulated robots of the default arm, robot seeds 0-11, robot 7's elbow worn (its
+friction doubled, `dynid simulate --friction-scale r_elbow=2`); it is named, and no other robot is. The page renders
+in headless Chromium."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import dynid
+from dynid.config.robot_config import load_config
+from dynid.simulation import SimulationSettings, simulate
+from dynid.simulation.output import write_simulation
+
+ROBOTS = 12
+WORN = 7
+SECONDS = 20.0
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    root = tmp_path_factory.mktemp("fleet")
+    config = load_config("icub_right_arm")
+    for i in range(ROBOTS):
+        worn = (("r_elbow", 2.0),) if i == WORN else ()
+        sim = simulate(config, SimulationSettings(duration=SECONDS, seed=i, robot_seed=i, friction_scale=worn))
+        write_simulation(sim, root / "runs" / f"arm{i:02d}" / "run")  # one folder per robot names it
+    done = dynid("fleet", "--data", str(root / "runs"), "--out", str(root / "out"), "--blocks", "5",
+                 "--json", str(root / "fleet.json"))
+    assert done.returncode == 0, done.stderr
+    return {"root": root, "stdout": done.stdout, "result": json.loads((root / "fleet.json").read_text())}
+
+
+def test_the_worn_joint_is_named_and_no_other_robot(fleet: dict) -> None:
+    r = fleet["result"]
+    assert r["robots"] == [f"arm{i:02d}" for i in range(ROBOTS)]
+    assert [o["robot"] for o in r["outliers"]] == [f"arm{WORN:02d}"]
+    (named,) = r["outliers"][0]["groups"]
+    assert named["group"] == "friction r_elbow" and named["statistic"] > r["bound"]
+    # Each of its four coefficients is well above the others' median (doubled, give or take the fleet's spread)
+    assert all(1.3 < x < 3.0 for x in named["ratio_to_median"])
+    assert "STANDS OUT: arm07: friction r_elbow" in fleet["stdout"]
+    # Every robot has its model, and the comparison carries each robot's value and standard error
+    for robot, path in r["models"].items():
+        assert json.loads(Path(path).read_text())["robot"]["name"] == "icub_right_arm"
+    elbow = [p for p in r["parameters"] if p["group"] == "friction r_elbow"]
+    assert len(elbow) == 4 and all(len(p["values"]) == ROBOTS == len(p["standard_errors"]) for p in elbow)
+    # The truth agrees: the worn robot's elbow friction is doubled in truth.json, the others' as drawn
+    truth = json.loads((fleet["root"] / "runs" / f"arm{WORN:02d}" / "run" / "truth.json").read_text())
+    assert truth["friction_scale"] == {"r_elbow": 2.0}
+    values = np.array([elbow[0]["values"][f"arm{i:02d}"] for i in range(ROBOTS)])
+    assert values.argmax() == WORN
+
+
+def test_a_fleet_needs_three_robots_and_says_so(fleet: dict, tmp_path: Path) -> None:
+    runs = fleet["root"] / "runs"
+    done = dynid("fleet", "--data", f"a={runs / 'arm00' / 'run'}", "--data", f"b={runs / 'arm01' / 'run'}",
+                 "--out", str(tmp_path / "out"))
+    assert done.returncode == 2 and "at least 3" in done.stderr and not (tmp_path / "out").exists()
+
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="no chromium (scripts/setup installs Debian's chromium as root)")
+def test_the_fleet_page_renders_in_headless_chromium(fleet: dict, tmp_path: Path) -> None:
+    from test_report import OFFLINE
+
+    page = fleet["root"] / "out" / "fleet.html"
+    shot = tmp_path / "fleet.png"
+    done = subprocess.run([CHROMIUM, *OFFLINE, f"--user-data-dir={tmp_path / 'profile'}", "--window-size=1200,1800",
+                           f"--screenshot={shot}", page.as_uri()], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and shot.is_file(), done.stderr[-2000:]
+    from PIL import Image
+
+    pixels = np.asarray(Image.open(shot).convert("RGB"), dtype=float)
+    assert pixels.shape[:2] == (1800, 1200) and pixels.std() > 20
+    # The worn robot's cell is marked (the page's pink), and the figures are there
+    assert np.any(np.all(np.abs(pixels - [246, 200, 200]) < 3, axis=-1))
+    text = page.read_text()
+    assert text.count("<img") == 3 and "arm07</b>: friction r_elbow" in text
