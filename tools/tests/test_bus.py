@@ -244,3 +244,18 @@ def test_nominal_stamps_put_the_runs_own_samples_on_its_median_step(panda: dict,
     got = load_data(log, panda["config"])
     assert got.n_samples == 200 and np.allclose(np.diff(got.t), np.median(np.diff(data.t)).round(6), atol=1e-12)
     assert np.abs(got.q - data.q).max() <= 0.5e-6 * (1 + 1e-9)  # the same samples, in order
+
+
+def test_buses_that_share_an_id_get_a_dbc_each(tmp_path: Path) -> None:
+    """A DBC holds an ID once and `cantools decode` matches on the ID alone: two buses reusing node IDs (two CANopen
+    chains) are written as one DBC per bus, each decoding its bus."""
+    robot = _robot(tmp_path, lambda b: [_frame(b, f"TPDO1_{n}").update(id=0x180 + n - 4) for n in (5, 6, 7)])
+    out = tmp_path / "panda.dbc"
+    done = run(DYNID, "export", "--robot", robot, "--dbc", out, "--json", tmp_path / "e.json")
+    assert done.returncode == 0, done.stderr
+    assert not out.exists() and (tmp_path / "panda-can0.dbc").is_file() and (tmp_path / "panda-can1.dbc").is_file()
+    import cantools
+
+    for bus, ids in (("can0", {0x181, 0x182, 0x183, 0x184}), ("can1", {0x181, 0x182, 0x183})):
+        db = cantools.database.load_file(str(tmp_path / f"panda-{bus}.dbc"), strict=True)
+        assert {m.frame_id for m in db.messages} == ids, bus
