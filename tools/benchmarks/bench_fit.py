@@ -9,6 +9,9 @@
   --minutes, e.g. 60 for the one-hour log; the simulation of the run is not timed).
 
     .venv/bin/python tools/benchmarks/bench_fit.py [--data DIR] [--minutes 1 2.5 5] [--no-reference] [--json FILE]
+
+The ratio the speed target is stated in (docs/benchmarks.md#compiled-kernels): `dynid fit`'s wall time over the bare
+Python loop of Pinocchio's `computeJointTorqueRegressor` on the same samples, timed in the same run.
 """
 
 from __future__ import annotations
@@ -68,6 +71,21 @@ def measured(cmd: list[str]) -> tuple[float, float]:
     return wall, int(done.stderr.strip().splitlines()[-1]) / 1024
 
 
+def bare_loop_on(data: Path) -> float:
+    """The reference of the ratio, in this run: the bare Python loop of Pinocchio's `computeJointTorqueRegressor` on
+    the run's own samples (q, q̇, q̈ as the fit derives them), as bench_regressors.py times it."""
+    from bench_regressors import bare_pinocchio_loop
+
+    from dynid.robot.regressors.stack import signals_from_dataset
+
+    config = load_config("icub_right_arm")
+    model = RobotModel(config)
+    sig = signals_from_dataset(model, load_data(data, config, joint_limits=model.joint_limits), filter_outputs=True)
+    start = time.perf_counter()
+    bare_pinocchio_loop(model, sig)
+    return time.perf_counter() - start
+
+
 def simulate(out: Path, seconds: float) -> Path:
     run = out / f"identification_{seconds:g}s"
     subprocess.run([sys.executable, "-m", "dynid.cli", "simulate", "--kind", "identification", "--duration",
@@ -98,10 +116,13 @@ def main() -> None:
         wall, peak = measured([sys.executable, "-m", "dynid.cli", "fit", "--data", str(data), "--out",
                                   str(tmp / "model.json"), "--json", str(tmp / "fit.json")])
         fit = json.loads((tmp / "fit.json").read_text())
+        loop = bare_loop_on(data)
         result = {"samples": samples, "fit_s": wall, "fit_internal_s": fit["fit_time_s"], "peak_rss_mb": peak,
-                  "n_components": fit["n_components"], "rank": fit["rank"], "scaling": scaling}
+                  "n_components": fit["n_components"], "rank": fit["rank"], "scaling": scaling,
+                  "pinocchio_regressor_loop_s": loop, "ratio_to_pinocchio_loop": wall / loop}
         print(f"dynid fit, {samples} samples: {wall:.1f} s wall, peak {peak:.0f} MB (ν = {fit['n_components']}, "
-              f"rank {fit['rank']})", flush=True)
+              f"rank {fit['rank']})\n  bare Pinocchio regressor loop on the same samples: {loop:.2f} s; ratio "
+              f"{wall / loop:.2f}", flush=True)
         if not args.no_reference:
             ref = subprocess.run([sys.executable, "-c", REFERENCE, str(data), str(fit["n_components"])],
                                  capture_output=True, text=True)

@@ -20,6 +20,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from .config.robot_config import RobotConfig
+from .detect.momentum_t2 import CALIBRATION_MAX_S, observer_record
 from .detect.t2 import (ALPHA, Detector, calibrate, calibration_residuals, calibration_stride, detector_record,
                         join_calibration, run_calibration_residuals)
 from .identify.fit import CONSISTENT, Estimate, FitResult, FitSettings, fit
@@ -28,7 +29,7 @@ from .identify.plausibility import implausible
 from .identify.runs import RunRef, fit_on_cluster, worker_model, worker_run
 from .identify.statistics import Statistics
 from .identify.supply import SupplyTracking
-from .errors import InputError
+from .errors import DataError, InputError
 from .io.dataset import Dataset
 from .io.stream import Run
 from .robot.effects import Effect, augmented_residuals
@@ -176,6 +177,9 @@ class IdentifySettings:
     # Estimate each input channel's noise from the first fit's residuals (moving rows) and refit with it: the
     # weighting, the model file's noise, validation's ratios and the detector's prior then use the estimate.
     estimate_noise: bool = False
+    # Calibrate the momentum observer now, for `detect` and `export`, and keep it in the model file (its `observer`
+    # section): on the runs as fitted (window, bad rows), which is what those commands calibrate on.
+    observer: bool = True
 
     @property
     def tracking(self) -> SupplyTracking | None:
@@ -220,6 +224,15 @@ def identify(model: RobotModel, datasets: Sequence[Run], data_paths: Sequence[st
 
     With a `cluster` (dynid.cluster.DaskCluster) and each run's `refs`, the runs' statistics and calibration
     residuals are tasks on it; the model is the in-process one's (the same sums, in the same order)."""
+    # One BLAS thread: the products here are small (p × p Grams) or long and thin ((N, 3) @ (3, 3)), where OpenBLAS's
+    # threads cost more than they give on a shared 2-core machine (docs/benchmarks.md#compiled-kernels); the
+    # statistics' workers fill the cores.
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _identify(model, datasets, data_paths, settings, cluster, refs)
+
+
+def _identify(model: RobotModel, datasets: Sequence[Run], data_paths: Sequence[str | Path],
+              settings: IdentifySettings, cluster: Any, refs: Sequence[RunRef] | None) -> Identification:
     check_scale(model, datasets)
     fit_settings = settings.fit
     if fit_settings.estimator == "iv" and any(ds.meta.get("payload") for ds in datasets):
@@ -247,11 +260,24 @@ def identify(model: RobotModel, datasets: Sequence[Run], data_paths: Sequence[st
                         # only a PWM input drifts with its supply (dynid.identify.supply)
                         tracking=settings.tracking if model.config.motors_with_input("pwm") else None,
                         residual_variance=result.residual_variance[result.chosen], cluster=cluster, refs=refs)
+    if settings.observer:
+        try:
+            built.model.record["observer"] = observer_record(built.model, [_head(run) for run in datasets],
+                                                             settings.detector.alpha)
+        except DataError:  # e.g. too few contact-free samples: `detect` calibrates then, and says why, as before
+            pass
     total = time.perf_counter() - started
     built.model.record["fit_time_s"] = total
     # With --consistent off nothing keeps each body physical: say where the estimate is not (identify/plausibility.py)
     built.model.record["plausibility"] = implausible(model, result.phi)
     return Identification(built.model, result, built.detectors, fit_time, total, model)
+
+
+def _head(run: Run) -> Dataset:
+    """A run in memory, a streamed one cut to the seconds the observer's calibration reads (its first 150 s)."""
+    if isinstance(run, Dataset):
+        return run
+    return run.slice(0, min(run.n_samples, int(CALIBRATION_MAX_S / run.median_step()) + 2))
 
 
 def with_estimated_noise(model: RobotModel, result: FitResult) -> RobotModel:

@@ -8,7 +8,8 @@ from sklearn.cross_decomposition import PLSRegression
 
 from dynid.config.robot_config import load_config
 from dynid.identify.fit import FitSettings, fit
-from dynid.identify.regression import NipalsPLS, nipals_pls1, pls_path
+from dynid.identify.pls import NipalsPLS
+from dynid.identify.regression import nipals_pls1, pls_path
 from dynid.io.dataset import Dataset
 from dynid.robot.model import RobotModel
 from dynid.robot.outputs import output_channels, residuals

@@ -4,6 +4,7 @@ types, the common options, and the JSON writer."""
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import re
@@ -13,6 +14,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ..config.robot_config import DEFAULT_ROBOT
 from ..errors import EXIT_BAD_INPUT, InputError
@@ -322,3 +324,14 @@ def payloads(args: argparse.Namespace, n_data: int) -> list[dict[str, Any] | Non
         raise InputError(f"--payload is given {len(given)} times for {n_data} --data: give one per --data, in "
                          "the same order (0 for a run without payload)")
     return given
+
+
+def one_blas_thread(command):  # noqa: ANN001, ANN201 - a command function, wrapped
+    """Run a command with one BLAS thread: its products are long and thin ((N, 3) @ (3, 3) per run), where OpenBLAS's
+    threads cost more than they give (0.1 s a product on the shared 2-core machine; docs/benchmarks.md). Every command
+    that reports the same numbers (validate, detect, report) runs alike, so they agree to the last bit."""
+    @functools.wraps(command)
+    def run(args: argparse.Namespace) -> dict[str, Any]:
+        with threadpool_limits(limits=1, user_api="blas"):
+            return command(args)
+    return run

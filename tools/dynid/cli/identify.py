@@ -10,8 +10,8 @@ import numpy as np
 
 from ..config.robot_config import RobotConfig, load_config
 from ..detect.evaluation import detection
-from ..detect.momentum import DEFAULT_BANDWIDTH_HZ
-from ..detect.momentum_t2 import calibration_runs, momentum_detection
+from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S
+from ..detect.momentum_t2 import calibration_runs, momentum_detection, stored_detector
 from ..detect.t2 import ALPHA
 from ..errors import DataError, InputError
 from ..cluster import executor
@@ -28,6 +28,7 @@ from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from .commands import COMMANDS
 from .common import confidence as alpha
+from .common import one_blas_thread
 from .common import (bad_rows, expand_data, finite_float, json_arg, min_speed_arg, non_negative_float, payload_arg, payloads,
                      plural, positive_float, positive_int, robot_arg, skipped_rows, window, window_args)
 
@@ -217,6 +218,7 @@ def input_words(config: RobotConfig) -> list[str]:
     return [f"{INPUT_WORD[k]}s" for k in kinds]
 
 
+@one_blas_thread
 def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
     ev = evaluate(args.model, args.data, window=window(args), payload=args.payload, bad_rows=bad_rows(args))
     result = validation(ev, args.model, args.data)
@@ -261,6 +263,7 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
     return result
 
 
+@one_blas_thread
 def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
     calibration_given = bool(args.calibration) or (args.calibration_from, args.calibration_to) != (None, None)
     if calibration_given and args.residual == "acceleration":
@@ -285,10 +288,16 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
     momentum, skipped = None, None
     if args.residual in (None, "momentum"):
         try:
-            runs, paths = calibration_runs(ev.identified, args.calibration,
-                                           (args.calibration_from, args.calibration_to))
+            # the fit's own calibration where it matches (the model file's `observer` section), else calibrate now
+            stored = None if calibration_given or ev.identified.effects else stored_detector(
+                ev.identified, "detect", args.alpha, args.bandwidth, VELOCITY_WINDOW_S)
+            if stored is not None:
+                runs, paths = None, [d["path"] for d in ev.identified.record["data"]]
+            else:
+                runs, paths = calibration_runs(ev.identified, args.calibration,
+                                               (args.calibration_from, args.calibration_to))
             momentum = momentum_detection(ev.identified, ev.dataset, runs, args.alpha, args.bandwidth,
-                                          args.label_widening, found.side)
+                                          args.label_widening, found.side, detector=stored)
         except DataError as e:
             if args.residual == "momentum" or calibration_given:  # asked for: its failure is the command's
                 raise

@@ -10,9 +10,10 @@ from ..paper import PAPER
 from ..report.page import DEFAULT_WINDOW_S, ReportSettings, rates_text, write_report
 from .commands import COMMANDS
 from .common import confidence as alpha
-from .common import json_arg, positive_float
+from .common import json_arg, one_blas_thread, positive_float
 
 
+@one_blas_thread
 def cmd_report(args: argparse.Namespace) -> dict[str, Any]:
     result = write_report(ReportSettings(args.model, args.validation, args.contact, args.out, args.truth, args.alpha,
                                          args.n_mode, args.window, args.gaps))

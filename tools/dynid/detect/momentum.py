@@ -46,6 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from .. import kernels
 from ..errors import DataError
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
@@ -150,6 +151,23 @@ class MomentumTerms:
 
 def momentum_terms(model: RobotModel, phi: np.ndarray, q: np.ndarray, dq: np.ndarray,
                    gravity: np.ndarray | None = None) -> MomentumTerms:
+    """p and Cᵀq̇ − g of every sample: through the compiled kernel where it runs (dynid.kernels: Pinocchio's C++ on
+    the whole run), else `momentum_terms_reference`."""
+    native = kernels.native()
+    if native is None:
+        return momentum_terms_reference(model, phi, q, dq, gravity)
+    pm = identified_pinocchio(model, phi)
+    Q, V = model.pinocchio_configuration(q), model.pinocchio_velocity(dq)
+    P, B = np.empty((Q.shape[0], pm.nv)), np.empty((Q.shape[0], pm.nv))
+    native.MomentumTerms(pm.saveToString()).compute(
+        np.ascontiguousarray(Q), np.ascontiguousarray(V),
+        None if gravity is None else np.ascontiguousarray(gravity, dtype=float), P, B)
+    return MomentumTerms(P, B)
+
+
+def momentum_terms_reference(model: RobotModel, phi: np.ndarray, q: np.ndarray, dq: np.ndarray,
+                             gravity: np.ndarray | None = None) -> MomentumTerms:
+    """The Python reference of `momentum_terms`: Pinocchio's bindings one sample at a time."""
     pm = identified_pinocchio(model, phi)
     data = pm.createData()
     Q, V = model.pinocchio_configuration(q), model.pinocchio_velocity(dq)
@@ -178,6 +196,11 @@ def first_order(t: np.ndarray, x: np.ndarray, bandwidth_hz: float) -> np.ndarray
         from scipy.signal import lfilter  # uniform steps: one IIR pass
 
         return lfilter([1.0 - a[0]], [1.0, -a[0]], x, axis=0)
+    native = kernels.native()
+    if native is not None and x.ndim == 2:  # the loop below, compiled (same operations in the same order)
+        y = np.empty(x.shape)
+        native.first_order(np.ascontiguousarray(dt, dtype=float), np.ascontiguousarray(x, dtype=float), k_o, y)
+        return y
     y = np.empty_like(x)
     prev = np.zeros(x.shape[1:])
     for k in range(x.shape[0]):

@@ -132,6 +132,66 @@ def calibrate_momentum(model: RobotModel, phi: np.ndarray, record: dict | None, 
                             {"levels": QUANTILE_LEVELS.tolist(), "values": np.quantile(t2, QUANTILE_LEVELS).tolist()})
 
 
+# The calibration made once, at fit time, and kept in the model file's `observer` section (docs/formats.md): `detect`
+# and `export` read it instead of running the observer over the identification runs again. Bumped whenever the
+# calibration's procedure changes (a stored one of another version is recomputed, as a file without one is).
+OBSERVER_VERSION = 1
+
+
+def detector_from_dict(d: dict) -> MomentumDetector:
+    """The detector `MomentumDetector.as_dict` (with its `quantiles`) describes."""
+    return MomentumDetector(float(d["bandwidth_hz"]), np.asarray(d["variance"], float),
+                            np.asarray(d["tau_variance"], float), float(d["threshold"]), float(d["alpha"]),
+                            float(d["min_speed"]), float(d["band_sigmas"]),
+                            {k: float(v) for k, v in d["ft_thresholds"].items()}, int(d["calibration_samples"]),
+                            float(d["velocity_window_s"]), d.get("quantiles", {}))
+
+
+def _settings_entry(det: MomentumDetector, measured: bool) -> dict:
+    return {"alpha": det.alpha, "bandwidth_hz": det.bandwidth_hz, "velocity_window_s": det.velocity_window_s,
+            "band_sigmas": det.band_sigmas, "measured": measured,
+            "detector": {**det.as_dict(), "quantiles": det.quantiles}}
+
+
+def observer_record(identified, datasets: Sequence, monitor_alpha: float) -> dict:
+    """The model file's `observer` section: the momentum detector calibrated on the fit's own (whole, contact-free)
+    runs as `dynid detect` calibrates it by default (the data's q̇, α = 0.99) and as `dynid export` does for the
+    monitor (its causal q̇, the model's α), with the sha256 of the runs it was calibrated on."""
+    model, phi = identified.robot_model, identified.phi
+    entries = {}
+    for key, measured, alpha in (("detect", True, 0.99), ("monitor", False, monitor_alpha)):
+        det = calibrate_momentum(model, phi, identified.record, datasets, alpha, identified.min_speed,
+                                 tracking=identified.supply_tracking, measured=measured)
+        entries[key] = _settings_entry(det, measured)
+    return {"version": OBSERVER_VERSION, "data_sha256": [d.get("sha256") for d in identified.record.get("data", [])],
+            **entries}
+
+
+def stored_detector(identified, use: str, alpha: float, bandwidth_hz: float, velocity_window_s: float,
+                    band_sigmas: float = BAND_SIGMAS, min_speed: float | None = None) -> MomentumDetector | None:
+    """The detector the fit kept for `use` ("detect" or "monitor"), where it was calibrated with these settings on
+    the runs the model names, unchanged since (sha256); else None, and the caller calibrates as an older file
+    without the section needs."""
+    from ..identify.model_file import data_digest
+
+    section = identified.record.get("observer") or {}
+    entry = section.get(use)
+    if section.get("version") != OBSERVER_VERSION or not entry:
+        return None
+    if (entry["alpha"], entry["bandwidth_hz"], entry["velocity_window_s"], entry["band_sigmas"]) != (
+            alpha, bandwidth_hz, velocity_window_s, band_sigmas):
+        return None
+    if entry["detector"]["min_speed"] != (identified.min_speed if min_speed is None else min_speed):
+        return None
+    paths = [d["path"] for d in identified.record.get("data", [])]
+    stored = section.get("data_sha256") or []
+    if not paths or len(stored) != len(paths) or any(d is None for d in stored):
+        return None
+    if any(data_digest(p) != d for p, d in zip(paths, stored)):
+        return None
+    return detector_from_dict(entry["detector"])
+
+
 def _widened(t: np.ndarray, mask: np.ndarray, margin_s: float) -> np.ndarray:
     from ..io.dataset import contact_episodes
 
@@ -212,18 +272,20 @@ class MomentumDetection:
     events: list
 
 
-def momentum_detection(identified, dataset, calibration: Sequence, alpha: float,
+def momentum_detection(identified, dataset, calibration: Sequence | None, alpha: float,
                        bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ, shift_s: float = 0.0,
                        side: np.ndarray | None = None,
-                       velocity_window_s: float = VELOCITY_WINDOW_S) -> MomentumDetection:
-    """Calibrate on the contact-free `calibration` runs, then T², events and scores on `dataset`."""
+                       velocity_window_s: float = VELOCITY_WINDOW_S,
+                       detector: MomentumDetector | None = None) -> MomentumDetection:
+    """Calibrate on the contact-free `calibration` runs (or take `detector`, calibrated already: the model file's,
+    `stored_detector`), then T², events and scores on `dataset`."""
     model, phi = identified.robot_model, identified.phi
     if identified.effects:
         raise DataError(f"{identified.path}: an augmented model (named effects) has no momentum residual yet; use "
                         "--residual acceleration")
     tracking = identified.supply_tracking
-    det = calibrate_momentum(model, phi, identified.record, calibration, alpha, identified.min_speed, bandwidth_hz,
-                             tracking=tracking, velocity_window_s=velocity_window_s)
+    det = detector or calibrate_momentum(model, phi, identified.record, calibration or [], alpha, identified.min_speed,
+                                         bandwidth_hz, tracking=tracking, velocity_window_s=velocity_window_s)
     band = friction_band(model, phi, identified.record, det.band_sigmas)
     res = run_residuals(model, phi, dataset, bandwidth_hz, identified.min_speed, band, tracking, velocity_window_s)
     stat = det.statistic(res.e, res.at_rest)

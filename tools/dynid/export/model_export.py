@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from ..config.robot_config import RobotConfig
-from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, friction_band, velocity_window_samples
-from ..detect.momentum_t2 import MomentumDetector, calibrate_momentum
+from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S, friction_band, velocity_window_samples
+from ..detect.momentum_t2 import MomentumDetector, calibrate_momentum, stored_detector
 from ..detect.online import FixedLagSavitzkyGolay, OnlineCalibration, calibrate_online, estimator_for
 from ..detect.t2 import f_threshold
 from ..errors import DataError
@@ -175,8 +175,12 @@ def monitor_observer(identified: IdentifiedModel, datasets: Sequence[Dataset], a
     """The momentum detector calibrated as the monitor will run it: q̇ from its causal estimator (the monitor reads
     encoders, not the data's velocity columns), on the runs `dynid detect` would calibrate on."""
     model, phi = identified.robot_model, identified.phi
-    det = calibrate_momentum(model, phi, identified.record, datasets, alpha, min_speed, settings.bandwidth_hz,
-                             tracking=identified.supply_tracking, measured=False)
+    # the fit's own calibration where it matches (the model file's `observer` section), else calibrate now
+    det = None if settings.data else stored_detector(identified, "monitor", alpha, settings.bandwidth_hz,
+                                                     VELOCITY_WINDOW_S, min_speed=min_speed)
+    if det is None:
+        det = calibrate_momentum(model, phi, identified.record, datasets, alpha, min_speed, settings.bandwidth_hz,
+                                 tracking=identified.supply_tracking, measured=False)
     band = friction_band(model, phi, identified.record, det.band_sigmas)
     return MonitorObserver(det, velocity_window_samples(datasets[0].t, det.velocity_window_s), band)
 

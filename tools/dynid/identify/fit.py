@@ -27,6 +27,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ..errors import DataError
 from ..io.dataset import Dataset
@@ -519,4 +520,7 @@ def fit(model: RobotModel, datasets: list[Dataset], settings: FitSettings = FitS
         total = stats if total is None else total + stats
         samples += ds.n_samples
     assert total is not None
-    return fit_statistics(model, total, settings, samples, run_units([ds.meta.get("payload") for ds in datasets]))
+    # The estimators work on p × p Grams (p ≈ 100): BLAS threads cost more than they give there (2-3× slower on a
+    # shared 2-core machine, measured: docs/benchmarks.md#compiled-kernels).
+    with threadpool_limits(limits=1, user_api="blas"):
+        return fit_statistics(model, total, settings, samples, run_units([ds.meta.get("payload") for ds in datasets]))

@@ -42,6 +42,13 @@ _DETECTOR = {"variant": TEXT, "variance": ListOf(NUMBER), "threshold": NUMBER, "
 _ESTIMATOR = {"values": ListOf(NUMBER), "standard_errors": ListOf(NUMBER), "detail": Opt(MapOf(ANY)),
               "parameters": Opt(MapOf(NUMBER))}
 
+_OBSERVER = {"alpha": NUMBER, "bandwidth_hz": NUMBER, "velocity_window_s": NUMBER, "band_sigmas": NUMBER,
+             "measured": FLAG,
+             "detector": {"variance": ListOf(NUMBER), "tau_variance": ListOf(NUMBER), "threshold": NUMBER,
+                          "alpha": NUMBER, "min_speed": NUMBER, "band_sigmas": NUMBER, "bandwidth_hz": NUMBER,
+                          "ft_thresholds": MapOf(NUMBER), "calibration_samples": INTEGER,
+                          "velocity_window_s": NUMBER, "quantiles": MapOf(ANY)}}
+
 # Top-level sections: each may be absent (robot, parameters and outputs are required, and model_file.load_model says
 # so first), but one that is there must have this shape; null is refused where the readers take the section as an
 # object (`record.get("settings", {}).get(...)` fails on null), allowed where they test for it (supply_tracking).
@@ -67,6 +74,9 @@ SECTIONS: dict[str, Any] = {
     "effects": ListOf(MapOf(ANY)),
     "gaps": MapOf(ANY),
     "derivatives": MapOf(ANY),
+    # the momentum observer calibrated at fit time (dynid.detect.momentum_t2.observer_record); absent in older files
+    "observer": {"version": INTEGER, "data_sha256": ListOf(Opt(TEXT)), "detect": Opt(_OBSERVER),
+                 "monitor": Opt(_OBSERVER)},
 }
 
 

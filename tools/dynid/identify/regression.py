@@ -20,8 +20,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
-from sklearn.base import BaseEstimator, RegressorMixin
-from sklearn.utils.validation import check_is_fitted, check_X_y, validate_data
 
 # ------------------------------------------------------------------------------------------------------------
 # PLS
@@ -91,44 +89,6 @@ def column_scale(XtX: np.ndarray) -> np.ndarray:
     """Column norms (from the Gram diagonal); zero columns keep scale 1 so they stay zero."""
     d = np.sqrt(np.clip(np.diag(XtX), 0.0, None))
     return np.where(d > 0, d, 1.0)
-
-
-class NipalsPLS(RegressorMixin, BaseEstimator):
-    """Partial Least Squares regression by NIPALS, one response, no intercept.
-
-    Parameters
-    ----------
-    n_components : int
-        Number of latent variables ν.
-    scale : bool
-        Scale X's columns to unit norm before the fit (the parameters of Φ have mixed units; without it PLS
-        favours whichever columns are numerically large). Coefficients are returned in the original units.
-    center : bool
-        Centre X and y first, as scikit-learn's PLSRegression always does (then an intercept is fitted).
-        False for the stacked system, which has no intercept.
-    """
-
-    def __init__(self, n_components: int = 2, scale: bool = True, center: bool = False) -> None:
-        self.n_components = n_components
-        self.scale = scale
-        self.center = center
-
-    def fit(self, X: np.ndarray, y: np.ndarray) -> NipalsPLS:
-        X, y = check_X_y(X, y, y_numeric=True)
-        self.n_features_in_ = X.shape[1]
-        x_mean = X.mean(axis=0) if self.center else np.zeros(X.shape[1])
-        y_mean = float(y.mean()) if self.center else 0.0
-        Xc, yc = X - x_mean, y - y_mean
-        s = np.where(np.linalg.norm(Xc, axis=0) > 0, np.linalg.norm(Xc, axis=0), 1.0) if self.scale else np.ones(X.shape[1])
-        self.components_ = nipals_pls1(Xc / s, yc, self.n_components)
-        self.coef_ = self.components_.coefficients(self.components_.C.size) / s
-        self.intercept_ = y_mean - x_mean @ self.coef_
-        return self
-
-    def predict(self, X: np.ndarray) -> np.ndarray:
-        check_is_fitted(self)
-        X = validate_data(self, X, reset=False)
-        return X @ self.coef_ + self.intercept_
 
 
 def pls_path(XtX: np.ndarray, Xty: np.ndarray, max_components: int) -> np.ndarray:
@@ -203,6 +163,16 @@ def instrument_map(p: int, gain: int, phi: np.ndarray) -> np.ndarray:
     return keep @ (np.eye(p) - np.outer(phi, np.eye(p)[gain]) / phi[gain])
 
 
+def instrumented(X: np.ndarray, gain: int, phi: np.ndarray) -> np.ndarray:
+    """instrument_map(p, gain, phi)ᵀ @ X in O(p²): G is the identity but for its column `gain`, which holds
+    −φ̂_i/φ̂_g (0 at i = g), so Gᵀ X is X with row `gain` replaced by that column against X."""
+    w = -phi / phi[gain]
+    w[gain] = 0.0
+    out = X.copy()
+    out[gain] = w @ X
+    return out
+
+
 def instrumental_variables(
     cross: np.ndarray,
     cross_b: np.ndarray,
@@ -244,9 +214,8 @@ def instrumental_variables(
                 continue
             if not (np.isfinite(phi[g]) and phi[g] != 0.0):  # no predicted input to instrument this channel with
                 return beta, it - 1, np.inf
-            G = instrument_map(p, g, phi)
-            ZA += G.T @ cross[c]
-            Zb += G.T @ cross_b[c]
+            ZA += instrumented(cross[c], g, phi)  # instrument_map(p, g, phi).T @ cross[c]
+            Zb += instrumented(cross_b[c], g, phi)
         M = ZA[np.ix_(base, base)]
         s = column_scale(M.T @ M)
         sv = scipy.linalg.svdvals(M / s[None, :])

@@ -26,7 +26,7 @@ from threadpoolctl import threadpool_limits
 
 from ..progress import track
 from ..robot.model import RobotModel
-from ..robot.regressors.stack import DEFAULT_CHUNK, RowChannel, Signals, iter_stacked, row_channels
+from ..robot.regressors.stack import DEFAULT_CHUNK, RowChannel, Signals, row_channels, weighted_rows
 
 MIN_BLOCK_SAMPLES = 200
 
@@ -138,18 +138,13 @@ def accumulate_blocks(model: RobotModel, source: SignalChunks, edges: np.ndarray
     for k in track(blocks, nb, progress) if progress else blocks:
         for lo in range(edges[k], edges[k + 1], chunk):
             sig, inst, w = source(lo, min(lo + chunk, edges[k + 1]))
-            n = sig.q.shape[0]
-            A, b = next(iter_stacked(model, sig, n))
             # Channel-major, contiguous: one batched product per chunk instead of r strided ones.
-            X = np.empty((r, n, p + 1))
-            X[:, :, :p] = (A.reshape(n, r, p) * w[:, :, None]).transpose(1, 0, 2)
-            X[:, :, p] = (b.reshape(n, r) * w).T
+            X = weighted_rows(model, sig, w)  # (r, n, p+1): [W A | W b]
             rows[k - first] += (w > 0).sum(axis=0)
             gram[k - first] += np.matmul(X.transpose(0, 2, 1), X)
             if inst is not None:
                 with_instruments = True
-                Z, _ = next(iter_stacked(model, inst, n))
-                Zw = (Z.reshape(n, r, p) * w[:, :, None]).transpose(1, 0, 2)
+                Zw = weighted_rows(model, inst, w)[:, :, :p]
                 zx = np.matmul(Zw.transpose(0, 2, 1), X)  # (r, p, p+1): Zᵀ W² [A b]
                 cross[k - first] += zx[:, :, :p]
                 cross_b[k - first] += zx[:, :, p]

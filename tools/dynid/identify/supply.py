@@ -29,6 +29,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .. import kernels
 from ..errors import InputError
 from ..robot.model import RobotModel
 from ..robot.outputs import OutputChannel, output_channels
@@ -95,7 +96,7 @@ class SupplyTracker:
         # The first sample of a run is one nominal period after the (virtual) one before, as in the monitor.
         first = self.last_t if self.last_t is not None else t[0] - (float(np.median(np.diff(t))) if t.size > 1 else 0.0)
         steps = np.diff(t, prepend=first)
-        decay = np.exp(-steps / self.settings.time_constant_s).tolist()
+        decay = np.exp(-steps / self.settings.time_constant_s)
         self.last_t = float(t[-1])
         prior = self.settings.prior_input ** 2
         for o in output_channels(self.model):
@@ -103,11 +104,19 @@ class SupplyTracker:
                 continue
             state = self.states.setdefault(o.row, ChannelState())
             y = sig.inputs[o.motor]
-            predicted = (y - e[:, o.row]).tolist()
+            predicted = y - e[:, o.row]
             gate = self.settings.gate_of(o.sigma)
             num, den, r = state.num, state.den, state.ratio
             out, used = np.empty(len(predicted)), np.empty(len(predicted))
-            for k, (yk, pk, lam, mk) in enumerate(zip(y.tolist(), predicted, decay, moving[:, o.row].tolist())):
+            native = kernels.native()
+            if native is not None:  # the loop below, compiled: the same operations in the same order
+                state.num, state.den, state.ratio = native.supply_track(
+                    np.ascontiguousarray(y, dtype=float), np.ascontiguousarray(predicted, dtype=float), decay,
+                    np.ascontiguousarray(moving[:, o.row]), gate, prior, num, den, r, out, used)
+                e[:, o.row], ratio[:, o.row] = out, used
+                continue
+            for k, (yk, pk, lam, mk) in enumerate(zip(y.tolist(), predicted.tolist(), decay.tolist(),
+                                                       moving[:, o.row].tolist())):
                 residual = yk - r * pk
                 out[k], used[k] = residual, r
                 if mk and abs(residual) <= gate:

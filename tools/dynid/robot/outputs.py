@@ -20,6 +20,7 @@ import numpy as np
 from ..errors import ConfigError
 from .model import RobotModel
 from .parameters import WRENCH_FIELDS
+from .regressors import kernel as row_kernel
 from .regressors.stack import DEFAULT_CHUNK, Signals, group_row_maps, iter_stacked, motor_space, row_channels
 
 
@@ -91,6 +92,9 @@ def residuals(model: RobotModel, phi: np.ndarray, sig: Signals, chunk: int = DEF
     if np.any(g == 0) or not np.all(np.isfinite(g)):
         raise ValueError("a motor gain of Φ is zero or not finite: the model cannot predict that motor's input")
     r = len(g)
+    kernel = row_kernel.stack(model)
+    if kernel is not None:  # b − A Φ row by row in the kernel, A never stored
+        return row_kernel.row_residuals(kernel, model, sig, phi) / g
     out = np.empty((sig.q.shape[0], r))
     start = 0
     for A, b in iter_stacked(model, sig, chunk):

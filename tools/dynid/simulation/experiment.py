@@ -27,6 +27,7 @@ from ..progress import track
 from ..robot.model import RobotModel
 from ..robot.parameters import WRENCH_FIELDS
 from . import contacts as contact_model
+from . import kernel as sim_kernel
 from . import sensors
 from .actuation import Actuators
 from .controller import (BANDWIDTH_HZ, GivenTrajectory, ImpedanceController, Reference, followed_reference,
@@ -237,7 +238,18 @@ def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
     q, v = q_rest.copy(), np.zeros(nj)
     controller.reset(q)
     h = dt / settings.substeps
-    for k in track(range(n), n, f"simulating {settings.kind}"):
+    loop = sim_kernel.closed_loop(plant, cad_plant, controller, actuators, board_inputs, encoder, settings.noise)
+    if loop is not None:  # the loop below, compiled (dynid.simulation.kernel)
+        joint, force = sim_kernel.contact_forces(sites, site_index, contact_wrench)
+        unconverged, diverged = loop.run(
+            q_rest.astype(float), np.ascontiguousarray(ref.q, dtype=float), np.ascontiguousarray(ref.dq, dtype=float),
+            np.ascontiguousarray(supply, dtype=float), joint, force,
+            None if g_of_t is None else np.ascontiguousarray(g_of_t), settings.substeps, Q, V, A, U, TAU_DIRECT,
+            unsaturated, STUCK)
+        plant.unconverged_steps += unconverged
+        if diverged >= 0:
+            raise RuntimeError(f"the plant diverged at t = {t[diverged]:.3f} s")
+    for k in track(range(n), n, f"simulating {settings.kind}") if loop is None else ():
         q_measured = sensors.quantise(q, encoder) if settings.noise else q
         tau_cmd = controller.torque(q_measured, ref.q[k], ref.dq[k])
         u = controller.motor_inputs(tau_cmd)
@@ -264,7 +276,10 @@ def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
             raise RuntimeError(f"the plant diverged at t = {t[k]:.3f} s")
 
     # The sensors, from the true trajectory.
-    wrenches, at_sensor, tau_contact = plant.sensor_wrenches(Q, V, A, site_index, contact_wrench, sites, g_of_t)
+    measured = sim_kernel.sensor_wrenches(plant, Q, V, A, site_index, contact_wrench, sites, g_of_t)
+    if measured is None:  # the Python reference
+        measured = plant.sensor_wrenches(Q, V, A, site_index, contact_wrench, sites, g_of_t)
+    wrenches, at_sensor, tau_contact = measured
     ft_measured, ft_offsets, ft_saturated = {}, {}, {}
     for s in config.ft_sensors:
         offset = sensors.ft_offset_track(effects, s.name, t, truth.ft_offsets[s.name], rng_effects)

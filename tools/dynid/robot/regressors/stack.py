@@ -18,61 +18,27 @@ rows, one row per motor: ``T⁻ᵀ(Y_τ φ + Y_F φ_F) + Y_Fm φ_Fm − diag(u) 
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+import os
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
-from ...config.robot_config import ActuationGroup
 from ...errors import DataError
 from ...io.derivatives import SavitzkyGolay
 from ...progress import track
 from ..model import RobotModel
-from ..parameters import WRENCH_FIELDS
 from .friction import friction_regressor
+from . import kernel as row_kernel
 from .rigid_body import rigid_body_regressors
+from .rows import (RowChannel, Signals, group_row_maps, group_rows, motor_space,  # noqa: F401 (re-exported)
+                   row_channels)
 
 DEFAULT_CHUNK = 4096  # samples per chunk: bounds the transient memory of the per-sample regressors
 # rad/s (m/s): below this speed a friction coordinate counts as at rest. The model's friction has no static
 # part, and near zero the sign of an estimated velocity is noise (1.4e-3 rad/s RMS for 16-bit encoders at
 # 1 kHz, dynid.io.derivatives), so a row whose friction coordinates rest says nothing the model can explain.
 DEFAULT_MIN_SPEED = 0.01
-
-
-@dataclass(frozen=True)
-class RowChannel:
-    """One row of the per-sample block."""
-
-    name: str  # "ft.<sensor>.<fx..tz>" or "joint.<joint>"
-    sigma: float  # noise std in the row's units (N, Nm)
-
-
-def motor_space(group: ActuationGroup) -> bool:
-    """A coupled group with as many motors as joints is written one row per motor (see the module docstring)."""
-    return group.input != "torque" and group.coupled and group.coupling.shape[0] == group.coupling.shape[1]
-
-
-def row_channels(model: RobotModel) -> tuple[RowChannel, ...]:
-    cfg = model.config
-    rows: list[RowChannel] = []
-    for s in cfg.ft_sensors:
-        for k, c in enumerate(WRENCH_FIELDS):
-            # an estimated value (`fit --noise estimate`) overrides the configuration's
-            rows.append(RowChannel(f"ft.{s.name}.{c}", cfg.noise.per_channel.get(f"ft.{s.name}.{c}", s.noise_of(k))))
-    for g in cfg.actuation:
-        if g.input == "torque":
-            rows.extend(RowChannel(f"joint.{j}", cfg.noise.of("torque", j)) for j in g.joints)
-            continue
-        noise = np.array([cfg.noise.of(g.input, m) for m in g.motors])  # per motor (configuration's noise)
-        gains = np.array([cfg.motor(m).known_gain or cfg.motor(m).nominal_gain for m in g.motors])
-        if motor_space(g):
-            rows.extend(RowChannel(f"motor.{m}", float(s * k)) for m, s, k in zip(g.motors, noise, gains))
-            continue
-        Tt = g.coupling.T
-        for li, j in enumerate(g.joints):
-            # An input error δu on motor m is a torque error Tᵀ[j, m]·gain_m·δu on this row.
-            rows.append(RowChannel(f"joint.{j}", float(np.linalg.norm(Tt[li] * gains * noise))))
-    return tuple(rows)
 
 
 @dataclass
@@ -100,35 +66,6 @@ class StackedSystem:
         """(W A, W b) with W = diag(1/σ): every row in units of its own noise."""
         w = 1.0 / self.row_sigma
         return self.A * w[:, None], self.b * w
-
-
-@dataclass(frozen=True)
-class Signals:
-    """What the stacked rows need, by name; shapes (N, …). Missing channels raise a DataError when needed."""
-
-    q: np.ndarray
-    dq: np.ndarray
-    ddq: np.ndarray
-    inputs: Mapping[str, np.ndarray]  # motor -> PWM duty or current (whichever its group's input is)
-    tau: Mapping[str, np.ndarray]  # joint -> measured torque
-    ft: Mapping[str, np.ndarray]  # sensor -> (N, 6) measured wrench
-    # A known payload carried through the run: its inertial parameters in the layout's inertial span (its
-    # body's slot, RobotModel.payload_parameters). Its torques are known, so they move to b: that fixes the
-    # scale of a set-up with unknown gains and no F/T sensor (the loaded/unloaded runs of Gautier and Khalil).
-    payload: np.ndarray | None = None
-    # (N, 3) gravity per sample in the model root's frame, for a base that tilts (config.gravity_imu); None: the
-    # configuration's constant gravity
-    gravity: np.ndarray | None = None
-
-    def slice(self, s: slice) -> Signals:
-        return Signals(
-            self.q[s], self.dq[s], self.ddq[s],
-            {k: v[s] for k, v in self.inputs.items()},
-            {k: v[s] for k, v in self.tau.items()},
-            {k: v[s] for k, v in self.ft.items()},
-            self.payload,
-            None if self.gravity is None else self.gravity[s],
-        )
 
 
 def signals_from_dataset(model: RobotModel, dataset, filter_outputs: bool = False) -> Signals:  # dataset: Dataset
@@ -215,33 +152,6 @@ def motor_velocities(dq_joints: np.ndarray, coupling: np.ndarray) -> np.ndarray:
     return v
 
 
-def group_rows(model: RobotModel) -> Iterator[tuple[ActuationGroup, list[int], slice]]:
-    """Each actuation group with its joints' columns in q and its rows of the stacked system (after the F/T rows)."""
-    cfg = model.config
-    joint_col = {j: i for i, j in enumerate(cfg.joints)}
-    start = 6 * len(cfg.ft_sensors)
-    for g in cfg.actuation:
-        rows = slice(start, start + len(g.joints))
-        start = rows.stop
-        yield g, [joint_col[j] for j in g.joints], rows
-
-
-STRUCTURAL_RTOL = 1e-12  # an entry of an inverted coupling below this share of its largest is rounding residue
-
-
-def group_row_maps(group: ActuationGroup) -> tuple[np.ndarray, np.ndarray]:
-    """(L, C) of a group: its rows are L times its joint equations, and motor terms enter them through C.
-
-    L inverts the coupling: its structural zeros come out of LAPACK as rounding residue (1e-17) whose value, and
-    whether it is exactly zero, depends on the CPU's BLAS kernels. They are set to zero here, once, so that which
-    rows a term touches never depends on the machine (couplings have condition numbers near 10: the residue is
-    ~1e-15 of the largest entry, a true entry is ~1e-1)."""
-    if motor_space(group):
-        L = np.linalg.inv(group.coupling.T)
-        return np.where(np.abs(L) > STRUCTURAL_RTOL * np.abs(L).max(), L, 0.0), np.eye(len(group.motors))
-    return np.eye(len(group.joints)), group.coupling.T
-
-
 @dataclass(frozen=True)
 class FrictionCoordinate:
     """A coordinate with its own friction law: a joint, or a coupled motor at q̇_m = T q̇."""
@@ -286,7 +196,33 @@ def row_weights(model: RobotModel, sig: Signals, min_speed: float | None = DEFAU
 
 
 def fill_rows(model: RobotModel, sig: Signals, A: np.ndarray, b: np.ndarray) -> None:
-    """Write the rows of `sig`'s samples into A (N, r, p) and b (N, r), which the caller zeroed."""
+    """Write the rows of `sig`'s samples into A (N, r, p) and b (N, r), which the caller zeroed: through the
+    compiled kernel where it runs (every entry written), else `fill_rows_reference`."""
+    kernel = row_kernel.stack(model)
+    if kernel is not None:
+        row_kernel.fill(kernel, model, sig, A, b)
+    else:
+        fill_rows_reference(model, sig, A, b)
+
+
+def weighted_rows(model: RobotModel, sig: Signals, weights: np.ndarray) -> np.ndarray:
+    """[W A | W b] of `sig`'s samples, channel-major (r, N, p + 1): row channel c of sample k is X[c, k], its b last;
+    `weights` (N, r). What the per-channel Grams of dynid.identify.statistics are products of."""
+    r, p, n = len(row_channels(model)), len(model.layout), sig.q.shape[0]
+    X = np.empty((r, n, p + 1))
+    kernel = row_kernel.stack(model)
+    if kernel is not None:  # written in place, weighted, through strided views
+        row_kernel.fill(kernel, model, sig, X[:, :, :p].transpose(1, 0, 2), X[:, :, p].T, weights)
+        return X
+    A, b = np.zeros((n, r, p)), np.zeros((n, r))
+    fill_rows_reference(model, sig, A, b)
+    X[:, :, :p] = (A * weights[:, :, None]).transpose(1, 0, 2)
+    X[:, :, p] = (b * weights).T
+    return X
+
+
+def fill_rows_reference(model: RobotModel, sig: Signals, A: np.ndarray, b: np.ndarray) -> None:
+    """The Python reference of the rows (the compiled kernel is tested against it): A (N, r, p) and b (N, r) zeroed."""
     cfg, layout = model.config, model.layout
     inertial = layout.span("inertial")
     rb = rigid_body_regressors(model, sig.q, sig.dq, sig.ddq, sig.gravity)
@@ -325,6 +261,11 @@ def fill_rows(model: RobotModel, sig: Signals, A: np.ndarray, b: np.ndarray) -> 
                 b[:, rows] += weight * known * u
 
 
+def _allocate(model: RobotModel, shape: tuple[int, ...]) -> np.ndarray:
+    """Room for rows: uninitialised where the kernel writes every entry, else zeroed (the reference writes blocks)."""
+    return np.empty(shape) if row_kernel.stack(model) is not None else np.zeros(shape)
+
+
 def iter_stacked(model: RobotModel, sig: Signals, chunk: int = DEFAULT_CHUNK) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """Yield (A, b) a chunk of samples at a time, for estimators that accumulate instead of stacking."""
     r, p = len(row_channels(model)), len(model.layout)
@@ -332,7 +273,7 @@ def iter_stacked(model: RobotModel, sig: Signals, chunk: int = DEFAULT_CHUNK) ->
     for start in range(0, n, chunk):
         part = sig.slice(slice(start, min(start + chunk, n)))
         m = part.q.shape[0]
-        A, b = np.zeros((m, r, p)), np.zeros((m, r))
+        A, b = _allocate(model, (m, r, p)), _allocate(model, (m, r))
         fill_rows(model, part, A, b)
         yield A.reshape(m * r, p), b.reshape(m * r)
 
@@ -341,11 +282,17 @@ def build_stacked(model: RobotModel, sig: Signals, chunk: int = DEFAULT_CHUNK) -
     """The complete A Φ = b for all samples, filled in place chunk by chunk (no concatenation copies)."""
     channels = row_channels(model)
     r, p, n = len(channels), len(model.layout), sig.q.shape[0]
-    A, b = np.zeros((n, r, p)), np.zeros((n, r))
+    A, b = _allocate(model, (n, r, p)), _allocate(model, (n, r))
+    kernel = row_kernel.stack(model)
+    if kernel is not None:  # the kernel on every core, in larger chunks (the progress line still moves)
+        chunk = max(chunk, 65536)
     starts = range(0, n, chunk)
     for start in track(starts, len(starts), "building regressors"):
         s = slice(start, min(start + chunk, n))
-        fill_rows(model, sig.slice(s), A[s], b[s])
+        if kernel is not None:
+            row_kernel.fill(kernel, model, sig.slice(s), A[s], b[s], threads=os.cpu_count() or 1)
+        else:
+            fill_rows_reference(model, sig.slice(s), A[s], b[s])
     return StackedSystem(A.reshape(n * r, p), b.reshape(n * r), channels, model.layout.names)
 
 
