@@ -122,6 +122,7 @@ static int icub_setup(boards_player_t *p, const boards_conf_t *c, char err[BOARD
             }
             e->board = k;
             e->kind = type;
+            if (p->mc[k].address != address) NOT_ICUB("its node's other frames are another board address's");
             if (type == ICUB_CAN_MC_POSITION || type == ICUB_CAN_MC_PID_VAL) {
                 const int width = type == ICUB_CAN_MC_POSITION ? 32 : 16;
                 int slot;
@@ -160,6 +161,7 @@ static int icub_setup(boards_player_t *p, const boards_conf_t *c, char err[BOARD
             }
             e->board = k;
             e->kind = 10 + half;
+            if (p->strain[k].address != address) NOT_ICUB("its node's other frame is another board address's");
             if (f->dlc != ICUB_CAN_STRAIN_DLC && f->dlc != ICUB_CAN_STRAIN_DLC_SAT) NOT_ICUB("length");
             for (ch = 0; ch < 3; ++ch) { /* offset binary: (raw - 0x8000) * FS / 32768 */
                 const boards_signal_t *s = signal_at(c, f, 16 * ch);
