@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .case import Case, Maker, accepted, dynid, unreadable
+from .run import ROOT
 from .inputs import (
     DELETE,
     another_robot,
@@ -402,6 +403,27 @@ FLAGS = [
           says="must be in (0, 1]"),
     dynid("export-data-too-short", "export", "--model", "{model}", "--out", "{out}/c.dcoef", "--data", "{in}/data.csv",
           says="only 50 samples", make=csv(rows=50)),
+    dynid("export-dbc-into-missing-directory", "export", "--robot", "icub_right_arm", "--dbc", "{out}/no/bus.dbc",
+          says="does not exist"),
+    dynid("export-dbc-with-cad", "export", "--cad", "--robot", "icub_right_arm", "--dbc", "{out}/bus.dbc",
+          says="--dbc and --monitor-config go with --model MODEL or --robot CFG"),
+    dynid("export-monitor-config-onto-a-directory", "export", "--robot", "icub_right_arm", "--monitor-config", "{out}",
+          says="it exists and is not a regular file"),
+    dynid("export-lcm-url-alone", "export", "--model", "{model}", "--out", "{out}/c.dcoef", "--lcm-url", "memq://",
+          says="--lcm-url goes with --monitor-config OUT.conf"),
+    dynid("export-dbc-robot-without-bus", "export", "--robot", "{in}/robot.yaml", "--dbc", "{out}/bus.dbc",
+          says="describes no CAN bus (a 'bus' or 'can' section)",
+          make=lambda fx, d: (d / "robot.yaml").write_text("\n".join(
+              l for l in (ROOT / "tools/dynid/config/robots/icub_right_arm.yaml").read_text().split("\ncan:")[0].splitlines()))),
+    dynid("play-sink-unknown", "play", "--data", "{run}", "--sink", "pigeon:{out}/x.log",
+          says="--sink must be candump:PATH, loopback:DIR or socketcan"),
+    dynid("play-sink-into-missing-directory", "play", "--data", "{run}", "--sink", "candump:{out}/no/x.log",
+          says="does not exist"),
+    dynid("play-run-missing", "play", "--data", "{in}/gone.csv", "--sink", "candump:{out}/x.log", says="gone.csv"),
+    dynid("play-loopback-nobody-listening", "play", "--data", "{run}", "--sink", "loopback:{out}",
+          says="is rt_monitor --loopback running?"),
+    dynid("play-window-empty", "play", "--data", "{run}", "--sink", "candump:{out}/x.log", "--from", "50",
+          says="holds no sample"),
     dynid("export-print-garbage", "export", "--print", "{in}/c.dcoef", says="not a dynid coefficient file (bad magic)",
           make=raw("c.dcoef", garbage(500, 8))),
     dynid("export-print-truncated", "export", "--print", "{in}/c.dcoef", says="truncated or padded",
