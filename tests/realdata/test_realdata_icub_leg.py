@@ -60,6 +60,7 @@ def test_each_sensor_beats_cad_on_left_out_swing(fitted: Path) -> None:
 def test_the_base_at_the_sole_beats_the_pelvis(tmp_path: Path, fitted: Path) -> None:
     """With the base at root_link (the pelvis, which tilts while the robot balances) gravity is wrong by the tilt."""
     text = (Path(__file__).resolve().parents[2] / "tools/dynid/config/robots/icub_right_leg_standing.yaml").read_text()
+    text = text.split("\ncan:")[0] + "\n"  # the bus (the last section) carries the standing leg's joints
     pelvis = tmp_path / "pelvis.yaml"
     pelvis.write_text(text.replace("base_link: l_sole", "base_link: root_link")
                       .replace("joints: [l_hip_pitch, l_hip_roll, l_hip_yaw, l_knee, l_ankle_pitch, l_ankle_roll,\n", "joints: [")

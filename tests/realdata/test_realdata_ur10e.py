@@ -124,20 +124,19 @@ def test_every_command_over_every_file_without_a_traceback(tmp_path: Path) -> No
             if done.returncode == 2:
                 assert len(done.stderr.strip().splitlines()) == 1, f"{call}\n{done.stderr}"
             outcomes.append((f"{args[0]} {path.name}", done.returncode, done.stderr.strip()))
-    # The monitor's core holds exactly one F/T sensor and the UR10e has none: one line, exit 2, before any data is read.
+    # The monitor takes the UR10e (currents, no F/T sensor); the log's stamps jitter (8-16 ms), and its samples are
+    # taken one per median step, as the robot's loop sends them.
     done = run("export", "--model", str(model), "--out", str(tmp_path / "ur.dcoef"))
-    assert done.returncode == 2 and "exactly one F/T sensor" in done.stderr and len(done.stderr.splitlines()) == 1, \
-        done.stderr
-    assert not (tmp_path / "ur.dcoef").exists()
+    assert done.returncode == 0 and (tmp_path / "ur.dcoef").stat().st_size > 0, done.stderr
     assert not tracebacks, "\n".join(f"{c}\n{e}" for c, e in tracebacks)
     refused = [(o, e) for o, rc, e in outcomes if rc == 2]
     for o, e in refused:
         print(f"  exit 2: {o}: {e}")
     # The refusals a user meets: no scale, the window past the end, the reversed window, the bad payload, the count
-    # of --payload, the gap workflow's minimum length (2000 samples: 20 s of these 100 Hz logs), and a window in
-    # which the arm holds still (push_pose_1: too few moving rows).
+    # of --payload, the gap workflow's minimum length (2000 samples: 20 s of these 100 Hz logs), a window in which
+    # the arm holds still (push_pose_1: too few moving rows), and one run given twice.
     expected = ("the scale cannot be identified", "holds no sample", "must come after", "is not MASS",
-                "--payload is given", "the gap analysis needs at least", "too few samples")
+                "--payload is given", "the gap analysis needs at least", "too few samples", "is named twice")
     unexpected = [(o, e) for o, e in refused if not any(x in e for x in expected)]
     assert not unexpected, unexpected
     assert sum("the scale cannot be identified" in e for _, e in refused) == len(FILES)

@@ -125,6 +125,17 @@ def test_a_bus_and_a_can_section_together_are_refused(tmp_path: Path) -> None:
         load_config(tmp_path / "arm.yaml")
 
 
+def test_the_icub_short_form_refuses_a_motor_that_takes_no_pwm(tmp_path: Path) -> None:
+    """`can:` compiles PID_VAL frames into PWM values: a current-driven motor there would be read as a duty cycle."""
+    arm = yaml.safe_load((ROOT / "tools/dynid/config/robots/icub_right_arm.yaml").read_text())
+    arm["actuation"][0]["input"] = "current"
+    (tmp_path / "arm.yaml").write_text(yaml.safe_dump(arm, sort_keys=False))
+    with pytest.raises(ConfigError, match="whose input is current: the iCub board's PID_VAL frame carries PWM; describe "
+                                          "this bus with 'bus:' instead") as e:
+        load_config(tmp_path / "arm.yaml")
+    assert "\n" not in str(e.value)
+
+
 # ---- a robot that is no iCub, end to end -----------------------------------------------------------------
 
 

@@ -124,6 +124,9 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         elif est.detail.get("folds_dropped"):
             print(f"  {name}: the jackknife fold without time block(s) {', '.join(map(str, est.detail['folds_dropped']))} "
                   "did not settle and is left out of the standard errors")
+        if est.detail.get("exact_channels"):
+            print(f"  {name}: the model reproduces {', '.join(est.detail['exact_channels'])} to rounding (noise-free "
+                  "data?): the detector's variance there is the rounding floor, and any noise on the robot will fire it")
     inertial = set(model.layout.names[model.layout.span("inertial")])
     unexcited = [n for n in base.unidentifiable if n not in inertial]  # inertial ones: structural (CAD kept)
     if unexcited:

@@ -395,8 +395,8 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     if f.has("can") and f.has("bus"):
         raise f.fail("bus", "and 'can' both describe the bus: give one ('can' is the iCub protocol's form of 'bus')")
     sensor_names = tuple(s.name for s in sensors)
-    can_map = _validate_can(f, joints, tuple(motor_names), sensor_names)
     inputs = {m: g.input for g in groups for m in g.motors}
+    can_map = _validate_can(f, joints, inputs, sensor_names)
     if f.has("bus"):
         bus = parse_bus(f.sub("bus"), joints, inputs, sensor_names)
     elif can_map:
@@ -485,7 +485,7 @@ def _derivatives(f: Fields) -> dict[str, Any]:
     return out
 
 
-def _validate_can(f: Fields, joints: tuple[str, ...], motors: tuple[str, ...], sensors: tuple[str, ...]) -> dict:
+def _validate_can(f: Fields, joints: tuple[str, ...], motors: dict[str, str], sensors: tuple[str, ...]) -> dict:
     """The CAN mapping: buses, and which board (bus, address) carries which joint, motor or sensor."""
     if not f.has("can"):
         return {}
@@ -534,6 +534,9 @@ def _validate_can(f: Fields, joints: tuple[str, ...], motors: tuple[str, ...], s
             m = ax.raw("motor", None)
             if m is not None and m not in motors:
                 raise ax.fail("motor", f"names '{m}', which is not under 'motors'")
+            if m is not None and motors[m] != "pwm":  # PID_VAL carries a duty cycle, nothing else
+                raise ax.fail("motor", f"names '{m}', whose input is {motors[m]}: the iCub board's PID_VAL frame carries "
+                              "PWM; describe this bus with 'bus:' instead (docs/formats.md)")
             ax.number("ticks_per_degree", positive=True)
             ax.number("zero_deg", 0.0)
         b.number("pwm_full_scale", positive=True)

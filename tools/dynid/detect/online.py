@@ -27,8 +27,10 @@ from ..robot.outputs import divisors, output_channels
 from ..robot.regressors.stack import Signals, gravity_per_sample
 from .t2 import calibrate
 
-# Sample steps count as uniform within this fraction of the median step; the monitor's filter assumes them.
-UNIFORM_RTOL = 0.05
+# The monitor's filter takes one sample per period, whatever its stamp: a logged run whose stamps jitter around the
+# median step (a UR10e log at 100 Hz: 8-16 ms) is taken one sample per median step, as `dynid play --stamps nominal`
+# plays it and the robot's own loop sends it. A step this many periods long or more has samples missing in it.
+MISSING_STEPS = 1.75
 
 
 @dataclass(frozen=True)
@@ -79,10 +81,13 @@ def estimator_for(model: RobotModel, t: np.ndarray, lag: int | None, window: int
     if steps.size == 0:
         raise DataError("the data have a single sample: no sample period")
     dt = float(np.median(steps))
-    if np.max(np.abs(steps - dt)) > UNIFORM_RTOL * dt:
-        k = int(np.argmax(np.abs(steps - dt))) + 1
-        raise DataError(f"the monitor's filter needs uniform samples; step {k} is {steps[k - 1]:.6g} s against a "
-                        f"median of {dt:.6g} s")
+    if not dt > 0:
+        raise DataError(f"the data's median sample step is {dt:.6g} s: stamps must increase")
+    if np.any(steps <= 0) or np.max(steps) >= MISSING_STEPS * dt:
+        k = int(np.argmax((steps <= 0) | (steps >= MISSING_STEPS * dt))) + 1
+        raise DataError(f"the monitor's filter takes one sample per period; step {k} is {steps[k - 1]:.6g} s against a "
+                        f"median of {dt:.6g} s (samples missing or out of order there): cut the run around it "
+                        "with RUN@FROM:TO")
     options = {k: v for k, v in model.config.derivatives.items() if k in ("window_s", "polyorder")}
     sg = SavitzkyGolay(**options)
     w = window or sg.window_samples(dt)

@@ -371,16 +371,20 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
         if est is not None:
             estimates[est.name] = est
             chosen_name = est.name
-    variance = {name: channel_variance(stats, e.phi, model) for name, e in estimates.items()}
-    # A channel with rows whose residual variance is not positive: the model reproduces it exactly (or rounding made
-    # it negative), so nothing is left to calibrate its Λ on. (A channel without rows, a motor that never moves,
+    exact: list[str] = []
+    variance = {name: channel_variance(stats, e.phi, model, exact if name == chosen_name else None)
+                for name, e in estimates.items()}
+    if exact:
+        estimates[chosen_name].detail["exact_channels"] = exact
+    # A channel with rows whose residual variance is negative beyond rounding: the Gram is not one (a fault in the
+    # data's arithmetic), so nothing is left to calibrate its Λ on. (A channel without rows, a motor that never moves,
     # keeps its noise variance in the detector.)
     flat = [o.name for o, v in zip(output_channels(model), variance[chosen_name])
             if rows_used[o.row] > 0 and not (np.isfinite(v) and v > 0)]
     if flat:
-        raise DataError(f"the residual of {', '.join(flat)} has no positive variance: the model reproduces it exactly, "
-                        "so the run holds no information to calibrate the detector on (a channel that never changes, "
-                        "or a run that does not move)")
+        raise DataError(f"the residual of {', '.join(flat)} has no positive variance (beyond rounding): the "
+                        "run holds no information to calibrate the detector on (values not finite, or a run that does "
+                        "not move)")
     chosen = estimates[chosen_name]
     cad = np.abs(base.base(np.nan_to_num(model.cad_parameters(), nan=0.0)))
     identified = _determined(chosen, cad)
@@ -502,8 +506,13 @@ def _unseen(gram: np.ndarray, base: BaseParameters) -> np.ndarray:
     return np.linalg.norm(V, axis=1) > 1e-8
 
 
-def channel_variance(stats: Statistics, phi: np.ndarray, model: RobotModel) -> np.ndarray:
-    """Per output channel: the mean square of e = y − ŷ over the rows used (from the per-channel Gram)."""
+def channel_variance(stats: Statistics, phi: np.ndarray, model: RobotModel,
+                     exact: list[str] | None = None) -> np.ndarray:
+    """Per output channel: the mean square of e = y − ŷ over the rows used (from the per-channel Gram).
+
+    From the Gram, x'Gx carries a rounding error of about p·ε·|x|'|G||x|; a residual within that bound is zero to
+    rounding (noise-free data the model reproduces exactly): its variance is that bound, and its name is appended to
+    `exact`. Below zero beyond the bound, the value stays negative (the caller refuses it)."""
     x = np.append(phi, -1.0)  # weighted residual of a row: [a b]·[Φ; −1] = w (aΦ − b)
     outs = output_channels(model)
     G = stats.gram.sum(axis=0)
@@ -511,6 +520,11 @@ def channel_variance(stats: Statistics, phi: np.ndarray, model: RobotModel) -> n
     out = np.empty(len(outs))
     for o in outs:
         weighted = x @ G[o.row] @ x / n[o.row]  # mean of (aΦ − b)²/σ_row²
+        rounding = len(x) * np.finfo(float).eps * (np.abs(x) @ np.abs(G[o.row]) @ np.abs(x)) / n[o.row]
+        if abs(weighted) <= rounding and rounding > 0:
+            weighted = rounding
+            if exact is not None:
+                exact.append(o.name)
         g = phi[o.gain_index] if o.gain_index is not None else o.known_gain
         out[o.row] = weighted * stats.channels[o.row].sigma ** 2 / g**2
     return out
