@@ -53,6 +53,8 @@ bool Assembler::init(const MonitorConfig& cfg, const Coefficients& coef, std::st
     node_first_[b.nodes.size()] = at;
     // Every table written once here: its pages are touched at start-up, not in the loop.
     last_seq_.fill(-1);
+    last_seen_.fill(-1);
+    last_pair_gap_ = -1;
     t_first_.fill(-1);
     slots_.fill(Slot{});
     for (auto& v : first_values_) v.fill(0.0);
@@ -87,13 +89,17 @@ void Assembler::restart(int node) noexcept {
 bool Assembler::close(int64_t t, Sample& out) noexcept {
     out.t_us = t;
     out.stale = false;
+    out.stale_slot = -1;
     out.held = false;
     // A value that came after the previous sample's clock frames is this sample's, however late the sender sent the
     // clock; one that did not is held, and stale once it has been repeated for longer than stale_us.
     auto use = [&](int slot, double& into) {
         const Slot& s = slots_[size_t(slot)];
         into = s.value;
-        if (s.t < 0 || (s.t <= t_boundary_ && t - s.t > cfg_->stale_us) || s.saturated) out.stale = true;
+        if (s.t < 0 || (s.t <= t_boundary_ && t - s.t > cfg_->stale_us) || s.saturated) {
+            if (!out.stale) out.stale_slot = slot;
+            out.stale = true;
+        }
         return s.t;
     };
     for (int j = 0; j < n_joints_; ++j) {
@@ -128,6 +134,7 @@ bool Assembler::push(const RxFrame& f, Sample& out) noexcept {
         ++n_.bad_length;
         return false;
     }
+    last_seen_[size_t(fi)] = f.t_us;
     // Decode every signal; a frame with reserved bits set or a non-finite float is refused whole.
     double* v = scratch_.data();
     bool saturated = false, fault = false, restarted = false;
@@ -191,6 +198,7 @@ bool Assembler::push(const RxFrame& f, Sample& out) noexcept {
             return false;
         }
         if (first < 0 || f.t_us < first || f.t_us - first > cfg_->pair_us) {
+            if (first >= 0) last_pair_gap_ = f.t_us - first;
             ++unpaired;
             if (first >= 0) ++unpaired;  // the stored first half is too old: dropped as well
             first = -1;

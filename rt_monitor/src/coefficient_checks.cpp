@@ -80,6 +80,7 @@ LoadResult check_shape(const uint8_t* p, size_t n) {
     int32_t nj = 0, nb = 0, ns = 0, nm = 0, no = 0, win = 0, ne = 0;
     if (!w.count(nj, "joints", kMaxJoints, r)) return r ? not_this : r;
     w.strings(nj);
+    w.array(int64_t(nj) * 2, 8);                    // joint_limits
     if (!w.count(nb, "bodies", kMaxBodies, r)) return r ? not_this : r;
     w.strings(nb);
     w.array(nb, 4 + 1 + 4 + 8 * (3 + 9 + 3 + 10));  // parent, joint_type, joint_index, axis, rotation, translation, φ
@@ -207,6 +208,11 @@ LoadResult check_plausible(const dynid::coefficients_t& c) {
             if (!within(p[k], -P::kMaxInertia, P::kMaxInertia))
                 return implausible(body + ": its inertia", p[k], -P::kMaxInertia, P::kMaxInertia, "kg m²");
     }
+    for (int j = 0; j < c.n_joints; ++j)
+        if (!(c.joint_limits[j][0] < c.joint_limits[j][1]) || !within(c.joint_limits[j][0], -P::kMaxJointRange, P::kMaxJointRange) ||
+            !within(c.joint_limits[j][1], -P::kMaxJointRange, P::kMaxJointRange))
+            return implausible("joint " + shown_name(c.joint_names[j]) + ": its range's lower limit",
+                               c.joint_limits[j][0], -P::kMaxJointRange, c.joint_limits[j][1], "rad or m");
     const double g = std::sqrt(c.gravity[0] * c.gravity[0] + c.gravity[1] * c.gravity[1] + c.gravity[2] * c.gravity[2]);
     if (!within(g, P::kMinGravity, P::kMaxGravity)) return implausible("gravity |g|", g, P::kMinGravity, P::kMaxGravity, "m/s²");
     for (int k = 0; k < c.n_motors; ++k) {

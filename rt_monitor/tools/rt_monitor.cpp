@@ -12,7 +12,7 @@
 // clock's taken/held/lost), the heap allocations made after start-up (all, and those inside lcm_publish), the
 // samples' processing and response times (loop overruns, missed deadlines), the messages published, the resident set.
 // Exit codes: 0 done, 2 bad arguments or configuration, 1 a source or LCM failure, 3 mlockall refused, 4 SCHED_FIFO
-// refused, 5 CPU affinity refused, 10+ a refused coefficient file.
+// refused, 5 CPU affinity refused, 6 nothing evaluated or ended blind (the watchdog), 10+ a refused coefficient file.
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -30,15 +30,13 @@
 #include <string>
 #include <vector>
 
-#include "dynid/contact_event_t.hpp"
-#include "dynid/monitor_status_t.hpp"
-#include "dynid/residual_t.hpp"
 #include "rt_monitor/assembler.hpp"
 #include "rt_monitor/core.hpp"
+#include "rt_monitor/monitor_loop.hpp"
+#include "rt_monitor/publisher.hpp"
 #include "rt_monitor/rt_settings.hpp"
 #include "rt_monitor/run_stats.hpp"
-#include "rt_monitor/sample_clock.hpp"
-#include "rt_monitor/status.hpp"
+#include "rt_monitor/watchdog.hpp"
 
 using namespace dynid::rt;
 
@@ -94,8 +92,14 @@ real time (applied once before the loop; a refusal has its own exit code):
   -h, --help            print this help on stdout and exit 0
 
 exit codes: 0 done (end of input, or SIGINT/SIGTERM); 1 a source or LCM failure; 2 bad arguments or
-configuration; 3 mlockall refused; 4 SCHED_FIFO refused; 5 CPU affinity refused; 10 + the reason a
-coefficient file was refused (11 unreadable ... 20 another robot).
+configuration; 3 mlockall refused; 4 SCHED_FIFO refused; 5 CPU affinity refused; 6 the run evaluated no sample,
+or ended blind (the watchdog's reason on stderr); 10 + the reason a coefficient file was refused (11 unreadable ...
+20 another robot, 21 a value no robot has).
+
+the watchdog: frames arriving with no sample evaluated for 5 sample periods, a frame of the bus silent for a
+second, T2 not finite, the stream's sample period not the file's, a joint position out of its range, a live source
+stopped: each is a status fault (DYNID_STATUS faults, faults_seen) and one line on stderr with its reason, never a
+contact.
 )";
 
 int usage(const std::string& why) {
@@ -157,36 +161,98 @@ std::unique_ptr<lcm::LCM> open_lcm(const std::string& url, std::string& said) {
     return lc;
 }
 
-double mono_us() {
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return double(ts.tv_sec) * 1e6 + double(ts.tv_nsec) * 1e-3;
+constexpr int kExitBlind = 6;  // a run that evaluated no sample, or ended blind (the watchdog's reason)
+
+std::unique_ptr<FrameSource> open_source(const MonitorConfig& cfg, const std::string& replay, const std::string& loopback,
+                                         bool realtime, std::string& err) {
+    if (!replay.empty()) return CandumpReplay::open(replay, cfg.buses, realtime, err);
+    if (!loopback.empty()) return LoopbackSource::open(loopback, cfg.buses, err);
+    std::vector<std::vector<can_filter>> filters;  // per bus, the table's IDs on it
+    for (size_t b = 0; b < cfg.buses.size(); ++b) filters.push_back(socketcan_filters(bus_ids(cfg, int(b))));
+    return SocketCanSource::open(cfg.buses, filters, err);
 }
 
-double real_us() {  // CLOCK_REALTIME, the clock of the kernel's SO_TIMESTAMP stamps
-    timespec ts{};
-    clock_gettime(CLOCK_REALTIME, &ts);
-    return double(ts.tv_sec) * 1e6 + double(ts.tv_nsec) * 1e-3;
+// The final counters on stdout, one line (the same whatever ended the run).
+void print_exit_line(const char* how, const Assembler& a, const FrameSource& src, const MonitorLoop& loop) {
+    const ClockCounters& cc = loop.clock().counters();
+    const MonitorCounters& c = a.counters();
+    const SourceCounters& sc = src.counters();
+    const LoopCounters& n = loop.counters();
+    std::printf("rt_monitor: %s; frames %lld, samples %lld, evaluated %lld, stale %lld, events %lld, unknown id %lld, "
+                "bad length %lld, error frames %lld, unpaired strain %lld, saturated %lld, board faults %lld, "
+                "board restarts %lld, bad source input %llu, interpolated %lld, late %lld, filter restarts %lld, overruns %lld, "
+                "kernel drops %llu\n",
+                how, (long long)c.frames, (long long)c.samples, (long long)n.evaluated, (long long)c.stale_samples,
+                (long long)n.events, (long long)c.unknown_id, (long long)c.bad_length, (long long)c.error_frames,
+                (long long)c.unpaired_strain, (long long)c.saturated, (long long)c.board_faults,
+                (long long)c.board_restarts, (unsigned long long)(sc.bad_lines + sc.unknown_bus + sc.bad_size),
+                (long long)cc.interpolated, (long long)cc.late, (long long)cc.restarts, (long long)n.overruns,
+                (unsigned long long)sc.kernel_drops);
 }
 
-struct Allocations {
-    long long in_loop, in_publish;
-};
-
-// --stats-out: the JSON object (the body's keys, then the allocations and the resident set), written beside the path
-// and renamed into place.
-template <class Body>
-bool write_stats(const std::string& path, Allocations a, Body body) {
+// --stats-out: one JSON object with every counter (their identities: rt_monitor/README.md, "Accounting"), the heap
+// allocations after start-up and the resident set, written beside the path and renamed into place.
+bool write_stats(const std::string& path, const Assembler& a, const FrameSource& src, const MonitorLoop& loop,
+                 const Publisher& pub, const Core& core, bool signalled, int rc, const std::string& replay,
+                 bool realtime, const std::string& loopback) {
     long long rss = 0, hwm = 0;
     resident_kb(rss, hwm);
     const std::string tmp = path + ".tmp";
     std::FILE* f = std::fopen(tmp.c_str(), "w");
     if (!f) return false;
+    const ClockCounters& cc = loop.clock().counters();
+    const MonitorCounters& c = a.counters();
+    const SourceCounters& sc = src.counters();
+    const LoopCounters& n = loop.counters();
     JsonOut j(f);
-    body(j);
+    j.str("source", !replay.empty() ? (realtime ? "replay, real time" : "replay") : !loopback.empty() ? "loopback" : "socketcan")
+        .str("stopped", signalled ? "signal" : (rc ? "failed" : "end of input"))
+        .real("period_us", loop.period_us());
+    // frames = error + unknown_id + bad_length + strain + position + pid + status + skin + sensor (by what the bus
+    // table says each carries: strain the clock pair's halves, pid the inputs, sensor other F/T pairs)
+    j.open("frames")
+        .num("total", c.frames).num("error", c.error_frames).num("unknown_id", c.unknown_id)
+        .num("bad_length", c.bad_length).num("strain", c.strain_frames).num("position", c.position_frames)
+        .num("pid", c.pid_frames).num("status", c.status_frames).num("skin", c.skin_frames)
+        .num("sensor", c.sensor_frames).num("unpaired_sensor", c.unpaired_sensor)
+        .num("saturated", c.saturated).num("unpaired_strain", c.unpaired_strain)
+        .num("pending_strain", a.pending_strain()).num("board_faults", c.board_faults)
+        .num("board_restarts", c.board_restarts)
+        .close();
+    j.open("source_counters")
+        .num("frames", (long long)sc.frames).num("bad_lines", (long long)sc.bad_lines)
+        .num("unknown_bus", (long long)sc.unknown_bus).num("bad_size", (long long)sc.bad_size)
+        .num("kernel_drops", (long long)sc.kernel_drops)
+        .close();
+    j.open("samples")  // evaluated = taken − held + interpolated; taken = assembled − stale
+        .num("assembled", c.samples).num("stale", c.stale_samples).num("taken", cc.taken).num("held", cc.held)
+        .num("lost", cc.lost).num("interpolated", cc.interpolated).num("late", cc.late)
+        .num("evaluated", n.evaluated).num("filter_restarts", cc.restarts)
+        .close();
+    // onsets = ends + cut (open at a filter restart) + in_contact (open at the end)
+    j.open("events").num("total", n.events).num("onsets", n.onsets).num("ends", n.ends).num("cut", n.cut)
+        .num("in_contact", core.output().in_contact).close();
+    j.open("published")
+        .num("contact", pub.published(Publisher::kContact)).num("residual", pub.published(Publisher::kResidual))
+        .num("status", pub.published(Publisher::kStatus)).num("failed", pub.failed()).num("unencoded", pub.unencoded())
+        .close();
+    j.open("core_step_us").real("max", n.loop_max_us).num("over_period", n.overruns).close();
+    auto histogram = [&](const char* name, const char* from, const LatencyHistogram& h) {
+        j.open(name).str("from", from).num("samples", h.count()).real("p50", h.quantile(0.5))
+            .real("p99", h.quantile(0.99)).real("p999", h.quantile(0.999)).real("max", h.max())
+            .num("over_period", h.over());
+        j.list("worst");  // the largest, with their samples' CAN time (s)
+        for (int i = 0; i < h.worst_count(); ++i) j.item(h.worst_us(i));
+        j.close_list().list("worst_at_s");
+        for (int i = 0; i < h.worst_count(); ++i) j.item(double(h.worst_tag(i)) * 1e-6);
+        j.close_list().close();
+    };
+    const bool live = replay.empty();
+    histogram("processing_us", "return of the read of the completing frame", loop.processing());
+    histogram("response_us", live ? "kernel stamp of the completing frame" : "return of the read", loop.response());
     j.open("allocations")  // after start-up: from the first read to the last publish
-        .num("after_startup", a.in_loop).num("in_lcm_publish", a.in_publish)
-        .num("elsewhere", a.in_loop - a.in_publish).flag("malloc_counted", allocations_count_malloc())
+        .num("after_startup", n.allocations).num("in_lcm_publish", pub.allocations_in_publish())
+        .num("elsewhere", n.allocations - pub.allocations_in_publish()).flag("malloc_counted", allocations_count_malloc())
         .close();
     j.num("rss_kb", rss).num("hwm_kb", hwm);
     j.end();
@@ -274,15 +340,7 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "rt_monitor: error: %s\n", err.c_str());
         return refused;
     }
-
-    std::unique_ptr<FrameSource> src;
-    if (!replay.empty()) src = CandumpReplay::open(replay, cfg.buses, realtime, err);
-    else if (!loopback.empty()) src = LoopbackSource::open(loopback, cfg.buses, err);
-    else {
-        std::vector<std::vector<can_filter>> filters;  // per bus, the table's IDs on it
-        for (size_t b = 0; b < cfg.buses.size(); ++b) filters.push_back(socketcan_filters(bus_ids(cfg, int(b))));
-        src = SocketCanSource::open(cfg.buses, filters, err);
-    }
+    std::unique_ptr<FrameSource> src = open_source(cfg, replay, loopback, realtime, err);
     if (!src) {
         std::fprintf(stderr, "rt_monitor: error: %s\n", err.c_str());
         return replay.empty() ? 1 : 2;
@@ -290,9 +348,8 @@ int main(int argc, char** argv) {
     if (!have_url) url = cfg.lcm_url;
     // liblcm writes its own reason to fd 2 ("Error: LCM provider ... not found"): caught and put on the one line.
     std::string lcm_said;
-    std::unique_ptr<lcm::LCM> lcm_owner = open_lcm(url, lcm_said);
-    lcm::LCM& lcm = *lcm_owner;
-    if (!lcm.good()) {
+    std::unique_ptr<lcm::LCM> lcm = open_lcm(url, lcm_said);
+    if (!lcm->good()) {
         std::fprintf(stderr, "rt_monitor: error: cannot open LCM at '%s'%s%s\n", url.c_str(),
                      lcm_said.empty() ? "" : ": ", lcm_said.c_str());
         return 1;
@@ -307,268 +364,32 @@ int main(int argc, char** argv) {
     auto core = std::make_unique<Core>(*coef);
     if (!residual.empty()) core->set_residual(residual == "momentum" ? Residual::kMomentum : Residual::kAcceleration);
     core->set_detector({coef->debounce_on, coef->debounce_off, coef->hysteresis});
-    const bool momentum = core->residual() == Residual::kMomentum;
     std::fprintf(stderr, "rt_monitor: running: %s; LCM %s; %s; %s residuals\n",
                  !replay.empty() ? ("replay of " + replay + (realtime ? " in real time" : "")).c_str()
                  : !loopback.empty() ? ("loopback transport in " + loopback).c_str() : "SocketCAN",
-                 (url.empty() ? std::string("default URL") : url).c_str(),
-                 describe_rt_settings(rts).c_str(), momentum ? "momentum-observer" : "acceleration");
-    const int n_out = coef->n_outputs, n_joints = coef->n_joints;
-    dynid::contact_event_t ev;
-    ev.n_channels = n_out;
-    ev.channel.assign(coef->channel_names.begin(), coef->channel_names.begin() + n_out);
-    ev.normalized_residual.assign(size_t(n_out), 0.0);
-    ev.residual = int8_t(momentum);
-    ev.n_joints = n_joints;
-    ev.joint.assign(coef->joint_names.begin(), coef->joint_names.begin() + n_joints);
-    ev.tau_ext.assign(size_t(n_joints), 0.0);
-    ev.isolated_joint = -1;
-    const int n_sensors = coef->n_sensors;
-    ev.n_sensors = n_sensors;
-    ev.sensor.assign(coef->sensor_names.begin(), coef->sensor_names.begin() + n_sensors);
-    ev.side.assign(size_t(n_sensors), 0);
-    ev.wrench.assign(size_t(n_sensors), std::vector<double>(6, 0.0));
-    // The link each joint moves (the isolated link's name), and room for the longest: the event's size then never
-    // grows in the loop (its string keeps its capacity, the encode buffer is sized for it).
-    std::vector<std::string> link_of_joint(static_cast<size_t>(n_joints));
-    for (int i = 0; i < coef->n_bodies; ++i)
-        if (coef->joint_index[i] >= 0) link_of_joint[size_t(coef->joint_index[i])] = coef->body_names[i];
-    size_t longest_link = 0;
-    for (const auto& l : link_of_joint) longest_link = std::max(longest_link, l.size());
-    ev.isolated_link.assign(longest_link, ' ');
-    const int event_size = ev.getEncodedSize();
-    ev.isolated_link.clear();
-    dynid::residual_t res;
-    res.n_channels = n_out;
-    res.normalized_residual.assign(size_t(n_out), 0.0);
-    res.threshold = core->threshold();
-    ev.threshold = core->threshold();
-    dynid::monitor_status_t st{};
-    init_supply(*coef, st);  // sized here: the status's encoded size is fixed from here on
-    // Channel residuals are published in units of their σ; σ once here, not per message.
-    std::vector<double> sigma(static_cast<size_t>(n_out));
-    for (int i = 0; i < n_out; ++i) sigma[size_t(i)] = std::sqrt(core->variance(i));
-    // One encode buffer for every message (their sizes are fixed from here on), so a publish does not allocate
-    // the way lcm::LCM::publish(channel, const T*) does; channel names built once too.
-    enum { kContact, kResidual, kStatus };
-    const std::string channels[3] = {"DYNID_CONTACT", "DYNID_RESIDUAL", "DYNID_STATUS"};
-    std::vector<uint8_t> wire(size_t(std::max({event_size, res.getEncodedSize(), st.getEncodedSize()})));
-    // Per channel: messages published, and refused (lcm_publish's error); allocations made inside lcm_publish (the
-    // provider's: liblcm's file:// provider mallocs an event record per message, its udpm provider nothing).
-    int64_t published[3] = {}, publish_failed = 0, unencoded = 0;
-    long long publish_allocations = 0;
-    auto send = [&](int channel, const auto& msg) {
-        const int n = msg.encode(wire.data(), 0, int(wire.size()));  // < 0 only if a size changed: not sent
-        if (n <= 0) {
-            ++unencoded;
-            return;
-        }
-        const long long a0 = allocations();
-        const int rc = lcm.publish(channels[channel], wire.data(), unsigned(n));
-        publish_allocations += allocations() - a0;
-        if (rc == 0) ++published[channel];
-        else ++publish_failed;
-    };
+                 (url.empty() ? std::string("default URL") : url).c_str(), describe_rt_settings(rts).c_str(),
+                 core->residual() == Residual::kMomentum ? "momentum-observer" : "acceleration");
+    Publisher publisher(*lcm, *coef, *core);
+    auto watchdog = std::make_unique<Watchdog>();
+    watchdog->init(cfg, *coef, asm_);
+    const LoopOptions options{replay.empty(), !stats_out.empty(), latency_out.empty() ? 0 : size_t(1) << 20};
+    auto loop = std::make_unique<MonitorLoop>(cfg, *coef, *core, asm_, publisher, *watchdog, options);
+    int rc = loop->run(*src, g_stop);
 
-    const int64_t status_period_us = dynid::rt::status_period_us(cfg);
-    const double period_us = coef->sample_period * 1e6;
-    int64_t next_status = -1, evaluated = 0, onset_utime = 0, overruns = 0, events = 0;
-    double loop_sum = 0, loop_max = 0, loop_max_run = 0;
-    int64_t loop_n = 0;
-    SampleClock clock(period_us);
-    Sample s;
-    RxFrame f;
-    double rx_mono = 0;  // when the read of the current frame returned
-    std::vector<double> latency;
-    if (!latency_out.empty()) latency.reserve(size_t(1) << 20);  // allocated once: no allocation in the loop
-    // Each completed sample's processing time: from the return of the read of the frame that completed it to the end
-    // of its processing (the sample clock, the core steps it released, every message published for them); above
-    // one period, a loop overrun. Its response time (live sources): from the kernel's stamp of that frame
-    // (CLOCK_REALTIME) to the same end, the wait for the monitor to be woken and read it included; above one period,
-    // a missed deadline. A replay has no stamps of its own: its response time is its processing time.
-    const bool live = replay.empty();
-    LatencyHistogram response, processing;
-    if (!stats_out.empty()) {
-        response.init(period_us);
-        processing.init(period_us);
+    print_exit_line(g_stop ? "stopped by signal" : (rc ? "failed" : "end of input"), asm_, *src, *loop);
+    // A monitor that evaluated nothing, or ended blind, watched nothing: never exit 0 then (one line, the reason).
+    if (rc == 0 && !g_stop && (loop->counters().evaluated == 0 || (watchdog->active() & kBlind))) {
+        std::fprintf(stderr, "rt_monitor: error: %s: %s\n",
+                     loop->counters().evaluated == 0 ? "evaluated no sample" : "ended blind",
+                     *watchdog->reason(kBlind) ? watchdog->reason(kBlind) : "no sample was completed");
+        rc = kExitBlind;
     }
-    int64_t onsets = 0, ends = 0;
-    int rc = 0;
-
-    auto fill_residual = [&](std::vector<double>& r, const Output& o) {
-        for (int i = 0; i < n_out; ++i)
-            r[size_t(i)] = o.p.active[size_t(i)] ? o.p.e[i] / sigma[size_t(i)] : 0.0;
-    };
-    auto publish_status = [&](int64_t utime) {
-        const MonitorCounters& c = asm_.counters();
-        const SourceCounters& sc = src->counters();
-        st.utime = utime;
-        st.frames = c.frames;
-        st.samples = c.samples;
-        st.samples_evaluated = evaluated;
-        st.stale_samples = c.stale_samples;
-        st.unknown_id = c.unknown_id;
-        st.bad_length = c.bad_length;
-        st.error_frames = c.error_frames;
-        st.unpaired_strain = c.unpaired_strain;
-        st.saturated = c.saturated;
-        st.board_faults = c.board_faults;
-        st.board_restarts = c.board_restarts;
-        st.source_bad = int64_t(sc.bad_lines + sc.unknown_bus + sc.bad_size);
-        st.interpolated = clock.counters().interpolated;
-        st.late = clock.counters().late;
-        st.filter_restarts = clock.counters().restarts;
-        st.in_contact = core->output().in_contact;
-        st.stale = s.stale;
-        st.loop_us_mean = loop_n ? loop_sum / double(loop_n) : 0.0;
-        st.loop_us_max = loop_max;
-        st.overruns = overruns;
-        fill_supply(*coef, *core, st);
-        send(kStatus, st);
-        loop_sum = loop_max = 0;
-        loop_n = 0;
-    };
-
-    auto step = [&](const Sample& x) {
-        const double t0 = mono_us();
-        const Output& o = core->step(x.q.data(), x.y.data());
-        const double dt = mono_us() - t0;
-        loop_sum += dt;
-        loop_max = dt > loop_max ? dt : loop_max;
-        loop_max_run = dt > loop_max_run ? dt : loop_max_run;
-        ++loop_n;
-        if (dt > period_us) ++overruns;
-        ++evaluated;
-        if (o.event != Event::kNone) {
-            ++events;
-            ++(o.event == Event::kOnset ? onsets : ends);
-            if (o.event == Event::kOnset) onset_utime = x.t_us;
-            ev.utime = x.t_us;
-            ev.kind = int8_t(o.event);
-            ev.onset_utime = onset_utime;
-            ev.sample = evaluated - 1;
-            ev.t2 = o.p.t2;
-            fill_residual(ev.normalized_residual, o);
-            for (int k = 0; k < n_sensors; ++k) {
-                ev.side[size_t(k)] = int8_t(o.side[k]);
-                for (int m = 0; m < 6; ++m) ev.wrench[size_t(k)][size_t(m)] = o.wrench[k][m];
-            }
-            for (int j = 0; j < n_joints; ++j) ev.tau_ext[size_t(j)] = o.tau_ext[j];
-            ev.isolated_joint = o.joint;
-            ev.isolated_link.assign(o.joint >= 0 ? link_of_joint[size_t(o.joint)] : std::string());  // within capacity
-            send(kContact, ev);
-            if (o.event == Event::kOnset && latency.size() < latency.capacity()) latency.push_back(mono_us() - rx_mono);
-        }
-        if (o.ready && evaluated % cfg.residual_every == 0) {
-            res.utime = x.t_us;
-            res.t2 = o.p.t2;
-            fill_residual(res.normalized_residual, o);
-            send(kResidual, res);
-        }
-    };
-
-    // A filter restart (stale data, a long gap) resets the detector: a contact open then gets no end event.
-    int64_t contacts_cut = 0;
-    auto evaluate = [&](const ClockStep& c) {
-        if (c.restart) {
-            contacts_cut += core->output().in_contact;
-            core->reset();
-        }
-        step(c.sample);
-    };
-
-    const long long allocations_at_start = allocations();  // start-up is over: from here on, the loop
-    while (!g_stop) {
-        const ReadStatus r = src->read(f, 100);
-        if (r == ReadStatus::kEnd) break;
-        if (r == ReadStatus::kTimeout) continue;
-        rx_mono = mono_us();
-        if (r == ReadStatus::kError) {
-            std::fprintf(stderr, "rt_monitor: error: %s\n", src->error().c_str());
-            rc = 1;
-            break;
-        }
-        if (!asm_.push(f, s)) continue;
-        // The sample clock decides which tick each sample is (jitter or loss, from the stamps), bridges real
-        // gaps and says when the filter restarts; stale samples are not evaluated (no contact from stale data).
-        for (int i = 0, n = clock.push(s); i < n; ++i) evaluate(clock.step(i));
-        if (next_status < 0) next_status = s.t_us;
-        if (s.t_us >= next_status) {
-            publish_status(s.t_us);
-            next_status += status_period_us;
-            if (next_status <= s.t_us) next_status = s.t_us + status_period_us;
-        }
-        const double done = mono_us();
-        processing.add(done - rx_mono, s.t_us);
-        response.add(live ? real_us() - double(f.t_us) : done - rx_mono, s.t_us);
-    }
-    for (int i = 0, n = clock.flush(); i < n; ++i) evaluate(clock.step(i));
-    publish_status(s.t_us);
-    const long long allocations_in_loop = allocations() - allocations_at_start;
-    const ClockCounters& cc = clock.counters();
-    const MonitorCounters& c = asm_.counters();
-    const SourceCounters& sc = src->counters();
-    std::printf("rt_monitor: %s; frames %lld, samples %lld, evaluated %lld, stale %lld, events %lld, unknown id %lld, "
-                "bad length %lld, error frames %lld, unpaired strain %lld, saturated %lld, board faults %lld, "
-                "board restarts %lld, bad source input %llu, interpolated %lld, late %lld, filter restarts %lld, overruns %lld, "
-                "kernel drops %llu\n",
-                g_stop ? "stopped by signal" : (rc ? "failed" : "end of input"), (long long)c.frames,
-                (long long)c.samples, (long long)evaluated, (long long)c.stale_samples, (long long)events,
-                (long long)c.unknown_id, (long long)c.bad_length, (long long)c.error_frames,
-                (long long)c.unpaired_strain, (long long)c.saturated, (long long)c.board_faults,
-                (long long)c.board_restarts, (unsigned long long)(sc.bad_lines + sc.unknown_bus + sc.bad_size),
-                (long long)cc.interpolated, (long long)cc.late, (long long)cc.restarts, (long long)overruns,
-                (unsigned long long)sc.kernel_drops);
-    if (!stats_out.empty() && !write_stats(stats_out, {allocations_in_loop, publish_allocations}, [&](JsonOut& j) {
-            j.str("source", !replay.empty() ? (realtime ? "replay, real time" : "replay")
-                            : !loopback.empty() ? "loopback" : "socketcan")
-                .str("stopped", g_stop ? "signal" : (rc ? "failed" : "end of input"))
-                .real("period_us", period_us);
-            // frames = error + unknown_id + bad_length + strain + position + pid + status + skin + sensor (by what the
-            // bus table says each carries: strain the clock pair's halves, pid the inputs, sensor other F/T pairs)
-            j.open("frames")
-                .num("total", c.frames).num("error", c.error_frames).num("unknown_id", c.unknown_id)
-                .num("bad_length", c.bad_length).num("strain", c.strain_frames).num("position", c.position_frames)
-                .num("pid", c.pid_frames).num("status", c.status_frames).num("skin", c.skin_frames)
-                .num("sensor", c.sensor_frames).num("unpaired_sensor", c.unpaired_sensor)
-                .num("saturated", c.saturated).num("unpaired_strain", c.unpaired_strain)
-                .num("pending_strain", asm_.pending_strain()).num("board_faults", c.board_faults)
-                .num("board_restarts", c.board_restarts)
-                .close();
-            j.open("source_counters")
-                .num("frames", (long long)sc.frames).num("bad_lines", (long long)sc.bad_lines)
-                .num("unknown_bus", (long long)sc.unknown_bus).num("bad_size", (long long)sc.bad_size)
-                .num("kernel_drops", (long long)sc.kernel_drops)
-                .close();
-            j.open("samples")  // evaluated = taken − held + interpolated; taken = assembled − stale
-                .num("assembled", c.samples).num("stale", c.stale_samples).num("taken", cc.taken).num("held", cc.held)
-                .num("lost", cc.lost).num("interpolated", cc.interpolated).num("late", cc.late)
-                .num("evaluated", evaluated).num("filter_restarts", cc.restarts)
-                .close();
-            // onsets = ends + cut (open at a filter restart) + in_contact (open at the end)
-            j.open("events").num("total", events).num("onsets", onsets).num("ends", ends).num("cut", contacts_cut)
-                .num("in_contact", core->output().in_contact).close();
-            j.open("published")
-                .num("contact", published[kContact]).num("residual", published[kResidual])
-                .num("status", published[kStatus]).num("failed", publish_failed).num("unencoded", unencoded)
-                .close();
-            j.open("core_step_us").real("max", loop_max_run).num("over_period", overruns).close();
-            auto histogram = [&](const char* name, const char* from, const LatencyHistogram& h) {
-                j.open(name).str("from", from).num("samples", h.count()).real("p50", h.quantile(0.5))
-                    .real("p99", h.quantile(0.99)).real("p999", h.quantile(0.999)).real("max", h.max())
-                    .num("over_period", h.over());
-                j.list("worst");  // the largest, with their samples' CAN time (s)
-                for (int i = 0; i < h.worst_count(); ++i) j.item(h.worst_us(i));
-                j.close_list().list("worst_at_s");
-                for (int i = 0; i < h.worst_count(); ++i) j.item(double(h.worst_tag(i)) * 1e-6);
-                j.close_list().close();
-            };
-            histogram("processing_us", "return of the read of the completing frame", processing);
-            histogram("response_us", live ? "kernel stamp of the completing frame" : "return of the read", response);
-        })) {
+    if (!stats_out.empty() && !write_stats(stats_out, asm_, *src, *loop, publisher, *core, g_stop, rc, replay,
+                                           realtime, loopback)) {
         std::fprintf(stderr, "rt_monitor: error: cannot write %s\n", stats_out.c_str());
         rc = rc ? rc : 1;
     }
+    const std::vector<double>& latency = loop->latencies();
     if (!latency_out.empty()) {
         const std::string tmp = latency_out + ".tmp";
         bool written = false;

@@ -311,11 +311,24 @@ def lcm_foreign(fx: Fixtures, d: Path) -> None:
 
 
 def lcm_damaged(fx: Fixtures, d: Path) -> None:
-    """The session's LCM log with a byte flipped every 97 bytes: damaged messages, then damaged framing."""
-    b = bytearray(fx.lcmlog.read_bytes())
-    for i in range(100, len(b), 97):
-        b[i] ^= 0x55
-    (d / "log.lcmlog").write_bytes(bytes(b))
+    """The session's LCM log with every third message's payload damaged (its fingerprint's first byte flipped), then
+    its tail with a byte flipped every 97 bytes: damaged messages, then damaged framing."""
+    import lcm
+
+    source = lcm.EventLog(str(fx.lcmlog), "r")
+    out = lcm.EventLog(str(d / "log.lcmlog"), "w", overwrite=True)
+    for k, event in enumerate(source):
+        data = bytearray(event.data)
+        if k % 3 == 1:
+            data[0] ^= 0x55
+        out.write_event(event.timestamp, event.channel, bytes(data))
+    source.close()
+    out.close()
+    tail = bytearray(fx.lcmlog.read_bytes()[-2000:])
+    for i in range(0, len(tail), 97):
+        tail[i] ^= 0x55
+    with open(d / "log.lcmlog", "ab") as f:
+        f.write(bytes(tail))
 
 
 def many(*makers: Maker) -> Maker:

@@ -75,6 +75,8 @@ def test_all_frames_arrive_and_every_sample_is_assembled(live: dict) -> None:
     last = live["msgs"]["DYNID_STATUS"][-1]
     assert (last.frames, last.samples) == (frames, n)
     assert last.unknown_id == last.bad_length == last.error_frames == last.unpaired_strain == 0
+    # A clean run raises no watchdog fault while it runs (rt_monitor/README.md#watchdog): every status message says 0.
+    assert [m.faults for m in live["msgs"]["DYNID_STATUS"]] == [0] * len(live["msgs"]["DYNID_STATUS"])
     # The sample clock's late samples (this machine's scheduling jitter): the last status says what the exit line says.
     assert last.late == exit_counter(live["r"]["monitor"], "late")
     # A late wake-up of the paced sender can still bunch samples; they are counted, and must stay rare.

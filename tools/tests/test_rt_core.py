@@ -293,6 +293,7 @@ def _bad_files(good: bytes) -> dict[str, tuple[bytes, int, str]]:
     c.tau_map = list(c.tau_map) + [[0.0] * c.n_outputs] * extra
     c.tau_variance = list(c.tau_variance) + [1.0] * extra
     c.accel_tau_variance = list(c.accel_tau_variance) + [0.0] * extra
+    c.joint_limits = list(c.joint_limits) + [[-1.0, 1.0]] * extra
     bad["too many joints"] = (_reencode(c), EXIT_BASE + 7, f"too many joints: {nj}")
 
     c = coefficients_t.decode(payload)

@@ -48,6 +48,7 @@ struct Sample {
     std::array<double, kMaxJoints> dq{};  // the measured q̇, where the bus carries every joint's (has_dq)
     bool has_dq = false;
     bool stale = false;      // an input too old or missing, or a saturated value
+    int stale_slot = -1;     // the first stale value (index into the bus table's values), for the watchdog's reason
     bool held = false;       // a position did not come after the previous sample: it is held, not new
     uint16_t skin_mask = 0;  // patches in contact (bit = index in the configuration's patch list)
 };
@@ -62,6 +63,10 @@ public:
     const MonitorCounters& counters() const noexcept { return n_; }
     // 1 while the clock pair's first half waits for its second (the input ended or stopped between the two), else 0.
     int pending_strain() const noexcept { return cfg_ && cfg_->bus.clock_pair >= 0 && t_first_[size_t(cfg_->bus.clock_pair)] >= 0; }
+    // When frame `frame` of the table last came with its length (µs, the source's stamps; -1: never): the watchdog's.
+    int64_t last_seen(int frame) const noexcept { return last_seen_[size_t(frame)]; }
+    // The time between the last pair refused for coming apart and its first half (µs; -1: none refused yet).
+    int64_t last_pair_gap() const noexcept { return last_pair_gap_; }
 
 private:
     struct Slot {
@@ -88,6 +93,8 @@ private:
     std::array<int64_t, kMaxFrames / 2> t_first_{};
     std::array<bool, kMaxFrames / 2> first_saturated_{};
     std::array<double, kMaxSignals> scratch_{};
+    std::array<int64_t, kMaxFrames> last_seen_{};
+    int64_t last_pair_gap_ = -1;
     int64_t t_clock_ = -1, t_boundary_ = -1;  // the last clock frame; the last one before the current sample opened
     uint16_t skin_mask_ = 0;
     MonitorCounters n_;

@@ -17,7 +17,7 @@ namespace dynid::rt {
 constexpr double kMinSamplePeriod = 1e-5, kMaxSamplePeriod = 1.0;
 
 // 2: effects (Stribeck, spring) of an augmented model; 3: supply tracking; 4: the momentum observer; 5: any number
-// of F/T sensors (0 to kMaxSensors), the acceleration residuals' external-torque variance
+// of F/T sensors (0 to kMaxSensors), the acceleration residuals' external-torque variance, the joints' ranges
 constexpr uint32_t kFileVersion = 5;
 constexpr char kMagic[8] = {'D', 'Y', 'N', 'I', 'D', 'C', 'O', 'F'};
 
@@ -99,6 +99,7 @@ struct Coefficients {
     bool has_observer() const { return velocity_window > 0; }
 
     std::array<std::string, kMaxJoints> joint_names;
+    std::array<double, kMaxJoints> joint_lower{}, joint_upper{};  // each joint's range (rad, or m)
     std::array<std::string, kMaxOutputs> channel_names;
     std::array<std::string, kMaxSensors> sensor_names;
     std::array<std::string, kMaxBodies> body_names;

@@ -16,6 +16,8 @@ constexpr double kRotationTolerance = 1e-6;   // ‖RᵀR − I‖ and ‖axis�
 constexpr double kMaxMass = 1000.0;           // kg
 constexpr double kMaxFirstMoment = 1000.0;    // kg m
 constexpr double kMaxInertia = 1000.0;        // kg m²
+// A joint's range: within ±1e6 (rad, or m; what a joint without limits is exported with), lower below upper.
+constexpr double kMaxJointRange = 1e6;
 // Gravity on Earth: 9.76–9.84 m/s² at its surface.
 constexpr double kMinGravity = 9.7;
 constexpr double kMaxGravity = 9.9;
@@ -51,5 +53,27 @@ constexpr double kMinAlpha = 0.5;
 constexpr double kMaxSupplyTimeConstant = 1e4;  // s
 constexpr double kMaxIsolationSigmas = 100;
 constexpr double kMaxTauSigma = 1e4;          // Nm, the external joint torque's calibration noise
+
+// The monitor's configuration: a value signal's scale (its resolution, physical units per count) and the span its
+// counts can represent, per kind of target. A full scale of 1e-300 (every reading 0: a contact that never ends) or
+// 1e300 is refused at load; a plausible but wrong one shows at run time (a joint out of its range, an F/T reading
+// at the rails of its counts).
+constexpr double kMinPositionScale = 1e-10;   // rad (or m) per count
+constexpr double kMaxPositionScale = 0.1;
+constexpr double kMinVelocityScale = 1e-10;   // rad/s per count
+constexpr double kMaxVelocityScale = 1.0;
+constexpr double kMinForceScale = 1e-7;       // N per count
+constexpr double kMaxForceScale = 10.0;
+constexpr double kMinForceSpan = 1.0;         // N: a sensor reads at least ±0.5 N
+constexpr double kMinTorqueScale = 1e-9;      // Nm per count (F/T torques, joint torques)
+constexpr double kMaxTorqueScale = 10.0;
+constexpr double kMinTorqueSpan = 0.01;       // Nm
+constexpr double kMinDutyScale = 1e-7;        // PWM duty per count
+constexpr double kMaxDutyScale = 0.1;
+constexpr double kMinDutySpan = 1.0;          // a PWM reads at least ±0.5 duty
+constexpr double kMinCurrentScale = 1e-7;     // A per count
+constexpr double kMaxCurrentScale = 10.0;
+constexpr double kMinFloatScale = 1e-6;       // an IEEE float signal's scale (the float carries the value)
+constexpr double kMaxFloatScale = 1e6;
 
 }  // namespace dynid::rt::plausible

@@ -31,6 +31,12 @@ SIDE = {1: "distal", -1: "proximal", 0: "unknown side"}
 # when not zero.
 PROBLEMS = ("stale_samples", "unknown_id", "bad_length", "error_frames", "unpaired_strain", "saturated",
             "board_faults", "board_restarts", "source_bad", "interpolated", "late", "filter_restarts", "overruns")
+# The watchdog's fault bits (rt_monitor/include/rt_monitor/watchdog.hpp, the status message's `faults`)
+FAULTS = ("BLIND", "FRAME SILENT", "T² NOT FINITE", "SAMPLE PERIOD", "JOINT OUT OF RANGE", "SOURCE STOPPED")
+
+
+def fault_text(bits: int) -> str:
+    return ", ".join(name for k, name in enumerate(FAULTS) if bits >> k & 1)
 
 
 def supply_text(ratios: Any) -> str:
@@ -135,8 +141,10 @@ class View:
                     f"{(m.samples_evaluated - self.prev.samples_evaluated) / dt:5.0f} samples/s")
         self.prev = m
         problems = "  ".join(f"{k.replace('_', ' ')} {getattr(m, k)}" for k in PROBLEMS if getattr(m, k))
+        faults = getattr(m, "faults", 0)
         self.status_line = (f"{t:10.3f} s  {'IN CONTACT' if m.in_contact else 'no contact'}"
-                            f"{'  STALE' if m.stale else ''}  frames {m.frames}  samples {m.samples_evaluated}/"
+                            + (f"  FAULT: {fault_text(faults)}" if faults else "")
+                            + f"{'  STALE' if m.stale else ''}  frames {m.frames}  samples {m.samples_evaluated}/"
                             f"{m.samples}{rate}  loop {m.loop_us_mean:.1f}/{m.loop_us_max:.1f} µs"
                             + (f"  {supply_text(m.supply_ratio)}" if m.n_supply else "")
                             + (f"  {problems}" if problems else ""))

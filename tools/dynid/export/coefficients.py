@@ -49,6 +49,7 @@ MAX_WINDOW = capacity().window
 KIND = {"ft": 0, "input": 1, "torque": 2}
 RESIDUAL = {"acceleration": 0, "momentum": 1}
 JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
+NO_LIMIT = 1e6  # rad or m: the range written for a joint without limits (plausibility.hpp's kMaxJointRange)
 # Events, not samples: the filtered residuals are autocorrelated over the filter window, so single samples above
 # T²_α come in bursts. On the default simulated runs, 5 samples gave an onset every 3 s on contact-free data;
 # 10 gave none there and caught 21 of the contact run's 28 episodes (rt_monitor/README.md).
@@ -211,6 +212,7 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDete
 
     joints = list(cfg.joints)
     c.n_joints, c.joint_names = len(joints), joints
+    c.joint_limits = [[max(lo, -NO_LIMIT), min(hi, NO_LIMIT)] for lo, hi in (model.joint_limits[j] for j in joints)]
     c.n_bodies = len(model.bodies)
     c.body_names = [b.name for b in model.bodies]
     c.parent, c.joint_type, c.joint_index, c.axis, c.rotation, c.translation, c.inertial = [], [], [], [], [], [], []

@@ -14,11 +14,11 @@ import struct
 
 class coefficients_t(object):
 
-    __slots__ = ["robot_name", "config_digest", "dynid_version", "model_sha256", "data_sha256", "estimator", "n_joints", "joint_names", "n_bodies", "body_names", "parent", "joint_type", "joint_index", "axis", "rotation", "translation", "inertial", "gravity", "n_sensors", "sensor_names", "sensor_body", "n_motors", "motor_names", "motor_velocity", "motor_friction_on", "motor_friction", "joint_friction", "n_outputs", "channel_names", "channel_kind", "ft_offset", "row_map", "channel_motor", "divisor", "residual_variance", "gate_joints", "gate_motors", "min_speed", "alpha", "threshold", "ft_threshold", "accel_tau_variance", "calibration_samples", "debounce_on", "debounce_off", "hysteresis", "sample_period", "window", "order", "lag", "filter", "n_effects", "effect_kind", "effect_joint", "effect_param", "supply_time_constant", "supply_prior", "supply_gate", "residual", "observer_bandwidth", "velocity_window", "velocity_filter", "joint_band", "motor_band", "observer_variance", "observer_threshold", "observer_rest_threshold", "observer_ft_threshold", "tau_map", "tau_variance", "isolation_sigmas"]
+    __slots__ = ["robot_name", "config_digest", "dynid_version", "model_sha256", "data_sha256", "estimator", "n_joints", "joint_names", "joint_limits", "n_bodies", "body_names", "parent", "joint_type", "joint_index", "axis", "rotation", "translation", "inertial", "gravity", "n_sensors", "sensor_names", "sensor_body", "n_motors", "motor_names", "motor_velocity", "motor_friction_on", "motor_friction", "joint_friction", "n_outputs", "channel_names", "channel_kind", "ft_offset", "row_map", "channel_motor", "divisor", "residual_variance", "gate_joints", "gate_motors", "min_speed", "alpha", "threshold", "ft_threshold", "accel_tau_variance", "calibration_samples", "debounce_on", "debounce_off", "hysteresis", "sample_period", "window", "order", "lag", "filter", "n_effects", "effect_kind", "effect_joint", "effect_param", "supply_time_constant", "supply_prior", "supply_gate", "residual", "observer_bandwidth", "velocity_window", "velocity_filter", "joint_band", "motor_band", "observer_variance", "observer_threshold", "observer_rest_threshold", "observer_ft_threshold", "tau_map", "tau_variance", "isolation_sigmas"]
 
-    __typenames__ = ["string", "string", "string", "string", "string", "string", "int32_t", "string", "int32_t", "string", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "double", "int32_t", "string", "int32_t", "int32_t", "string", "double", "int8_t", "double", "double", "int32_t", "string", "int8_t", "double", "double", "int32_t", "double", "double", "int64_t", "int64_t", "double", "double", "double", "double", "double", "int32_t", "int32_t", "int32_t", "double", "double", "int32_t", "int32_t", "int32_t", "double", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "int8_t", "double", "int32_t", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double"]
+    __typenames__ = ["string", "string", "string", "string", "string", "string", "int32_t", "string", "double", "int32_t", "string", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "double", "int32_t", "string", "int32_t", "int32_t", "string", "double", "int8_t", "double", "double", "int32_t", "string", "int8_t", "double", "double", "int32_t", "double", "double", "int64_t", "int64_t", "double", "double", "double", "double", "double", "int32_t", "int32_t", "int32_t", "double", "double", "int32_t", "int32_t", "int32_t", "double", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "int8_t", "double", "int32_t", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double"]
 
-    __dimensions__ = [None, None, None, None, None, None, None, ["n_joints"], None, ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies", 3], ["n_bodies", 9], ["n_bodies", 3], ["n_bodies", 10], [3], None, ["n_sensors"], ["n_sensors"], None, ["n_motors"], ["n_motors", "n_joints"], ["n_motors"], ["n_motors", 4], ["n_joints", 4], None, ["n_outputs"], ["n_outputs"], ["n_sensors", 6], ["n_outputs", "n_joints"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], None, None, None, ["n_sensors"], ["n_joints"], None, None, None, None, None, None, None, None, [3, "window"], None, ["n_effects"], ["n_effects"], ["n_effects", 3], None, None, ["n_outputs"], None, None, None, ["velocity_window"], ["n_joints", 2], ["n_motors", 2], ["n_outputs"], None, None, ["n_sensors"], ["n_joints", "n_outputs"], ["n_joints"], None]
+    __dimensions__ = [None, None, None, None, None, None, None, ["n_joints"], ["n_joints", 2], None, ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies", 3], ["n_bodies", 9], ["n_bodies", 3], ["n_bodies", 10], [3], None, ["n_sensors"], ["n_sensors"], None, ["n_motors"], ["n_motors", "n_joints"], ["n_motors"], ["n_motors", 4], ["n_joints", 4], None, ["n_outputs"], ["n_outputs"], ["n_sensors", 6], ["n_outputs", "n_joints"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], None, None, None, ["n_sensors"], ["n_joints"], None, None, None, None, None, None, None, None, [3, "window"], None, ["n_effects"], ["n_effects"], ["n_effects", 3], None, None, ["n_outputs"], None, None, None, ["velocity_window"], ["n_joints", 2], ["n_motors", 2], ["n_outputs"], None, None, ["n_sensors"], ["n_joints", "n_outputs"], ["n_joints"], None]
 
     def __init__(self):
         self.robot_name = ""
@@ -63,6 +63,13 @@ class coefficients_t(object):
 
         self.joint_names = []
         """ LCM Type: string[n_joints] """
+        self.joint_limits = []
+        """
+        each joint's range (rad, or m), lower then upper, from the URDF; ±1e6 for a joint without one. The monitor
+        raises a status fault, not a contact, when a decoded position leaves it by a margin (a wrong encoder scale)
+        LCM Type: double[n_joints][2]
+        """
+
         self.n_bodies = 0
         """ LCM Type: int32_t """
         self.body_names = []
@@ -415,6 +422,8 @@ class coefficients_t(object):
             buf.write(struct.pack('>I', len(__joint_names_encoded)+1))
             buf.write(__joint_names_encoded)
             buf.write(b"\0")
+        for i0 in range(self.n_joints):
+            buf.write(struct.pack('>2d', *self.joint_limits[i0][:2]))
         buf.write(struct.pack(">i", self.n_bodies))
         for i0 in range(self.n_bodies):
             __body_names_encoded = self.body_names[i0].encode('utf-8')
@@ -526,6 +535,9 @@ class coefficients_t(object):
         for i0 in range(self.n_joints):
             __joint_names_len = struct.unpack('>I', buf.read(4))[0]
             self.joint_names.append(buf.read(__joint_names_len)[:-1].decode('utf-8', 'replace'))
+        self.joint_limits = []
+        for i0 in range(self.n_joints):
+            self.joint_limits.append(struct.unpack('>2d', buf.read(16)))
         self.n_bodies = struct.unpack(">i", buf.read(4))[0]
         self.body_names = []
         for i0 in range(self.n_bodies):
@@ -621,7 +633,7 @@ class coefficients_t(object):
     @staticmethod
     def _get_hash_recursive(parents):
         if coefficients_t in parents: return 0
-        tmphash = (0x9935f0eb2df21e54) & 0xffffffffffffffff
+        tmphash = (0x3e0fb7fd68a0a09b) & 0xffffffffffffffff
         tmphash  = (((tmphash<<1)&0xffffffffffffffff) + (tmphash>>63)) & 0xffffffffffffffff
         return tmphash
     _packed_fingerprint = None

@@ -74,6 +74,11 @@ def check_plausible(c: coefficients_t) -> None:
         for v in p[4:10]:
             if not _within(v, -P["MaxInertia"], P["MaxInertia"]):
                 _refuse(f"{body}: its inertia", v, -P["MaxInertia"], P["MaxInertia"], "kg m²")
+    for j in range(c.n_joints):
+        lo, hi = c.joint_limits[j]
+        if not (lo < hi and _within(lo, -P["MaxJointRange"], P["MaxJointRange"])
+                and _within(hi, -P["MaxJointRange"], P["MaxJointRange"])):
+            _refuse(f"joint {c.joint_names[j]}: its range's lower limit", lo, -P["MaxJointRange"], hi, "rad or m")
     g = math.sqrt(sum(x * x for x in c.gravity))
     if not _within(g, P["MinGravity"], P["MaxGravity"]):
         _refuse("gravity |g|", g, P["MinGravity"], P["MaxGravity"], "m/s²")

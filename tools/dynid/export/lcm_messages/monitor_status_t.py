@@ -10,11 +10,11 @@ import struct
 class monitor_status_t(object):
     """ rt_monitor's health at 10 Hz on channel DYNID_STATUS; every counter counts from the start of the run. """
 
-    __slots__ = ["utime", "frames", "samples", "samples_evaluated", "stale_samples", "unknown_id", "bad_length", "error_frames", "unpaired_strain", "saturated", "board_faults", "board_restarts", "source_bad", "interpolated", "late", "filter_restarts", "in_contact", "stale", "loop_us_mean", "loop_us_max", "overruns", "n_supply", "supply_ratio"]
+    __slots__ = ["utime", "frames", "samples", "samples_evaluated", "stale_samples", "unknown_id", "bad_length", "error_frames", "unpaired_strain", "saturated", "board_faults", "board_restarts", "source_bad", "interpolated", "late", "filter_restarts", "in_contact", "stale", "loop_us_mean", "loop_us_max", "overruns", "faults", "faults_seen", "n_supply", "supply_ratio"]
 
-    __typenames__ = ["int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int8_t", "int8_t", "double", "double", "int64_t", "int16_t", "double"]
+    __typenames__ = ["int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int64_t", "int8_t", "int8_t", "double", "double", "int64_t", "int32_t", "int32_t", "int16_t", "double"]
 
-    __dimensions__ = [None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, ["n_supply"]]
+    __dimensions__ = [None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, ["n_supply"]]
 
     def __init__(self):
         self.utime = 0
@@ -135,9 +135,19 @@ class monitor_status_t(object):
 
         self.overruns = 0
         """ LCM Type: int64_t """
-        self.n_supply = 0
+        self.faults = 0
         """
         core steps longer than the sample period
+        The watchdog (rt_monitor/include/rt_monitor/watchdog.hpp): faults now active and every one seen since the start,
+        bit 0 blind (frames arrive, no sample evaluated), 1 a frame of the bus silent, 2 T² not finite, 3 the stream's
+        sample period is not the file's, 4 a joint position out of its range, 5 the source stopped. Never a contact.
+        LCM Type: int32_t
+        """
+
+        self.faults_seen = 0
+        """ LCM Type: int32_t """
+        self.n_supply = 0
+        """
         Supply ratio r = measured / predicted input (dynid.identify.supply) of each motor-input channel, in the coefficient
         file's channel order (its channels of kind 1, the motors' inputs); 1 while untracked or with tracking off.
         LCM Type: int16_t
@@ -153,7 +163,7 @@ class monitor_status_t(object):
         return buf.getvalue()
 
     def _encode_one(self, buf):
-        buf.write(struct.pack(">qqqqqqqqqqqqqqqqbbddqh", self.utime, self.frames, self.samples, self.samples_evaluated, self.stale_samples, self.unknown_id, self.bad_length, self.error_frames, self.unpaired_strain, self.saturated, self.board_faults, self.board_restarts, self.source_bad, self.interpolated, self.late, self.filter_restarts, self.in_contact, self.stale, self.loop_us_mean, self.loop_us_max, self.overruns, self.n_supply))
+        buf.write(struct.pack(">qqqqqqqqqqqqqqqqbbddqiih", self.utime, self.frames, self.samples, self.samples_evaluated, self.stale_samples, self.unknown_id, self.bad_length, self.error_frames, self.unpaired_strain, self.saturated, self.board_faults, self.board_restarts, self.source_bad, self.interpolated, self.late, self.filter_restarts, self.in_contact, self.stale, self.loop_us_mean, self.loop_us_max, self.overruns, self.faults, self.faults_seen, self.n_supply))
         buf.write(struct.pack('>%dd' % self.n_supply, *self.supply_ratio[:self.n_supply]))
 
     @staticmethod
@@ -169,14 +179,14 @@ class monitor_status_t(object):
     @staticmethod
     def _decode_one(buf):
         self = monitor_status_t()
-        self.utime, self.frames, self.samples, self.samples_evaluated, self.stale_samples, self.unknown_id, self.bad_length, self.error_frames, self.unpaired_strain, self.saturated, self.board_faults, self.board_restarts, self.source_bad, self.interpolated, self.late, self.filter_restarts, self.in_contact, self.stale, self.loop_us_mean, self.loop_us_max, self.overruns, self.n_supply = struct.unpack(">qqqqqqqqqqqqqqqqbbddqh", buf.read(156))
+        self.utime, self.frames, self.samples, self.samples_evaluated, self.stale_samples, self.unknown_id, self.bad_length, self.error_frames, self.unpaired_strain, self.saturated, self.board_faults, self.board_restarts, self.source_bad, self.interpolated, self.late, self.filter_restarts, self.in_contact, self.stale, self.loop_us_mean, self.loop_us_max, self.overruns, self.faults, self.faults_seen, self.n_supply = struct.unpack(">qqqqqqqqqqqqqqqqbbddqiih", buf.read(164))
         self.supply_ratio = struct.unpack('>%dd' % self.n_supply, buf.read(self.n_supply * 8))
         return self
 
     @staticmethod
     def _get_hash_recursive(parents):
         if monitor_status_t in parents: return 0
-        tmphash = (0xcf6fb865aa657bfe) & 0xffffffffffffffff
+        tmphash = (0x22becbbef5105d13) & 0xffffffffffffffff
         tmphash  = (((tmphash<<1)&0xffffffffffffffff) + (tmphash>>63)) & 0xffffffffffffffff
         return tmphash
     _packed_fingerprint = None

@@ -1,0 +1,94 @@
+// The monitor's watchdog: a safety monitor never runs blind in silence. It watches what comes in and what the core
+// makes of it, and raises a fault, with the reason it can tell, when:
+//   kBlind      frames arrive but for `blind_us` (a few sample periods) no sample has been evaluated nor a fresh one
+//               assembled (one the sample clock holds for a late sender is not blindness): unpaired
+//               halves (pair_us below their spacing), no clock frame, every sample stale (which value), all held;
+//   kSilent     a frame of the robot's bus never came within a second of the first frame, or stopped for a second;
+//   kNotFinite  T² is not a number (a model or a scale that overflows);
+//   kPeriod     the stream's sample spacing is not the coefficient file's sample period (±20 %);
+//   kJointRange a decoded joint position left its range by `range_margin` (a wrong encoder scale or zero);
+//   kStopped    a live source delivered nothing for a second after frames flowed.
+// Faults are a bitmask on the status message (`faults`, and `faults_seen` since the start); each one raised is one
+// line on stderr with its reason, written once from a buffer sized at start-up (no allocation in the loop).
+// Nothing here decides a contact: a fault is never an event.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include "rt_monitor/assembler.hpp"
+#include "rt_monitor/coefficients.hpp"
+#include "rt_monitor/core.hpp"
+#include "rt_monitor/monitor_config.hpp"
+
+namespace dynid::rt {
+
+enum Fault : uint32_t {
+    kBlind = 1u << 0,
+    kSilent = 1u << 1,
+    kNotFinite = 1u << 2,
+    kPeriod = 1u << 3,
+    kJointRange = 1u << 4,
+    kStopped = 1u << 5,
+};
+constexpr int kFaultKinds = 6;
+
+struct WatchdogSettings {
+    double blind_periods = 5;      // sample periods without an evaluated sample while frames arrive
+    int64_t silent_us = 1000000;   // a frame unseen this long (from the first frame) is silent
+    double period_tolerance = 0.2; // relative: the stream's median sample spacing against the file's period
+    int period_samples = 64;       // samples the spacing is measured on, from the start
+    double range_margin = 0.2;     // rad (or m) beyond a joint's range before a position is implausible
+    int range_samples = 10;        // consecutive samples out of range before the fault
+};
+
+class Watchdog {
+public:
+    // Sized and filled once, at start-up (it keeps references: all three must outlive it).
+    void init(const MonitorConfig& cfg, const Coefficients& coef, const Assembler& assembler,
+              const WatchdogSettings& settings = {}) noexcept;
+    // A frame was read (CAN time µs).
+    void frame(int64_t t_us) noexcept { last_frame_ = t_us; first_frame_ = first_frame_ < 0 ? t_us : first_frame_; }
+    // A sample was assembled (evaluated or not).
+    void sample(const Sample& s) noexcept;
+    // The core evaluated a sample at CAN time t_us.
+    void evaluated(const Output& o, int64_t t_us) noexcept;
+    // The blind check at CAN time now_us (after every frame: cheap); the faults active. Newly raised ones are written
+    // to stderr.
+    uint32_t check(int64_t now_us) noexcept;
+    // The bus's frames, silent or stopped (every frame of the table: at the status rate).
+    uint32_t check_bus(int64_t now_us) noexcept;
+    // A live source has been silent for `idle_us` of wall time after frames flowed.
+    void idle(int64_t idle_us) noexcept;
+    uint32_t active() const noexcept { return active_; }
+    uint32_t seen() const noexcept { return seen_; }
+    // The reason of a fault (its last raise), "" if it never rose.
+    const char* reason(Fault f) const noexcept;
+
+private:
+    void raise(Fault f) noexcept;
+    void clear(Fault f) noexcept { active_ &= ~uint32_t(f); }
+    char* text(Fault f) noexcept;
+    void blind_reason(int64_t now_us) noexcept;
+
+    const MonitorConfig* cfg_ = nullptr;
+    const Coefficients* coef_ = nullptr;
+    const Assembler* asm_ = nullptr;
+    WatchdogSettings set_;
+    int64_t blind_us_ = 0;
+    uint32_t active_ = 0, seen_ = 0;
+    int64_t first_frame_ = -1, last_frame_ = -1, last_evaluated_ = -1, last_good_ = -1;
+    int64_t unpaired_at_eval_ = 0, clock_at_eval_ = 0, samples_at_eval_ = 0;
+    int last_stale_slot_ = -1;
+    // the stream's sample spacing: the first stamps' differences
+    std::array<int64_t, 256> spacing_{};
+    int n_spacing_ = 0;
+    int64_t last_sample_t_ = -1;
+    bool period_checked_ = false;
+    int out_of_range_ = 0;
+    int range_joint_ = -1;
+    double range_value_ = 0;
+    std::array<std::array<char, 256>, kFaultKinds> reasons_{};
+};
+
+}  // namespace dynid::rt

@@ -1,0 +1,157 @@
+"""The monitor never runs blind in silence (issue 31): each case used to evaluate nothing, or alarm from wrong data,
+with exit 0 and no word. Now the watchdog raises a status fault (DYNID_STATUS `faults`) with one line on stderr
+naming the reason, a replay that evaluated nothing or ended blind exits 6, and an implausible scale is refused at
+load (exit 2). A live run whose strain board goes silent is a named fault within 100 ms.
+"""
+
+from __future__ import annotations
+
+import re
+import signal
+import socket
+import struct
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+
+from dynid.config.robot_config import load_config
+from dynid.export.monitor_config import monitor_config_text
+from dynid.export.monitor_log import read_lcm_log
+from dynid.io.candump import write_candump
+from dynid.io.load import load_data
+
+ROOT = Path(__file__).resolve().parents[2]
+RT_MONITOR = ROOT / "build" / "rt_monitor" / "rt_monitor"
+BLIND, SILENT, NOT_FINITE, PERIOD, JOINT_RANGE, STOPPED = 1, 2, 4, 8, 16, 32
+EXIT_BLIND = 6
+
+
+@pytest.fixture(scope="module")
+def bench(default_experiments: dict, exported: Path, tmp_path_factory: pytest.TempPathFactory) -> dict:
+    """10 s of the default contact run as a candump log, the exported default model, the bundled configuration."""
+    root = tmp_path_factory.mktemp("watchdog")
+    config = load_config("icub_right_arm")
+    data = load_data(default_experiments["contact"], config).slice(0, 10_000)
+    log = root / "run.log"
+    write_candump(data, config, log)
+    return {"root": root, "config": config, "coef": exported, "log": log}
+
+
+def replay(bench: dict, name: str, change=lambda text: text, coef: Path | None = None, log: Path | None = None):
+    """rt_monitor --replay of the run with the configuration text changed: (exit, stderr, LCM messages)."""
+    lcm = bench["root"] / f"{name}.lcmlog"
+    conf = bench["root"] / f"{name}.conf"
+    conf.write_text(change(monitor_config_text(bench["config"], f"file://{lcm}?mode=w")))
+    done = subprocess.run([str(RT_MONITOR), "--model", str(coef or bench["coef"]), "--config", str(conf), "--replay",
+                           str(log or bench["log"])], capture_output=True, text=True, timeout=300)
+    return done.returncode, done.stderr, (read_lcm_log(lcm) if lcm.exists() else {})
+
+
+def faults(msgs: dict) -> int:
+    seen = 0
+    for m in msgs.get("DYNID_STATUS", []):
+        seen |= m.faults_seen
+    return seen
+
+
+def test_a_clean_replay_raises_no_fault(bench: dict) -> None:
+    code, err, msgs = replay(bench, "clean")
+    assert code == 0 and "fault:" not in err, err
+    assert faults(msgs) == 0 and msgs["DYNID_STATUS"][-1].samples_evaluated == 10_000
+
+
+def test_pair_us_below_the_halves_spacing_is_blind_and_says_why(bench: dict) -> None:
+    """`pair_us 1`, inside its documented range, pairs no strain halves: zero samples evaluated, once with exit 0."""
+    code, err, msgs = replay(bench, "pair", lambda t: t.replace("pair_us 500", "pair_us 1"))
+    assert code == EXIT_BLIND, err
+    assert re.search(r"fault: blind: no sample evaluated for [\d.]+ ms: the clock pair's halves are not paired "
+                     r"\(pair_us 1 µs; the last pair refused came \d+ µs apart\)", err), err
+    assert "rt_monitor: error: evaluated no sample" in err
+    assert faults(msgs) & BLIND
+
+
+@pytest.mark.parametrize("frame, new_id, words", [
+    ("STRAIN_TORQUE_13", "0x30B", "no clock frame STRAIN_TORQUE_13 (0x30B on can0)"),  # the strain board moved
+    ("MC_POSITION_4", "0x101", "every sample is stale (q.r_wrist_yaw not renewed"),     # an axis's address changed
+])
+def test_a_wrong_address_is_blind_and_named(bench: dict, frame: str, new_id: str, words: str) -> None:
+    code, err, msgs = replay(bench, frame, lambda t: re.sub(rf"^frame {frame} (\S+) 0x[0-9A-Fa-f]+ ",
+                                                            rf"frame {frame} \1 {new_id} ", t, flags=re.M))
+    assert code == EXIT_BLIND and words in err, err
+    assert "fault: silent frame: frame " in err, err  # its own frame never comes
+    assert faults(msgs) & BLIND and faults(msgs) & SILENT
+
+
+@pytest.mark.parametrize("target, scale", [("ft.r_arm_ft.fx", "1e-300"), ("pwm.m0", "1e-300"), ("q.r_elbow", "1e+300")])
+def test_an_implausible_scale_is_refused_at_load(bench: dict, target: str, scale: str) -> None:
+    def change(text: str) -> str:
+        return re.sub(rf"^(signal \S+ \d+ \d+ \w+ \w) \S+ (\S+ {re.escape(target)})$", rf"\1 {scale} \2", text, flags=re.M)
+    code, err, msgs = replay(bench, f"scale-{target}", change)
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"'{target}': scale {scale.replace('+', '')}" in err.replace("e+", "e") and "outside the plausible" in err, err
+
+
+def test_a_wrong_encoder_scale_is_a_joint_range_fault_not_silence(bench: dict) -> None:
+    """Ticks per degree off by 100 (in range): positions far outside the joint's limits, named on status and stderr."""
+    def change(text: str) -> str:
+        return re.sub(r"^(signal MC_POSITION_2 32 32 le s) (\S+) (0.0 q.r_elbow)$",
+                      lambda m: f"{m[1]} {float(m[2]) * 100!r} {m[3]}", text, flags=re.M)
+    code, err, msgs = replay(bench, "ticks", change)
+    assert "fault: joint out of range: r_elbow at" in err and "a wrong encoder scale or zero" in err, err
+    assert faults(msgs) & JOINT_RANGE
+
+
+def test_a_file_for_another_sample_rate_is_a_period_fault(bench: dict, tmp_path: Path) -> None:
+    """A coefficient file of 500 Hz against the arm's 1 kHz stream: its filter and thresholds are for another rate."""
+    coef = tmp_path / "cad500.dcoef"
+    done = subprocess.run([str(ROOT / ".venv" / "bin" / "dynid"), "export", "--cad", "--rate", "500", "--out", str(coef)],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    code, err, msgs = replay(bench, "period", coef=coef)
+    assert "fault: sample period: the samples come 1000 µs apart, the coefficient file's period is 2000 µs" in err, err
+    assert faults(msgs) & PERIOD
+
+
+def test_a_strain_board_gone_silent_live_is_a_fault_within_100_ms(bench: dict, tmp_path: Path) -> None:
+    """Frames paced in real time over the loopback transport; after 1 s the strain board stops, the others go on."""
+    lcm = tmp_path / "live.lcmlog"
+    conf = tmp_path / "live.conf"
+    conf.write_text(monitor_config_text(bench["config"], f"file://{lcm}?mode=w"))
+    proc = subprocess.Popen([str(RT_MONITOR), "--model", str(bench["coef"]), "--config", str(conf), "--loopback",
+                             str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        for _ in range(100):  # the monitor binds its sockets at start-up
+            if all((tmp_path / f"{b}.can").exists() for b in bench["config"].can["buses"]):
+                break
+            time.sleep(0.05)
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+        frames: dict[int, list[tuple[str, int, bytes]]] = {}
+        for line in bench["log"].read_text().splitlines():
+            stamp, bus, frame = line.split()
+            can_id, payload = frame.split("#")
+            frames.setdefault(round(float(stamp[1:-1]) * 1000), []).append((bus, int(can_id, 16), bytes.fromhex(payload)))
+        ticks = sorted(frames)[:1500]
+        start = time.monotonic()
+        for k, tick in enumerate(ticks):
+            for bus, can_id, data in frames[tick]:
+                if k >= 1000 and can_id in (0x3DA, 0x3DB):  # the strain board goes silent at 1 s
+                    continue
+                sock.sendto(struct.pack("<IB3x8s", can_id, len(data), data), str(tmp_path / f"{bus}.can"))
+            wait = start + (k + 1) * 1e-3 - time.monotonic()
+            if wait > 0:
+                time.sleep(wait)
+        time.sleep(0.2)
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert "fault: blind: no sample evaluated for" in err and "no clock frame STRAIN_TORQUE_13" in err, err
+    msgs = read_lcm_log(lcm)
+    residuals = [m.utime for m in msgs["DYNID_RESIDUAL"]]
+    first_fault = next(m.utime for m in msgs["DYNID_STATUS"] if m.faults & BLIND)
+    last_sample = max(u for u in residuals if u < first_fault)
+    print(f"the fault {1e-3 * (first_fault - last_sample):.1f} ms after the last residual message (every 10 samples)")
+    assert first_fault - last_sample <= 100_000
