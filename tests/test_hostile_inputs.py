@@ -69,7 +69,7 @@ def error_prefix(case: Case) -> str:
         return f"{case.program}: error: "
     command = next((a for a in case.args if not a.startswith("-")), "")
     parsed = command in ("import", "structure", "simulate", "excite", "fit", "validate", "detect", "report", "export", "gaps",
-                         "spy")
+                         "spy", "play", "fleet")
     # argparse refuses an unknown flag or command for the program as a whole
     return f"dynid {command}: error: " if parsed and "--bogus" not in case.args else "dynid: error: "
 

@@ -1,7 +1,8 @@
 /*
- * fuzz_boards_conf.c - libFuzzer harness: the boards program's reader of the rt_monitor configuration
- * (boards_read_conf_stream) on any bytes. An accepted configuration keeps its tables' bounds and sets up boards
- * that play samples (extreme positions, duties and wrenches included) into frames that decode.
+ * fuzz_boards_conf.c - libFuzzer harness: the boards program's reader of the rt_monitor configuration and its bus
+ * table (boards_read_conf_stream) on any bytes. An accepted configuration keeps its tables' bounds; the player sets up
+ * from it with the generic encoder (and the iCub emulators where the table is theirs) and plays samples (extreme
+ * values, restarts of every node, long forms on and off) into frames of the table that decode.
  */
 #define _POSIX_C_SOURCE 200809L
 #include "fuzz_boards.h"
@@ -11,12 +12,14 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     static boards_conf_t conf;
-    static fuzz_boards_t boards;
-    static double q[BOARDS_MAX_MC][2], duty[BOARDS_MAX_MC][2];
+    static boards_player_t player;
+    static boards_columns_t cols;
+    static uint8_t long_node[BOARDS_MAX_FRAMES];
+    static double row[BOARDS_MAX_SIGNALS + 3];
     static const double values[] = {0.0, 0.5, -1.0, 3.3e4, -1e6, 1e300, -1e300};
     char err[BOARDS_ERR_LEN];
     FILE *f = fuzz_boards_open(data, size);
-    int rc, i, k;
+    int rc, i, k, enc;
     if (!f) {
         return 0;
     }
@@ -28,29 +31,42 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         FUZZ_CHECK(err[0] != '\0' && strchr(err, '\n') == 0); /* one line */
         return 0;
     }
-    FUZZ_CHECK(conf.n_buses >= 1 && conf.n_buses <= BOARDS_MAX_BUSES && conf.has_strain);
-    FUZZ_CHECK(conf.strain_bus >= 0 && conf.strain_bus < conf.n_buses && conf.strain_address <= 15);
-    FUZZ_CHECK(conf.n_mc >= 0 && conf.n_mc <= BOARDS_MAX_MC && conf.n_skin >= 0 && conf.n_skin <= BOARDS_MAX_SKIN);
-    for (i = 0; i < conf.n_mc; ++i) {
-        FUZZ_CHECK(conf.mc[i].bus >= 0 && conf.mc[i].bus < conf.n_buses && conf.mc[i].address <= 15);
+    FUZZ_CHECK(conf.n_buses >= 1 && conf.n_buses <= BOARDS_MAX_BUSES && conf.n_frames >= 1);
+    FUZZ_CHECK(conf.clock >= 0 && conf.clock < conf.n_frames && conf.n_signals <= BOARDS_MAX_SIGNALS);
+    for (i = 0; i < conf.n_frames; ++i) {
+        const boards_table_frame_t *fr = &conf.frames[i];
+        FUZZ_CHECK(fr->bus >= 0 && fr->bus < conf.n_buses && fr->id <= 0x7FF && fr->dlc <= 8 && fr->n_signals >= 1);
+        FUZZ_CHECK(fr->node >= 0 && fr->node < conf.n_nodes && fr->first_signal + fr->n_signals <= conf.n_signals);
     }
-    for (i = 0; i < conf.n_skin; ++i) {
-        FUZZ_CHECK(conf.skin_bus[i] >= 0 && conf.skin_bus[i] < conf.n_buses && conf.skin_address[i] <= 15);
+    /* The columns: the row's values in order, then contact and skin.patch. */
+    cols.n_cols = conf.n_values + 3;
+    cols.t = conf.n_values;
+    for (i = 0; i < conf.n_values; ++i) {
+        cols.value[i] = i;
     }
-    fuzz_boards_init(&boards, &conf, (uint8_t)(size & 1u));
-    if (!boards.ready) {
-        return 0;
-    }
-    for (k = 0; k < 12; ++k) {
-        const double w[6] = {values[k % 7], values[(k + 1) % 7], values[(k + 2) % 7],
-                             values[(k + 3) % 7], values[(k + 4) % 7], values[(k + 5) % 7]};
-        for (i = 0; i < conf.n_mc; ++i) {
-            q[i][0] = values[(k + i) % 7];
-            q[i][1] = values[(k + 2 * i + 1) % 7];
-            duty[i][0] = values[(k + 3 * i) % 7];
-            duty[i][1] = values[(k + i + 5) % 7];
+    cols.contact = conf.n_values + 1;
+    cols.patch = conf.n_values + 2;
+    memset(long_node, (int)(size & 1u), sizeof long_node);
+    for (enc = BOARDS_ENCODER_GENERIC; enc <= BOARDS_ENCODER_ICUB; ++enc) {
+        if (enc == BOARDS_ENCODER_ICUB && boards_default_encoder(&conf) != BOARDS_ENCODER_ICUB) {
+            break;
         }
-        fuzz_boards_play(&boards, &conf, (const double(*)[2])q, (const double(*)[2])duty, w, (uint16_t)k, k == 5 ? 0 : -1);
+        if (boards_player_init(&player, &conf, enc, 1e-3, long_node, err) != 0) {
+            FUZZ_CHECK(enc == BOARDS_ENCODER_ICUB && err[0] != '\0' && strchr(err, '\n') == 0);
+            break;
+        }
+        for (k = 0; k < 12; ++k) {
+            int node = k % (conf.n_nodes ? conf.n_nodes : 1);
+            for (i = 0; i < conf.n_values; ++i) {
+                row[i] = values[(k + i) % 7];
+            }
+            row[cols.t] = 1e-3 * k;
+            row[cols.contact] = (double)(k & 1);
+            row[cols.patch] = (double)(k % 4);
+            if (conf.n_values) boards_long_needed(&conf, row, &cols, long_node);
+            FUZZ_CHECK(boards_player_sample(&player, row, &cols, 1000 * k, &node, k == 5, fuzz_boards_check_frame,
+                                            &conf) == 0);
+        }
     }
     return 0;
 }

@@ -1,23 +1,24 @@
 /*
- * boards - play a simulated experiment through the board emulators as CAN frames.
+ * boards - play a run through the robot's bus description as CAN frames.
  *
  *   boards --config MONITOR.conf --data RUN_DIR|data.csv --sink candump:PATH|loopback:DIR|socketcan
- *          [--realtime] [--t0 SECONDS] [--sensor NAME] [--strain-sat auto|on|off] [--restart ADDR@SAMPLE]
- *          [--repeat N] [--rt-priority P] [--help]
+ *          [--realtime] [--t0 SECONDS] [--sensor NAME] [--strain-sat auto|on|off] [--restart NODE|ADDR@SAMPLE]
+ *          [--repeat N] [--encoder auto|generic|icub] [--rt-priority P] [--help]
  *
- * The configuration is rt_monitor's (rt_monitor/README.md, "Configuration"; `dynid` writes it from the robot
- * configuration): buses, the strain board, the motor-control boards' axes and PWMs, the skin boards. Per sample
- * k at time t_k, on each board's bus, the frames go out in this order (the same as dynid.io.candump):
- *   t_k - 300 us  POSITION and PID_VAL of every motor-control board;
- *   t_k - 250 us  STATUS of every motor-control board, every 10th sample;
- *   t_k - 200 us  TAXELS of every skin board (group 0 = the run's contact on that board's patch);
- *   t_k - 100 us  strain force half;  t_k  strain torque half (it closes the sample).
+ * The configuration is rt_monitor's (docs/formats.md, "rt_monitor configuration"; `dynid` writes it from the robot
+ * configuration): the buses and the compiled bus table, which frame carries which signal. Per sample k at time t_k,
+ * every frame of the table goes out on its bus at t_k + its offset, in the table's send order (by offset, then as
+ * listed; the same as dynid.io.candump), a frame with a period every round(period / the mean sample period) samples.
+ * For the iCub arm: POSITION and PID_VAL at t_k - 300 us, STATUS at t_k - 250 us every 10 ms, skin at t_k - 200 us,
+ * strain force t_k - 100 us and torque at t_k (it closes the sample).
+ * Encoders (boards_play.c): the iCub board emulators for a table of the iCub protocol (the default there), the generic
+ * encoder for any other (the same bytes on the iCub arm's simulated runs). `dynid play` hands it any run dynid reads.
  * --repeat plays the run N times back to back (time continues; benchmarks that need many contacts).
  * --realtime wakes once per sample at its first frame's time (absolute CLOCK_MONOTONIC sleeps) and sends the
  * sample's frames back to back; else as fast as possible. A live transport stamps frames when they are sent, so
  * the monitor needs --realtime over loopback and SocketCAN; fast mode is for candump logs. --rt-priority runs
- * the sender SCHED_FIFO so that its wake-ups keep the 1 kHz tick on a loaded machine (refused cleanly where
- * the system does not allow it). Paced runs print the CLOCK_REALTIME µs of sample 0 (the monitor's clock).
+ * the sender SCHED_FIFO so that its wake-ups keep the tick on a loaded machine (refused cleanly where the system
+ * does not allow it). Paced runs print the CLOCK_REALTIME us of sample 0 (the monitor's clock).
  * Bus load: worst-case bit stuffing at 1 Mbit/s (board_frame_bits_worst), over the run's duration.
  * --sink candump:- streams the log to standard output (a pipe into a fault injector or a monitor: an hour of frames
  * needs no 2 GB file); the summary then goes to stderr.
@@ -32,11 +33,7 @@
 #include <sys/stat.h>
 #include <time.h>
 
-#include "board_mc.h"
-#include "board_skin.h"
-#include "board_strain.h"
 #include "boards_tool.h"
-#include "icub_can.h"
 
 #define BITRATE 1000000.0
 #define LOAD_LIMIT 0.70
@@ -48,29 +45,28 @@ static boards_conf_t g_conf;
 static boards_columns_t g_cols;
 static boards_csv_t g_csv;
 static boards_sink_t g_sink;
-static board_strain_t g_strain;
-static board_mc_t g_mc[BOARDS_MAX_MC];
-static board_skin_t g_skin[BOARDS_MAX_SKIN];
+static boards_player_t g_player;
+static uint8_t g_long_node[BOARDS_MAX_FRAMES];
 static uint64_t g_bits[BOARDS_MAX_BUSES];
 static uint64_t g_frames[BOARDS_MAX_BUSES];
 static char g_err[BOARDS_ERR_LEN];
 
 #define SYNOPSIS "usage: boards --config MONITOR.conf --data RUN_DIR|data.csv --sink candump:PATH|loopback:DIR|socketcan " \
                  "[--realtime] [--rt-priority P] [--t0 S] [--sensor NAME] [--strain-sat auto|on|off] " \
-                 "[--restart ADDRESS@SAMPLE] [--repeat N] [--help]\n"
+                 "[--restart NODE|ADDRESS@SAMPLE] [--repeat N] [--encoder auto|generic|icub] [--help]\n"
 
 /* --help, line by line (C99 guarantees string literals of 4095 characters only). */
 static const char *const k_help[] = {
     "",
-    "Play a simulated run (data.csv, docs/design.md §4) through the C board emulators (strain, motor-control,",
-    "skin) as iCub CAN frames, on the buses of the rt_monitor configuration; then print each bus's load.",
+    "Play a run (data.csv, docs/design.md §4; `dynid play` writes one from any run dynid reads) as the CAN frames of",
+    "the robot's bus, as the rt_monitor configuration's compiled bus table describes them; then print each bus's load.",
     "",
     "required:",
-    "  --config MONITOR.conf     the rt_monitor configuration: buses, which board is on which bus at which address,",
-    "                            strain full scales, ticks per degree, PWM full scales, skin patches",
-    "                            (dynid writes it from the robot configuration; rt_monitor/README.md)",
-    "  --data RUN_DIR|data.csv   a run directory (its data.csv is read) or a CSV file; every row is checked",
-    "                            before any frame is sent",
+    "  --config MONITOR.conf     the rt_monitor configuration: buses and the bus table (which frame, on which bus, with",
+    "                            which ID, carries which signal; `dynid export --robot CFG --monitor-config FILE`)",
+    "  --data RUN_DIR|data.csv   a run directory (its data.csv is read) or a CSV file with a column per value the",
+    "                            table carries (q.J, dq.J, pwm.M, current.M, tau.J, ft.S.C), and contact, skin.patch;",
+    "                            every row is checked before any frame is sent",
     "  --sink SINK               where the frames go:",
     "                              candump:PATH  a candump -L log file (written beside PATH, renamed into place);",
     "                                            candump:- streams it to standard output (the summary to stderr)",
@@ -83,13 +79,17 @@ static const char *const k_help[] = {
     "                            sample); live sinks need it, candump logs do not (default: as fast as possible)",
     "  --rt-priority P           run the sender SCHED_FIFO at priority P, 1..99 (exit 7 if the system refuses)",
     "  --t0 S                    timestamp of the first sample, in seconds (default 1700000000)",
-    "  --sensor NAME             the F/T sensor whose ft.NAME.* columns feed the strain board (default: the",
-    "                            data's only one)",
-    "  --strain-sat auto|on|off  7-byte strain frames with saturation flags in byte 6: when a channel clamps",
-    "                            somewhere in the run (auto, the default), always (on), never (off: 6 bytes)",
-    "  --restart ADDRESS@SAMPLE  reset the motor-control board at ADDRESS (0..15) before sample SAMPLE (from 0):",
-    "                            its next STATUS carries RESTARTED and sequence 0",
+    "  --sensor NAME             the data's F/T sensor whose ft.NAME.* columns feed the bus's one F/T sensor",
+    "                            (default: the columns the table names)",
+    "  --strain-sat auto|on|off  frames' long forms (the iCub strain board's 7-byte saturation variant, flags in",
+    "                            byte 6): when one of their flags would be set somewhere in the run (auto, the",
+    "                            default), always (on), never (off)",
+    "  --restart WHAT@SAMPLE     reset a node before sample SAMPLE (from 0): WHAT a node of the table, or an iCub",
+    "                            motor-control board's ADDRESS (0..15); its next frame with a restart flag carries it",
+    "                            and its sequence counters start again at 0",
     "  --repeat N                play the run N times back to back, time continuing (1..100000, default 1)",
+    "  --encoder E               auto (default: the iCub board emulators for a table of the iCub protocol, the",
+    "                            generic encoder for any other), generic, or icub",
     "  -h, --help                print this help on stdout and exit 0",
     "",
     "exit codes: 0 done; 2 bad flag or value; 3 an input file is missing or unreadable; 4 a malformed CSV or",
@@ -143,10 +143,10 @@ typedef struct {
     struct timespec start;
 } pace_t;
 
-static int emit(pace_t *p, int bus, const board_frame_t *f, int64_t t_us)
+static int emit(void *ctx, int bus, const board_frame_t *f, int64_t t_us)
 {
     int rc;
-    (void)p;
+    (void)ctx;
     rc = boards_sink_send(&g_sink, bus, f, t_us, g_err);
     if (rc == 0) {
         g_bits[bus] += board_frame_bits_worst(f->dlc);
@@ -155,63 +155,18 @@ static int emit(pace_t *p, int bus, const board_frame_t *f, int64_t t_us)
     return rc;
 }
 
-/* One sample through every board, in the bus order documented above. */
-static int play_sample(pace_t *p, const double *v, int64_t t_us, long restart_addr)
-{
-    board_frame_t f;
-    double w[6];
-    int i, s, rc;
-    if (p->realtime) {
-        /* One wake-up per sample, then its frames back to back: the boards share one 1 kHz tick, and a
-         * sleep per frame would only add scheduling jitter between the halves the monitor pairs. */
-        sleep_until(&p->start, t_us - 300 - p->first_us);
-    }
-    for (i = 0; i < g_conf.n_mc; ++i) {
-        double q[2] = {0.0, 0.0}, duty[2] = {0.0, 0.0};
-        for (s = 0; s < 2; ++s) {
-            q[s] = g_cols.q[i][s] >= 0 ? v[g_cols.q[i][s]] : 0.0;
-            duty[s] = g_cols.pwm[i][s] >= 0 ? v[g_cols.pwm[i][s]] : 0.0;
-        }
-        if (restart_addr == (long)g_mc[i].address) {
-            board_mc_restart(&g_mc[i]);
-        }
-        board_mc_sample(&g_mc[i], q, duty);
-        board_mc_position_frame(&g_mc[i], &f);
-        if ((rc = emit(p, g_conf.mc[i].bus, &f, t_us - 300)) != 0) return rc;
-        board_mc_pid_frame(&g_mc[i], &f);
-        if ((rc = emit(p, g_conf.mc[i].bus, &f, t_us - 300)) != 0) return rc;
-    }
-    for (i = 0; i < g_conf.n_mc; ++i) {
-        if (board_mc_status_due(&g_mc[i])) {
-            board_mc_status_frame(&g_mc[i], &f);
-            if ((rc = emit(p, g_conf.mc[i].bus, &f, t_us - 250)) != 0) return rc;
-        }
-    }
-    for (i = 0; i < g_conf.n_skin; ++i) {
-        const int on = g_cols.contact >= 0 && v[g_cols.contact] != 0.0 &&
-                       (g_cols.patch >= 0 ? v[g_cols.patch] == (double)(i + 1) : i == 0);
-        board_skin_sample(&g_skin[i], (uint16_t)(on ? 1u : 0u));
-        board_skin_frame(&g_skin[i], &f);
-        if ((rc = emit(p, g_conf.skin_bus[i], &f, t_us - 200)) != 0) return rc;
-    }
-    for (i = 0; i < 6; ++i) {
-        w[i] = v[g_cols.ft[i]];
-    }
-    board_strain_sample(&g_strain, w); /* finite: the CSV reader refuses NaN */
-    board_strain_frame(&g_strain, BOARD_STRAIN_HALF_FORCE, &f);
-    if ((rc = emit(p, g_conf.strain_bus, &f, t_us - 100)) != 0) return rc;
-    board_strain_frame(&g_strain, BOARD_STRAIN_HALF_TORQUE, &f);
-    return emit(p, g_conf.strain_bus, &f, t_us);
-}
-
 int main(int argc, char **argv)
 {
-    const char *conf = 0, *data = 0, *sink = 0, *sensor = 0, *sat = "auto";
+    const char *conf = 0, *data = 0, *sink = 0, *sensor = 0, *sat = "auto", *encoder = "auto", *restart = 0;
     static char csv_path[4200];
-    double t0 = 1700000000.0, t_first = 0.0, t_prev = 0.0, wall;
-    long n = 0, k = 0, restart_addr = -1, restart_at = -1, repeat = 1, r, rt_priority = 0;
+    static char restart_what[BOARDS_NAME_LEN];
+    static int restart_nodes[BOARDS_MAX_FRAMES];
+    int n_restart = 0;
+    double t0 = 1700000000.0, t_first = 0.0, t_prev = 0.0, min_step = 1e300, wall;
+    long n = 0, k = 0, restart_at = -1, repeat = 1, r, rt_priority = 0;
     long long real0_us = 0;
-    int realtime = 0, rc, i, any_sat = 0, overloaded = 0;
+    int64_t spread = 0, first_offset = 0;
+    int realtime = 0, rc, i, overloaded = 0, enc;
     pace_t pace;
     struct stat st;
 
@@ -222,7 +177,7 @@ int main(int argc, char **argv)
         if (strcmp(a, "--realtime") == 0) { realtime = 1; continue; }
         if (strcmp(a, "--config") && strcmp(a, "--data") && strcmp(a, "--sink") && strcmp(a, "--t0") &&
             strcmp(a, "--sensor") && strcmp(a, "--strain-sat") && strcmp(a, "--restart") && strcmp(a, "--repeat") &&
-            strcmp(a, "--rt-priority")) {
+            strcmp(a, "--rt-priority") && strcmp(a, "--encoder")) {
             snprintf(g_err, sizeof g_err, "unknown argument '%s'", a);
             return usage(g_err);
         }
@@ -236,6 +191,7 @@ int main(int argc, char **argv)
         else if (strcmp(a, "--sink") == 0) sink = argv[i];
         else if (strcmp(a, "--sensor") == 0) sensor = argv[i];
         else if (strcmp(a, "--strain-sat") == 0) sat = argv[i];
+        else if (strcmp(a, "--encoder") == 0) encoder = argv[i];
         else if (strcmp(a, "--rt-priority") == 0) {
             char *end = 0;
             rt_priority = strtol(argv[i], &end, 10);
@@ -249,43 +205,59 @@ int main(int argc, char **argv)
             t0 = strtod(argv[i], &end);
             if (*end || !(t0 >= 0.0 && t0 < BOARDS_MAX_T0_S)) return usage("--t0 must be seconds >= 0");
         } else {
+            const char *at = strchr(argv[i], '@');
             char *end = 0;
-            restart_addr = strtol(argv[i], &end, 10);
-            if (*end != '@' || restart_addr < 0 || restart_addr > 15) return usage("--restart ADDRESS@SAMPLE");
-            restart_at = strtol(end + 1, &end, 10);
-            if (*end || restart_at < 0) return usage("--restart ADDRESS@SAMPLE");
+            restart = argv[i];
+            if (!at || at == argv[i] || (size_t)(at - argv[i]) >= sizeof restart_what) {
+                return usage("--restart NODE|ADDRESS@SAMPLE");
+            }
+            memcpy(restart_what, argv[i], (size_t)(at - argv[i]));
+            restart_what[at - argv[i]] = '\0';
+            restart_at = strtol(at + 1, &end, 10);
+            if (*end || end == at + 1 || restart_at < 0) return usage("--restart NODE|ADDRESS@SAMPLE");
         }
     }
     if (!conf || !data || !sink) return usage("--config, --data and --sink are required");
     if (strcmp(sat, "auto") && strcmp(sat, "on") && strcmp(sat, "off")) return usage("--strain-sat auto|on|off");
+    if (strcmp(encoder, "auto") && strcmp(encoder, "generic") && strcmp(encoder, "icub"))
+        return usage("--encoder auto|generic|icub");
 
     if ((rc = boards_read_conf(conf, &g_conf, g_err)) != 0) return fail(rc);
-    if (restart_addr >= 0) { /* a board that is not there cannot restart: the flag did nothing, silently */
-        for (i = 0; i < g_conf.n_mc && g_conf.mc[i].address != (uint8_t)restart_addr; ++i) {
-        }
-        if (i == g_conf.n_mc) {
-            snprintf(g_err, sizeof g_err, "--restart %ld@%ld: no motor-control board at address %ld in %.300s",
-                     restart_addr, restart_at, restart_addr, conf);
+    if (restart) { /* a node that is not there cannot restart: the flag did nothing, silently */
+        const int address = strspn(restart_what, "0123456789") == strlen(restart_what);
+        n_restart = boards_restart_nodes(&g_conf, restart_what, restart_nodes);
+        if (address && (strlen(restart_what) > 2 || atoi(restart_what) > 15)) n_restart = -1;
+        if (n_restart <= 0) {
+            if (address && n_restart < 0) {
+                return usage("--restart NODE|ADDRESS@SAMPLE");
+            }
+            snprintf(g_err, sizeof g_err, address ? "--restart %.64s: no motor-control board at address %.64s in %.300s"
+                                                  : "--restart %.64s: no node %.64s in %.300s",
+                     restart, restart_what, conf);
             return usage(g_err);
         }
+    }
+    enc = strcmp(encoder, "generic") == 0 ? BOARDS_ENCODER_GENERIC
+          : strcmp(encoder, "icub") == 0  ? BOARDS_ENCODER_ICUB
+                                          : boards_default_encoder(&g_conf);
+    for (i = 0; i < g_conf.n_frames; ++i) { /* how far apart one sample's frames are sent */
+        const int64_t off = g_conf.frames[i].offset_us;
+        if (i == 0 || off < first_offset) first_offset = off;
+        if (-off > spread) spread = -off;
     }
     /* A run directory (docs/design.md §4) holds data.csv. */
     snprintf(csv_path, sizeof csv_path, "%s%s", data,
              (stat(data, &st) == 0 && S_ISDIR(st.st_mode)) ? "/data.csv" : "");
     if ((rc = boards_csv_open(&g_csv, csv_path, &g_conf, sensor, &g_cols, g_err)) != 0) return fail(rc);
 
-    /* Pass 1: check every row before any frame leaves, and find whether the strain channels ever clamp. */
+    /* Pass 1: check every row before any frame leaves, and find which long forms the run needs. */
     while ((rc = boards_csv_row(&g_csv, &g_cols, g_err)) == 1) {
         const double t = g_csv.v[g_cols.t];
         if ((rc = boards_csv_check_time(&g_csv, n, t, t_first, t_prev, g_err)) != 0) {
             return fail(-rc);
         }
-        for (i = 0; i < 6; ++i) {  /* the strain board's own conversion decides what clamps */
-            int16_t count;
-            uint8_t clamped = 0u;
-            if (icub_can_strain_count(g_csv.v[g_cols.ft[i]], g_conf.strain_fs[i], &count, &clamped) == ICUB_CAN_OK)
-                any_sat |= clamped;
-        }
+        if (strcmp(sat, "auto") == 0) boards_long_needed(&g_conf, g_csv.v, &g_cols, g_long_node);
+        if (n > 0 && t - t_prev < min_step) min_step = t - t_prev;
         if (n == 0) t_first = t;
         t_prev = t;
         ++n;
@@ -309,31 +281,20 @@ int main(int argc, char **argv)
                      mean >= MAX_PERIOD_S && mean * 1e-3 < 0.1 ? " (is it in milliseconds?)" : "");
             return fail(BOARDS_EXIT_BADDATA);
         }
+        /* A sample's frames are sent within `spread` us before its time: samples closer than that would mix. */
+        if (min_step * 1e6 <= (double)spread) {
+            snprintf(g_err, sizeof g_err, "%.300s: two samples %.0f us apart, while the bus table sends a sample's "
+                     "frames over %lld us: they would mix", csv_path, min_step * 1e6, (long long)spread);
+            return fail(BOARDS_EXIT_BADDATA);
+        }
+        if (strcmp(sat, "on") == 0) memset(g_long_node, 1, sizeof g_long_node);
+        if ((rc = boards_player_init(&g_player, &g_conf, enc, mean, g_long_node, g_err)) != 0) return fail(rc);
     }
     if (restart_at >= n * repeat) {
-        snprintf(g_err, sizeof g_err, "--restart %ld@%ld: the run has %ld samples", restart_addr, restart_at,
-                 n * repeat);
+        snprintf(g_err, sizeof g_err, "--restart %.64s: the run has %ld samples", restart, n * repeat);
         return usage(g_err);
     }
     if ((rc = boards_csv_rewind(&g_csv, g_err)) != 0) return fail(rc);
-
-    /* The saturation variant (7-byte strain frames) when asked, or in auto when some channel clamps. */
-    {
-        const uint8_t variant = (uint8_t)(strcmp(sat, "on") == 0 || (strcmp(sat, "auto") == 0 && any_sat));
-        if (board_strain_init(&g_strain, g_conf.strain_address, g_conf.strain_fs, variant) != 0) {
-            snprintf(g_err, sizeof g_err, "%s: bad strain board", conf);
-            return fail(BOARDS_EXIT_BADDATA);
-        }
-    }
-    for (i = 0; i < g_conf.n_mc; ++i) {
-        if (board_mc_init(&g_mc[i], g_conf.mc[i].address, g_conf.mc[i].axis) != 0) {
-            snprintf(g_err, sizeof g_err, "%s: bad motor-control board %u", conf, (unsigned)g_conf.mc[i].address);
-            return fail(BOARDS_EXIT_BADDATA);
-        }
-    }
-    for (i = 0; i < g_conf.n_skin; ++i) {
-        board_skin_init(&g_skin[i], g_conf.skin_address[i]);
-    }
 
     if ((rc = boards_sink_open(&g_sink, sink, &g_conf, g_err)) != 0) {
         return rc == BOARDS_EXIT_USAGE ? usage(g_err) : fail(rc);
@@ -361,12 +322,18 @@ int main(int argc, char **argv)
             const int64_t t_us = boards_time_us(g_csv.v[g_cols.t], t_first, t0, shift);
             if (k == 0) {
                 struct timespec rt;
-                pace.first_us = t_us - 300;
+                pace.first_us = t_us + first_offset;
                 clock_gettime(CLOCK_MONOTONIC, &pace.start);
                 clock_gettime(CLOCK_REALTIME, &rt);
-                real0_us = (long long)rt.tv_sec * 1000000LL + rt.tv_nsec / 1000 + 300;
+                real0_us = (long long)rt.tv_sec * 1000000LL + rt.tv_nsec / 1000 - first_offset;
             }
-            rc = play_sample(&pace, g_csv.v, t_us, k == restart_at ? restart_addr : -1);
+            if (pace.realtime) {
+                /* One wake-up per sample, then its frames back to back: the nodes share one tick, and a sleep per
+                 * frame would only add scheduling jitter between the halves the monitor pairs. */
+                sleep_until(&pace.start, t_us + first_offset - pace.first_us);
+            }
+            rc = boards_player_sample(&g_player, g_csv.v, &g_cols, t_us, restart_nodes, k == restart_at ? n_restart : 0,
+                                      emit, 0);
             if (rc != 0) break;
             ++k;
         }
@@ -390,6 +357,10 @@ int main(int argc, char **argv)
         if (realtime) {
             fprintf(out, "boards: sample 0 at CLOCK_REALTIME %lld us\n", real0_us);
         }
+        if (g_player.n_clamped) { /* data lost: a value beyond its signal's range was sent at the range's end */
+            fprintf(out, "boards: %llu values clamped at their signal's range (the first: %s)\n",
+                    (unsigned long long)g_player.n_clamped, g_conf.values[g_player.first_clamped]);
+        }
         for (i = 0; i < g_conf.n_buses; ++i) {
             const double load = (double)g_bits[i] / (duration * BITRATE);
             fprintf(out, "boards: bus %s load %.1f %% (%llu frames; worst-case bit stuffing, 1 Mbit/s)\n", g_conf.buses[i],
@@ -400,7 +371,7 @@ int main(int argc, char **argv)
     /* An overloaded run is refused, so its candump log is not committed (it was renamed into place first). */
     if ((rc = boards_sink_close(&g_sink, !overloaded, g_err)) != 0) return fail(rc);
     if (overloaded) {
-        snprintf(g_err, sizeof g_err, "a bus is loaded at 70 %% or more: move boards to another bus");
+        snprintf(g_err, sizeof g_err, "a bus is loaded at 70 %% or more: move frames to another bus");
         return fail(BOARDS_EXIT_LOAD);
     }
     return 0;

@@ -1,14 +1,14 @@
 // libFuzzer harness: frames from the bus through the monitor's loop as rt_monitor runs it, for the bundled arm's
-// configuration and the CAD coefficient file: the CAN decoder and the sample assembler (every message class of
-// firmware_like/icub_can.dbc, and what is none: error, remote and extended frames, unknown boards and types, wrong
-// lengths, reserved bits), the sample clock on the frames' stamps (late, early, repeated, backwards, far jumps), and
-// the core on what they assemble.
+// configuration (its compiled bus table) and the CAD coefficient file: the table's decoder and the sample assembler
+// (every frame of the table, and what is none: error, remote and extended frames, unknown IDs, wrong lengths,
+// reserved bits), the sample clock on the frames' stamps (late, early, repeated, backwards, far jumps), and the core
+// on what they assemble.
 //
 // Input: 16-byte records, one frame each: byte 0 the bus index (mod 8: unconfigured indices too), bytes 1-2 the
 // ID's low 16 bits and byte 3 bits 0-2 its EFF/RTR/ERR flags, byte 4 the length (low 4 bits: up to 15, as no source
 // delivers), bytes 5-6 the stamp's step in µs (int16: backwards too) and byte 7 bit 0 a jump of 10⁹ µs,
 // bytes 8-15 the payload. Properties: every frame counted; no sample without a strain pair; a sample's stamp is its
-// torque half's; the counters add up.
+// torque half's; the counters add up, to the frames, and the clock's halves to 2 samples + unpaired + pending.
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
@@ -87,6 +87,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const MonitorCounters& c = a.counters();
     CHECK(c.frames == frames && c.samples == samples && c.stale_samples <= c.samples);
     CHECK(c.samples + c.unknown_id + c.bad_length + c.error_frames <= c.frames);
+    CHECK(c.frames == c.error_frames + c.unknown_id + c.bad_length + c.strain_frames + c.position_frames + c.pid_frames +
+                          c.status_frames + c.skin_frames + c.sensor_frames);
+    CHECK(c.strain_frames == 2 * c.samples + c.unpaired_strain + a.pending_strain());
     const ClockCounters& k = clock.counters();
     CHECK(k.interpolated >= 0 && k.late >= 0 && k.restarts >= 0 && steps >= k.interpolated);
     return 0;

@@ -1,12 +1,14 @@
-// libFuzzer harness: the monitor's configuration parser (parse_monitor_config) on any text. A refusal is one line
-// naming the file and a line; an accepted configuration is within the documented limits (assembler.hpp), maps no
-// joint, motor or board slot twice, and the assembler sets up from it against the CAD coefficient file without
-// touching memory outside its tables (the bundled arm's joint and channel names are in the dictionary).
+// libFuzzer harness: the monitor's configuration parser (parse_monitor_config) and its compiled bus table on any
+// text. A refusal is one line naming the file and a line; an accepted configuration is within the documented limits
+// (monitor_config.hpp, capacity.hpp), its table is consistent (signals inside their frames without overlap, each value
+// target carried once, the clock and pairs on its frames), and the assembler sets up from it against the CAD
+// coefficient file and takes a frame of every table entry without touching memory outside its tables (the bundled
+// arm's frame, joint and channel names are in the dictionary).
 #include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <set>
 #include <string>
-#include <tuple>
 
 #include "rt_monitor/assembler.hpp"
 
@@ -38,38 +40,54 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     CHECK(cfg.status_hz >= kStatusHzMin && cfg.status_hz <= kStatusHzMax);
     CHECK(status_period_us(cfg) >= 1000 && status_period_us(cfg) <= 10000000);  // as rt_monitor computes it
     CHECK(cfg.residual_every >= 1 && cfg.residual_every <= kResidualEveryMax);
-    CHECK(cfg.skins.size() <= size_t(kMaxSkins));
-    std::set<std::string> joints, motors;
-    std::set<std::tuple<int, int, int>> axis_slots, pwm_slots;
-    for (const auto& a : cfg.axes) {
-        CHECK(joints.insert(a.joint).second && axis_slots.insert({a.bus, a.address, a.slot}).second);
-        CHECK(a.ticks_per_degree >= kTicksPerDegreeMin && a.ticks_per_degree <= kTicksPerDegreeMax);
-    }
-    for (const auto& p : cfg.pwms) {
-        CHECK(motors.insert(p.motor).second && pwm_slots.insert({p.bus, p.address, p.slot}).second);
-        CHECK(p.full_scale > 0 && p.full_scale <= kPwmFullScaleMax);
+    const BusTable& b = cfg.bus;
+    CHECK(!b.frames.empty() && b.frames.size() <= size_t(kMaxFrames) && b.signals.size() <= size_t(kMaxSignals));
+    CHECK(b.patches.size() <= size_t(kMaxSkins) && b.clock >= 0 && size_t(b.clock) < b.frames.size());
+    CHECK(!b.frames[size_t(b.clock)].first_half);
+    std::set<std::string> values;
+    for (const std::string& v : b.values) CHECK(values.insert(v).second);
+    std::set<std::pair<int, uint32_t>> ids;
+    for (const FrameDef& f : b.frames) {
+        CHECK(f.bus >= 0 && size_t(f.bus) < cfg.buses.size() && f.id <= 0x7FF && ids.insert({f.bus, f.id}).second);
+        CHECK(f.dlc >= 0 && f.dlc <= 8 && (f.long_dlc == 0 || (f.long_dlc > f.dlc && f.long_dlc <= 8)));
+        CHECK(f.n_signals >= 1 && f.n_signals <= 64 && f.first_signal + f.n_signals <= int(b.signals.size()));
+        uint64_t used = 0;
+        for (int i = 0; i < f.n_signals; ++i) {
+            const SignalDef& s = b.signals[size_t(f.first_signal + i)];
+            CHECK(s.length >= 1 && s.length <= 64 && s.scale != 0);
+            // Its bits, as the decoder reads them: set every bit of a payload one at a time and see which it reads.
+            uint64_t mine = 0;
+            for (int bit = 0; bit < 64; ++bit) {
+                uint8_t d[8] = {};
+                d[bit / 8] = uint8_t(1u << (bit % 8));
+                if (FrameDecoder::raw_bits(s, d, 8)) mine |= uint64_t(1) << bit;
+            }
+            CHECK(__builtin_popcountll(mine) == s.length && !(mine & used));
+            CHECK(64 - __builtin_clzll(mine) <= 8 * (f.long_dlc ? f.long_dlc : f.dlc));
+            used |= mine;
+        }
     }
     Assembler a;
     if (a.init(cfg, *coef, err)) {
-        // Every joint and channel is served: one sample of frames from every configured board.
+        // Every joint and channel is carried: one frame of every table entry, each length it takes, then the clock.
         Sample s;
         RxFrame f;
         f.t_us = 1000;
-        for (const auto& x : cfg.axes) {
-            f.bus = x.bus;
+        for (const FrameDef& fr : b.frames) {
+            f.bus = fr.bus;
             f.frame = can_frame{};
-            f.frame.can_id = canid_t(0x100 | x.address << 4 | 1);
-            f.frame.len = 8;
-            a.push(f, s);
+            f.frame.can_id = canid_t(fr.id);
+            for (int len : {fr.dlc, fr.long_dlc ? fr.long_dlc : fr.dlc, 8}) {
+                f.frame.len = uint8_t(len);
+                std::memset(f.frame.data, 0xFF, 8);
+                a.push(f, s);
+                std::memset(f.frame.data, 0, 8);
+                a.push(f, s);
+                f.t_us += 10;
+            }
         }
-        f.bus = cfg.strain_bus;
-        f.frame = can_frame{};
-        f.frame.len = 6;
-        f.frame.can_id = canid_t(0x300 | cfg.strain_address << 4 | 0xA);
-        a.push(f, s);
-        f.frame.can_id = canid_t(0x300 | cfg.strain_address << 4 | 0xB);
-        f.t_us += 100;
-        a.push(f, s);
+        const MonitorCounters& c = a.counters();
+        CHECK(c.frames == 6 * int64_t(b.frames.size()) && c.unknown_id == 0);
     } else {
         CHECK(!err.empty());
         for (const char ch : err) CHECK(static_cast<unsigned char>(ch) >= 0x20 && ch != 0x7F);

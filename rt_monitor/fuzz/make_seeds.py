@@ -6,8 +6,9 @@ Sources: the committed CAD coefficient file (rt_monitor/tests/data/icub_cad.dcoe
 and a variant with both effects and supply tracking on; the bundled configuration (rt_monitor/config) in its order
 and with buses last; the candump lines of rt_monitor/tests/test_frame_source.cpp; a short deterministic run (a
 synthetic data.csv of the bundled arm, one with a saturated strain channel) played by `boards` into a candump log,
-that log as frames for the assembler, and one frame of every message class of firmware_like/icub_can.dbc (and of
-what is none: error, remote and extended frames, wrong lengths, reserved bits). The corpora also hold what the
+that log as frames for the assembler, and one frame of every message class of the arm's bus table (and of what is
+none: error, remote and extended frames, wrong lengths, reserved bits), and a small table of another protocol
+(big-endian signals, a float, a clock frame of its own, a pair that does not clock) for the configuration readers. The corpora also hold what the
 fuzzers found and `-merge=1` kept (files named by their sha1); those are left alone here.
 """
 
@@ -63,6 +64,35 @@ def coefficient_seeds() -> None:
     put(d, "momentum.dcoef", wrap(m.encode()))
 
 
+# Another protocol's table (rt_monitor/tests/test_assembler.cpp's robot): what the iCub arm's does not exercise.
+OTHER = """robot arm
+buses can0 can1
+frame POS0 can0 0x181 8 0 drive 0 -400
+signal POS0 0 32 le s 1e-06 0 q.j0
+signal POS0 32 32 le s 1e-06 0 dq.j0
+frame HB can0 0x701 2 0 drive 100000 -450
+signal HB 0 4 le u 1 0 seq
+signal HB 4 1 le u 1 0 fault.q.j0
+signal HB 5 3 le u 1 0 reserved
+signal HB 8 8 le u 1 0 restart
+frame FT_F can1 0x281 6 0 ft 0 -300
+signal FT_F 0 16 le s 0.01 0 ft.w.fx
+frame FT_T can1 0x282 7 8 ft 0 -200
+signal FT_T 0 16 le s 0.001 0 ft.w.tx
+signal FT_T 63 8 be u 1 0 saturated.ft.w.tx
+frame TEMP can1 0x381 4 0 temp 0 -100
+signal TEMP 0 32 le f 1 0 -
+frame CUR can0 0x191 4 0 amps 0 0
+signal CUR 7 16 be s 0.001 0 current.m0
+signal CUR 23 16 be s 0.001 0 current.m1
+patch palm w:distal
+frame SKIN can1 0x401 1 0 skin 0 -150
+signal SKIN 0 1 le u 1 0 skin.palm
+clock CUR
+pair FT_F FT_T
+"""
+
+
 def config_seeds() -> tuple[str, str]:
     ordered = CONF.read_text()
     lines = ordered.splitlines()
@@ -71,12 +101,13 @@ def config_seeds() -> tuple[str, str]:
     for d in (RT / "monitor_config", FW / "boards_conf"):
         put(d, "icub_right_arm.conf", ordered)
         put(d, "buses_last.conf", shuffled)
+        put(d, "other_protocol.conf", OTHER)
     return ordered, shuffled
 
 
 def run_csv(ordered: str, saturate: bool, reorder: bool) -> str:
-    joints = re.findall(r"^axis \S+ \d+ \d (\S+)", ordered, re.M)
-    motors = re.findall(r"^pwm \S+ \d+ \d (\S+)", ordered, re.M)
+    joints = re.findall(r"^signal \S+ .* q\.(\S+)$", ordered, re.M)
+    motors = re.findall(r"^signal \S+ .* pwm\.(\S+)$", ordered, re.M)
     ft = [f"ft.r_arm_ft.{a}" for a in ("fx", "fy", "fz", "tx", "ty", "tz")]
     cols = ["t"] + [f"q.{j}" for j in joints] + [f"pwm.{m}" for m in motors] + ft + ["contact", "skin.patch"]
     rows = []

@@ -13,13 +13,13 @@
 
 namespace dynid::rt {
 
-std::vector<can_filter> socketcan_filters(const std::vector<uint8_t>& classes) {
+std::vector<can_filter> socketcan_filters(const std::vector<uint32_t>& ids) {
     std::vector<can_filter> out;
-    for (uint8_t cls : classes) {
+    for (uint32_t id : ids) {
         can_filter f{};
-        f.can_id = canid_t(cls & 0x7u) << 8;
-        // The class bits, and EFF/RTR clear: standard-ID data frames of this class only.
-        f.can_mask = 0x700u | CAN_EFF_FLAG | CAN_RTR_FLAG;
+        f.can_id = id & CAN_SFF_MASK;
+        // Every ID bit, and EFF/RTR clear: this standard-ID data frame only.
+        f.can_mask = CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG;
         out.push_back(f);
     }
     return out;
@@ -32,10 +32,16 @@ bool socketcan_filter_passes(const std::vector<can_filter>& filters, canid_t id)
 }
 
 std::unique_ptr<SocketCanSource> SocketCanSource::open(const std::vector<std::string>& interfaces,
-                                                       const std::vector<can_filter>& filters,
+                                                       const std::vector<std::vector<can_filter>>& filters,
                                                        std::string& error) {
     std::unique_ptr<SocketCanSource> s(new SocketCanSource());
-    for (const auto& name : interfaces) {
+    if (filters.size() != interfaces.size()) {
+        error = "one filter list per interface is needed";
+        return nullptr;
+    }
+    for (size_t i = 0; i < interfaces.size(); ++i) {
+        const std::string& name = interfaces[i];
+        const std::vector<can_filter>& mine = filters[i];
         const int fd = socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW);
         if (fd < 0) {
             const int e = errno;
@@ -46,8 +52,7 @@ std::unique_ptr<SocketCanSource> SocketCanSource::open(const std::vector<std::st
         s->fds_.push_back(fd);
         const can_err_mask_t errs = CAN_ERR_MASK;  // every error class: each is counted
         const int on = 1;
-        if (setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FILTER, filters.data(),
-                       socklen_t(filters.size() * sizeof(can_filter))) != 0 ||
+        if (setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FILTER, mine.data(), socklen_t(mine.size() * sizeof(can_filter))) != 0 ||
             setsockopt(fd, SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &errs, sizeof errs) != 0 ||
             setsockopt(fd, SOL_SOCKET, SO_TIMESTAMP, &on, sizeof on) != 0 ||
             setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on) != 0) {  // frames dropped by the kernel, counted

@@ -33,7 +33,6 @@
 #include "dynid/contact_event_t.hpp"
 #include "dynid/monitor_status_t.hpp"
 #include "dynid/residual_t.hpp"
-#include "icub_can.h"
 #include "rt_monitor/assembler.hpp"
 #include "rt_monitor/core.hpp"
 #include "rt_monitor/rt_settings.hpp"
@@ -279,8 +278,11 @@ int main(int argc, char** argv) {
     std::unique_ptr<FrameSource> src;
     if (!replay.empty()) src = CandumpReplay::open(replay, cfg.buses, realtime, err);
     else if (!loopback.empty()) src = LoopbackSource::open(loopback, cfg.buses, err);
-    else src = SocketCanSource::open(cfg.buses, socketcan_filters({ICUB_CAN_CLASS_MC, ICUB_CAN_CLASS_STRAIN,
-                                                                     ICUB_CAN_CLASS_SKIN}), err);
+    else {
+        std::vector<std::vector<can_filter>> filters;  // per bus, the table's IDs on it
+        for (size_t b = 0; b < cfg.buses.size(); ++b) filters.push_back(socketcan_filters(bus_ids(cfg, int(b))));
+        src = SocketCanSource::open(cfg.buses, filters, err);
+    }
     if (!src) {
         std::fprintf(stderr, "rt_monitor: error: %s\n", err.c_str());
         return replay.empty() ? 1 : 2;
@@ -522,10 +524,13 @@ int main(int argc, char** argv) {
                             : !loopback.empty() ? "loopback" : "socketcan")
                 .str("stopped", g_stop ? "signal" : (rc ? "failed" : "end of input"))
                 .real("period_us", period_us);
-            j.open("frames")  // frames = error + unknown_id + bad_length + strain + position + pid + status + skin
+            // frames = error + unknown_id + bad_length + strain + position + pid + status + skin + sensor (by what the
+            // bus table says each carries: strain the clock pair's halves, pid the inputs, sensor other F/T pairs)
+            j.open("frames")
                 .num("total", c.frames).num("error", c.error_frames).num("unknown_id", c.unknown_id)
                 .num("bad_length", c.bad_length).num("strain", c.strain_frames).num("position", c.position_frames)
                 .num("pid", c.pid_frames).num("status", c.status_frames).num("skin", c.skin_frames)
+                .num("sensor", c.sensor_frames).num("unpaired_sensor", c.unpaired_sensor)
                 .num("saturated", c.saturated).num("unpaired_strain", c.unpaired_strain)
                 .num("pending_strain", asm_.pending_strain()).num("board_faults", c.board_faults)
                 .num("board_restarts", c.board_restarts)

@@ -3,7 +3,7 @@
 tools/tests/conftest.py's session fixtures are the default 300 s and 120 s runs and the full fit (three to four
 minutes on a shared machine), more than this whole sweep may take; so this builds the same chain on short runs:
 a 1 s contact run (its data.csv, dataset.npz and truth), a 10 s identification run, one fit (OLS, two blocks: a
-valid model file in seconds; on 4 s the OLS shoulder gain m0 came out negative, which the model file refuses), one export, the run as a candump log through `boards`, and that log through
+valid model file in seconds; 4 s gave a negative motor gain, which the fit now refuses), one export, the run as a candump log through `boards`, and that log through
 `rt_monitor` as an LCM log. Independent steps run side by side.
 """
 
@@ -26,7 +26,7 @@ class Fixtures:
     run: Path  # a `dynid simulate --kind contact` directory, 1 s
     csv: Path  # its data.csv
     npz: Path  # its dataset.npz
-    ident: Path  # a `dynid simulate --kind identification` directory, 10 s
+    ident: Path  # a `dynid simulate --kind identification` directory, 4 s
     model: Path  # `dynid fit` of ident
     coef: Path  # `dynid export` of the model
     log: Path  # the contact run as a candump log (`boards --sink candump:`)

@@ -1,8 +1,9 @@
-"""The C board emulators (firmware_like/, the `boards` program) against the Python side.
+"""The `boards` player (firmware_like/) against the Python side.
 
-- Cross-language: the frames `boards` writes for a slice of the default contact run are the frames
-  dynid.io.candump writes for the same data, byte for byte, and they decode with the DBC (cantools) to the CSV's
-  values within the protocol's quantisation.
+- Cross-language: the frames `boards` writes for a slice of the default contact run, with the iCub board emulators
+  and with the generic encoder from the bus table, are the frames dynid.io.candump writes (through cantools) for the
+  same data, byte for byte (integer and IEEE arithmetic on the same inputs: exact), and they decode with the bus's
+  cantools database to the CSV's values within each signal's quantisation.
 - The bus load it prints is the one recomputed here from the log (worst-case bit stuffing) and is < 70 %.
 - Saturation (7-byte strain frames), a board restart, and bad input (one line, a distinct exit code each).
 """
@@ -18,7 +19,7 @@ import pytest
 
 from dynid.config.robot_config import load_config
 from dynid.export.monitor_config import monitor_config_text
-from dynid.io.can_protocol import Protocol
+from dynid.io.can_database import BusCodec
 from dynid.io.candump import write_candump
 from dynid.io.load import load_data
 
@@ -70,9 +71,11 @@ def test_candump_to_standard_output_is_the_log_file(part: dict) -> None:
     assert f"{2 * N} samples, {2 * len(once)} frames" in done.stderr and "bus can0 load" in done.stderr
 
 
-def test_frames_match_the_python_writer_and_decode_to_the_csv(part: dict) -> None:
-    log = part["root"] / "c.log"
-    done = boards("--config", str(part["conf"]), "--data", str(part["csv"]), "--sink", f"candump:{log}")
+@pytest.mark.parametrize("encoder", ["icub", "generic"])
+def test_frames_match_the_python_writer_and_decode_to_the_csv(part: dict, encoder: str) -> None:
+    log = part["root"] / f"c_{encoder}.log"
+    done = boards("--config", str(part["conf"]), "--data", str(part["csv"]), "--sink", f"candump:{log}",
+                  "--encoder", encoder)
     assert done.returncode == 0, done.stderr
     data = load_data(part["csv"], part["config"])
     py_log = part["root"] / "py.log"
@@ -80,32 +83,27 @@ def test_frames_match_the_python_writer_and_decode_to_the_csv(part: dict) -> Non
     assert log.read_text() == py_log.read_text()  # same frames, same order, same times
     assert f"{N} samples, {n} frames" in done.stdout
 
-    # Independently of both writers: the DBC decodes every frame to the CSV's values within quantisation.
-    proto, can = Protocol(), part["config"].can
+    # Independently of both writers: cantools decodes every frame to the CSV's values within quantisation.
+    codec, can = BusCodec(part["config"].bus), part["config"].can
     fs = np.asarray(can["strain"][0]["full_scale"], float)
     ft = np.full((N, 6), np.nan)
     q = {ax["joint"]: np.full(N, np.nan) for b in can["motor_control"] for ax in b["axes"]}
     pwm = {ax["motor"]: np.full(N, np.nan) for b in can["motor_control"] for ax in b["axes"] if ax.get("motor")}
     skin = np.zeros(N, int)
-    boards_by_addr = {b["address"]: b for b in can["motor_control"]}
-    for t, _, can_id, payload in _frames(log):
-        f = proto.decode(can_id, payload)
+    channels = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
+    for t, bus, can_id, payload in _frames(log):
+        frame, values = codec.decode(bus, can_id, payload)
         k = (t - T0_US + 300) // 1000  # every frame of sample k lies in (t_k − 1 ms, t_k]
-        if f.name == "STRAIN_FORCE":
-            ft[k, :3] = [f.signals[c] for c in ("Fx", "Fy", "Fz")]
-        elif f.name == "STRAIN_TORQUE":
-            ft[k, 3:] = [f.signals[c] for c in ("Tx", "Ty", "Tz")]
-        elif f.name in ("MC_POSITION", "MC_PID_VAL"):
-            b = boards_by_addr[f.address]
-            for slot, ax in enumerate(b["axes"]):
-                if f.name == "MC_POSITION":
-                    deg = f.signals[f"Axis{slot}Position"] / ax["ticks_per_degree"] - ax.get("zero_deg", 0.0)
-                    q[ax["joint"]][k] = np.radians(deg)
-                elif ax.get("motor"):
-                    pwm[ax["motor"]][k] = f.signals[f"Axis{slot}Pwm"] / b["pwm_full_scale"]
-        elif f.name == "SKIN_TAXELS" and f.signals["Taxels"]:
-            skin[k] = 1
-    ft = ft * fs / 32768
+        for s in frame.signals:
+            family, _, name = s.target.partition(".")
+            if family == "ft":
+                ft[k, channels.index(s.name)] = values[s.name]
+            elif family == "q":
+                q[name][k] = values[s.name]
+            elif family == "pwm":
+                pwm[name][k] = values[s.name]
+            elif family == "skin" and values[s.name]:
+                skin[k] = 1
     assert (np.abs(ft - data.ft["r_arm_ft"]).max(axis=0) <= fs / 65536 * 1.0001).all()  # every channel, not a list order
     for j, v in q.items():
         tick = np.radians(1 / 182.04444444444445)
@@ -129,7 +127,7 @@ def test_bus_load_is_printed_and_under_70_percent(part: dict) -> None:
         bits[bus] = bits.get(bus, 0) + _bits(len(payload))
     duration = N * 1e-3
     want = {b: 100 * v / (duration * 1e6) for b, v in bits.items()}
-    assert printed.keys() == want.keys() == set(part["config"].can["buses"])
+    assert printed.keys() == want.keys() == set(part["config"].bus.buses)
     for b in want:
         assert abs(printed[b] - want[b]) < 0.06, (b, printed[b], want[b])
         assert printed[b] < 70
@@ -152,19 +150,31 @@ def test_saturation_variant_flags_the_clamped_channel(part: dict) -> None:
     py_log = part["root"] / "sat_py.log"
     write_candump(load_data(csv, part["config"]), part["config"], py_log)
     assert log.read_text() == py_log.read_text()
+    generic = part["root"] / "sat_generic.log"  # the generic encoder: the frame's long form, its flags from the table
+    assert boards("--config", str(part["conf"]), "--data", str(csv), "--sink", f"candump:{generic}", "--encoder",
+                  "generic").returncode == 0
+    assert generic.read_text() == log.read_text()
 
 
-def test_board_restart_sends_the_flag_and_restarts_the_sequence(part: dict) -> None:
-    log = part["root"] / "restart.log"
+@pytest.mark.parametrize("encoder", ["icub", "generic"])
+def test_board_restart_sends_the_flag_and_restarts_the_sequence(part: dict, encoder: str) -> None:
+    log = part["root"] / f"restart_{encoder}.log"
     done = boards("--config", str(part["conf"]), "--data", str(part["csv"]), "--sink", f"candump:{log}",
-                  "--restart", "2@1005")
+                  "--restart", "2@1005", "--encoder", encoder)
     assert done.returncode == 0, done.stderr
-    proto = Protocol()
-    status = [((t - T0_US + 250) // 1000, proto.decode(i, p).signals) for t, _, i, p in _frames(log) if i == 0x123]
+    codec = BusCodec(part["config"].bus)
+    status = [((t - T0_US + 250) // 1000, codec.decode(b, i, p)[1]) for t, b, i, p in _frames(log) if i == 0x123]
     seqs = [(k, s["Sequence"], s["BoardRestarted"]) for k, s in status]
     assert seqs[:3] == [(0, 0, 0), (10, 1, 0), (20, 2, 0)]
     after = [x for x in seqs if x[0] >= 1005]
     assert after[:3] == [(1005, 0, 1), (1015, 1, 0), (1025, 2, 0)]
+    if encoder == "generic":  # the same bytes as the emulators
+        assert log.read_text() == (part["root"] / "restart_icub.log").read_text()
+    # A node by its name does the same.
+    named = part["root"] / f"restart_named_{encoder}.log"
+    assert boards("--config", str(part["conf"]), "--data", str(part["csv"]), "--sink", f"candump:{named}",
+                  "--restart", "icub_mc_can1_2@1005", "--encoder", encoder).returncode == 0
+    assert named.read_text() == log.read_text()
 
 
 @pytest.mark.parametrize("case, code, words", [
@@ -176,6 +186,9 @@ def test_board_restart_sends_the_flag_and_restarts_the_sequence(part: dict) -> N
     # A time far after the first (issue 22): its µs stamp overflowed int64 (undefined behaviour) before.
     ("span", 4, "s after the first row, more than the 1e+07 s a run may span"),
     ("socketcan", 5, "socketcan"),
+    ("encoder", 2, "--encoder auto|generic|icub"),
+    ("restart", 2, "--restart nope@3: no node nope in"),
+    ("old_conf", 4, "'strain' is a line of the iCub-only format before the bus description"),
 ])
 def test_bad_input_one_line_and_a_distinct_exit_code(part: dict, case: str, code: int, words: str) -> None:
     root, head = part["root"], part["header"]
@@ -183,6 +196,14 @@ def test_bad_input_one_line_and_a_distinct_exit_code(part: dict, case: str, code
     args = ["--config", str(part["conf"]), "--data", str(part["csv"]), "--sink", f"candump:{root / 'bad.log'}"]
     if case == "flag":
         args.append("--fast")
+    elif case == "encoder":
+        args += ["--encoder", "canopen"]
+    elif case == "restart":
+        args += ["--restart", "nope@3"]
+    elif case == "old_conf":
+        old = root / "old.conf"
+        old.write_text(part["conf"].read_text() + "strain can0 13 200 200 200 10 10 10\n")
+        args[1] = str(old)
     elif case == "missing":
         args[3] = str(root / "nothere.csv")
     elif case in ("badcsv", "nocolumn", "time", "span"):
@@ -220,4 +241,4 @@ def test_an_overloaded_bus_is_refused_after_printing_the_loads(part: dict) -> No
     assert done.returncode == 6, done.stderr
     load = float(re.search(r"bus can0 load ([\d.]+) %", done.stdout).group(1))
     assert abs(load - (46.9 + 47.9 + 61.5)) < 0.3
-    assert done.stderr.strip() == "boards: error: a bus is loaded at 70 % or more: move boards to another bus"
+    assert done.stderr.strip() == "boards: error: a bus is loaded at 70 % or more: move frames to another bus"

@@ -1,29 +1,41 @@
-"""The DBC (firmware_like/icub_can.dbc, read by cantools) and the C header (icub_can.h) describe one protocol.
+"""The iCub arm's bus description (its DBC, generated through cantools) and the C header (icub_can.h) describe one
+protocol.
 
 The C side speaks through `icub_can_vectors`, built from the header and the pack functions: its constants must
-match the DBC's IDs, lengths and bit positions, and every frame it packs must decode, with cantools, to the
-values it packed, and re-encode to the same bytes.
+match the database's IDs, lengths and bit positions, and every frame it packs must decode, with cantools, to the
+values it packed, and re-encode to the same bytes. The committed firmware_like/icub_can.dbc is `dynid export --dbc`'s
+for the arm, compared by what it decodes, not byte for byte.
 """
 
 from __future__ import annotations
 
 import re
-
 import subprocess
+import sys
 from pathlib import Path
 
+import cantools
 import pytest
 
-from dynid.errors import DataError
-from dynid.io.can_protocol import FrameError, FrameProblem, Protocol, make_id, split_id
+from dynid.config.icub_bus import make_id, split_id
+from dynid.config.robot_config import load_config
+from dynid.io.can_database import BusCodec, FrameError, FrameProblem, database
 
 ROOT = Path(__file__).resolve().parents[2]
 VECTORS = ROOT / "build" / "firmware_like" / "icub_can_vectors"
+DBC = ROOT / "firmware_like" / "icub_can.dbc"
+DYNID = Path(sys.executable).with_name("dynid")
 
 
 @pytest.fixture(scope="module")
-def proto() -> Protocol:
-    return Protocol()
+def codec() -> BusCodec:
+    return BusCodec(load_config("icub_right_arm").bus)
+
+
+def message(codec: BusCodec, cls: int, typ: int, long: bool = False):
+    """A message of the arm's bus by (class, type): its layout is the same at every address."""
+    c = next(c for (bus, i), c in codec.codecs.items() if split_id(i)[0] == cls and split_id(i)[2] == typ)
+    return c.long if long else c.message
 
 
 @pytest.fixture(scope="module")
@@ -46,11 +58,11 @@ def c_side() -> tuple[dict[str, int], list[tuple[int, bytes, dict[str, int]]]]:
 
 
 def _bits(msg, prefix: str) -> dict[str, int]:
-    """Single-bit signals of a DBC message as masks relative to their byte (name without prefix -> mask)."""
+    """Single-bit signals of a message as masks relative to their byte (name without prefix -> mask)."""
     return {s.name[len(prefix):]: 1 << (s.start % 8) for s in msg.signals if s.name.startswith(prefix) and s.length == 1}
 
 
-def test_header_constants_are_the_dbcs(proto: Protocol, c_side) -> None:
+def test_header_constants_are_the_databases(codec: BusCodec, c_side) -> None:
     c, _ = c_side
     expect = {
         "STRAIN_FORCE": (c["ICUB_CAN_CLASS_STRAIN"], c["ICUB_CAN_STRAIN_FORCE"], c["ICUB_CAN_STRAIN_DLC"]),
@@ -60,24 +72,31 @@ def test_header_constants_are_the_dbcs(proto: Protocol, c_side) -> None:
         "MC_STATUS": (c["ICUB_CAN_CLASS_MC"], c["ICUB_CAN_MC_STATUS"], c["ICUB_CAN_MC_STATUS_DLC"]),
         "SKIN_TAXELS": (c["ICUB_CAN_CLASS_SKIN"], c["ICUB_CAN_SKIN_TAXELS"], c["ICUB_CAN_SKIN_TAXELS_DLC"]),
     }
-    assert {re.sub(r"_\d+$", "", m.name) for m in proto.db.messages} == set(expect)  # MC_POSITION_2: the address
-    for name, (cls, typ, dlc) in expect.items():
-        msg = proto.message(name)
-        got_cls, _, got_typ = split_id(msg.frame_id)
-        assert (got_cls, got_typ, msg.length) == (cls, typ, dlc), name
-    # The DBC lists each message at every board address of the bus: one layout per (class, type).
-    layout = {name: _layout(proto.message(name)) for name in expect}
-    for msg in proto.db.messages:
-        assert _layout(msg) == layout[re.sub(r"_\d+$", "", msg.name)], hex(msg.frame_id)
-    assert c["ICUB_CAN_STRAIN_DLC"] == 6
-    # Saturation flags: the 7-byte variant's byte 6, bit i = channel i of the frame; documented by attributes of
-    # the 6-byte strain messages (one message cannot decode both lengths in `cantools decode`).
-    for msg in proto.db.messages:
-        if msg.name.startswith("STRAIN"):
-            attrs = {k: a.value for k, a in msg.dbc.attributes.items()}
-            assert attrs["SatFlagsByte"] + 1 == c["ICUB_CAN_STRAIN_DLC_SAT"], hex(msg.frame_id)
-            assert attrs["SatFlagsMask"] == c["ICUB_CAN_STRAIN_SAT_MASK"], hex(msg.frame_id)
-    status = proto.message("MC_STATUS")
+    db = database(codec.bus)
+    assert {re.sub(r"_\d+$", "", m.name) for m in db.messages} == set(expect)  # MC_POSITION_2: the address
+    for m in db.messages:  # every message's ID is its name's (class, type) at its address
+        cls, address, typ = split_id(m.frame_id)
+        base = re.sub(r"_\d+$", "", m.name)
+        assert (cls, typ, m.length) == expect[base], m.name
+        assert m.name.endswith(f"_{address}")
+    # One layout per (class, type) at every address, up to the physical scales of each board's axes.
+    for base in expect:
+        shapes = {tuple((s.name, s.start, s.length, s.byte_order, s.is_signed) for s in m.signals)
+                  for m in db.messages if m.name.startswith(base + "_")}
+        assert len(shapes) == 1, base
+    # Saturation flags: the 7-byte variant's byte 6, bit i = channel i of the frame; the strain frames' long form,
+    # which the DBC documents by the message attribute DynidLongDlc (one message cannot decode both lengths in
+    # `cantools decode`).
+    for typ in (c["ICUB_CAN_STRAIN_FORCE"], c["ICUB_CAN_STRAIN_TORQUE"]):
+        long = message(codec, c["ICUB_CAN_CLASS_STRAIN"], typ, long=True)
+        assert long.length == c["ICUB_CAN_STRAIN_DLC_SAT"]
+        flags = sum(1 << (s.start - 48) for s in long.signals if s.name.startswith("Sat") and s.length == 1)
+        assert flags == c["ICUB_CAN_STRAIN_SAT_MASK"]
+        assert {s.start // 8 for s in long.signals if s.name.startswith("Sat")} == {6}
+    for m in db.messages:
+        if m.name.startswith("STRAIN"):
+            assert m.dbc.attributes["DynidLongDlc"].value == c["ICUB_CAN_STRAIN_DLC_SAT"], m.name
+    status = message(codec, c["ICUB_CAN_CLASS_MC"], c["ICUB_CAN_MC_STATUS"])
     faults = {"OverCurrent": "OVERCURRENT", "OverTemp": "OVERTEMP", "EncoderFault": "ENCODER",
               "ExternalFault": "EXTERNAL", "PwmLimit": "PWM_LIMIT"}
     for axis, byte in (("Axis0", 0), ("Axis1", 1)):
@@ -90,115 +109,101 @@ def test_header_constants_are_the_dbcs(proto: Protocol, c_side) -> None:
     assert sum(board.values()) == c["ICUB_CAN_MC_BOARD_MASK"]
 
 
-def _layout(msg) -> tuple:
-    return msg.length, [(s.name, s.start, s.length, s.byte_order, s.is_signed, s.scale, s.offset) for s in msg.signals]
-
-
-def _expected(name: str, v: dict[str, int]) -> dict[str, int]:
-    """What the C side packed, in the DBC's signal names."""
-    if name.startswith("STRAIN"):
-        ch = ("Fx", "Fy", "Fz") if name == "STRAIN_FORCE" else ("Tx", "Ty", "Tz")
-        out = {c: v[f"s{i}"] for i, c in enumerate(ch)}
-        return out | {f"Sat{c}": (v["flags"] >> i) & 1 for i, c in enumerate(ch)}
-    if name in ("MC_POSITION", "MC_PID_VAL"):
-        sig = "Position" if name == "MC_POSITION" else "Pwm"
+def _expected(cls: int, typ: int, v: dict[str, int]) -> dict[str, int]:
+    """What the C side packed, as raw values in the database's signal names."""
+    if cls == 3:
+        ch = ("Fx", "Fy", "Fz") if typ == 0xA else ("Tx", "Ty", "Tz")
+        out = {c: v[f"s{i}"] + 0x8000 for i, c in enumerate(ch)}  # offset binary
+        return out | {f"Sat{c}": (v["flags"] >> i) & 1 for i, c in enumerate(ch)} | {"SatReserved": 0}
+    if cls == 1 and typ in (1, 2):
+        sig = "Position" if typ == 1 else "Pwm"
         return {f"Axis0{sig}": v["axis0"], f"Axis1{sig}": v["axis1"]}
-    if name == "MC_STATUS":
+    if cls == 1:
         names = ("OverCurrent", "OverTemp", "EncoderFault", "ExternalFault", "PwmLimit")
         out = {f"Axis{a}{n}": (v[f"faults{a}"] >> i) & 1 for a in (0, 1) for i, n in enumerate(names)}
+        out |= {f"Axis{a}Reserved": 0 for a in (0, 1)} | {"BoardReserved": 0}
         return out | {"BoardRestarted": v["board"] & 1, "BoardTxOverrun": v["board"] >> 1 & 1, "Sequence": v["seq"]}
     return {"Taxels": v["taxels"]}
 
 
-def test_every_c_frame_decodes_and_reencodes_with_the_dbc(proto: Protocol, c_side) -> None:
+def test_every_c_frame_decodes_and_reencodes_with_the_database(codec: BusCodec, c_side) -> None:
     _, frames = c_side
     assert len(frames) == 64 * 5
     seen = set()
-    strain = {0xA: "STRAIN_FORCE", 0xB: "STRAIN_TORQUE"}
     for can_id, data, values in frames:
-        cls, address, typ = split_id(can_id)
-        if cls == 3 and len(data) == 7:
-            # The saturation variant: the 6-byte message's counts (cantools' Message.decode allows the excess
-            # byte), then byte 6 as the strain messages' SatFlagsByte / SatFlagsMask document it.
-            msg = proto.message(strain[typ])
-            attrs = {k: a.value for k, a in msg.dbc.attributes.items()}
-            want = _expected(strain[typ], values)
-            counts = {k: v for k, v in want.items() if not k.startswith("Sat")}
-            assert msg.decode(data) == counts, (hex(can_id), data.hex())
-            flags = data[attrs["SatFlagsByte"]]
-            assert flags & ~attrs["SatFlagsMask"] == 0
-            assert {k: (flags >> i) & 1 for i, k in enumerate(k for k in want if k.startswith("Sat"))} == \
-                {k: v for k, v in want.items() if k.startswith("Sat")}, (hex(can_id), data.hex())
-            name, payload = proto.encode(strain[typ], address, counts)
-            assert (name, payload + bytes([flags])) == (can_id, data)
-            seen.add((strain[typ], len(data)))
-            assert proto.decode(can_id, data).signals == want  # the package reads byte 6 too
-            continue
-        f = proto.decode(can_id, data)
-        seen.add((f.name, len(data)))
-        assert f.address == address
-        want = _expected(f.name, values)
-        got = {k: v for k, v in f.signals.items() if not k.endswith("Reserved")}
+        cls, _, typ = split_id(can_id)
+        msg = message(codec, cls, typ, long=cls == 3 and len(data) == 7)
+        want = _expected(cls, typ, values)
         if len(data) == 6:  # a strain frame without the flags byte
             want = {k: v for k, v in want.items() if not k.startswith("Sat")}
-        assert got == want, (hex(can_id), data.hex())
-        assert proto.encode(f.name, f.address, want, dlc=len(data)) == (can_id, data)
+        assert msg.decode(data, scaling=False) == want, (hex(can_id), data.hex())
+        assert bytes(msg.encode(want, scaling=False)) == data, hex(can_id)
+        seen.add((re.sub(r"_\d+$", "", msg.name), len(data)))
     assert seen == {("STRAIN_FORCE", 6), ("STRAIN_FORCE", 7), ("STRAIN_TORQUE", 6), ("STRAIN_TORQUE", 7),
                     ("MC_POSITION", 8), ("MC_PID_VAL", 4), ("MC_STATUS", 4), ("SKIN_TAXELS", 2)}
 
 
-def test_offset_binary_reference_values(proto: Protocol) -> None:
-    # docs/design.md §5, by hand: raw 0x8000 is 0, 0x0000 is -32768, 0xFFFF is 32767, little-endian.
-    f = proto.decode(0x3DA, bytes([0x00, 0x80, 0x00, 0x00, 0xFF, 0xFF]))
-    assert f.signals | {} == {"Fx": 0, "Fy": -32768, "Fz": 32767}
-    f = proto.decode(make_id(1, 2, 1), (-2).to_bytes(4, "little", signed=True) + (70000).to_bytes(4, "little"))
-    assert (f.name, f.address, f.signals) == ("MC_POSITION", 2, {"Axis0Position": -2, "Axis1Position": 70000})
+def test_offset_binary_and_physical_reference_values(codec: BusCodec) -> None:
+    # docs/design.md §5, by hand: raw 0x8000 is 0, 0x0000 is -FS, 0xFFFF is FS · 32767/32768, little-endian.
+    frame, v = codec.decode("can0", 0x3DA, bytes([0x00, 0x80, 0x00, 0x00, 0xFF, 0xFF]))
+    assert (frame.name, v) == ("STRAIN_FORCE_13", {"Fx": 0.0, "Fy": -200.0, "Fz": 200.0 * 32767 / 32768})
+    frame, v = codec.decode("can1", make_id(1, 2, 1), (-2).to_bytes(4, "little", signed=True) + (70000).to_bytes(4, "little"))
+    tick = 3.141592653589793 / 180 / 182.04444444444445
+    assert frame.name == "MC_POSITION_2"
+    assert v["Axis0Position"] == pytest.approx(-2 * tick, rel=1e-15) and v["Axis1Position"] == pytest.approx(70000 * tick, rel=1e-15)
 
 
-def test_seven_byte_strain_frames_decode_with_their_flags(proto: Protocol) -> None:
-    f = proto.decode(0x3DA, bytes([0x00, 0x80, 0x00, 0x00, 0xFF, 0xFF, 0b101]))
-    assert f.signals | {} == {"Fx": 0, "Fy": -32768, "Fz": 32767, "SatFx": 1, "SatFy": 0, "SatFz": 1}
-    assert proto.encode("STRAIN_FORCE", 13, f.signals, dlc=7) == (0x3DA, bytes([0x00, 0x80, 0x00, 0x00, 0xFF, 0xFF, 0b101]))
+def test_seven_byte_strain_frames_decode_with_their_flags(codec: BusCodec) -> None:
+    _, v = codec.decode("can0", 0x3DA, bytes([0x00, 0x80, 0x00, 0x00, 0xFF, 0xFF, 0b101]))
+    assert {k: v[k] for k in ("SatFx", "SatFy", "SatFz")} == {"SatFx": 1, "SatFy": 0, "SatFz": 1}
+    assert codec.encode("can0", 0x3DA, v, long=True) == bytes([0x00, 0x80, 0x00, 0x00, 0xFF, 0xFF, 0b101])
 
 
-@pytest.mark.parametrize("can_id,data,problem", [
-    (0x3DC, bytes(6), FrameProblem.UNKNOWN_ID),             # strain type 0xC is not defined
-    (0x514, bytes(2), FrameProblem.UNKNOWN_ID),             # class 5
-    (0x3DA, bytes(5), FrameProblem.BAD_LENGTH),
-    (0x3DA, bytes(8), FrameProblem.BAD_LENGTH),
-    (0x111, bytes(4), FrameProblem.BAD_LENGTH),
-    (0x112, bytes(8), FrameProblem.BAD_LENGTH),
-    (0x480, bytes(1), FrameProblem.BAD_LENGTH),
-    (0x3DA, bytes(6) + b"\x08", FrameProblem.RESERVED_BITS),  # flag bit 3
-    (0x113, bytes([0x20, 0, 0, 0]), FrameProblem.RESERVED_BITS),
-    (0x113, bytes([0, 0, 0x04, 0]), FrameProblem.RESERVED_BITS),
+@pytest.mark.parametrize("bus,can_id,data,problem", [
+    ("can0", 0x3DC, bytes(6), FrameProblem.UNKNOWN_ID),             # strain type 0xC is not defined
+    ("can0", 0x514, bytes(2), FrameProblem.UNKNOWN_ID),             # class 5
+    ("can1", 0x3DA, bytes(6), FrameProblem.UNKNOWN_ID),             # the strain board is on can0
+    ("can0", 0x3DA, bytes(5), FrameProblem.BAD_LENGTH),
+    ("can0", 0x3DA, bytes(8), FrameProblem.BAD_LENGTH),
+    ("can0", 0x111, bytes(4), FrameProblem.BAD_LENGTH),
+    ("can0", 0x112, bytes(8), FrameProblem.BAD_LENGTH),
+    ("can2", 0x480, bytes(1), FrameProblem.BAD_LENGTH),
+    ("can0", 0x3DA, bytes(6) + b"\x08", FrameProblem.RESERVED_BITS),  # flag bit 3
+    ("can0", 0x113, bytes([0x20, 0, 0, 0]), FrameProblem.RESERVED_BITS),
+    ("can0", 0x113, bytes([0, 0, 0x04, 0]), FrameProblem.RESERVED_BITS),
 ])
-def test_bad_frames_are_named(proto: Protocol, can_id: int, data: bytes, problem: FrameProblem) -> None:
+def test_bad_frames_are_named(codec: BusCodec, bus: str, can_id: int, data: bytes, problem: FrameProblem) -> None:
     with pytest.raises(FrameError) as e:
-        proto.decode(can_id, data)
+        codec.decode(bus, can_id, data)
     assert e.value.problem is problem
 
 
-def test_extended_ids_are_unknown(proto: Protocol) -> None:
+def test_extended_ids_are_unknown(codec: BusCodec) -> None:
     with pytest.raises(FrameError) as e:
-        proto.decode(0x111, bytes(8), extended=True)
+        codec.decode("can0", 0x111, bytes(8), extended=True)
     assert e.value.problem is FrameProblem.UNKNOWN_ID
 
 
-def test_a_foreign_dbc_is_refused(tmp_path: Path) -> None:
-    text = (ROOT / "firmware_like" / "icub_can.dbc").read_text().replace("BO_ 1152 SKIN_TAXELS_8", "BO_ 1153 SKIN_TAXELS_8")
-    text = text.replace('BO_ 1152 1;', 'BO_ 1153 1;').replace("CM_ BO_ 1152", "CM_ BO_ 1153")
-    (tmp_path / "x.dbc").write_text(text)
-    with pytest.raises(DataError, match="SKIN_TAXELS_8 .0x481. is not in the iCub protocol"):
-        Protocol(tmp_path / "x.dbc")
-    (tmp_path / "y.dbc").write_text("not a dbc")
-    with pytest.raises(DataError, match="y.dbc"):
-        Protocol(tmp_path / "y.dbc")
+def _content(db) -> list:
+    """What a database decodes with: per message its ID, name, length and every signal's layout and conversion."""
+    return sorted((m.frame_id, m.name, m.length, sorted((s.name, s.start, s.length, s.byte_order, s.is_signed,
+                                                         s.is_float, s.scale, s.offset) for s in m.signals))
+                  for m in db.messages)
+
+
+def test_the_committed_dbc_is_dynid_exports(tmp_path: Path) -> None:
+    """firmware_like/icub_can.dbc is `dynid export --robot icub_right_arm --dbc` (regenerate it if not)."""
+    out = tmp_path / "arm.dbc"
+    done = subprocess.run([str(DYNID), "export", "--robot", "icub_right_arm", "--dbc", str(out)], capture_output=True,
+                          text=True)
+    assert done.returncode == 0, done.stderr
+    fresh, committed = (cantools.database.load_file(str(p), strict=True) for p in (out, DBC))
+    assert _content(committed) == _content(fresh) == _content(database(load_config("icub_right_arm").bus))
+    assert len(fresh.messages) == 19
 
 
 def test_example_monitor_config_is_current() -> None:
     """rt_monitor/config/icub_right_arm.conf is what dynid writes for the bundled arm (regenerate it if not)."""
-    from dynid.config.robot_config import load_config
     from dynid.export.monitor_config import monitor_config_text
 
     text = (ROOT / "rt_monitor" / "config" / "icub_right_arm.conf").read_text()

@@ -22,7 +22,7 @@ from dynid.detect.visibility import monitor_visibility
 from dynid.export.coefficients import read_coefficients
 from dynid.export.monitor_config import monitor_config_text
 from dynid.export.monitor_log import read_lcm_log
-from dynid.io.can_protocol import Protocol
+from dynid.io.can_database import BusCodec
 from dynid.io.candump import write_candump
 from dynid.io.dataset import contact_episodes
 from dynid.io.load import load_data
@@ -58,24 +58,26 @@ def test_writer_frames_decode_to_the_data_with_the_dbc(setup: dict, tmp_path: Pa
     part = data.slice(0, 50)
     log = tmp_path / "x.log"
     write_candump(part, config, log)
-    proto = Protocol()
+    codec = BusCodec(config.bus)
     fs = np.array(config.can["strain"][0]["full_scale"])
     ft = {}
     q = {}
+    joint = config.can["motor_control"][0]["axes"][0]["joint"]
     for line in log.read_text().splitlines():
         ts, bus, frame = line.split()
         can_id, payload = frame.split("#")
-        f = proto.decode(int(can_id, 16), bytes.fromhex(payload))
+        f, v = codec.decode(bus, int(can_id, 16), bytes.fromhex(payload))
         k = round((int(ts[1:-1].replace(".", "")) - T0_US + 300) / 1000)
-        if f.name == "STRAIN_TORQUE":
-            ft.setdefault(k, [0.0] * 6)[3:] = [f.signals[c] * fs[3 + i] / 32768 for i, c in enumerate(("Tx", "Ty", "Tz"))]
-        elif f.name == "STRAIN_FORCE":
-            ft.setdefault(k, [0.0] * 6)[:3] = [f.signals[c] * fs[i] / 32768 for i, c in enumerate(("Fx", "Fy", "Fz"))]
-        elif f.name == "MC_POSITION" and f.address == 1:
-            q[k] = np.radians(f.signals["Axis0Position"] / config.can["motor_control"][0]["axes"][0]["ticks_per_degree"])
+        if f.name == "STRAIN_TORQUE_13":
+            ft.setdefault(k, [0.0] * 6)[3:] = [v[c] for c in ("Tx", "Ty", "Tz")]
+        elif f.name == "STRAIN_FORCE_13":
+            ft.setdefault(k, [0.0] * 6)[:3] = [v[c] for c in ("Fx", "Fy", "Fz")]
+        elif f.name == "MC_POSITION_1":
+            assert f.signals[0].target == f"q.{joint}"
+            q[k] = v["Axis0Position"]
     got = np.array([ft[k] for k in range(50)])
     assert (np.abs(got - part.ft["r_arm_ft"]).max(axis=0) <= fs / 32768 / 2 * 1.0001).all()
-    j = part.joints.index(config.can["motor_control"][0]["axes"][0]["joint"])
+    j = part.joints.index(joint)
     step = np.radians(1 / config.can["motor_control"][0]["axes"][0]["ticks_per_degree"])
     assert np.abs(np.array([q[k] for k in range(50)]) - part.q[:50, j]).max() <= step / 2 * 1.0001
 
@@ -367,7 +369,7 @@ def test_import_refuses_a_bad_log_with_one_line(tmp_path: Path) -> None:
     done = subprocess.run([sys.executable, "-m", "dynid.cli", "import", "--data", str(bad), "--out", str(tmp_path / "d.npz")],
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 2
-    assert done.stderr.strip().count("\n") == 0 and "no strain frames" in done.stderr, done.stderr
+    assert done.stderr.strip().count("\n") == 0 and "no frame STRAIN_TORQUE_13" in done.stderr, done.stderr
     assert not (tmp_path / "d.npz").exists()
 
 

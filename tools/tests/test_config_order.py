@@ -1,7 +1,7 @@
 """The monitor configuration's keys come in any order, for both programs that read it (rt_monitor, boards).
 
-A configuration with the settings (`lcm_url` among them), the skin, strain and motor lines before `buses` loads
-and behaves as the bundled arm's ordered one: the same frames from `boards`, the same counters and the same
+A configuration with the settings (`lcm_url` among them), the patches, the clock and pair, every signal line before
+the frame lines it names, and `buses` last, loads and behaves as the bundled arm's ordered one: the same frames from `boards`, the same counters and the same
 published contact events and residuals from `rt_monitor`, each run publishing to the `lcm_url` of its own file.
 A board line naming a bus the `buses` line lacks, a missing and a second `buses` line are still refused with one
 line naming the problem. Driven through the command lines only (no dynid import).
@@ -36,12 +36,13 @@ def ordered(url: str) -> str:
 
 
 def shuffled(url: str) -> str:
-    """The same keys with `buses` last: settings, lcm_url, skin, strain, then the motor lines. Repeated keys keep
-    their relative order (the skin lines number the patches, the motor lines order the boards' frames)."""
+    """The same keys with `buses` last: settings, lcm_url, patches, clock and pair, the signals, then the frames
+    they belong to. Repeated keys keep their relative order (the patch lines number the skin mask's bits, a frame's
+    signal lines its signals, the frame lines the send order)."""
     lines = ordered(url).splitlines()
     kind = {k: [l for l in lines if l.split(" ", 1)[0] in k] for k in
-            [("#",), ("lcm_url",), ("robot", "stale_ms", "pair_us", "status_hz", "residual_every"), ("skin",),
-             ("strain",), ("axis", "pwm"), ("buses",)]}
+            [("#",), ("lcm_url",), ("robot", "stale_ms", "pair_us", "status_hz", "residual_every"), ("patch",),
+             ("clock", "pair"), ("signal",), ("frame",), ("buses",)]}
     out = [l for k in kind.values() for l in k]
     assert sorted(out) == sorted(lines)
     assert out.index(f"lcm_url {url}") < out.index(next(l for l in out if l.startswith("buses ")))
@@ -106,13 +107,13 @@ def test_rt_monitor_behaves_the_same_with_buses_last(log: Path, tmp_path: Path) 
 def test_bad_bus_lines_are_one_clear_line(case: str, tmp_path: Path) -> None:
     lines = shuffled("memq://").splitlines()
     if case == "unknown bus":
-        bad = next(i for i, l in enumerate(lines) if l.startswith("axis can1 3 1 "))
+        bad = next(i for i, l in enumerate(lines) if l.startswith("frame MC_POSITION_3 can1 "))
         lines[bad] = lines[bad].replace(" can1 ", " can7 ")
         rt_why = f"{tmp_path}/bad.conf:{bad + 1}: bus 'can7' is not in the 'buses' line (can0 can1 can2)"
-        boards_why = f"{tmp_path}/bad.conf:{bad + 1}: bus 'can7' is not in the 'buses' line (line {len(lines)})"
+        boards_why = f"{tmp_path}/bad.conf:{bad + 1}: bus 'can7' is not in the 'buses' line"
     elif case == "no buses":
         lines = lines[:-1]
-        rt_why = f"{tmp_path}/bad.conf:0: no 'buses' line"  # line 0: the file's (as for "no 'strain' line")
+        rt_why = f"{tmp_path}/bad.conf:0: no 'buses' line"  # line 0: the file's (as for "no 'clock' line")
         boards_why = f"{tmp_path}/bad.conf: no 'buses' line"
     else:
         lines.insert(1, "buses can0 can1")
@@ -134,11 +135,14 @@ def test_bad_bus_lines_are_one_clear_line(case: str, tmp_path: Path) -> None:
 # Issue 22: what a hostile user got past the monitor's configuration. Each is now exit 2 and one line on stderr
 # naming the file, the line and the problem (no usage line: the arguments were fine); nothing is read or published.
 REFUSED = {
-    "joint mapped twice": ("append", "axis can1 3 0 r_elbow 182.04444444444445 0.0",
-                           "joint 'r_elbow' has a second 'axis' line (the first is line 15)"),
-    "axis duplicated": ("dup", "axis can0 1 0 ", "joint 'r_shoulder_pitch' has a second 'axis' line (the first is line 9)"),
-    "pwm duplicated": ("dup", "pwm can1 2 1 ", "motor 'm3' has a second 'pwm' line (the first is line 16)"),
-    "strain duplicated": ("dup", "strain ", "a second 'strain' line (the first is line 8)"),
+    "joint carried twice": ("append", "frame EXTRA can2 0x7F0 4 0 extra 0 -10\nsignal EXTRA 0 32 le s 1e-05 0.0 q.r_elbow",
+                            "'q.r_elbow' is carried by another signal already (line {q.r_elbow})"),
+    "frame duplicated": ("dup", "frame MC_POSITION_1 ", "a second frame 'MC_POSITION_1' (the first is line {first})"),
+    "signal duplicated": ("dup", "signal MC_PID_VAL_2 16 ", "the signal at bit 16 overlaps another signal of frame 'MC_PID_VAL_2'"),
+    "clock duplicated": ("dup", "clock ", "a second 'clock' line (the first is line {first})"),
+    "an old strain line": ("append", "strain can0 13 200.0 200.0 200.0 10.0 10.0 10.0",
+                           "'strain' is a line of the iCub-only format before the bus description: write the "
+                           "configuration again (dynid export --robot ROBOT --monitor-config FILE)"),
     "stale_ms huge": ("set", "stale_ms 99999999999", "stale_ms 99999999999 is out of range: 0.1 to 1000 ms"),
     "stale_ms 0": ("set", "stale_ms 0", "stale_ms 0 is out of range: 0.1 to 1000 ms"),
     "pair_us huge": ("set", "pair_us 99999999999", "pair_us 99999999999 is out of range: 1 to 10000 µs"),
@@ -151,9 +155,12 @@ REFUSED = {
 def test_refused_configuration_is_one_line(case: str, tmp_path: Path) -> None:
     how, text, why = REFUSED[case]
     lines = CONF.read_text().splitlines()
+    first = next((i + 1 for i, l in enumerate(lines) if l.startswith(text)), 0)
+    elbow = next(i + 1 for i, l in enumerate(lines) if l.endswith(" q.r_elbow"))
+    why = why.replace("{first}", str(first)).replace("{q.r_elbow}", str(elbow))
     at = 0
     if how == "append":
-        lines.append(text)
+        lines.extend(text.split("\n"))
         at = len(lines)
     elif how == "dup":
         lines.append(next(l for l in lines if l.startswith(text)))

@@ -214,17 +214,19 @@ def test_simulated_held_out_seeds_lose_nothing_and_stay_physical(short_runs: lis
 
 
 def test_a_poor_run_is_unphysical_unconstrained_and_physical_consistent(default_experiments) -> None:
-    """8 s of the default run: the unconstrained fit has implausible bodies, the consistent one none."""
+    """8 s of the default run: the unconstrained fit has implausible bodies, the consistent one none. OLS: on so short
+    a run two of IV's ten jackknife folds do not settle, and IV then determines nothing (test_decision_margins)."""
     model = RobotModel(load_config("icub_right_arm"))
     ds = load_run(str(default_experiments["identification"]), model, (0.0, 8.0))
-    off = fitmod.fit(model, [ds], fitmod.FitSettings(consistent=False, workers=1))
+    off = fitmod.fit(model, [ds], fitmod.FitSettings(estimator="ols", consistent=False, workers=1))
     assert implausible(model, off.phi), "the short run is not poor enough to show anything"
-    on = fitmod.fit_statistics(model, off.statistics, fitmod.FitSettings(consistent=True), off.samples)
+    on = fitmod.fit_statistics(model, off.statistics, fitmod.FitSettings(estimator="ols", consistent=True), off.samples)
     assert on.chosen == "consistent" and on.consistent["status"] == "solved"
     assert implausible(model, on.phi) == []
     # physical at little cost to the fit: the channels' residual variance on the identification data, relative to
-    # the unconstrained fit's, is no larger on average (measured: F/T torques +5…+10 %, the PWMs −11…−55 %)
-    ratio = on.residual_variance["consistent"] / off.residual_variance["iv"]
+    # the unconstrained fit's, is no larger on average (measured: F/T channels −3…+16 %, the PWMs −99…+4 %)
+    ratio = on.residual_variance["consistent"] / off.residual_variance["ols"]
+    print("residual variance, consistent / unconstrained:", np.round(ratio, 3))
     assert np.mean(ratio) <= 1.0, ratio
 
 

@@ -301,7 +301,7 @@ def test_load_data_candump_is_told_by_content_and_decoded(tmp_path: Path) -> Non
     (tmp_path / "run.txt").write_text(CANDUMP)
     for name in ("run.log", "run.txt"):
         message = one_line_error(load_data, tmp_path / name, CFG)
-        assert "no strain frames of board 13 on can0" in message
+        assert "no frame STRAIN_TORQUE_13 (0x3DB on can0), which completes every sample" in message
 
 
 def test_load_data_refuses_unknown_and_missing_files(tmp_path: Path) -> None:

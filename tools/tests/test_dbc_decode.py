@@ -1,11 +1,13 @@
 """The DBC decodes the bus the boards drive: `python -m cantools decode firmware_like/icub_can.dbc < LOG`.
 
 A simulated contact run goes through the C board emulators (`boards`, the bundled arm's configuration: boards
-at addresses 1-4, 8-13 on three buses) into a candump log; cantools' own command decodes every frame of it, and
-the values it prints are the bytes' by hand and the run's data within the protocol's quantisation (full scales,
-ticks per degree and PWM scales from the configuration). The strain board's 7-byte saturation variant decodes
-with `--no-strict` and its flags byte is where the DBC's attributes say. firmware_like/icub_can.dbc is what
-firmware_like/tools/icub_can_dbc.py writes for that configuration, whatever the order of its keys.
+at addresses 1-4, 8-13 on three buses) into a candump log; cantools' own command decodes every frame of it with the
+DBC `dynid export --dbc` writes (committed as firmware_like/icub_can.dbc), and the values it prints are the bytes'
+by hand and the run's data within the protocol's quantisation (full scales, ticks per degree and PWM scales from the
+configuration), in physical units. The strain board's 7-byte saturation variant is the frame's long form: it decodes
+with `--no-strict`, its flags byte where the DBC's DynidLongDlc attribute says; a strain board configured with
+`saturation_flags: true` sends it as its only form, and then its DBC decodes it strictly. A description the monitor
+cannot hold, or a wrong one, is refused with one line and nothing written.
 
 Command lines only (dynid, boards, cantools' CLI); cantools is imported only to read the DBC's attributes.
 """
@@ -23,11 +25,12 @@ from pathlib import Path
 import cantools
 import pytest
 
+from dynid.config.robot_config import load_config
+
 ROOT = Path(__file__).resolve().parents[2]
 BOARDS = ROOT / "build" / "firmware_like" / "boards"
 DYNID = Path(sys.executable).with_name("dynid")
 DBC = ROOT / "firmware_like" / "icub_can.dbc"
-GENERATOR = ROOT / "firmware_like" / "tools" / "icub_can_dbc.py"
 CONF = ROOT / "rt_monitor" / "config" / "icub_right_arm.conf"
 T0_US = 1_700_000_000_000_000  # boards' default --t0
 FIRST, LAST = 4500, 7600  # rows of the 8 s default contact run: its first contact (5.078-7.403 s) and around
@@ -45,18 +48,16 @@ def cantools_decode(log: Path, *opts: str, dbc: Path = DBC) -> subprocess.Comple
 
 
 def configuration() -> dict:
-    """The board map of the bundled arm's monitor configuration, read as text."""
-    c: dict = {"axis": {}, "pwm": {}, "skin": []}
-    for line in CONF.read_text().splitlines():
-        t = line.split("#")[0].split()
-        if t and t[0] == "strain":
-            c["strain"] = (int(t[2]), [float(x) for x in t[3:9]])
-        elif t and t[0] == "axis":
-            c["axis"][(int(t[2]), int(t[3]))] = (t[4], float(t[5]), float(t[6]))
-        elif t and t[0] == "pwm":
-            c["pwm"][(int(t[2]), int(t[3]))] = (t[4], float(t[5]))
-        elif t and t[0] == "skin":
-            c["skin"].append(int(t[2]))  # the n-th skin line is patch n (skin.patch in the data)
+    """The board map of the bundled arm (its robot configuration's `can:` section)."""
+    can = load_config("icub_right_arm").can
+    c: dict = {"axis": {}, "pwm": {}, "skin": [b["address"] for b in can["skin"]]}  # skin n: patch n (skin.patch)
+    s = can["strain"][0]
+    c["strain"] = (s["address"], [float(x) for x in s["full_scale"]])
+    for b in can["motor_control"]:
+        for slot, ax in enumerate(b["axes"]):
+            c["axis"][(b["address"], slot)] = (ax["joint"], float(ax["ticks_per_degree"]), float(ax.get("zero_deg", 0)))
+            if ax.get("motor"):
+                c["pwm"][(b["address"], slot)] = (ax["motor"], float(b["pwm_full_scale"]))
     return c
 
 
@@ -74,7 +75,7 @@ def parse_decoded(text: str) -> list[dict]:
             out[-1]["base"] = re.sub(r"_\d+$", "", line[:-1])  # MC_POSITION_2 -> MC_POSITION
         elif line != ")":
             name, value = line.strip().rstrip(",").split(": ")
-            out[-1]["signals"][name] = int(value.split()[0])
+            out[-1]["signals"][name] = float(value.split()[0])
     return out
 
 
@@ -127,25 +128,26 @@ def test_decoded_values_are_the_bytes_and_the_data(bus: dict) -> None:
             half = typ - 0xA
             names = ("Fx", "Fy", "Fz") if half == 0 else ("Tx", "Ty", "Tz")
             counts = [raw - 0x8000 for raw in struct.unpack("<3H", data)]
-            assert [sig[n] for n in names] == counts
             for i, n in enumerate(names):
-                column = "ft.r_arm_ft." + n.lower()
-                assert abs(counts[i] * fs[3 * half + i] / 32768 - row[column]) <= fs[3 * half + i] / 65536 * 1.0001
+                scale = fs[3 * half + i] / 32768
+                assert sig[n] == pytest.approx(counts[i] * scale, abs=1e-12 * fs[3 * half + i])
+                assert abs(sig[n] - row["ft.r_arm_ft." + n.lower()]) <= scale / 2 * 1.0001
         elif cls == 1 and typ == 1:
             ticks = struct.unpack("<2i", data)
             for slot in (0, 1):
-                assert sig[f"Axis{slot}Position"] == ticks[slot]
                 if (address, slot) in c["axis"]:
                     joint, tpd, zero = c["axis"][(address, slot)]
-                    deg = ticks[slot] / tpd - zero
-                    assert abs(deg - math.degrees(row[f"q.{joint}"])) <= 0.5 / tpd * 1.0001, joint
+                    assert sig[f"Axis{slot}Position"] == pytest.approx(math.radians(ticks[slot] / tpd - zero), abs=1e-12)
+                    assert abs(sig[f"Axis{slot}Position"] - row[f"q.{joint}"]) <= math.radians(0.5 / tpd) * 1.0001, joint
+                else:
+                    assert sig[f"Axis{slot}Position"] == ticks[slot]  # an unused slot: raw ticks
         elif cls == 1 and typ == 2:
             counts = struct.unpack("<2h", data)
             for slot in (0, 1):
-                assert sig[f"Axis{slot}Pwm"] == counts[slot]
                 if (address, slot) in c["pwm"]:
                     motor, full = c["pwm"][(address, slot)]
-                    assert abs(counts[slot] / full - row[f"pwm.{motor}"]) <= 0.5 / full + 1e-12, motor
+                    assert sig[f"Axis{slot}Pwm"] == pytest.approx(counts[slot] / full, abs=1e-15)
+                    assert abs(sig[f"Axis{slot}Pwm"] - row[f"pwm.{motor}"]) <= 0.5 / full + 1e-12, motor
         elif cls == 1:
             assert sig["Sequence"] == data[3] == (seq.get(address, data[3] - 1) + 1) % 256
             seq[address] = data[3]
@@ -159,16 +161,21 @@ def test_decoded_values_are_the_bytes_and_the_data(bus: dict) -> None:
     assert sum(on) > 1000 and on.count(0) == len(on) - 1  # one patch touched, for over a second
 
 
-def test_the_seven_byte_saturation_variant(bus: dict, tmp_path: Path) -> None:
+def _saturated_csv(bus: dict, tmp_path: Path) -> Path:
     lines = bus["csv"].read_text().splitlines()
     i = lines[0].split(",").index("ft.r_arm_ft.fy")
     rows = [l.split(",") for l in lines[1:101]]
     rows[50][i] = "250.0"  # beyond the 200 N full scale: clamped, flagged
     csv = tmp_path / "sat.csv"
     csv.write_text("\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n")
+    return csv
+
+
+def test_the_seven_byte_saturation_variant(bus: dict, tmp_path: Path) -> None:
+    csv = _saturated_csv(bus, tmp_path)
     log = tmp_path / "sat.log"
     assert run(BOARDS, "--config", CONF, "--data", csv, "--sink", f"candump:{log}").returncode == 0
-    # cantools decode checks lengths exactly: the 6-byte strain message does not take 7 bytes ...
+    # cantools decode checks lengths exactly: the 6-byte strain message does not take its 7-byte long form ...
     strict = parse_decoded(cantools_decode(log).stdout)
     assert {f["error"] for f in strict if f["id"] >> 8 == 3} == {"Wrong data size: 7 instead of 6 bytes"}
     assert all(f["name"] for f in strict if f["id"] >> 8 != 3)
@@ -178,52 +185,51 @@ def test_the_seven_byte_saturation_variant(bus: dict, tmp_path: Path) -> None:
     strain = [f for f in frames if f["id"] == 0x3DA]
     assert {len(f["data"]) for f in strain} == {7}
     for f in strain:
-        assert [f["signals"][n] for n in ("Fx", "Fy", "Fz")] == [r - 0x8000 for r in struct.unpack("<3H", f["data"][:6])]
-    assert strain[50]["signals"]["Fy"] == 32767
-    # The flags byte, as the DBC's attributes document it: bit 1 (Fy) of sample 50, nothing else.
+        counts = [r - 0x8000 for r in struct.unpack("<3H", f["data"][:6])]
+        assert [round(f["signals"][n] * 32768 / 200) for n in ("Fx", "Fy", "Fz")] == counts
+    assert strain[50]["signals"]["Fy"] == pytest.approx(200 * 32767 / 32768)
+    # The flags byte, as the DBC documents the long form: its length in DynidLongDlc, its signals in the comment.
     msg = cantools.database.load_file(str(DBC)).get_message_by_frame_id(0x3DA)
-    attrs = {k: a.value for k, a in msg.dbc.attributes.items()}
-    assert (attrs["SatFlagsByte"], attrs["SatFlagsMask"]) == (6, 0b111)
-    flags = [f["data"][attrs["SatFlagsByte"]] for f in strain]
+    assert msg.dbc.attributes["DynidLongDlc"].value == 7 and "SatFy (49|1)" in msg.comment
+    flags = [f["data"][6] for f in strain]
     assert flags[50] == 0b010 and flags[:50] + flags[51:] == [0] * 99
-    assert msg.decode(strain[50]["data"]) == strain[50]["signals"]  # the API allows the excess byte by default
 
 
-def test_the_checked_in_dbc_is_the_generators_for_the_arm(tmp_path: Path) -> None:
-    done = run(sys.executable, GENERATOR, CONF)
+def test_a_board_configured_with_its_flags_decodes_strictly(bus: dict, tmp_path: Path) -> None:
+    """`saturation_flags: true`: the 7-byte frame is the board's only form, in the DBC and on the bus."""
+    arm = Path(load_config("icub_right_arm").source).read_text()
+    robot = tmp_path / "arm_flags.yaml"
+    robot.write_text(arm.replace("full_scale: [200.0, 200.0, 200.0, 10.0, 10.0, 10.0]}",
+                                 "full_scale: [200.0, 200.0, 200.0, 10.0, 10.0, 10.0], saturation_flags: true}")
+                     .replace("urdf: {icub_models: iCubGenova04}", "urdf: {icub_models: iCubGenova04}"))
+    dbc, conf, log = tmp_path / "flags.dbc", tmp_path / "flags.conf", tmp_path / "flags.log"
+    done = run(DYNID, "export", "--robot", robot, "--dbc", dbc, "--monitor-config", conf)
     assert done.returncode == 0, done.stderr
-    assert done.stdout == DBC.read_text()
-    # The configuration's keys in another order (buses last, skins first): the same DBC.
-    lines = CONF.read_text().splitlines()
-    order = ("#", "robot", "skin", "pwm", "axis", "strain", "stale_ms", "pair_us", "status_hz", "residual_every",
-             "buses")
-    moved = sorted(lines, key=lambda l: order.index(l.split(" ", 1)[0]))
-    assert moved[-1].startswith("buses ")
-    (tmp_path / "moved.conf").write_text("\n".join(moved) + "\n")
-    assert run(sys.executable, GENERATOR, tmp_path / "moved.conf").stdout == DBC.read_text()
+    assert run(BOARDS, "--config", conf, "--data", _saturated_csv(bus, tmp_path), "--sink", f"candump:{log}").returncode == 0
+    frames = parse_decoded(cantools_decode(log, dbc=dbc).stdout)
+    assert [f for f in frames if f["error"] or not f["name"]] == []
+    strain = [f for f in frames if f["id"] == 0x3DA]
+    assert {len(f["data"]) for f in strain} == {7}
+    assert [f["signals"]["SatFy"] for f in strain].count(1) == 1 and strain[50]["signals"]["SatFy"] == 1
 
 
-def test_generator_refuses_a_bad_configuration_with_one_line(tmp_path: Path) -> None:
-    conf = tmp_path / "bad.conf"
-    conf.write_text(CONF.read_text().replace("skin can2 9 ", "skin can5 9 "))
-    done = run(sys.executable, GENERATOR, conf, "--out", tmp_path / "x.dbc")
-    line = next(n for n, l in enumerate(conf.read_text().splitlines(), 1) if " can5 " in l)
-    assert done.returncode == 2 and not (tmp_path / "x.dbc").exists()
-    assert done.stderr.splitlines() == [
-        f"icub_can_dbc.py: error: {conf}:{line}: bus 'can5' is not in the 'buses' line (can0 can1 can2)"]
-
-
-def test_addressed_names_are_unique_and_decode_like_the_same_names(bus: dict, tmp_path: Path,
-                                                                 caplog: pytest.LogCaptureFixture) -> None:
-    """The checked-in DBC names each message with its board address (unique: no duplicate-name warnings);
-    --names same writes one name per (class, type), and both decode the bus to the same signals."""
-    with caplog.at_level(logging.WARNING, logger="cantools"):
-        db = cantools.database.load_file(str(DBC), strict=True)
-    assert caplog.records == []
-    assert len({m.name for m in db.messages}) == len(db.messages) == 19
-    frames = parse_decoded(bus["decoded"].stdout)
-    assert [f["name"] for f in frames if f["id"] in (0x121, 0x4C0)][:2] == ["MC_POSITION_2", "SKIN_TAXELS_12"]
-    same = tmp_path / "same.dbc"
-    assert run(sys.executable, GENERATOR, CONF, "--names", "same", "--out", same).returncode == 0
-    plain = parse_decoded(cantools_decode(bus["log"], dbc=same).stdout)
-    assert [(f["base"], f["signals"]) for f in frames] == [(f["name"], f["signals"]) for f in plain]
+def test_a_bus_the_monitor_cannot_hold_or_a_wrong_one_is_refused_before_writing(tmp_path: Path) -> None:
+    base = Path(load_config("icub_right_arm").source).read_text()
+    many = "".join(f"    - {{bus: {'can2' if k < 15 else 'can1'}, address: {k % 15 + 1}, patch: p{k}, side: distal}}\n"
+                   for k in range(17))
+    cases = {
+        # 17 skin patches: the monitor's kMaxSkins is 16 (rt_monitor/include/rt_monitor/capacity.hpp).
+        "capacity": base.split("  skin:")[0] + "  skin:\n" + many,
+        "address": base.replace("{bus: can2, address: 8,", "{bus: can2, address: 16,"),
+    }
+    want = {"capacity": "its bus has 17 skin patches, the monitor holds at most 16 (kMaxSkins in "
+                        "rt_monitor/include/rt_monitor/capacity.hpp)",
+            "address": "field 'can.skin[0].address' must be an integer board address in 1..15, got 16"}
+    for name, text in cases.items():
+        robot = tmp_path / f"{name}.yaml"
+        robot.write_text(text)
+        out = tmp_path / f"{name}.dbc"
+        done = run(DYNID, "export", "--robot", robot, "--dbc", out, "--monitor-config", tmp_path / f"{name}.conf")
+        assert done.returncode == 2, done.stderr
+        assert len(done.stderr.splitlines()) == 1 and want[name] in done.stderr, done.stderr
+        assert not out.exists() and not (tmp_path / f"{name}.conf").exists()

@@ -210,11 +210,12 @@ def test_elbow_stribeck_is_named_and_its_gap_shrinks(gaps) -> None:
     this narrow could be kept by the selection and dropped by the refit: "after" showed no change)."""
     result, truth, stdout = gaps("stribeck_elbow")
     assert _named(result)[0] == ("stribeck", "joint r_elbow"), stdout
-    # With supply tracking the curve's small misfit near the stops shows, and an armature of 0.004 kg m² takes 0.7 %
-    # of what the Stribeck took there: reported tentative, as secondary to it, not named with confidence
+    # With supply tracking the curve's small misfit near the stops can show, and an armature then takes under 10 % of
+    # what the Stribeck took there (0.0041 kg m² on the Python plant's run; nothing on the C++ plant's): whatever comes
+    # beside the Stribeck is reported tentative, as secondary to it, never named with confidence
     assert [(e["name"], e["where"]) for e in result["effects"] if e["confident"]] == [("stribeck", "joint r_elbow")], stdout
-    assert len(result["effects"]) == 2, stdout  # the armature beside it (measured 0.0041 kg m²)
-    assert all(e["secondary_to"] == "stribeck on joint r_elbow" for e in result["effects"][1:]), stdout
+    assert all(not e["confident"] and e["secondary_to"] == "stribeck on joint r_elbow"
+               for e in result["effects"][1:]), stdout
     p = _effect(result, "stribeck")["parameters"]
     true = _truth(truth, "stribeck")
     static = float(true["excess"]) * _coordinate_coulomb(truth, "r_elbow")

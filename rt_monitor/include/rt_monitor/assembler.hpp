@@ -1,15 +1,19 @@
-// The monitor's configuration file and sample assembly: CAN frames in, one (q, y) sample per strain pair out.
+// Sample assembly: CAN frames in, decoded with the compiled bus table (bus_table.hpp), one (q, y) sample per clock
+// frame out. Generic over robots: what a frame carries is the table's, nothing here knows a protocol.
 //
-// - The strain board's force half (type 0xA) and torque half (0xB) are paired only when the torque half
-//   follows the force half within `pair_us` with no other strain frame between: a half is never paired with
-//   a half of another sample (docs/design.md §5). The pair's time is the sample's time.
-// - Encoder positions and PWMs are held at their latest values; a sample with any of them not renewed for
-//   more than `stale_us` (or never received) is stale, and so is one with a saturated strain channel. A sample with an
-//   encoder value that did not come after the previous sample is `held`: the monitor bridges it like a lost
-//   sample (a held position is a kink the derivative filter would read as an acceleration spike). Whether a
-//   value is new is told by order, not by its age: a sender preempted between its frames stamps the position
-//   long before the strain pair, and that value is still this sample's (neither held nor stale).
-// - Every bad frame has a counter (MonitorCounters); nothing throws, nothing allocates after set-up.
+// - A pair's halves (the iCub strain board's force 0xA and torque 0xB) are committed together, only when the second
+//   follows the first within `pair_us` with no other first half between: a half is never paired with a half of
+//   another sample (docs/design.md §5). The clock frame (the clock pair's second half) completes a sample; its time
+//   is the sample's. Another pair's values are its latest complete pair (an iCub leg's second F/T sensor).
+// - Every other value is held at its latest; a sample with any of them not renewed for more than `stale_us` (or
+//   never received) is stale, and so is one with a saturated value. A sample with a position that did not come after
+//   the previous sample is `held`: the monitor bridges it like a lost sample (a held position is a kink the
+//   derivative filter would read as an acceleration spike). Whether a value is new is told by order, not by its age:
+//   a sender preempted between its frames stamps the position long before the clock frame, and that value is still
+//   this sample's (neither held nor stale).
+// - A node's restart (its restart flag, or its sequence counter back to 0 when not due to wrap) drops that node's
+//   values until fresh ones come.
+// - Every bad frame has a counter (MonitorCounters); nothing throws, nothing allocates after init().
 #pragma once
 
 #include <linux/can.h>
@@ -17,105 +21,74 @@
 #include <array>
 #include <cstdint>
 #include <string>
-#include <vector>
 
+#include "rt_monitor/bus_table.hpp"
 #include "rt_monitor/coefficients.hpp"
 #include "rt_monitor/frame_source.hpp"
+#include "rt_monitor/monitor_config.hpp"
 
 namespace dynid::rt {
 
-struct AxisMap {
-    int bus = 0, address = 0, slot = 0;
-    std::string joint;
-    double ticks_per_degree = 1, zero_deg = 0;
-};
-struct PwmMap {
-    int bus = 0, address = 0, slot = 0;
-    std::string motor;
-    double full_scale = 1;
-};
-
-struct MonitorConfig {
-    std::string robot;
-    std::vector<std::string> buses;
-    std::string lcm_url;                 // empty: LCM's default (UDP multicast, ttl=0)
-    int64_t stale_us = 5000, pair_us = 500;
-    double status_hz = 10;
-    int residual_every = 10;             // publish one residual message every N evaluated samples
-    int strain_bus = 0, strain_address = 0;
-    std::array<double, 6> full_scale{};  // N, N, N, Nm, Nm, Nm
-    std::vector<AxisMap> axes;
-    std::vector<PwmMap> pwms;
-    struct Skin { int bus = 0, address = 0; std::string patch, side; };
-    std::vector<Skin> skins;
-};
-
-// The configuration's limits (rt_monitor/README.md, "Configuration"): a value outside them is refused, not clamped.
-constexpr double kStaleMsMin = 0.1, kStaleMsMax = 1000;  // beyond a second the staleness guard is as good as off
-constexpr long long kPairUsMin = 1, kPairUsMax = 10000;  // two halves further apart are not one conversion
-constexpr double kStatusHzMin = 0.1, kStatusHzMax = 1000;  // at most one status per 1 kHz sample
-constexpr long long kResidualEveryMax = 100000;
-constexpr double kFullScaleMax = 1e6;           // strain full scales, N and Nm
-constexpr double kTicksPerDegreeMin = 1e-3, kTicksPerDegreeMax = 1e7;
-constexpr double kZeroDegMax = 3600;            // |ZERO_DEG|: ten turns
-constexpr double kPwmFullScaleMax = 32767;      // PID_VAL carries int16 counts
-
-// The status message's period in CAN time, µs (status_hz within its limits: 1 000 to 10 000 000).
-inline int64_t status_period_us(const MonitorConfig& c) noexcept { return int64_t(1e6 / c.status_hz); }
-
-// Parses the configuration (rt_monitor/README.md, "Configuration") from its text; `path` names it in messages.
-// False and one line naming the file, the line and the problem on error (line 0: the file as a whole).
-bool parse_monitor_config(const std::string& text, const std::string& path, MonitorConfig& out, std::string& error);
-// The same, read from the file at `path`.
-bool load_monitor_config(const std::string& path, MonitorConfig& out, std::string& error);
-
-// Every frame pushed is counted once in `frames` and once in exactly one of: error_frames, unknown_id, bad_length,
-// strain_frames, position_frames, pid_frames, status_frames, skin_frames. Strain halves: strain_frames =
-// 2 samples + unpaired_strain + (a force half still waiting for its torque half: pending_strain()).
+// Every frame pushed is counted once in `frames` and once in exactly one of: error_frames, unknown_id, bad_length
+// (a wrong length, reserved bits set or a non-finite float), strain_frames (the clock pair's halves, or the clock
+// frame), position_frames, pid_frames (inputs), status_frames (health), skin_frames, sensor_frames (other pairs and
+// F/T frames). Clock halves: strain_frames = 2 samples + unpaired_strain + pending_strain() (a single clock frame:
+// strain_frames = samples).
 struct MonitorCounters {
     int64_t frames = 0, samples = 0, stale_samples = 0, unknown_id = 0, bad_length = 0, error_frames = 0,
             unpaired_strain = 0, saturated = 0, board_faults = 0, board_restarts = 0, skin_frames = 0;
     int64_t strain_frames = 0, position_frames = 0, pid_frames = 0, status_frames = 0;  // decoded, by kind
+    int64_t sensor_frames = 0, unpaired_sensor = 0;  // the other pairs' frames, and their halves never paired
 };
 
 struct Sample {
     int64_t t_us = 0;
     std::array<double, kMaxJoints> q{};
     std::array<double, kMaxOutputs> y{};
-    bool stale = false;      // an input too old or missing, or a saturated strain channel
-    bool held = false;       // an encoder value did not come after the previous sample: it is held, not new
-    uint16_t skin_mask = 0;  // patches in contact (bit = index in the configuration's skin list)
+    std::array<double, kMaxJoints> dq{};  // the measured q̇, where the bus carries every joint's (has_dq)
+    bool has_dq = false;
+    bool stale = false;      // an input too old or missing, or a saturated value
+    bool held = false;       // a position did not come after the previous sample: it is held, not new
+    uint16_t skin_mask = 0;  // patches in contact (bit = index in the configuration's patch list)
 };
 
 class Assembler {
 public:
-    // Maps the coefficient file's joints and channels onto the configuration; false and one line if one is
-    // not served by any board.
+    // Maps the coefficient file's joints (q, and dq where every joint has one) and channels (ft.S.C, pwm.M,
+    // current.M, tau.J, by name) onto the table's values; false and one line if one is carried by no signal.
     bool init(const MonitorConfig& cfg, const Coefficients& coef, std::string& error);
     // One frame in; true when it completed a sample (then `out` holds it).
     bool push(const RxFrame& f, Sample& out) noexcept;
     const MonitorCounters& counters() const noexcept { return n_; }
-    // 1 while a force half waits for its torque half (the input ended or stopped between the two), else 0.
-    int pending_strain() const noexcept { return t_force_ >= 0 ? 1 : 0; }
+    // 1 while the clock pair's first half waits for its second (the input ended or stopped between the two), else 0.
+    int pending_strain() const noexcept { return cfg_ && cfg_->bus.clock_pair >= 0 && t_first_[size_t(cfg_->bus.clock_pair)] >= 0; }
 
 private:
-    static constexpr int kMaxBus = kMaxBuses;
-    enum : int8_t { kNone = 0, kStrain = 1, kMc = 2, kSkin = 3 };
-    int board(int bus, unsigned cls, unsigned address) const noexcept;
+    struct Slot {
+        double value = 0;
+        int64_t t = -1;  // -1: never, or dropped by a restart
+        bool saturated = false;
+    };
+    void commit(int frame, const double* v, int64_t t, bool saturated) noexcept;
+    void restart(int node) noexcept;
+    bool close(int64_t t, Sample& out) noexcept;
 
     const MonitorConfig* cfg_ = nullptr;
+    FrameDecoder decoder_;
     int n_joints_ = 0, n_outputs_ = 0;
-    // (bus, class, address) -> index of the board in its list, +1; 0: not configured.
-    std::array<int16_t, kMaxBus * 8 * 16> boards_{};
-    std::array<int, kMaxJoints> joint_axis_{};  // coefficient joint -> index in cfg.axes
-    std::array<int, kMaxOutputs> out_src_{};    // channel -> 0..5 F/T component, or 6 + index in cfg.pwms
-    std::vector<double> q_, pwm_;               // latest values, by cfg index
-    std::vector<int64_t> t_q_, t_pwm_;          // their times (-1: never)
-    std::vector<int> status_seq_;               // last STATUS sequence per motor board address (-1: none)
-    std::array<double, 3> force_{};
-    int64_t t_force_ = -1;
-    int64_t t_strain_ = -1, t_boundary_ = -1;   // the last strain frame; the last one before the current force half
-    bool force_saturated_ = false;
+    bool has_dq_ = false;
+    std::array<int, kMaxJoints> q_slot_{}, dq_slot_{};
+    std::array<int, kMaxOutputs> y_slot_{};
+    std::array<Slot, kMaxSignals> slots_{};
+    std::array<int, kMaxSignals> node_slots_{};      // the value slots of each node, grouped by node
+    std::array<int, kMaxFrames + 1> node_first_{};   // node k's slots: node_slots_[node_first_[k], node_first_[k + 1])
+    std::array<int, kMaxFrames> last_seq_{};         // per frame: the last sequence counter (-1: none yet)
+    // Pairs: the first half's decoded values (by its signals' order), its time (-1: none waiting), saturation.
+    std::array<std::array<double, 64>, kMaxFrames / 2> first_values_{};
+    std::array<int64_t, kMaxFrames / 2> t_first_{};
+    std::array<bool, kMaxFrames / 2> first_saturated_{};
+    std::array<double, kMaxSignals> scratch_{};
+    int64_t t_clock_ = -1, t_boundary_ = -1;  // the last clock frame; the last one before the current sample opened
     uint16_t skin_mask_ = 0;
     MonitorCounters n_;
 };

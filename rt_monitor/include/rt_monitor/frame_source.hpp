@@ -119,17 +119,19 @@ private:
 };
 
 // ---- SocketCAN ---------------------------------------------------------------------------------------
-// Kernel filters that pass standard-ID data frames of the given message classes (ID bits 8-10) only; error
-// frames come through CAN_RAW_ERR_FILTER. The kernel passes a frame iff (id & mask) == (filter.id & mask).
-std::vector<can_filter> socketcan_filters(const std::vector<uint8_t>& classes);
+// Kernel filters that pass the standard-ID data frames of the given IDs only (the bus table's frames on one bus: the
+// kernel takes up to 512 per socket); error frames come through CAN_RAW_ERR_FILTER. The kernel passes a frame iff
+// (id & mask) == (filter.id & mask) for one of them.
+std::vector<can_filter> socketcan_filters(const std::vector<uint32_t>& ids);
 bool socketcan_filter_passes(const std::vector<can_filter>& filters, canid_t id) noexcept;
 
 class SocketCanSource final : public FrameSource {
 public:
-    // Opens one CAN_RAW socket per interface with the filters, error frames and SO_TIMESTAMP. On failure, one
-    // line naming the interface and the call (e.g. no AF_CAN in this kernel).
+    // Opens one CAN_RAW socket per interface with its filters (filters[i] for interfaces[i]), error frames and
+    // SO_TIMESTAMP. On failure, one line naming the interface and the call (e.g. no AF_CAN in this kernel).
     static std::unique_ptr<SocketCanSource> open(const std::vector<std::string>& interfaces,
-                                                 const std::vector<can_filter>& filters, std::string& error);
+                                                 const std::vector<std::vector<can_filter>>& filters,
+                                                 std::string& error);
     ~SocketCanSource() override;
     ReadStatus read(RxFrame& out, int timeout_ms) noexcept override;
 

@@ -24,7 +24,8 @@ COMMANDS: dict[str, Command] = {
     "validate": Command("identify", "the paper's Table II on a validation experiment"),
     "detect": Command("identify", "offline T² contact detection (momentum-observer residuals) against ground truth or labels"),
     "report": Command("report", "the identification report: one HTML page with figures and tables"),
-    "export": Command("export", "write the real-time monitor's coefficient file (or --print one), or the identified robot as a URDF (--urdf)"),
+    "export": Command("export", "write the real-time monitor's coefficient file (or --print one), the identified robot as a URDF (--urdf), the robot's CAN bus as a DBC (--dbc) or the monitor's configuration (--monitor-config)"),
+    "play": Command("play", "play a recorded run onto the robot's CAN bus (candump log, loopback, SocketCAN) as its bus description says"),
     "gaps": Command(
         "gaps", "where model and data disagree, which missing effect explains it, and the gap after the fix"
     ),

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..config.bus import LOAD_LIMIT
 from ..config.robot_config import load_config
 from ..errors import InputError
 from ..export.coefficients import (
@@ -44,7 +46,59 @@ def _settings(args: argparse.Namespace) -> ExportSettings:
                           args.residual, args.bandwidth, events(MOMENTUM_EVENTS), args.rate or 1000.0)
 
 
+def _export_bus(args: argparse.Namespace) -> dict[str, Any]:
+    """--dbc OUT.dbc and --monitor-config OUT.conf: the robot's bus description as a DBC written through cantools, and
+    compiled into the monitor's configuration; the robot of --model, else --robot. Nothing is written unless the
+    monitor can hold the bus (its capacity) and every output can be written."""
+    from ..export.monitor_config import check_capacity, monitor_config_text
+    from ..io.can_database import dbc_files
+    from ..io.dataset import atomic_write
+
+    config = load_model(args.model).config if args.model else load_config(args.robot, args.urdf)
+    bus = check_capacity(config)
+    dbcs = dbc_files(bus, config.name) if args.dbc else {}
+    paths = {}
+    for suffix, text in dbcs.items():  # IDs shared between buses: one DBC per bus, OUT-<bus>.dbc
+        out = Path(args.dbc)
+        paths[suffix] = str(out.with_name(f"{out.stem}-{suffix}{out.suffix}")) if suffix else args.dbc
+    outputs = {f"dbc ({k or 'all buses'})": v for k, v in paths.items()}
+    if args.monitor_config:
+        outputs["monitor-config"] = args.monitor_config
+    check_outputs(args, outputs)
+    conf_text = monitor_config_text(config, args.lcm_url) if args.monitor_config else ""
+    for suffix, path in paths.items():
+        atomic_write(path, lambda f, t=dbcs[suffix]: f.write(t.encode()))
+    if args.monitor_config:
+        atomic_write(args.monitor_config, lambda f: f.write(conf_text.encode()))
+    load = bus.load()
+    n_signals = sum(len(f.signals) for f in bus.frames)
+    origin = "the iCub protocol ('can')" if bus.origin == "can" else "its 'bus' description"
+    print(f"{config.name}: {len(bus.frames)} frames, {n_signals} signals on {len(bus.buses)} bus"
+          f"{'es' * (len(bus.buses) != 1)}, from {origin}; a sample every {1e3 / bus.rate:g} ms, completed by "
+          f"{bus.clock}")
+    for b, v in load.items():
+        print(f"  bus {b}: load {100 * v:.1f} % at {bus.rate:g} Hz (worst-case bit stuffing, {bus.bitrate / 1e6:g} Mbit/s)"
+              + ("  over the 70 % budget" if v >= LOAD_LIMIT else ""))
+    for path in paths.values():
+        print(f"  DBC -> {path} (python -m cantools decode {path} < candump.log)")
+    if args.monitor_config:
+        print(f"  monitor configuration -> {args.monitor_config} (rt_monitor --config {args.monitor_config})")
+    return {"robot": config.name, "origin": bus.origin, "dbc": list(paths.values()),
+            "monitor_config": args.monitor_config, "frames": len(bus.frames), "signals": n_signals,
+            "rate_hz": bus.rate, "clock": bus.clock, "load": load}
+
+
 def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
+    if args.dbc or args.monitor_config:
+        if args.cad or args.print or (args.urdf and args.model):
+            raise InputError("--dbc and --monitor-config go with --model MODEL or --robot CFG [--urdf FILE] (and --out "
+                             "COEF_FILE)")
+        result = _export_bus(args)
+        if args.model and args.out:
+            result["coefficients"] = _export_coefficients(args)
+        return result
+    if args.lcm_url:
+        raise InputError("--lcm-url goes with --monitor-config OUT.conf")
     if args.print:
         c = read_coefficients(args.print)
         print(describe(c))
@@ -168,7 +222,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         "With --urdf OUT.urdf: the robot's URDF with the identified inertial parameters in every link "
                         "(the physically consistent full set nearest CAD that reproduces the identified base "
                         "parameters), the symmetric friction in <dynamics>, and the rest in OUT.dynamics.yaml "
-                        "(docs/formats.md).")
+                        "(docs/formats.md). With --dbc / --monitor-config: the robot's CAN bus as a DBC and as the "
+                        "monitor's configuration (of --model's robot, or of --robot without a model).")
     sp.add_argument("--model", metavar="MODEL", help="the model file of `dynid fit`")
     sp.add_argument("--out", metavar="COEF_FILE", help="the coefficient file to write (atomically)")
     sp.add_argument("--print", metavar="COEF_FILE", help="print a coefficient file readably instead")
@@ -176,7 +231,14 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     "and benchmarks: nominal gains, no friction, Λ = the noise σ², the F threshold, at --rate)")
     sp.add_argument("--rate", type=positive_float, default=None, metavar="HZ",
                     help="with --cad: the boards' sample rate (default 1000 Hz)")
-    sp.add_argument("--robot", default="icub_right_arm", metavar="CFG", help="robot of --cad (default icub_right_arm)")
+    sp.add_argument("--robot", default="icub_right_arm", metavar="CFG", help="robot of --cad, --dbc and "
+                    "--monitor-config when no --model is given (default icub_right_arm)")
+    sp.add_argument("--dbc", metavar="OUT.dbc", help="write the robot's CAN bus (its configuration's bus description) "
+                    "as a DBC that cantools reads (`python -m cantools decode OUT.dbc < candump.log`); one DBC per bus, "
+                    "OUT-<bus>.dbc, where buses share IDs; prints each bus's load")
+    sp.add_argument("--monitor-config", metavar="OUT.conf", help="write rt_monitor's configuration: the settings and "
+                    "the bus description compiled into the table the monitor decodes (docs/formats.md)")
+    sp.add_argument("--lcm-url", metavar="URL", help="with --monitor-config: the LCM URL the monitor publishes to")
     sp.add_argument("--urdf", metavar="FILE", help="with --model: the URDF to write, the identified robot (and its "
                     "side file FILE.dynamics.yaml: asymmetric friction, motor gains, coupling, F/T offsets); with "
                     "--cad: the URDF of --robot, replacing the configuration's")

@@ -124,6 +124,9 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
                      f"needed{', borderline' if near else ''})")
             print(f"  {name}: the iteration did not settle {where}: its values are the last iterate and its standard "
                   "errors mean nothing")
+        elif est.detail.get("folds_dropped"):
+            print(f"  {name}: the jackknife fold without time block(s) {', '.join(map(str, est.detail['folds_dropped']))} "
+                  "did not settle and is left out of the standard errors")
     inertial = set(model.layout.names[model.layout.span("inertial")])
     unexcited = [n for n in base.unidentifiable if n not in inertial]  # inertial ones: structural (CAD kept)
     if unexcited:

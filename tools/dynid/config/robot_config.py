@@ -20,7 +20,9 @@ import numpy as np
 import yaml
 
 from ..errors import ConfigError
+from .bus import BusDescription, parse_bus
 from .fields import Fields, as_float
+from .icub_bus import icub_bus
 from .log_columns import LogColumn, parse_columns
 from .ros2_topics import Ros2Topics, parse_ros2
 from .yarp_ports import YarpLayout, parse_yarp
@@ -129,6 +131,9 @@ class RobotConfig:
     motors: tuple[MotorConfig, ...]
     noise: NoiseConfig
     can: dict[str, Any] = field(default_factory=dict)
+    # The CAN bus as data (config/bus.py): the `bus` section, or the iCub protocol's `can` section expanded; None
+    # when the configuration describes no bus (its runs then never cross one: CSV, logs, bags).
+    bus: BusDescription | None = None
     # Offline derivative estimator for q̇, q̈ when the data lack them: `method` and its options, passed to
     # dynid.io.derivatives.estimate_derivatives (the window depends on the robot's sampling rate and encoders).
     derivatives: dict[str, Any] = field(default_factory=dict)
@@ -282,7 +287,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     root = Fields(path.stem, "", data)
     name = root.string("name")
     f = Fields(name, "", data).only(
-        "name", "urdf", "base_link", "gravity", "joints", "ft_sensors", "motors", "actuation", "noise", "can",
+        "name", "urdf", "base_link", "gravity", "joints", "ft_sensors", "motors", "actuation", "noise", "can", "bus",
         "derivatives", "columns", "payload_frame", "yarp", "ros2", "limits",
     )
 
@@ -387,6 +392,17 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     can = f.raw("can", {})
     if not isinstance(can, dict):
         raise f.fail("can", "must be a mapping")
+    if f.has("can") and f.has("bus"):
+        raise f.fail("bus", "and 'can' both describe the bus: give one ('can' is the iCub protocol's form of 'bus')")
+    sensor_names = tuple(s.name for s in sensors)
+    can_map = _validate_can(f, joints, tuple(motor_names), sensor_names)
+    inputs = {m: g.input for g in groups for m in g.motors}
+    if f.has("bus"):
+        bus = parse_bus(f.sub("bus"), joints, inputs, sensor_names)
+    elif can_map:
+        bus = parse_bus(Fields(name, "can", icub_bus(can_map, sensor_names)), joints, inputs, sensor_names, "can")
+    else:
+        bus = None
 
     return RobotConfig(
         name=name,
@@ -402,7 +418,8 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         actuation=tuple(groups),
         motors=tuple(motors),
         noise=_noise(f, tuple(motor_names), joints),
-        can=_validate_can(f, joints, tuple(motor_names), tuple(s.name for s in sensors)),
+        can=can_map,
+        bus=bus,
         derivatives=_derivatives(f),
         columns=parse_columns(name, f.raw("columns", None)),
         payload_frame=f.string("payload_frame") if f.has("payload_frame") else "",
@@ -490,8 +507,10 @@ def _validate_can(f: Fields, joints: tuple[str, ...], motors: tuple[str, ...], s
 
     strain = []
     for b in can.items("strain", []):
-        b.only("sensor", "bus", "address", "full_scale")
+        b.only("sensor", "bus", "address", "full_scale", "saturation_flags")
         address(b, 3)
+        if not isinstance(b.raw("saturation_flags", False), bool):
+            raise b.fail("saturation_flags", "must be true (7-byte frames, flags in byte 6) or false (6 bytes)")
         sensor = b.string("sensor")
         if sensor not in sensors:
             raise b.fail("sensor", f"names '{sensor}', which is not in ft_sensors")

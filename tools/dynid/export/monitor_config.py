@@ -1,29 +1,65 @@
-"""The rt_monitor configuration file (rt_monitor/README.md, "Configuration") written from a robot configuration."""
+"""The rt_monitor configuration file (docs/formats.md, "rt_monitor configuration") written from a robot configuration:
+the monitor's settings and its bus description compiled into a table of lines the C++ side reads without a DBC
+parser or any robot-specific code (firmware_like's `boards` plays runs from the same lines):
+
+    frame NAME BUS ID DLC LONG_DLC NODE PERIOD_US OFFSET_US
+    signal FRAME START LENGTH le|be u|s|f SCALE OFFSET TARGET      (TARGET '-': carried, read by nobody)
+    clock FRAME
+    pair FIRST SECOND
+    patch NAME [SENSOR:distal|proximal ...]
+
+Numbers are written so that they read back exactly (repr of a double, IDs in hex). Before anything is written, the
+description is checked against the monitor's capacity (dynid.export.capacity, from rt_monitor's capacity.hpp).
+"""
 
 from __future__ import annotations
 
+from ..config.bus import BusDescription
 from ..config.robot_config import RobotConfig
-from ..errors import DataError
+from ..errors import ConfigError
+from .capacity import capacity
+
+HEADER = "# rt_monitor configuration for {name} (written by dynid from its robot configuration: dynid export " \
+         "--robot {name} --monitor-config FILE)"
+
+
+def check_capacity(config: RobotConfig) -> BusDescription:
+    """The configuration's bus, if the monitor can hold it; else ConfigError, one line naming the capacity."""
+    bus = config.bus
+    if bus is None:
+        raise ConfigError(f"robot configuration {config.name} describes no CAN bus (a 'bus' or 'can' section): "
+                          "the monitor has no frames to read")
+    cap = capacity()
+    sensors = {s.target.split(".")[1] for f in bus.frames for s in f.signals if s.target.startswith("ft.")}
+    for what, n, limit, name in (
+        ("buses", len(bus.buses), cap.buses, "kMaxBuses"),
+        ("frames", len(bus.frames), cap.frames, "kMaxFrames"),
+        ("signals", sum(len(f.signals) for f in bus.frames), cap.signals, "kMaxSignals"),
+        ("skin patches", len(bus.patches), cap.skins, "kMaxSkins"),
+        ("F/T sensors", len(sensors), cap.sensors, "kMaxSensors"),
+        ("joints", len(config.joints), cap.joints, "kMaxJoints"),
+    ):
+        if n > limit:
+            raise ConfigError(f"robot configuration {config.name}: its bus has {n} {what}, the monitor holds at most "
+                              f"{limit} ({name} in rt_monitor/include/rt_monitor/capacity.hpp)")
+    return bus
 
 
 def monitor_config_text(config: RobotConfig, lcm_url: str | None = None) -> str:
-    """The rt_monitor configuration (rt_monitor/README.md, "Configuration") for a robot configuration."""
-    can = config.can
-    if not can or len(can.get("strain", [])) != 1:
-        raise DataError(f"robot configuration {config.name}: rt_monitor needs a 'can' mapping with one strain board")
-    lines = [f"# rt_monitor configuration for {config.name} (written by dynid from its robot configuration)",
-             f"robot {config.name}", "buses " + " ".join(can["buses"])]
+    """The rt_monitor configuration (docs/formats.md, "rt_monitor configuration") for a robot configuration."""
+    bus = check_capacity(config)
+    lines = [HEADER.format(name=config.name), f"robot {config.name}", "buses " + " ".join(bus.buses)]
     if lcm_url:
         lines.append(f"lcm_url {lcm_url}")
-    lines += ["stale_ms 5", "pair_us 500", "status_hz 10", "residual_every 10"]
-    s = can["strain"][0]
-    lines.append(f"strain {s['bus']} {s['address']} " + " ".join(repr(float(x)) for x in s["full_scale"]))
-    for b in can["motor_control"]:
-        for slot, ax in enumerate(b["axes"]):
-            lines.append(f"axis {b['bus']} {b['address']} {slot} {ax['joint']} {float(ax['ticks_per_degree'])!r} "
-                         f"{float(ax.get('zero_deg', 0.0))!r}")
-            if ax.get("motor"):
-                lines.append(f"pwm {b['bus']} {b['address']} {slot} {ax['motor']} {float(b['pwm_full_scale'])!r}")
-    for k in can.get("skin", []):
-        lines.append(f"skin {k['bus']} {k['address']} {k['patch']} {k['side']}")
+    lines += [f"stale_ms {bus.stale_ms:g}", f"pair_us {bus.pair_us}", "status_hz 10", "residual_every 10"]
+    for f in bus.frames:
+        period = 0 if f.period_ms is None else round(f.period_ms * 1000)
+        lines.append(f"frame {f.name} {f.bus} 0x{f.id:03X} {f.dlc} {f.long_dlc} {f.node} {period} {f.offset_us}")
+        for s in f.signals:
+            lines.append(f"signal {f.name} {s.start} {s.length} {'le' if s.byte_order == 'little' else 'be'} "
+                         f"{s.type[0]} {float(s.scale)!r} {float(s.offset)!r} {s.target or '-'}")
+    lines.append(f"clock {bus.clock}")
+    lines += [f"pair {a} {b}" for a, b in bus.pairs]
+    for p in bus.patches:
+        lines.append(" ".join(["patch", p.name] + [f"{sensor}:{side}" for sensor, side in p.sides]))
     return "\n".join(lines) + "\n"

@@ -1,23 +1,26 @@
-"""The candump -L log: the boards' frames read into a `Dataset`, and a `Dataset` written as the boards send it.
+"""The candump -L log: a robot's frames read into a `Dataset`, and a `Dataset` written as its nodes send it.
 
-Reading, decoded in bulk with the DBC's signal layouts.
+Both go through the robot's bus description (dynid.config.bus) and cantools (dynid.io.can_database): every frame is
+decoded and encoded by cantools with the messages built from the description, for any robot whose configuration
+describes a bus (the iCub protocol's `can:` section is one such description).
 
-Each DBC signal (start bit, length, signedness, scale, offset, all little-endian) is applied with numpy to every
-frame of its (class, type) at once, so a 2-minute, 2-million-frame log imports in seconds. Sample assembly is the
-monitor's (rt_monitor/README.md): one sample per strain torque half whose force half came at most 500 µs before
-with no other force half between; encoders, PWMs and skin at their latest values before the sample. Frames of
-unknown IDs, wrong lengths and error frames are skipped; a log with no complete sample, or a joint or motor of
-the configuration that never appears, is refused with one line.
+Reading. Frames are taken in stamp order (as the monitor's frame sources hand them over); each distinct payload of a
+frame is decoded once. Sample assembly is the monitor's (rt_monitor/README.md): one sample per clock frame; where
+the clock frame is the second half of a pair (the iCub strain board's torque half), only when its first half came at
+most `pair_us` before with no other first half between (halves of two samples are never mixed); every other pair's
+values are its latest complete pair; every other value, and the skin, is the latest before the sample. Frames of
+unknown IDs or buses, wrong lengths, reserved bits set and error frames are skipped; so are lines that are no classic
+frame, counted in `meta.skipped_lines`. A log with no complete sample, or a frame the samples need that never comes
+before the last one, is refused with one line.
 
-Writing, per sample k (time t_k) and bus, in this order within the sample's period:
-- t_k − 300 µs: every motor board's POSITION and PID_VAL (so the monitor's sample sees fresh values);
-- t_k − 200 µs: every skin board's TAXELS: bit 0 = the dataset's `contact` on that board's patch (the
-  simulator's `skin.patch` column; without it, all contact on the first skin board);
-- t_k − 100 µs and t_k: the strain board's force and torque halves (the torque half closes the sample);
-- every 10th sample, each motor board's STATUS (sequence counter, no faults).
-Encodings are the protocol's (docs/design.md §5), and the same as `dynid.io.can_protocol` decodes: strain counts
-round(value · 32768 / FS) clamped to int16 with the saturation flags byte, ticks round((deg + zero)·tpd), PWM
-round(duty · full scale).
+Writing, per sample k at t_k (t0 + the data's time) and frame, in the description's send order: at t_k + the
+frame's `offset_us` (the iCub boards: POSITION and PID_VAL at −300 µs, STATUS −250 µs every 10 ms, skin −200 µs,
+strain force −100 µs and torque at t_k, which closes the sample); a frame with a period every round(period /
+the run's mean sample period) samples from sample 0. Values come from the data (`dq.J`: the run's dq, else its
+`velocity.J` column, the controllers' measured velocities); skin bits are the data's `contact` on the patch the
+simulator's `skin.patch` column names (without it: all contact on the first patch); a sequence counter counts its
+frame; fault and saturation flags of a target are set where its value clamps at the signal's range (a frame's long
+form, the iCub strain board's 7-byte variant, is sent for the whole run when one of its flags would be set: `auto`).
 """
 
 from __future__ import annotations
@@ -29,36 +32,45 @@ from pathlib import Path
 
 import numpy as np
 
+from ..config.bus import BusDescription, BusFrame, BusSignal, is_value_target
 from ..config.robot_config import RobotConfig
 from ..errors import DataError
-from .can_protocol import MESSAGE_NAMES, default_protocol, make_id
-from .dataset import Dataset
+from .can_database import BusCodec, codec_of
+from .dataset import FT_CHANNELS, Dataset
 
-PAIR_US = 500
 # A frame line. At most 12 digits of seconds (31 700 years), so that the stamp in µs fits int64; whole bytes of
-# payload only (an odd hex digit would shift every later frame's bytes in the bulk decode). Any other line is skipped.
+# payload only (an odd hex digit would shift every later frame's bytes). Any other line is skipped.
 _LINE = re.compile(rb"^\((\d{1,12})\.(\d{6})\)\s+(\S+)\s+([0-9A-Fa-f]{3})#((?:[0-9A-Fa-f]{2}){0,8})\s*$", re.M)
 
 
-def _signals(name: str, payload: np.ndarray) -> dict[str, np.ndarray]:
-    """Every signal of message `name` from payloads (n, 8) uint8, with the DBC's layout."""
-    msg = default_protocol().message(name)
-    word = payload.view("<u8")[:, 0]
-    out = {}
-    for s in msg.signals:
-        v = (word >> np.uint64(s.start)) & np.uint64((1 << s.length) - 1)
-        v = v.astype(np.int64)
-        if s.is_signed:
-            v = np.where(v >= 1 << (s.length - 1), v - (1 << s.length), v)
-        out[s.name] = v * s.scale + s.offset
-    return out
+def _decode_rows(codec: BusCodec, frame: BusFrame, payload: np.ndarray, dlc: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """Every signal of `frame` for its rows (payload (n, 8), their DLCs), decoded by cantools once per distinct
+    payload; and which rows are good (reserved bits clear). Optional signals absent from a short frame are 0."""
+    c = codec.codec(frame.bus, frame.id)
+    assert c is not None
+    values = {s.name: np.zeros(dlc.size) for s in frame.signals}
+    good = np.ones(dlc.size, bool)
+    word = np.ascontiguousarray(payload).view("<u8")[:, 0]
+    reserved = [s.name for s in frame.signals if s.target == "reserved"]
+    for length in np.unique(dlc).tolist():
+        rows = np.flatnonzero(dlc == length)
+        uniq, inverse = np.unique(word[rows], return_inverse=True)
+        msg = c.message_for(length)
+        decoded = [msg.decode(w.to_bytes(8, "little")[:length], decode_choices=False, scaling=True)
+                   for w in uniq.tolist()]
+        for name in decoded[0]:
+            values[name][rows] = np.array([d[name] for d in decoded], float)[inverse.reshape(-1)]
+        bad = np.array([any(d.get(r) for r in reserved) for d in decoded], bool)
+        good[rows] = ~bad[inverse.reshape(-1)]
+    return values, good
 
 
 def read_candump(path: str | Path, config: RobotConfig) -> Dataset:
     path = Path(path)
-    can = config.can
-    if not can or len(can.get("strain", [])) != 1:
-        raise DataError(f"{path}: the robot configuration {config.name} has no CAN mapping with one strain board")
+    bus = config.bus
+    if bus is None:
+        raise DataError(f"{path}: the robot configuration {config.name} describes no CAN bus ('bus' or 'can')")
+    codec = codec_of(bus, config.name)
     try:
         text = path.read_bytes()
     except OSError as e:
@@ -67,12 +79,10 @@ def read_candump(path: str | Path, config: RobotConfig) -> Dataset:
     skipped = sum(1 for line in text.split(b"\n") if line.strip()) - len(rows)  # malformed lines, told by import
     if not rows:
         raise DataError(f"{path}: no classic-CAN candump -L frame in the file")
-    # In stamp order, as the monitor's frame sources hand frames over (rt_monitor/README.md): the pairing and the
-    # latest-value look-ups below search sorted stamps, and lines out of order made time run backwards.
     rows.sort(key=lambda r: int(r[0]) * 1_000_000 + int(r[1]))
     t_us = np.array([int(a) * 1_000_000 + int(b) for a, b, *_ in rows], np.int64)
     # A bus name that is no UTF-8 is no configured bus: its frames are skipped like those of any other bus.
-    bus = np.array([r[2].decode("utf-8", "surrogateescape") for r in rows])
+    bus_of = np.array([r[2].decode("utf-8", "surrogateescape") for r in rows])
     can_id = np.array([int(r[3], 16) for r in rows], np.int64)
     hexes = [r[4] for r in rows]
     dlc = np.array([len(h) // 2 for h in hexes])
@@ -81,152 +91,231 @@ def read_candump(path: str | Path, config: RobotConfig) -> Dataset:
         sel = np.flatnonzero(dlc == n)
         if n:
             payload[sel, :n] = np.frombuffer(bytes.fromhex(b"".join(hexes[i] for i in sel).decode()), np.uint8).reshape(-1, n)
-    cls, addr, typ = can_id >> 8, (can_id >> 4) & 0xF, can_id & 0xF
 
-    def frames(bus_name: str, c: int, a: int, ty: int, lengths: tuple[int, ...]) -> np.ndarray:
-        return np.flatnonzero((bus == bus_name) & (cls == c) & (addr == a) & (typ == ty) & np.isin(dlc, lengths))
+    # Per frame of the description: its rows (stamp order) and decoded values.
+    got: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]] = {}
+    for f in bus.frames:
+        lengths = (f.dlc, f.long_dlc) if f.long_dlc else (f.dlc,)
+        sel = np.flatnonzero((bus_of == f.bus) & (can_id == f.id) & np.isin(dlc, lengths))
+        values, good = _decode_rows(codec, f, payload[sel], dlc[sel])
+        got[f.name] = (sel[good], {k: v[good] for k, v in values.items()})
 
-    s = can["strain"][0]
-    fs = np.asarray(s["full_scale"], float)
-    force = frames(s["bus"], 3, s["address"], 0xA, (6, 7))
-    torque = frames(s["bus"], 3, s["address"], 0xB, (6, 7))
-    if not force.size or not torque.size:
-        raise DataError(f"{path}: no strain frames of board {s['address']} on {s['bus']}: not this robot's log?")
-    # Pair each torque half with the latest force half before it, if within PAIR_US and not used already.
-    j = np.searchsorted(t_us[force], t_us[torque], side="right") - 1
-    ok = j >= 0
-    ok[ok] &= (t_us[torque[ok]] - t_us[force[j[ok]]]) <= PAIR_US
-    ok &= np.r_[True, j[1:] != j[:-1]]
-    if not ok.any():
-        raise DataError(f"{path}: no complete strain sample (force and torque halves within {PAIR_US} µs)")
-    torque, force = torque[ok], force[j[ok]]
-    t = t_us[torque]
-    fsig, tsig = _signals("STRAIN_FORCE", payload[force]), _signals("STRAIN_TORQUE", payload[torque])
-    ft = np.column_stack([fsig[c] for c in ("Fx", "Fy", "Fz")] + [tsig[c] for c in ("Tx", "Ty", "Tz")]) * fs / 32768
+    def where(f: BusFrame) -> str:
+        return f"frame {f.name} (0x{f.id:03X} on {f.bus})"
 
-    def latest(idx: np.ndarray, what: str) -> np.ndarray:
-        if not idx.size:
-            raise DataError(f"{path}: no {what} frames")
-        k = np.searchsorted(t_us[idx], t, side="right") - 1
+    # The samples: the clock frames, each with its pair's first half when it has one.
+    clock = bus.frame(bus.clock)
+    t_clock = t_us[got[clock.name][0]]
+    if not t_clock.size:
+        raise DataError(f"{path}: no {where(clock)}, which completes every sample: not this robot's log?")
+    committed = {}  # pair frame name -> (commit times, index into the frame's rows)
+
+    def complete(first: str, second: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Indices into each half's rows of the complete pairs, and their times (the second half's)."""
+        ta, tb = t_us[got[first][0]], t_us[got[second][0]]
+        j = np.searchsorted(ta, tb, side="right") - 1
+        ok = j >= 0
+        ok[ok] &= (tb[ok] - ta[j[ok]]) <= bus.pair_us
+        ok &= np.r_[True, j[1:] != j[:-1]]
+        keep = np.flatnonzero(ok)
+        return j[keep], keep, tb[keep]
+
+    sample_rows = np.arange(t_clock.size)
+    for first, second in bus.pairs:
+        ia, ib, tt = complete(first, second)
+        if second == clock.name:
+            if not tt.size:
+                raise DataError(f"{path}: no complete sample ({first} and {second} within {bus.pair_us} µs)")
+            sample_rows, t = ib, tt
+            committed[first], committed[second] = (tt, ia), (tt, ib)
+        else:
+            committed[first], committed[second] = (tt, ia), (tt, ib)
+    if clock.name not in committed:
+        t = t_clock
+        committed[clock.name] = (t, sample_rows)
+
+    n = t.size
+    valid = np.ones(n, bool)
+
+    def latest(f: BusFrame) -> np.ndarray:
+        """Per sample, the index into f's rows of its latest value (committed pairs: the latest complete pair)."""
+        nonlocal valid
+        times, idx = committed.get(f.name, (t_us[got[f.name][0]], np.arange(got[f.name][0].size)))
+        if f.name == clock.name or (bus.pair_of(clock.name) and f.name in bus.pair_of(clock.name)):
+            return idx
+        if not times.size:
+            raise DataError(f"{path}: no {where(f)}")
+        k = np.searchsorted(times, t, side="right") - 1
         if k[-1] < 0:
-            raise DataError(f"{path}: no {what} frame before the last strain sample")
-        return idx[np.maximum(k, 0)], k >= 0
+            raise DataError(f"{path}: no {where(f)} before the last sample")
+        valid &= k >= 0
+        return idx[np.maximum(k, 0)]
 
-    q = np.full((t.size, len(config.joints)), np.nan)
-    pwm: dict[str, np.ndarray] = {}
-    valid = np.ones(t.size, bool)
+    q = np.full((n, len(config.joints)), np.nan)
+    dq = np.full((n, len(config.joints)), np.nan)
     jidx = {name: i for i, name in enumerate(config.joints)}
-    for b in can["motor_control"]:
-        where = f"motor board {b['address']} on {b['bus']}"
-        pos, ok_p = latest(frames(b["bus"], 1, b["address"], 1, (8,)), f"POSITION of {where}")
-        valid &= ok_p
-        sig = _signals("MC_POSITION", payload[pos])
-        pid_idx = frames(b["bus"], 1, b["address"], 2, (4,))
-        has_motor = any(ax.get("motor") for ax in b["axes"])
-        if has_motor:
-            pid, ok_w = latest(pid_idx, f"PID_VAL of {where}")
-            valid &= ok_w
-            wsig = _signals("MC_PID_VAL", payload[pid])
-        for slot, ax in enumerate(b["axes"]):
-            deg = sig[f"Axis{slot}Position"] / float(ax["ticks_per_degree"]) - float(ax.get("zero_deg", 0.0))
-            q[:, jidx[ax["joint"]]] = np.radians(deg)
-            if ax.get("motor"):
-                pwm[ax["motor"]] = wsig[f"Axis{slot}Pwm"] / float(b["pwm_full_scale"])
+    families: dict[str, dict[str, np.ndarray]] = {"pwm": {}, "current": {}, "tau": {}}
+    ft: dict[str, np.ndarray] = {}
+    contact = np.zeros(n, np.uint8)
+    for f in bus.frames:
+        targets = [s for s in f.signals if is_value_target(s.target) or s.target.startswith("skin.")]
+        if not targets:
+            continue
+        skin_only = all(s.target.startswith("skin.") for s in targets)
+        if skin_only and not got[f.name][0].size:
+            continue  # no skin frames: no contact recorded
+        at = latest(f)
+        values = got[f.name][1]
+        for s in targets:
+            v = values[s.name][at]
+            family, _, name = s.target.partition(".")
+            if family == "q":
+                q[:, jidx[name]] = v
+            elif family == "dq":
+                dq[:, jidx[name]] = v
+            elif family == "ft":
+                sensor, _, comp = name.rpartition(".")
+                ft.setdefault(sensor, np.full((n, 6), np.nan))[:, FT_CHANNELS.index(comp)] = v
+            elif family == "skin":
+                contact |= (v != 0).astype(np.uint8)
+            else:
+                families[family][name] = v
     missing = [name for name in config.joints if np.isnan(q[:, jidx[name]]).all()]
     if missing:
-        raise DataError(f"{path}: joints {', '.join(missing)} are on no motor board of the configuration")
-    contact = np.zeros(t.size, np.uint8)
-    for k in can.get("skin", []):
-        idx = frames(k["bus"], 4, k["address"], 0, (2,))
-        if idx.size:
-            kk = np.searchsorted(t_us[idx], t, side="right") - 1
-            taxels = _signals("SKIN_TAXELS", payload[idx])["Taxels"]
-            contact |= ((kk >= 0) & (taxels[np.maximum(kk, 0)] != 0)).astype(np.uint8)
+        raise DataError(f"{path}: joints {', '.join(missing)} are carried by no frame of {config.name}'s bus")
     keep = np.flatnonzero(valid)
     if keep.size < 2:
         raise DataError(f"{path}: fewer than two complete samples")
+    with_dq = not np.isnan(dq).all()
+    extra = {}
+    if with_dq and np.isnan(dq).any(axis=0).any():  # some joints only: kept by name, not as a partial dq
+        extra = {f"dq.{j}": dq[keep, i] for j, i in jidx.items() if not np.isnan(dq[:, i]).all()}
+        with_dq = False
     tt = (t[keep] - t[keep][0]) / 1e6
-    return Dataset(t=tt, joints=tuple(config.joints), q=q[keep], pwm={m: v[keep] for m, v in pwm.items()},
-                   ft={s["sensor"]: ft[keep]}, contact=contact[keep],
+    return Dataset(t=tt, joints=tuple(config.joints), q=q[keep], dq=dq[keep] if with_dq else None,
+                   pwm={m: v[keep] for m, v in families["pwm"].items()},
+                   current={m: v[keep] for m, v in families["current"].items()},
+                   tau={j: v[keep] for j, v in families["tau"].items()},
+                   ft={s: v[keep] for s, v in ft.items()}, contact=contact[keep], extra=extra,
                    meta={"source": str(path), "source_format": "candump", "robot": config.name,
-                         "messages": sorted(MESSAGE_NAMES.values()), "skipped_lines": skipped})
+                         "messages": sorted(f.name for f in bus.frames), "skipped_lines": skipped})
 
 
 # ---- writing ----
 
-STATUS_EVERY = 10
+
+def target_values(data: Dataset, target: str) -> np.ndarray | None:
+    """The data's (N,) values of a value target (q.J, dq.J, pwm.M, current.M, tau.J, ft.S.C), None if absent.
+    dq.J is the run's dq, else its `velocity.J` column (the controller's measured velocity)."""
+    family, _, name = target.partition(".")
+    if family in ("q", "dq"):
+        if name not in data.joints:
+            return None
+        values = data.q if family == "q" else data.dq
+        if values is None:
+            return data.extra.get(f"velocity.{name}")
+        return values[:, data.joints.index(name)]
+    if family == "ft":
+        sensor, _, comp = name.rpartition(".")
+        return data.ft[sensor][:, FT_CHANNELS.index(comp)] if sensor in data.ft else None
+    return getattr(data, family).get(name)
 
 
-def _strain_counts(values: np.ndarray, fs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """int16 counts (half away from zero, clamped) and a per-channel saturation mask."""
-    x = values * 32768.0 / fs
-    s = np.sign(x) * np.floor(np.abs(x) + 0.5)
-    sat = (s > 32767) | (s < -32768)
-    return np.clip(s, -32768, 32767).astype(np.int64), sat
+def skin_values(data: Dataset, bus: BusDescription, patch: str) -> np.ndarray:
+    """1 where the data's contact is on `patch`: the simulator's `skin.patch` (1 + the patch's index), else every
+    contact on the first patch."""
+    n = data.n_samples
+    contact = data.contact if data.contact is not None else np.zeros(n, np.uint8)
+    index = [p.name for p in bus.patches].index(patch)
+    on = contact != 0
+    where = data.extra.get("skin.patch")
+    return (on & (where == index + 1) if where is not None else on & (index == 0)).astype(float)
 
 
-def write_candump(data: Dataset, config: RobotConfig, path: str | Path, t0: float = 1_700_000_000.0) -> int:
-    """Write `data` as the boards' frames, atomically; returns the number of frames."""
-    can = config.can
-    if not can or len(can.get("strain", [])) != 1:
-        raise DataError(f"robot configuration {config.name}: no CAN mapping with one strain board")
-    s = can["strain"][0]
-    if s["sensor"] not in data.ft:
-        raise DataError(f"the data have no F/T sensor '{s['sensor']}' to send as strain frames")
+def _clamps(s: BusSignal, v: np.ndarray) -> np.ndarray:
+    """Where cantools' raw value, round((v − offset) / scale) (half to even), falls outside the signal's range."""
+    if s.type == "float":
+        return np.zeros(v.shape, bool)
+    lo, hi = s.raw_range
+    r = np.round((v - s.offset) / s.scale)
+    return (r < lo) | (r > hi)
+
+
+def _limit(s: BusSignal, v: np.ndarray, clamped: np.ndarray) -> np.ndarray:
+    """The values with the clamped ones at the physical end of the signal's range they went past."""
+    lo, hi = s.raw_range
+    r = np.round((v - s.offset) / s.scale)
+    return np.where(clamped, np.where(r > hi, hi, lo) * s.scale + s.offset, v)
+
+
+def frame_values(data: Dataset, bus: BusDescription, f: BusFrame, rows: np.ndarray, long: bool) -> tuple[list[str], np.ndarray]:
+    """The signal names and (len(rows), signals) physical values of frame `f` for the samples `rows` (counters
+    counting the frames sent), clamped to each signal's range with the flags that say so."""
+    signals = [s for s in f.signals if long or s.end_byte <= f.dlc]
+    out = np.zeros((rows.size, len(signals)))
+    values: dict[str, np.ndarray] = {}
+    clamped: dict[str, np.ndarray] = {}
+    for s in f.signals:
+        if is_value_target(s.target):
+            v = target_values(data, s.target)
+            if v is None:
+                raise DataError(f"the data have no {s.target} for frame {f.name} of the bus")
+            clamped[s.target] = _clamps(s, v)
+            values[s.target] = _limit(s, v, clamped[s.target])
+    flag_of = {s.target: s for fr in bus.frames for s in fr.signals}
+    for i, s in enumerate(signals):
+        base, _, of = s.target.partition(".")
+        if is_value_target(s.target):
+            out[:, i] = values[s.target][rows]
+        elif base == "skin":
+            out[:, i] = skin_values(data, bus, of)[rows]
+        elif base in ("saturated", "fault") and of:
+            vf, sf = target_values(data, of), flag_of[of]
+            out[:, i] = _clamps(sf, vf)[rows] if vf is not None else 0
+        elif s.target == "seq":
+            out[:, i] = np.arange(rows.size) % (1 << s.length)
+    return [s.name for s in signals], out
+
+
+def write_candump(data: Dataset, config: RobotConfig, path: str | Path, t0: float = 1_700_000_000.0,
+                  long_form: str = "auto") -> int:
+    """Write `data` as the robot's nodes send it on its bus, atomically; returns the number of frames. `long_form`:
+    auto (a frame's long form when one of its flags would be set in the run), on, off."""
+    bus = config.bus
+    if bus is None:
+        raise DataError(f"robot configuration {config.name} describes no CAN bus ('bus' or 'can')")
+    codec = codec_of(bus, config.name)
     n = data.n_samples
     t_us = np.round((data.t - data.t[0] + t0) * 1e6).astype(np.int64)
-    events: list[tuple[np.ndarray, str, int, np.ndarray, int]] = []  # (times, bus, id, payload bytes (n, dlc))
-    counts, sat = _strain_counts(data.ft[s["sensor"]], np.asarray(s["full_scale"], float))
-    raw = np.ascontiguousarray(counts + 0x8000, dtype="<u2")  # ft may be column-major (CSV-loaded data)
-    dlc = 7 if sat.any() else 6  # the board's saturation variant (7-byte frames) when a channel clamps in the run
-    for half, typ, offset in ((0, 0xA, -100), (1, 0xB, 0)):
-        flags = (sat[:, 3 * half:3 * half + 3] * np.array([1, 2, 4])).sum(axis=1).astype(np.uint8)
-        payload = np.concatenate([raw[:, 3 * half:3 * half + 3].view(np.uint8).reshape(n, 6), flags[:, None]], axis=1)
-        events.append((t_us + offset, s["bus"], make_id(3, s["address"], typ), payload[:, :dlc], n))
-    jidx = {j: i for i, j in enumerate(data.joints)}
-    for b in can["motor_control"]:
-        ticks = np.zeros((n, 2), np.int64)
-        pwm = np.zeros((n, 2), np.int64)
-        for slot, ax in enumerate(b["axes"]):
-            if ax["joint"] not in jidx:
-                raise DataError(f"the data have no joint '{ax['joint']}' for board {b['address']} on {b['bus']}")
-            deg = np.degrees(data.q[:, jidx[ax["joint"]]]) + float(ax.get("zero_deg", 0.0))
-            ticks[:, slot] = np.round(deg * float(ax["ticks_per_degree"]))
-            if ax.get("motor"):
-                if ax["motor"] not in data.pwm:
-                    raise DataError(f"the data have no PWM of motor '{ax['motor']}'")
-                pwm[:, slot] = np.clip(np.round(data.pwm[ax["motor"]] * float(b["pwm_full_scale"])), -32768, 32767)
-        events.append((t_us - 300, b["bus"], make_id(1, b["address"], 1),
-                       ticks.astype("<i4").view(np.uint8).reshape(n, 8), n))
-        events.append((t_us - 300, b["bus"], make_id(1, b["address"], 2),
-                       pwm.astype("<i2").view(np.uint8).reshape(n, 4), n))
-        k = np.arange(0, n, STATUS_EVERY)
-        status = np.zeros((k.size, 4), np.uint8)
-        status[:, 3] = np.arange(k.size) % 256
-        events.append((t_us[k] - 250, b["bus"], make_id(1, b["address"], 3), status, k.size))
-    contact = data.contact if data.contact is not None else np.zeros(n, np.uint8)
-    patch = data.extra.get("skin.patch")  # the simulator's: 1 + index of the touched skin board, 0 none
-    for i, k in enumerate(can.get("skin", [])):
-        on = contact != 0
-        on = on & (patch == i + 1) if patch is not None else on & (i == 0)
-        taxels = on.astype("<u2")
-        events.append((t_us - 200, k["bus"], make_id(4, k["address"], 0), taxels.view(np.uint8).reshape(n, 2), n))
-
-    times = np.concatenate([e[0] for e in events])
-    order = np.argsort(times, kind="stable")
-    lines = []
-    for times_e, bus, can_id, payload, _ in events:
-        w = 2 * payload.shape[1]
-        flat = np.ascontiguousarray(payload, np.uint8).tobytes().hex().upper()
-        hexes = [flat[i:i + w] for i in range(0, len(flat), w)] if w else [""] * len(times_e)
-        head = f" {bus} {can_id:03X}#"
-        lines.extend(f"({t // 1_000_000}.{t % 1_000_000:06d}){head}{h}" for t, h in zip(times_e.tolist(), hexes))
+    period = (data.t[-1] - data.t[0]) / (n - 1) if n > 1 else 1.0 / bus.rate
+    lines: list[str] = []
+    times: list[np.ndarray] = []
+    # The long form, per node (a board sends one variant): on, or where one of its optional flags is set in the run.
+    long_nodes = set()
+    for f in bus.frames:
+        if f.long_dlc and long_form != "off":
+            _, values = frame_values(data, bus, f, np.arange(0, n, f.every(period)), True)
+            optional = [i for i, s in enumerate(f.signals) if s.end_byte > f.dlc]
+            if long_form == "on" or values[:, optional].any():
+                long_nodes.add(f.node)
+    for f in bus.send_order():
+        rows = np.arange(0, n, f.every(period))
+        long = bool(f.long_dlc) and f.node in long_nodes
+        names, vals = frame_values(data, bus, f, rows, long)
+        uniq, inverse = np.unique(vals, axis=0, return_inverse=True)
+        encoded = [codec.encode(f.bus, f.id, dict(zip(names, row.tolist())), long).hex().upper() for row in uniq]
+        head = f" {f.bus} {f.id:03X}#"
+        stamps = t_us[rows] + f.offset_us
+        lines.extend(f"({t // 1_000_000}.{t % 1_000_000:06d}){head}{encoded[i]}"
+                     for t, i in zip(stamps.tolist(), inverse.reshape(-1).tolist()))
+        times.append(stamps)
+    order = np.argsort(np.concatenate(times), kind="stable")  # the send order breaks ties between equal stamps
     text = "\n".join(lines[i] for i in order) + "\n"
     path = Path(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".")
     try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp's 0600 is not what a log should be

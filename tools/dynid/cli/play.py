@@ -1,0 +1,69 @@
+"""`dynid play`: a recorded run onto the robot's CAN bus, through its bus description (dynid.export.player)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from ..config.robot_config import load_config
+from ..errors import InputError
+from ..export.player import ENCODERS, STAMPS, play_run
+from ..io.load import apply_window, load_data
+from .commands import COMMANDS
+from .common import bad_rows, check_outputs, json_arg, robot_arg, skipped_rows, window, window_args
+
+
+def cmd_play(args: argparse.Namespace) -> dict[str, Any]:
+    kind, _, where = args.sink.partition(":")
+    if kind not in ("candump", "loopback", "socketcan") or (kind != "socketcan" and not where):
+        raise InputError(f"--sink must be candump:PATH, loopback:DIR or socketcan, got {args.sink!r}")
+    if kind == "candump" and where != "-":
+        check_outputs(args, {"sink": where})
+    config = load_config(args.robot, args.urdf)
+    data = load_data(args.data, config, bad_rows=bad_rows(args))
+    data = apply_window(data, *window(args), source=args.data)
+    dropped = skipped_rows(args.data, data.meta)
+    played = play_run(config, data, args.sink, args.realtime, args.encoder, args.t0, args.strain_sat, args.stamps)
+    lo, hi = played.step_range_s
+    out = sys.stderr if args.sink == "candump:-" else sys.stdout  # the log itself is on standard output
+    print(played.summary, file=out)
+    stamps = "their recorded stamps" if args.stamps == "recorded" else "stamps every median step"
+    print(f"played {args.data} ({config.name}) -> {args.sink}: {played.samples} samples at {stamps} (mean step "
+          f"{1e3 * played.period_s:.4g} ms, recorded {1e3 * lo:.4g} to {1e3 * hi:.4g} ms), {played.frames} frames",
+          file=out)
+    return {"robot": config.name, "data": args.data, "sink": args.sink, "samples": played.samples,
+            "frames": played.frames, "load": played.load, "period_s": played.period_s,
+            "step_min_s": lo, "step_max_s": hi, "stamps": args.stamps, "realtime": args.realtime, "encoder": args.encoder,
+            "bad_rows": dropped}
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    sp = sub.add_parser("play", help=COMMANDS["play"].help,
+                        description="Play a recorded run (any form dynid reads: CSV, headerless log, YARP folder, "
+                        "ROS 2 bag, simulated run, dataset, candump log) onto the robot's CAN bus as its bus "
+                        "description says (the configuration's 'bus', or the iCub protocol's 'can'), through "
+                        "firmware_like's boards: a candump log, the loopback transport rt_monitor --loopback reads, "
+                        "or SocketCAN. Samples are never resampled: they go out at their recorded stamps (a jittered log "
+                        "stays jittered) or, with --stamps nominal, on the grid of the mean step; paced in real time or "
+                        "as fast as possible; each bus's load is printed.")
+    robot_arg(sp)
+    sp.add_argument("--data", required=True, metavar="RUN", help="the run to play (RUN@FROM:TO: a window of it)")
+    sp.add_argument("--sink", required=True, metavar="SINK", help="candump:PATH (a candump -L log; candump:- to "
+                    "standard output), loopback:DIR (rt_monitor --loopback DIR), or socketcan (the buses' interfaces)")
+    sp.add_argument("--realtime", action="store_true", help="pace the samples at the run's own times (live sinks "
+                    "need it; default: as fast as possible)")
+    sp.add_argument("--encoder", choices=ENCODERS, default="auto", help="auto (default: the iCub board emulators for "
+                    "the iCub protocol's bus, the generic encoder for any other), generic, or icub")
+    sp.add_argument("--strain-sat", choices=("auto", "on", "off"), default="auto", help="frames' long forms (the "
+                    "iCub strain board's 7-byte saturation variant): where one of their flags would be set in the "
+                    "run (auto), always, never")
+    sp.add_argument("--stamps", choices=STAMPS, default="recorded", help="recorded (default: each sample at its own "
+                    "stamp; a jittered log stays jittered and the monitor bridges its gaps) or nominal (sample k at "
+                    "t0 + k times the median step: the run's samples one for one, none bridged, as the offline "
+                    "analysis takes them)")
+    sp.add_argument("--t0", type=float, default=None, metavar="S", help="the first sample's stamp, s (default "
+                    "1700000000)")
+    window_args(sp)
+    json_arg(sp)
+    sp.set_defaults(func=cmd_play)

@@ -1,0 +1,261 @@
+"""The bus as data (dynid.config.bus): a robot that is no iCub, played, decoded and monitored with no robot code.
+
+- Every bad bus description is refused with one line naming the field.
+- A synthetic Panda run (the bundled `panda`'s CANopen-style bus: positions, velocities and joint torques on two buses)
+  goes through `dynid play` (boards' generic encoder) into a candump log: `cantools decode` with the DBC of
+  `dynid export --dbc` decodes every frame (no unknown ID, no wrong size) to the run's values within each signal's
+  quantisation; `dynid import` of the log gives the run back within it; `rt_monitor --replay` with the robot's CAD
+  coefficient file assembles every sample and its T² equals the core's on the imported samples (`rt_eval --stream`:
+  the C++ and cantools decode the same bits to the same doubles).
+- The player's refusals: a run without a value the bus carries, samples closer than one sample's frames.
+"""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from test_rt_core import detector_columns, raw_samples, stream
+
+from dynid.config.robot_config import load_config
+from dynid.errors import ConfigError, DataError
+from dynid.export.coefficients import read_coefficients
+from dynid.export.monitor_log import read_lcm_log
+from dynid.export.player import play_run
+from dynid.io.dataset import Dataset
+from dynid.io.load import load_data
+
+ROOT = Path(__file__).resolve().parents[2]
+RT_MONITOR = ROOT / "build" / "rt_monitor" / "rt_monitor"
+DYNID = Path(sys.executable).with_name("dynid")
+T0_US = 1_700_000_000_000_000
+N = 1500  # 1.5 s at 1 kHz
+
+
+def run(*args: object, stdin: Path | None = None) -> subprocess.CompletedProcess:
+    with open(stdin or "/dev/null", "rb") as f:
+        return subprocess.run([str(a) for a in args], stdin=f, capture_output=True, text=True, timeout=300)
+
+
+# ---- the description's refusals --------------------------------------------------------------------------
+
+
+def _robot(tmp_path: Path, edit) -> Path:
+    data = yaml.safe_load((ROOT / "tools/dynid/config/robots/panda.yaml").read_text())
+    edit(data["bus"])
+    path = tmp_path / "robot.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def _frame(bus: dict, name: str) -> dict:
+    return next(f for f in bus["frames"] if f["name"] == name)
+
+
+REFUSED = {
+    "an unknown key": (lambda b: b.update(colour="blue"), "field 'bus.colour' is not a known setting"),
+    "a bus not listed": (lambda b: _frame(b, "TPDO1_2").update(bus="can9"),
+                         "field 'bus.frames[1].bus' names 'can9', which is not in 'buses'"),
+    "an extended ID": (lambda b: _frame(b, "TPDO1_2").update(id=0x800),
+                       "field 'bus.frames[1].id' must be an 11-bit standard CAN ID, 0 to 0x7FF, got 2048"),
+    "an ID twice on a bus": (lambda b: _frame(b, "TPDO1_2").update(id=0x181),
+                             "field 'bus.frames[1].id' 0x181 is frame 'TPDO1_1''s on can0 already"),
+    "a frame name twice": (lambda b: _frame(b, "TPDO1_2").update(name="TPDO1_1"),
+                           "field 'bus.frames' names frame 'TPDO1_1' twice"),
+    "a DLC of 9": (lambda b: _frame(b, "TPDO1_2").update(dlc=9), "field 'bus.frames[1].dlc' must be an integer 0 to 8"),
+    "a signal past the DLC": (lambda b: _frame(b, "TPDO1_2").update(dlc=7),
+                              "field 'bus.frames[1].signals[2].start' puts 'Torque' outside the frame's 7 bytes"),
+    "overlapping signals": (lambda b: _frame(b, "TPDO1_2")["signals"][1].update(start=24),
+                            "field 'bus.frames[1].signals[1].start' overlaps signal 'Position' in frame 'TPDO1_2'"),
+    "a big-endian signal overlapping": (
+        lambda b: _frame(b, "TPDO1_2")["signals"][1].update(start=31, byte_order="big"),
+        "field 'bus.frames[1].signals[1].start' overlaps signal 'Position' in frame 'TPDO1_2'"),
+    "a 16-bit float": (lambda b: _frame(b, "TPDO1_2")["signals"][1].update(type="float"),
+                       "field 'bus.frames[1].signals[1].length' must be 32 or 64 for an IEEE float, got 16"),
+    "a scale of 0": (lambda b: _frame(b, "TPDO1_2")["signals"][1].update(scale=0),
+                     "field 'bus.frames[1].signals[1].scale' must not be 0"),
+    "an unknown joint": (lambda b: _frame(b, "TPDO1_2")["signals"][0].update(target="q.elbow"),
+                         "'q.elbow' names joint 'elbow', which is not in 'joints'"),
+    "a value carried twice": (lambda b: _frame(b, "TPDO1_2")["signals"][0].update(target="q.panda_joint1"),
+                              "'q.panda_joint1' is carried by 'TPDO1_1.Position' already"),
+    "a current of a torque robot": (lambda b: _frame(b, "TPDO1_2")["signals"][2].update(target="current.m0"),
+                                    "'current.m0' names motor 'm0', which is not under 'motors'"),
+    "an unknown target": (lambda b: _frame(b, "TPDO1_2")["signals"][2].update(target="speed"),
+                          "'speed' is no target"),
+    "a scaled flag": (lambda b: _frame(b, "TPDO1_2")["signals"][2].update(target="fault"),
+                      "'fault' is a count or flag: an integer with scale 1 and offset 0"),
+    "a flag of a value not carried": (lambda b: _frame(b, "TPDO1_2")["signals"].append(
+        {"name": "Sat", "start": 63, "length": 1, "target": "saturated.tau.panda_joint1"}),
+        "field 'bus.frames[1].signals[3].start' overlaps signal 'Torque'"),
+    "a clock not sent last": (lambda b: b.update(clock="TPDO1_1"),
+                              "field 'bus.clock' names 'TPDO1_1', but frame 'TPDO1_2' is sent at or after it"),
+    "a clock of no frame": (lambda b: b.update(clock="SYNC"), "field 'bus.clock' names frame 'SYNC', which is not in"),
+    "a pair apart by more than pair_us": (lambda b: b.update(pairs=[["TPDO1_1", "TPDO1_7"]], pair_us=100),
+                                          "sends 'TPDO1_7' 300 µs after 'TPDO1_1': the second half follows the first"),
+    "the clock as a first half": (lambda b: b.update(pairs=[["TPDO1_7", "TPDO1_6"]]),
+                                  "sends 'TPDO1_6' -50 µs after 'TPDO1_7'"),
+    "a frame beyond one period": (lambda b: _frame(b, "TPDO1_2").update(offset_us=-2000),
+                                  "sends 'TPDO1_2' 2000 µs before the clock frame: a sample's frames fit in one period"),
+    "a period under the rate's": (lambda b: _frame(b, "TPDO1_2").update(period_ms=0.5),
+                                  "field 'bus.frames[1].period_ms' must be one sample period (1 ms) to 60000 ms"),
+    "a stale_ms beyond the monitor's": (lambda b: b.update(stale_ms=5000), "field 'bus.stale_ms' must be 0.1 to 1000 ms"),
+    "a patch no signal carries": (lambda b: b.update(patches=[{"name": "palm", "sides": {}}]),
+                                  "field 'bus.patches' lists patch 'palm', which no signal carries"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(REFUSED))
+def test_a_bad_bus_description_is_refused_with_one_line(case: str, tmp_path: Path) -> None:
+    edit, why = REFUSED[case]
+    with pytest.raises(ConfigError) as e:
+        load_config(_robot(tmp_path, edit))
+    assert why in str(e.value) and "\n" not in str(e.value), str(e.value)
+
+
+def test_a_bus_and_a_can_section_together_are_refused(tmp_path: Path) -> None:
+    arm = yaml.safe_load((ROOT / "tools/dynid/config/robots/icub_right_arm.yaml").read_text())
+    arm["bus"] = yaml.safe_load((ROOT / "tools/dynid/config/robots/panda.yaml").read_text())["bus"]
+    (tmp_path / "arm.yaml").write_text(yaml.safe_dump(arm, sort_keys=False))
+    with pytest.raises(ConfigError, match="and 'can' both describe the bus: give one"):
+        load_config(tmp_path / "arm.yaml")
+
+
+# ---- a robot that is no iCub, end to end -----------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def panda(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    """A synthetic Panda run (sinusoids: q, its derivative, torques) played onto its bus, and what reads it back."""
+    root = tmp_path_factory.mktemp("bus")
+    config = load_config("panda")
+    t = np.arange(N) * 1e-3
+    k = np.arange(1, 8)
+    q = 0.6 * np.sin(2 * np.pi * 0.1 * k * t[:, None] + k) + 0.1 * k  # up to 2.6 rad/s, as the Panda's joints
+    dq = 0.6 * 2 * np.pi * 0.1 * k * np.cos(2 * np.pi * 0.1 * k * t[:, None] + k)
+    tau = {j: 20 * np.sin(3 * t + i) - 5 + 0.5 * i for i, j in enumerate(config.joints)}
+    data = Dataset(t=t, joints=config.joints, q=q, dq=dq, tau=tau, meta={"robot": "panda"})
+    data.save(root / "run.npz")
+    log, dbc, conf, coef = root / "run.log", root / "panda.dbc", root / "panda.conf", root / "panda.dcoef"
+    done = run(DYNID, "play", "--robot", "panda", "--data", root / "run.npz", "--sink", f"candump:{log}")
+    assert done.returncode == 0, done.stderr
+    assert "clamped" not in done.stdout  # every value within its signal's range
+    lcm = root / "events.lcmlog"
+    for args in (("--dbc", dbc, "--monitor-config", conf, "--lcm-url", f"file://{lcm}?mode=w"),
+                 ("--cad", "--rate", "1000", "--out", coef)):
+        done = run(DYNID, "export", "--robot", "panda", *args)
+        assert done.returncode == 0, done.stderr
+    return {"root": root, "config": config, "data": data, "log": log, "dbc": dbc, "conf": conf, "coef": coef,
+            "lcm": lcm, "played": done}
+
+
+def test_cantools_decodes_every_frame_to_the_run_within_quantisation(panda: dict) -> None:
+    decoded = run(sys.executable, "-m", "cantools", "decode", "--single-line", panda["dbc"], stdin=panda["log"])
+    assert decoded.returncode == 0, decoded.stderr
+    lines = decoded.stdout.splitlines()
+    assert len(lines) == len(panda["log"].read_text().splitlines()) == 7 * N
+    assert not [l for l in lines if "Unknown frame id" in l or "Wrong data size" in l]
+    bus, data = panda["config"].bus, panda["data"]
+    worst: dict[str, float] = {}
+    for line in lines:
+        stamp, iface, frame = line.split(" ::")[0].split()
+        k = (int(stamp[1:-1].replace(".", "")) - T0_US + 300) // 1000
+        name, body = re.match(r"\s*(\w+)\((.*)\)$", line.split(" ::")[1]).groups()
+        f = bus.frame(name)
+        assert (f.bus, f.id) == (iface, int(frame.split("#")[0], 16))
+        values = {n: float(v.split()[0]) for n, v in (x.split(": ") for x in body.split(", "))}
+        for s in f.signals:
+            family, _, j = s.target.partition(".")
+            truth = {"q": data.q[k, data.joints.index(j)], "dq": data.dq[k, data.joints.index(j)],
+                     "tau": data.tau[j][k]}[family]
+            worst[family] = max(worst.get(family, 0), abs(values[s.name] - truth) / (s.scale / 2))
+    assert worst.keys() == {"q", "dq", "tau"} and max(worst.values()) <= 1 + 1e-6, worst  # within half a step
+
+
+def test_import_gives_the_run_back_within_quantisation(panda: dict) -> None:
+    got, want, bus = load_data(panda["log"], panda["config"]), panda["data"], panda["config"].bus
+    assert got.n_samples == N and np.abs(got.t - want.t).max() <= 0.5e-6  # stamps in µs
+    scale = {s.target: s.scale for f in bus.frames for s in f.signals}
+    for i, j in enumerate(want.joints):
+        assert np.abs(got.q[:, i] - want.q[:, i]).max() <= scale[f"q.{j}"] / 2 * (1 + 1e-9), j
+        assert np.abs(got.dq[:, i] - want.dq[:, i]).max() <= scale[f"dq.{j}"] / 2 * (1 + 1e-9), j
+        assert np.abs(got.tau[j] - want.tau[j]).max() <= scale[f"tau.{j}"] / 2 * (1 + 1e-9), j
+    assert got.meta["source_format"] == "candump" and not got.pwm and not got.ft
+
+
+def test_the_monitor_assembles_every_sample_and_computes_the_cores_t2(panda: dict) -> None:
+    done = run(RT_MONITOR, "--model", panda["coef"], "--config", panda["conf"], "--replay", panda["log"])
+    assert done.returncode == 0, done.stderr
+    assert f"frames {7 * N}, samples {N}, evaluated {N}, stale 0," in done.stdout, done.stdout
+    assert "unknown id 0, bad length 0," in done.stdout and "interpolated 0, late 0," in done.stdout
+    # The same samples through the core alone: the imported run (decoded by cantools) in the file's order.
+    c = read_coefficients(panda["coef"])
+    imported = load_data(panda["log"], panda["config"])
+    out = stream(panda["coef"], raw_samples(imported, c), panda["root"])
+    t2 = out[:, detector_columns(c)["t2"]]
+    residuals = read_lcm_log(panda["lcm"])["DYNID_RESIDUAL"]
+    assert len(residuals) >= 100  # every 10th evaluated sample once the filter is full (0.15 s)
+    for m in residuals:
+        k = round((m.utime - T0_US) / 1000)
+        assert m.t2 == pytest.approx(t2[k], rel=1e-9, abs=1e-12), k
+
+
+# ---- the player's refusals -------------------------------------------------------------------------------
+
+
+def test_the_player_refuses_a_run_without_a_value_the_bus_carries(panda: dict, tmp_path: Path) -> None:
+    data = panda["data"]
+    without = Dataset(t=data.t, joints=data.joints, q=data.q, tau=data.tau)  # no velocities: the bus carries dq
+    with pytest.raises(DataError, match="the run has no dq.panda_joint1, which frame TPDO1_1 of panda's bus carries"):
+        play_run(panda["config"], without, f"candump:{tmp_path / 'x.log'}")
+    assert not (tmp_path / "x.log").exists()
+
+
+def test_values_beyond_a_signals_range_are_clamped_and_said(panda: dict, tmp_path: Path) -> None:
+    data = panda["data"].slice(0, 100)
+    data.dq = data.dq * 4  # beyond the ±3.28 rad/s of the velocity signals
+    played = play_run(panda["config"], data, f"candump:{tmp_path / 'x.log'}")
+    clamped = int((np.abs(data.dq) > 3.2767 + 0.5e-4).sum())
+    assert clamped > 0 and f"boards: {clamped} values clamped at their signal's range (the first: dq." in played.summary
+    got = load_data(tmp_path / "x.log", panda["config"])
+    assert 3.2767 - 1e-9 <= np.abs(got.dq).max() <= 3.2768 + 1e-9  # the int16 range at 1e-4 rad/s
+
+
+def test_samples_closer_than_one_samples_frames_are_refused(panda: dict, tmp_path: Path) -> None:
+    data = panda["data"].slice(0, 100)
+    data.t = data.t * 0.2  # 200 µs apart; the Panda's bus sends a sample's frames over 300 µs
+    with pytest.raises(DataError, match=r"two samples 200 us apart, while the bus table sends a sample's frames over "
+                                        r"300 us: they would mix"):
+        play_run(panda["config"], data, f"candump:{tmp_path / 'x.log'}")
+    assert not (tmp_path / "x.log").exists()
+
+
+def test_nominal_stamps_put_the_runs_own_samples_on_its_median_step(panda: dict, tmp_path: Path) -> None:
+    data = panda["data"].slice(0, 200)
+    jitter = np.random.default_rng(0).uniform(-0.3e-3, 0.3e-3, data.n_samples)
+    data.t = data.t + jitter
+    data.t[50:] += 0.0042  # a gap of about 5 ms
+    log = tmp_path / "nominal.log"
+    play_run(panda["config"], data, f"candump:{log}", stamps="nominal")
+    got = load_data(log, panda["config"])
+    assert got.n_samples == 200 and np.allclose(np.diff(got.t), np.median(np.diff(data.t)).round(6), atol=1e-12)
+    assert np.abs(got.q - data.q).max() <= 0.5e-6 * (1 + 1e-9)  # the same samples, in order
+
+
+def test_buses_that_share_an_id_get_a_dbc_each(tmp_path: Path) -> None:
+    """A DBC holds an ID once and `cantools decode` matches on the ID alone: two buses reusing node IDs (two CANopen
+    chains) are written as one DBC per bus, each decoding its bus."""
+    robot = _robot(tmp_path, lambda b: [_frame(b, f"TPDO1_{n}").update(id=0x180 + n - 4) for n in (5, 6, 7)])
+    out = tmp_path / "panda.dbc"
+    done = run(DYNID, "export", "--robot", robot, "--dbc", out, "--json", tmp_path / "e.json")
+    assert done.returncode == 0, done.stderr
+    assert not out.exists() and (tmp_path / "panda-can0.dbc").is_file() and (tmp_path / "panda-can1.dbc").is_file()
+    import cantools
+
+    for bus, ids in (("can0", {0x181, 0x182, 0x183, 0x184}), ("can1", {0x181, 0x182, 0x183})):
+        db = cantools.database.load_file(str(tmp_path / f"panda-{bus}.dbc"), strict=True)
+        assert {m.frame_id for m in db.messages} == ids, bus
