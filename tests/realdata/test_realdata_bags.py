@@ -40,11 +40,11 @@ def run(*argv: str) -> tuple[int, str, str]:
 
 
 def fit(tmp_path: Path, name: str, *argv: str) -> dict[str, Any]:
-    """`dynid fit ARGV` in this process: the model file's record."""
+    """`dynid fit ARGV` in this process: the model file's sections, as written."""
     out = tmp_path / f"{name}.json"
     code, _, err = run("fit", *argv, "--out", str(out))
     assert code == 0, err
-    return load_model(str(out)).record | {"phi": load_model(str(out)).phi.tolist()}
+    return load_model(str(out)).to_json() | {"phi": load_model(str(out)).phi.tolist()}
 
 
 def assert_same_fit(a: dict[str, Any], b: dict[str, Any]) -> None:
@@ -127,7 +127,7 @@ def test_the_loaded_log_with_a_controllers_garbage_rows_is_refused_then_fits_wit
     assert code == 0, err
     assert f"{dirty}: skipped 10 bad rows of" in out
     assert json.loads((tmp_path / "fit.json").read_text())["bad_rows"][str(dirty)]["count"] == 10
-    skipped = load_model(str(model)).record
+    skipped = load_model(str(model)).to_json()
     assert skipped["data"][1]["bad_rows"]["count"] == 10 and "bad_rows" not in skipped["data"][0]
     clean = fit(tmp_path, "clean", *UR, "--data", str(UNLOADED), "--data", str(LOADED), *PAIR)
     assert_same_fit(skipped | {"phi": load_model(str(model)).phi.tolist()}, clean)

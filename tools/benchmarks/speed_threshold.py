@@ -42,7 +42,7 @@ def residuals(model_path: Path, data: Path, labels: Path, calibration: list[str]
     idm = ev.identified
     model, phi = idm.robot_model, idm.phi
     runs, _ = calibration_runs(idm, calibration, window)
-    band = friction_band(model, phi, idm.record, 1.0)
+    band = friction_band(model, phi, idm.base, 1.0)
     settle = SETTLE_TIME_CONSTANTS / (2 * np.pi * DEFAULT_BANDWIDTH_HZ)
 
     def run(d):

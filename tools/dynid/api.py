@@ -34,6 +34,7 @@ from .gaps.find import find_gaps as analyse_gaps
 from .identify.fit import ESTIMATORS, PSEUDO_INERTIA_ONLY, FitSettings
 from .identify.model_file import IdentifiedModel
 from .identify.model_file import load_model as load_model_file
+from .identify.model_sections import DEFAULT_BLOCKS, DEFAULT_ESTIMATOR, DEFAULT_MIN_SPEED, DEFAULT_N_MODE
 from .identify.supply import SupplyTracking
 from .identify.validation import Evaluated, evaluate, load_run, validation
 from .io.dataset import Dataset
@@ -110,8 +111,9 @@ class DynamicsModel(BaseEstimator):
         Base combinations whose standard error is above 10 %: the run does not determine them.
     """
 
-    def __init__(self, robot: str | Path = "icub_right_arm", estimator: str = "iv", n_components: int | None = None,
-                 blocks: int = 10, min_speed: float = 0.01, alpha: float = ALPHA, n_mode: str = "dim",
+    def __init__(self, robot: str | Path = "icub_right_arm", estimator: str = DEFAULT_ESTIMATOR,
+                 n_components: int | None = None, blocks: int = DEFAULT_BLOCKS, min_speed: float = DEFAULT_MIN_SPEED,
+                 alpha: float = ALPHA, n_mode: str = DEFAULT_N_MODE,
                  supply_time_constant: float = SupplyTracking.time_constant_s, consistent: bool | str = False,
                  cad_pull: bool = False) -> None:
         self.robot = robot
@@ -171,9 +173,9 @@ class DynamicsModel(BaseEstimator):
     def _set_fitted(self, identified: IdentifiedModel) -> None:
         self.model_ = identified
         self.parameters_ = dict(identified.parameters)
-        base = identified.record.get("base") or {}
-        self.rank_ = base.get("rank")
-        self.undetermined_ = [c for c, ok in zip(base.get("combinations", []), base.get("identified", [])) if not ok]
+        base = identified.base
+        self.rank_ = None if base is None else base.rank
+        self.undetermined_ = [] if base is None else [c for c, ok in zip(base.combinations, base.identified) if not ok]
 
     def _evaluated(self, X: Data) -> Evaluated:
         check_is_fitted(self, "model_")
@@ -219,12 +221,10 @@ class DynamicsModel(BaseEstimator):
     def load(cls, path: str | Path) -> DynamicsModel:
         """A fitted model from a model file of `dynid fit` (or `dynid gaps --out`)."""
         identified = load_model_file(path)
-        settings = identified.record.get("settings", {})
+        settings = identified.settings
         tracking = identified.supply_tracking
-        est = cls(robot=identified.config.source, estimator=str(settings.get("estimator", "iv")),
-                  n_components=settings.get("n_components"), blocks=int(settings.get("blocks", 10)),
-                  min_speed=float(settings.get("min_speed", 0.01)), alpha=float(settings.get("alpha", ALPHA)),
-                  n_mode=str(settings.get("n_mode", "dim")),
+        est = cls(robot=identified.config.source, estimator=settings.estimator, n_components=settings.n_components,
+                  blocks=settings.blocks, min_speed=settings.min_speed, alpha=settings.alpha, n_mode=settings.n_mode,
                   supply_time_constant=tracking.time_constant_s if tracking is not None else 0.0)
         est._set_fitted(identified)
         return est
@@ -265,15 +265,15 @@ class ContactDetector(BaseEstimator):
             raise InputError(f"alpha must be in [0.5, 1), got {self.alpha!r}")
 
     def _alpha(self) -> float:
-        stored = self.model.model_.record.get("detector", {}).get("calibrated", {}).get("alpha", ALPHA)
+        calibrated = self.model.model_.calibrated
+        stored = ALPHA if calibrated is None else calibrated.alpha
         return float(stored if self.alpha is None else self.alpha)
 
     def _detector(self) -> Detector:
         self._check()
         if hasattr(self, "detector_"):
             return self.detector_
-        n_mode = str(self.model.model_.record.get("settings", {}).get("n_mode", "dim"))
-        return detectors(self.model.model_, self._alpha(), n_mode)[self.variant]
+        return detectors(self.model.model_, self._alpha(), self.model.model_.settings.n_mode)[self.variant]
 
     def _momentum_detector(self, runs: list | None = None) -> MomentumDetector:
         if runs is None and hasattr(self, "momentum_"):
@@ -281,7 +281,7 @@ class ContactDetector(BaseEstimator):
         identified = self.model.model_
         if runs is None:
             runs, _ = calibration_runs(identified, None)
-        det = calibrate_momentum(identified.robot_model, identified.phi, identified.record, runs, self._alpha(),
+        det = calibrate_momentum(identified.robot_model, identified.phi, identified.base, runs, self._alpha(),
                                  identified.min_speed, self.bandwidth_hz, tracking=identified.supply_tracking)
         self.momentum_ = det
         return det
@@ -291,7 +291,7 @@ class ContactDetector(BaseEstimator):
         robot = identified.robot_model
         det = self._momentum_detector()
         ds = _runs(X, robot)[0][0]
-        band = friction_band(robot, identified.phi, identified.record, det.band_sigmas)
+        band = friction_band(robot, identified.phi, identified.base, det.band_sigmas)
         res = run_residuals(robot, identified.phi, ds, det.bandwidth_hz, det.min_speed, band,
                             identified.supply_tracking, det.velocity_window_s)
         return ds, det.statistic(res.e, res.at_rest)

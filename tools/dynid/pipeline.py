@@ -21,10 +21,12 @@ from threadpoolctl import threadpool_limits
 
 from .config.robot_config import RobotConfig
 from .detect.momentum_t2 import CALIBRATION_MAX_S, observer_record
-from .detect.t2 import (ALPHA, Detector, calibrate, calibration_residuals, calibration_stride, detector_record,
+from .detect.t2 import (Detector, calibrate, calibration_residuals, calibration_stride, detector_record,
                         join_calibration, run_calibration_residuals)
 from .identify.fit import CONSISTENT, Estimate, FitResult, FitSettings, fit
 from .identify.model_file import IdentifiedModel, data_record, robot_record
+from .identify.model_sections import (ALPHA, DEFAULT_N_MODE, BaseSection, ConsistentFit, EstimatorSection,
+                                      OutputsSection, Settings, Uncertainty)
 from .identify.plausibility import implausible
 from .identify.runs import RunRef, fit_on_cluster, worker_model, worker_run
 from .identify.statistics import Statistics
@@ -42,7 +44,7 @@ class DetectorSettings:
     """How the T² detector is calibrated (docs/design.md §3): α, and n of the paper's F threshold."""
 
     alpha: float = ALPHA
-    n_mode: str = "dim"  # "dim": n = dim(e), the default; "nu": the paper's n = ν
+    n_mode: str = DEFAULT_N_MODE  # "dim": n = dim(e), the default; "nu": the paper's n = ν
 
 
 @dataclass(frozen=True)
@@ -84,14 +86,14 @@ def cad_ft_offsets(model: RobotModel, stats: Statistics) -> np.ndarray:
 
 
 def build_model(model: RobotModel, phi: np.ndarray, datasets: Sequence[Dataset], data_paths: Sequence[str | Path],
-                record: dict[str, Any], settings: FitSettings, *, detector: DetectorSettings = DetectorSettings(),
+                sections: IdentifiedModel, settings: FitSettings, *, detector: DetectorSettings = DetectorSettings(),
                 tracking: SupplyTracking | None = None, effects: Sequence[Effect] = (), nu: int | None = None,
-                residual_variance: np.ndarray | None = None, robot: dict[str, str] | None = None,
+                residual_variance: np.ndarray | None = None,
                 cluster: Any = None, refs: Sequence[RunRef] | None = None) -> Built:
     """Calibrate T² for Φ (and the effects) on the contact-free `datasets` (read with `settings`' derivatives and
-    min_speed), and write the sections every model
-    file has into `record`: outputs (Λ: `residual_variance`, else the calibrated detector's), detector,
-    supply_tracking, derivatives, data. `record` brings the rest (the fit's sections, or the gap workflow's).
+    min_speed), and fill the sections every model file has: outputs (Λ: `residual_variance`, else the calibrated
+    detector's), detector, supply_tracking, derivatives (where `sections` has none), data. `sections` brings the
+    robot and the rest (the fit's sections, or the gap workflow's); the model returned carries Φ as `parameters`.
     With a `cluster` (dynid.cluster) and the runs' `refs`, each run's calibration residuals are a task on it."""
     effects = list(effects)
 
@@ -108,63 +110,48 @@ def build_model(model: RobotModel, phi: np.ndarray, datasets: Sequence[Dataset],
     detectors = calibrate(model, phi, e, dq, detector.alpha, settings.min_speed, detector.n_mode, nu, e_constant=e_constant)
     outs = output_channels(model)
     variance = detectors["calibrated"].variance if residual_variance is None else residual_variance
-    record = dict(record)
-    record["outputs"] = {"channels": [o.name for o in outs], "units": [o.unit for o in outs],
-                         "noise_std": [o.sigma for o in outs], "residual_variance": np.asarray(variance).tolist()}
-    record["detector"] = detector_record(model, detectors, e, dq)
-    if tracking is not None or "supply_tracking" in record:
-        record["supply_tracking"] = tracking.as_dict() if tracking is not None else None
-    record.setdefault("derivatives", derivatives_record(model))
-    record["data"] = [data_record(p, ds.n_samples, ds.duration, ds.meta.get("payload"), ds.meta.get("window"),
-                                  ds.meta.get("bad_rows")) for p, ds in zip(data_paths, datasets)]
-    identified = IdentifiedModel(robot or robot_record(model.config), dict(zip(model.layout.names, phi.tolist())),
-                                 record)
+    identified = replace(
+        sections, parameters=dict(zip(model.layout.names, phi.tolist())),
+        outputs=OutputsSection(tuple(o.name for o in outs), np.asarray(variance, float), tuple(o.unit for o in outs),
+                               np.array([o.sigma for o in outs])),
+        detector=detector_record(model, detectors, e, dq),
+        supply_tracking=tracking, derivatives=sections.derivatives or derivatives_record(model),
+        data=tuple(data_record(p, ds.n_samples, ds.duration, ds.meta.get("payload"), ds.meta.get("window"),
+                               ds.meta.get("bad_rows")) for p, ds in zip(data_paths, datasets)),
+        path=None)
     return Built(identified, detectors)
 
 
-def fit_record(model: RobotModel, result: FitResult, settings: FitSettings, detector: DetectorSettings,
-               n_components: int | None) -> dict[str, Any]:
-    """The sections of the model file that describe the regression: estimator, settings, ν, base parameters,
-    every estimator's values."""
+def fit_record(model: RobotModel, config: RobotConfig, result: FitResult, settings: FitSettings,
+               detector: DetectorSettings, n_components: int | None) -> IdentifiedModel:
+    """The model file's sections that describe the regression: estimator, settings, ν, base parameters, every
+    estimator's values (the robot's section of `config`; Φ, the outputs and the calibration follow in
+    `build_model`)."""
     base = result.base
     names = model.layout.names
-    return {
+    chosen = result.estimates[result.chosen]
+    consistent = result.consistent
+    return IdentifiedModel(
+        robot_record(config), {},
         # the regression; with `consistent` solved, `parameters` are its physically consistent projection
-        "estimator": settings.estimator if result.chosen == CONSISTENT else result.chosen,
-        "settings": {"estimator": settings.estimator, "consistent": settings.consistent,
-                     "consistent_sphere": settings.consistent_sphere, "cad_pull": settings.cad_pull,
-                     "n_components": n_components, "min_speed": settings.min_speed,
-                     "blocks": result.statistics.n_blocks, "instrument_window_s": settings.instrument_window_s,
-                     "alpha": detector.alpha, "n_mode": detector.n_mode},
-        "n_components": result.cv["n_components"],
-        "cv": result.cv,
-        "jackknife": result.jackknife,
-        "consistent": result.consistent,
-        "base": {"rank": base.rank, "combinations": list(base.combinations()),
-                 "independent": [names[i] for i in base.independent],
-                 "dependent": [names[i] for i in base.dependent], "K": base.K.tolist(),
-                 "values": result.estimates[result.chosen].beta.tolist(),
-                 "standard_errors": result.estimates[result.chosen].se.tolist(),
-                 "identified": result.identified.tolist(),
-                 **uncertainty_record(result.estimates[result.chosen])},
-        "estimators": {k: {"values": v.beta.tolist(), "standard_errors": v.se.tolist(), "detail": v.detail,
-                           "parameters": dict(zip(names, v.phi.tolist())), **uncertainty_record(v)}
-                       for k, v in result.estimates.items()},
-    }
+        estimator=settings.estimator if result.chosen == CONSISTENT else result.chosen,
+        settings=Settings(settings.estimator, settings.consistent, settings.consistent_sphere, settings.cad_pull,
+                          n_components, settings.min_speed, result.statistics.n_blocks, settings.instrument_window_s,
+                          detector.alpha, detector.n_mode),
+        n_components=result.cv["n_components"], cv=result.cv, jackknife=result.jackknife,
+        consistent=None if consistent is None else ConsistentFit.from_json(consistent),
+        base=BaseSection(base.rank, tuple(base.combinations()), tuple(names[i] for i in base.independent),
+                         tuple(names[i] for i in base.dependent), np.asarray(base.K, float), chosen.beta, chosen.se,
+                         np.asarray(result.identified, bool), uncertainty_record(chosen)),
+        estimators={k: EstimatorSection(v.beta, v.se, v.detail, dict(zip(names, v.phi.tolist())),
+                                        uncertainty_record(v)) for k, v in result.estimates.items()})
 
 
-def uncertainty_record(estimate: Estimate) -> dict[str, Any]:
+def uncertainty_record(estimate: Estimate) -> Uncertainty:
     """An estimate's two standard errors (time blocks within runs; runs or pairs left out) and each unit's own
     estimate with their spread (the sample standard deviation across units), where runs were jackknifed."""
-    out: dict[str, Any] = {}
-    if estimate.se_blocks is not None:
-        out["standard_errors_blocks"] = estimate.se_blocks.tolist()
-    if estimate.se_runs is not None:
-        out["standard_errors_runs"] = estimate.se_runs.tolist()
-    if estimate.units is not None:
-        out["unit_values"] = estimate.units.tolist()
-        out["unit_spread"] = estimate.units.std(axis=0, ddof=1).tolist()
-    return out
+    return Uncertainty(estimate.se_blocks, estimate.se_runs, estimate.units,
+                       None if estimate.units is None else estimate.units.std(axis=0, ddof=1))
 
 
 @dataclass(frozen=True)
@@ -252,25 +239,25 @@ def _identify(model: RobotModel, datasets: Sequence[Run], data_paths: Sequence[s
         model = with_estimated_noise(model, result)
         result = fitted(model)
     fit_time = time.perf_counter() - started
-    record = fit_record(model, result, settings.fit, settings.detector, settings.fit.n_components)
-    record["cad_ft_offsets"] = cad_ft_offsets(model, result.statistics).tolist()
-    record["supply_tracking"] = None  # build_model fills it when the inputs are tracked
-    built = build_model(model, result.phi, datasets, data_paths, record, settings.fit,
+    sections = replace(fit_record(model, model.config, result, settings.fit, settings.detector,
+                                  settings.fit.n_components),
+                       cad_ft_offsets=cad_ft_offsets(model, result.statistics))
+    built = build_model(model, result.phi, datasets, data_paths, sections, settings.fit,
                         detector=settings.detector, nu=result.cv["n_components"],
                         # only a PWM input drifts with its supply (dynid.identify.supply)
                         tracking=settings.tracking if model.config.motors_with_input("pwm") else None,
                         residual_variance=result.residual_variance[result.chosen], cluster=cluster, refs=refs)
+    identified = built.model
     if settings.observer:
         try:
-            built.model.record["observer"] = observer_record(built.model, [_head(run) for run in datasets],
-                                                             settings.detector.alpha)
+            identified.observer = observer_record(identified, [_head(run) for run in datasets], settings.detector.alpha)
         except DataError:  # e.g. too few contact-free samples: `detect` calibrates then, and says why, as before
             pass
     total = time.perf_counter() - started
-    built.model.record["fit_time_s"] = total
+    identified.fit_time_s = total
     # With --consistent off nothing keeps each body physical: say where the estimate is not (identify/plausibility.py)
-    built.model.record["plausibility"] = implausible(model, result.phi)
-    return Identification(built.model, result, built.detectors, fit_time, total, model)
+    identified.plausibility = implausible(model, result.phi)
+    return Identification(identified, result, built.detectors, fit_time, total, model)
 
 
 def _head(run: Run) -> Dataset:

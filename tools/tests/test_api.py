@@ -68,7 +68,7 @@ def test_parameters_are_checked_at_fit_and_clone_keeps_them(runs: Path) -> None:
 def test_the_api_fit_is_the_cli_fit(fitted: dynid.DynamicsModel, default_model: Path) -> None:
     cli = json.loads(default_model.read_text())  # `dynid fit` on the same run (conftest)
     assert cli["parameters"] == fitted.parameters_
-    assert cli["detector"] == fitted.model_.record["detector"]
+    assert cli["detector"] == fitted.model_.to_json()["detector"]
     assert fitted.rank_ == cli["base"]["rank"] and fitted.rank_ > 0
 
 
@@ -119,5 +119,5 @@ def test_find_gaps_is_the_workflow_of_dynid_gaps(runs: Path, fitted: dynid.Dynam
     assert {g["channel"] for g in result["gap"]} == set(fitted.output_channels_)
     assert all(np.isfinite(g["before_rms"]) and np.isfinite(g["after_rms"]) for g in result["gap"])
     augmented = gaps.augmented_model()
-    assert [e["kind"] for e in augmented.record["effects"]] == [e.kind for e in gaps.effects]
-    assert augmented.record["detector"]["calibrated"]["threshold"] > 0
+    assert [e.kind for e in augmented.named_effects] == [e.kind for e in gaps.effects]
+    assert augmented.detector.calibrated.threshold > 0

@@ -74,7 +74,7 @@ def test_a_log_with_garbage_rows_is_refused_in_one_line_then_fits_with_skip_like
     reported = json.loads((tmp_path / "fit.json").read_text())["bad_rows"][str(bad)]
     assert reported["count"] == GARBAGE_ROWS + 1 and reported["policy"] == "skip"
     assert reported["kinds"] == {"cut_short": 1, "out_of_range": GARBAGE_ROWS}
-    recorded = load_model(str(skipped)).record["data"][0]["bad_rows"]
+    recorded = load_model(str(skipped)).data[0].bad_rows
     assert recorded == reported
 
     code, _, err = run("fit", "--robot", "panda", "--data", str(panda_run), "--out", str(clean))
@@ -155,9 +155,9 @@ def test_a_window_per_run_cuts_that_run_alone_and_the_model_file_keeps_it(panda_
     code, _, err = run("fit", "--robot", "panda", "--data", f"{panda_run}@1:5", "--data", str(panda_run),
                        "--from", "0.5", "--out", str(model))
     assert code == 0, err
-    first, second = load_model(str(model)).record["data"]
-    assert first["window"] == [1.0, 5.0] and second["window"] == [0.5, None]
-    assert first["samples"] == 4001 and second["samples"] == 5500
+    first, second = load_model(str(model)).data
+    assert first.window == (1.0, 5.0) and second.window == (0.5, None)
+    assert first.samples == 4001 and second.samples == 5500
     # The momentum detector recalibrates on the runs as fitted: the recorded windows, not the whole files.
     code, _, err = run("detect", "--model", str(model), "--data", str(panda_run), "--residual", "momentum")
     assert code == 0, err

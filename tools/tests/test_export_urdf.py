@@ -14,6 +14,7 @@ import json
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -175,6 +176,7 @@ def test_a_rerooted_configuration_is_written_in_the_original_tree(tmp_path: Path
 
     from dynid.export.urdf import export_urdf
     from dynid.identify.model_file import IdentifiedModel, robot_record
+    from dynid.identify.model_sections import BaseSection
     from dynid.robot.model import RobotModel
     from dynid.robot.regressors.base import base_parameters_from_factor, exciting_signals, triangular_factor
     from dynid.robot.regressors.rigid_body import rigid_body_regressors
@@ -193,10 +195,10 @@ def test_a_rerooted_configuration_is_written_in_the_original_tree(tmp_path: Path
     A = np.concatenate([reg.tau.reshape(-1, span.stop)] + [f.reshape(-1, span.stop) for f in reg.ft.values()])
     names = robot.layout.names
     base = base_parameters_from_factor(triangular_factor([(A, np.zeros(A.shape[0]))], span.stop), names[span])
-    record = {"base": {"independent": [names[i] for i in base.independent],
-                       "dependent": [names[i] for i in base.dependent], "K": base.K.tolist(),
-                       "values": base.base(phi[span]).tolist(), "standard_errors": [1.0] * base.rank}}
-    identified = IdentifiedModel(robot_record(config), dict(zip(names, phi.tolist())), record)
+    independent = tuple(names[i] for i in base.independent)
+    section = BaseSection(base.rank, independent, independent, tuple(names[i] for i in base.dependent), base.K,
+                          base.base(phi[span]), np.ones(base.rank), np.ones(base.rank, bool))
+    identified = IdentifiedModel(robot_record(config), dict(zip(names, phi.tolist())), base=section)
     identified._config, identified._model = config, robot
     out = tmp_path / "standing.urdf"
     done = export_urdf(identified, out)
@@ -232,7 +234,7 @@ def test_a_physical_model_on_the_cone_s_boundary_still_reproduces_exactly(
         point = [m, *h, inertia[0, 0], inertia[0, 1], inertia[1, 1], inertia[0, 2], inertia[1, 2], inertia[2, 2]]
         identified.parameters.update(zip(names, point))
     B = base_map(identified)[0]
-    identified.record["base"]["values"] = (B @ identified.phi).tolist()
+    identified.base = replace(identified.base, values=B @ identified.phi)
     done = export_urdf(identified, tmp_path / "point.urdf")
     assert done.base_relative_error < 1e-12 and done.physical.min_eigenvalue > -1e-12
     _, q, dq, ddq = signals(exportable[0], default_experiments["validation"])

@@ -31,26 +31,27 @@ def run_json(tmp_path: Path, *args: str) -> dict:
 
 def test_model_file_holds_what_the_monitor_and_the_user_need(default_model: Path, default_experiments) -> None:
     model = load_model(default_model)
-    rec = model.record
-    assert set(rec["estimators"]) == {"iv", "pls", "ols"} and rec["estimator"] == "iv"
-    assert rec["consistent"] is None  # --consistent off, the default (docs/consistency.md#default)
-    assert rec["base"]["rank"] == 87 and 1 <= rec["n_components"] <= 87
-    assert len(rec["cv"]["press"]) == len(rec["cv"]["candidates"])
-    assert np.argmin(rec["cv"]["press"]) + 1 == rec["n_components"]
-    assert rec["outputs"]["channels"][:6] == [f"ft.r_arm_ft.{c}" for c in ("fx", "fy", "fz", "tx", "ty", "tz")]
-    assert all(v > 0 for v in rec["outputs"]["residual_variance"])
-    data = rec["data"][0]
-    assert data["samples"] == 300_000 and len(data["sha256"]) == 64
+    assert set(model.estimators) == {"iv", "pls", "ols"} and model.estimator == "iv"
+    assert model.consistent is None  # --consistent off, the default (docs/consistency.md#default)
+    assert model.base.rank == 87 and 1 <= model.n_components <= 87
+    assert len(model.cv["press"]) == len(model.cv["candidates"])
+    assert np.argmin(model.cv["press"]) + 1 == model.n_components
+    assert model.output_channels[:6] == [f"ft.r_arm_ft.{c}" for c in ("fx", "fy", "fz", "tx", "ty", "tz")]
+    assert all(v > 0 for v in model.residual_variance)
+    data = model.data[0]
+    assert data.samples == 300_000 and len(data.sha256) == 64
     # Parameters by name reproduce the stored base values through the stored combinations.
-    assert np.allclose(model.base_values(model.parameters), rec["base"]["values"], rtol=1e-9, atol=1e-12)
+    assert np.allclose(model.base_values(model.parameters), model.base.values, rtol=1e-9, atol=1e-12)
+    # The typed model writes back the file it was read from, section for section.
+    assert model.to_json() == json.loads(Path(default_model).read_text())
 
 
 def test_iv_recovers_the_motor_gains_in_closed_loop_and_ols_does_not(default_model: Path, default_experiments) -> None:
     truth = truth_of(default_experiments["identification"])["parameters"]
-    rec = load_model(default_model).record
-    names = rec["base"]["independent"]
+    model = load_model(default_model)
+    names = model.base.independent
     for est, bound in (("iv", 0.03), ("ols", None)):
-        values = dict(zip(names, rec["estimators"][est]["values"]))
+        values = dict(zip(names, model.estimators[est].values))
         for motor in ("m0", "m1", "m2", "m3"):
             rel = values[f"{motor}.phi_m"] / truth[f"{motor}.phi_m"] - 1
             if bound is not None:
@@ -64,15 +65,15 @@ def test_friction_where_identified_is_within_ten_percent(default_model: Path, de
     ones it flags as undetermined are the ones that are off (the flag is honest)."""
     truth = truth_of(default_experiments["identification"])["parameters"]
     model = load_model(default_model)
-    base = model.record["base"]
+    base = model.base
     true_beta = model.base_values(truth)
-    friction = [i for i, n in enumerate(base["independent"]) if ".fc_" in n or ".fv_" in n]
-    identified = [i for i in friction if base["identified"][i]]
+    friction = [i for i, n in enumerate(base.independent) if ".fc_" in n or ".fv_" in n]
+    identified = [i for i in friction if base.identified[i]]
     assert len(identified) >= 12
-    rel = np.abs(np.asarray(base["values"]) / true_beta - 1)
+    rel = np.abs(base.values / true_beta - 1)
     assert rel[identified].max() <= 0.10
-    errors = np.abs(np.asarray(base["values"]) - true_beta)
-    se = np.asarray(base["standard_errors"])
+    errors = np.abs(base.values - true_beta)
+    se = base.standard_errors
     assert np.mean(errors[friction] <= 3 * se[friction]) >= 0.9  # the standard errors are honest too
 
 

@@ -46,7 +46,7 @@ def python_observer(model_path: Path, coef: coefficients_t, run: Path, seconds: 
     n = int(round(seconds / coef.sample_period))
     t, q, inputs, tau, ft = raw_signals(model, ds)
     cut = lambda d: {k: np.asarray(v)[:n] for k, v in d.items()}  # noqa: E731
-    band = friction_band(model, identified.phi, identified.record, BAND_SIGMAS)
+    band = friction_band(model, identified.phi, identified.base, BAND_SIGMAS)
     res = momentum_residuals(model, identified.phi, t[:n], q[:n], cut(inputs), cut(tau), cut(ft), None,
                              bandwidth_hz=coef.observer_bandwidth, min_speed=coef.min_speed, band=band,
                              tracking=identified.supply_tracking)

@@ -168,13 +168,13 @@ def test_a_fit_on_a_dumper_folder_is_recorded_and_export_finds_it_again(tmp_path
 
     config, root = _config(tmp_path), _dumper(tmp_path)
     record = data_record(root, 600, 6.0)
-    assert record["path"] == str(root.resolve()) and record["sha256"] == data_digest(root) is not None
-    identified = SimpleNamespace(record={"data": [record]}, path="model.json")
+    assert record.path == str(root.resolve()) and record.sha256 == data_digest(root) is not None
+    identified = SimpleNamespace(data=(record,), path="model.json")
     model = RobotModel(config)
     # the synthetic wrist leaves the URDF's limits, which the reader holds real data to: read without them here
     monkeypatch.setattr(model_export, "load_run", lambda path, robot, *_, **__: load_data(path, robot.config))
     runs, digests = calibration_data(identified, model, [])
-    assert digests == record["sha256"] and runs[0].meta["source_format"] == "yarp dumper"
+    assert digests == record.sha256 and runs[0].meta["source_format"] == "yarp dumper"
     log = root / "icub/right_arm/analog:o/data.log"
     log.write_text(log.read_text().replace("100 ", "99 ", 1))
     with pytest.raises(DataError, match="changed since the fit"):

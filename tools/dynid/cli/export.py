@@ -135,7 +135,7 @@ def _export_urdf(args: argparse.Namespace) -> dict[str, Any]:
         identified.robot_model  # noqa: B018 - the robot and its URDF, found before any work
     except InputError as e:
         raise InputError(f"{args.model}: the robot's URDF cannot be found or read (the model file names "
-                         f"{identified.robot.get('urdf') or 'none'}); put its folder in DYNID_URDF_PATH ({e})") from None
+                         f"{identified.robot.urdf or 'none'}); put its folder in DYNID_URDF_PATH ({e})") from None
     done = export_urdf(identified, args.urdf, allow_residual=args.nearest_physical)
     ps = done.physical
     print(f"exported {identified.config.name} -> {args.urdf} (the identified robot) and {done.side}")
@@ -167,8 +167,8 @@ def _export_coefficients(args: argparse.Namespace) -> dict[str, Any]:
     identified = load_model(args.model)
     done = export_model(identified, args.out, _settings(args))
     est, cal, tracking, alpha = done.filter, done.calibration, done.tracking, done.alpha
-    det = identified.record.get("detector", {}).get("calibrated", {})
-    offline = np.asarray(det.get("variance", cal.variance), float)
+    det = identified.calibrated
+    offline = cal.variance if det is None else det.variance
     print(f"exported {identified.config.name} -> {args.out} ({done.size} bytes)")
     for e in done.effects:
         print(f"  effect {e.kind} on {e.where}: " + ", ".join(f"{k} {v:.4g}" for k, v in e.parameters.items()))
@@ -177,7 +177,7 @@ def _export_coefficients(args: argparse.Namespace) -> dict[str, Any]:
     if tracking is not None:
         print(f"  supply tracking: time constant {tracking.time_constant_s:g} s, gate {tracking.gate:g} noise stds")
     print(f"  T²_α (α = {alpha}) through the online filter: {cal.threshold:.4g} (offline "
-          f"{det.get('threshold', float('nan')):.4g}); F/T-side thresholds {_sides(cal.ft_thresholds)}; {cal.samples} "
+          f"{float('nan') if det is None else det.threshold:.4g}); F/T-side thresholds {_sides(cal.ft_thresholds)}; {cal.samples} "
           "calibration samples")
     print("  Λ online / offline: " + ", ".join(f"{n} {a / b:.2f}" for n, a, b in zip(done.channels, cal.variance, offline)))
     obs = done.observer

@@ -17,6 +17,8 @@ from ..errors import DataError, InputError
 from ..cluster import executor
 from ..identify.fit import (DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_INERTIA_ONLY, FitResult, FitSettings,
                             iv_settled)
+from ..identify.model_file import IdentifiedModel
+from ..identify.model_sections import DEFAULT_BLOCKS, DEFAULT_N_MODE, N_MODES, BaseSection
 from ..identify.runs import RunRef, stream_run
 from ..identify.supply import SupplyTracking
 from ..identify.validation import evaluate, validation
@@ -64,7 +66,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
             cluster.close()
     model = done.robot or model
     done.model.save(args.out)
-    result, record, detectors = done.fit, done.model.record, done.detectors
+    result, identified, detectors = done.fit, done.model, done.detectors
+    independent = list(base_section(identified).independent)
     elapsed, elapsed_fit = done.total_time_s, done.fit_time_s
     outs = output_channels(model)
     base = result.base
@@ -79,12 +82,12 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
           f"10 % or better; PLS ν = {result.cv['n_components']} "
           + (f"(cross-validated on {result.statistics.n_blocks} time blocks)" if args.n_components is None else
              "(--n-components)"))
-    gains = [i for i, n in enumerate(record["base"]["independent"]) if n.endswith(".phi_m")]
+    gains = [i for i, n in enumerate(independent) if n.endswith(".phi_m")]
     unit = " and ".join(GAIN_UNIT[k] for k in sorted({g.input for g in config.actuation if g.input != "torque"}))
     print(f"  motor gains ({unit}) by estimator:" if gains else "  no unknown motor gains in this set-up")
     for name, est in result.estimates.items() if gains else ():
         mark = "*" if name == result.chosen else " "
-        values = ", ".join(f"{record['base']['independent'][i].split('.')[0]} {est.beta[i]:.3f}±{est.se[i]:.3f}"
+        values = ", ".join(f"{independent[i].split('.')[0]} {est.beta[i]:.3f}±{est.se[i]:.3f}"
                            for i in gains)
         print(f"   {mark}{name:4s} {values}")
     unit_word = "pair" if any(ref.payload for ref in refs) else "run"
@@ -92,7 +95,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     if gains and chosen_units is not None:
         print(f"  {result.chosen} gains of each {unit_word} alone, and their spread across {unit_word}s (sample std):")
         for i in gains:
-            motor = record["base"]["independent"][i].split(".")[0]
+            motor = independent[i].split(".")[0]
             each = chosen_units[:, i]
             print(f"    {motor:16s} " + ", ".join(f"{v:.3f}" for v in each) + f"   spread {each.std(ddof=1):.3f}")
     if gains:
@@ -100,7 +103,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         print(f"  {result.chosen} gains beside the configuration's nominal ones (a published or datasheet value; "
               "the rows' weights):")
         for i in gains:
-            motor = record["base"]["independent"][i].split(".")[0]
+            motor = independent[i].split(".")[0]
             nominal = config.motor(motor).nominal_gain
             value, se = chosen_est.beta[i], chosen_est.se[i]
             status = "determined" if result.identified[i] else "NOT determined by these runs (standard error over 10 %)"
@@ -158,7 +161,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         print(f"  borderline: singular value(s) {', '.join(f'{v:.3g}' for v in edges['rank_cut'])} of the largest sit "
               f"on the rank cut {base.rtol:g} (left out of the rank)")
     print_consistent(result.consistent)
-    warnings = record.get("plausibility", [])
+    warnings = identified.plausibility or []
     if warnings:
         why = ("--consistent pseudo-inertia lets a centre of mass leave its sphere"
                if args.consistent == PSEUDO_INERTIA_ONLY else
@@ -170,15 +173,20 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     print("  residual RMS on the identification data (rows at rest left out) / channel noise:")
     print("   " + ", ".join(f"{o.name} {r:.3g} ({r / o.sigma:.2f}×)" for o, r in zip(outs, rms)))
     return {"robot": config.name, "out": args.out, "samples": result.samples, "rank": base.rank,
-            "n_components": result.cv["n_components"], "estimator": record["estimator"],
+            "n_components": result.cv["n_components"], "estimator": identified.estimator,
             "identified": int(result.identified.sum()), "determined": {c: {"value": v, "standard_error": e}
                                                                      for c, (v, e) in determined.items()},
             "undetermined": undetermined, "unidentifiable": list(base.unidentifiable), "jackknife": result.jackknife,
-            "estimators": record["estimators"],
-            "base": record["base"], "residual_rms": dict(zip(record["outputs"]["channels"], rms.tolist())),
+            "estimators": {k: v.to_json() for k, v in identified.estimators.items()},
+            "base": base_section(identified).to_json(), "residual_rms": dict(zip(identified.output_channels, rms.tolist())),
             "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed,
             "plausibility": warnings, "consistent": result.consistent, "borderline": edges,
             **({"bad_rows": skipped} if skipped else {})}
+
+
+def base_section(identified: IdentifiedModel) -> BaseSection:
+    assert identified.base is not None  # `dynid fit` writes it
+    return identified.base
 
 
 def print_run_uncertainty(result: FitResult) -> None:
@@ -298,7 +306,7 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
             stored = None if calibration_given or ev.identified.effects else stored_detector(
                 ev.identified, "detect", args.alpha, args.bandwidth, VELOCITY_WINDOW_S)
             if stored is not None:
-                runs, paths = None, [d["path"] for d in ev.identified.record["data"]]
+                runs, paths = None, ev.identified.data_paths
             else:
                 runs, paths = calibration_runs(ev.identified, args.calibration,
                                                (args.calibration_from, args.calibration_to))
@@ -396,9 +404,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     "its weight chosen by cross-validation over the time blocks (kept only where it beats no pull by "
                     "a standard error of the folds); default off: the data alone")
     sp.add_argument("--n-components", type=positive_int, metavar="NU", help="PLS latent variables (default: by CV)")
-    sp.add_argument("--blocks", type=positive_int, default=10, help="time blocks for CV and jackknife (default 10)")
+    sp.add_argument("--blocks", type=positive_int, default=DEFAULT_BLOCKS,
+                    help=f"time blocks for CV and jackknife (default {DEFAULT_BLOCKS})")
     sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"T² confidence level (default {ALPHA})")
-    sp.add_argument("--n-mode", choices=["dim", "nu"], default="dim",
+    sp.add_argument("--n-mode", choices=N_MODES, default=DEFAULT_N_MODE,
                     help="n of the paper's F threshold: dim(e) (default) or ν as the paper writes")
     sp.add_argument("--supply-time-constant", type=non_negative_float, default=SupplyTracking.time_constant_s,
                     metavar="S", help="track each motor's supply (its torque per unit duty) with this time constant "
@@ -435,7 +444,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     window_args(sp)
     payload_arg(sp, repeatable=False)
     sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"confidence level (default {ALPHA})")
-    sp.add_argument("--n-mode", choices=["dim", "nu"], default="dim", help="n of the paper's F threshold")
+    sp.add_argument("--n-mode", choices=N_MODES, default=DEFAULT_N_MODE, help="n of the paper's F threshold")
     sp.add_argument("--residual", choices=["momentum", "acceleration"], default=None,
                     help="momentum (the default where it can be calibrated): T² on the generalized-momentum "
                     "observer's residuals, which need no q̈ (docs/detection.md), reported beside the two "

@@ -6,6 +6,7 @@ import argparse
 from typing import Any
 
 from ..detect.t2 import ALPHA
+from ..identify.model_sections import DEFAULT_N_MODE, N_MODES
 from ..paper import PAPER
 from ..report.page import DEFAULT_WINDOW_S, ReportSettings, rates_text, write_report
 from .commands import COMMANDS
@@ -49,7 +50,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--truth", metavar="TRUTH.json", help="true parameters (default: the truth.json of `dynid "
                     "simulate` beside the identification data, else beside --validation or --contact)")
     sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"T² confidence level (default {ALPHA})")
-    sp.add_argument("--n-mode", choices=["dim", "nu"], default="dim", help="n of the paper's F threshold")
+    sp.add_argument("--n-mode", choices=N_MODES, default=DEFAULT_N_MODE, help="n of the paper's F threshold")
     sp.add_argument("--window", type=positive_float, default=DEFAULT_WINDOW_S, metavar="S",
                     help=f"length of the predicted-against-measured window (default {DEFAULT_WINDOW_S:g} s)")
     sp.add_argument("--gaps", metavar="DIR", help="add the model-gap section: the figures and numbers of "

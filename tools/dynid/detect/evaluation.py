@@ -22,25 +22,24 @@ from .visibility import contact_residuals, episode_visibility
 
 def detectors(identified: IdentifiedModel, alpha: float, n_mode: str) -> dict[str, Detector]:
     """Both variants at confidence `alpha`, from the model file's calibration."""
-    det = identified.record.get("detector")
-    if not det:
+    det = identified.detector
+    if det is None:
         raise DataError(f"{identified.path} has no T² calibration (refit it with this dynid)")
-    out = {}
-    for variant in VARIANTS:
-        d = Detector.from_dict(det[variant])
-        if variant == "paper":
-            n = d.n if n_mode == "dim" else int(identified.record.get("n_components", d.n))
-            d = Detector("paper", d.variance, f_threshold(n, det["calibration_samples"], alpha), alpha, d.min_speed, n)
-        elif alpha != d.alpha:
-            # The stored quantiles of the calibration T² (model files of an earlier dynid hold them descending).
-            q = det["calibrated_t2_quantiles"]
-            order = np.argsort(q["levels"])
-            levels, values = np.asarray(q["levels"], float)[order], np.asarray(q["values"], float)[order]
-            if not levels[0] <= alpha <= levels[-1]:
-                raise InputError(f"--alpha {alpha} is outside the calibrated range {levels[0]:.4g}..{levels[-1]:.4g}")
-            d = Detector("calibrated", d.variance, float(np.interp(alpha, levels, values)), alpha, d.min_speed, d.n)
-        out[variant] = d
-    return out
+    paper = Detector.of(det.paper)
+    n = paper.n if n_mode == "dim" or identified.n_components is None else identified.n_components
+    out = {"calibrated": Detector.of(det.calibrated),
+           "paper": Detector("paper", paper.variance, f_threshold(n, det.calibration_samples, alpha), alpha,
+                             paper.min_speed, n)}
+    calibrated = out["calibrated"]
+    if alpha != calibrated.alpha:
+        # The stored quantiles of the calibration T² (model files of an earlier dynid hold them descending).
+        q = det.calibrated_t2_quantiles
+        threshold = q.at(alpha)
+        if threshold is None:
+            raise InputError(f"--alpha {alpha} is outside the calibrated range {q.levels.min():.4g}..{q.levels.max():.4g}")
+        out["calibrated"] = Detector("calibrated", calibrated.variance, threshold, alpha, calibrated.min_speed,
+                                     calibrated.n)
+    return {v: out[v] for v in VARIANTS}
 
 
 @dataclass(frozen=True)

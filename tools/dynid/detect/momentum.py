@@ -48,10 +48,11 @@ import pinocchio as pin
 
 from .. import kernels
 from ..errors import DataError
+from ..identify.model_sections import BaseSection
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from ..robot.regressors.friction import friction_regressor
-from ..robot.regressors.stack import friction_coordinates, group_row_maps, group_rows
+from ..robot.regressors.stack import DEFAULT_MIN_SPEED, friction_coordinates, group_row_maps, group_rows
 
 DEFAULT_BANDWIDTH_HZ = 15.0  # K_O = 2π·15 rad/s: a 10.6 ms time constant (chosen by measurement: docs/detection.md)
 VELOCITY_WINDOW_S = 0.02  # the causal q̇ estimator's window (s); at least 5 samples
@@ -209,17 +210,11 @@ def first_order(t: np.ndarray, x: np.ndarray, bandwidth_hz: float) -> np.ndarray
     return y
 
 
-def friction_band(model: RobotModel, phi: np.ndarray, record: dict | None, band_sigmas: float) -> dict:
+def friction_band(model: RobotModel, phi: np.ndarray, base: BaseSection | None, band_sigmas: float) -> dict:
     """{(kind, owner): (fc_pos, fc_neg)} of every friction block, each widened by `band_sigmas` standard errors
     where the model file's base section identifies the Coulomb coefficient alone (a base combination with no
     dependent part: its standard error is the coefficient's own)."""
-    se: dict[str, float] = {}
-    base = (record or {}).get("base", {})
-    K = np.asarray(base.get("K", []), float)
-    for i, (name, s) in enumerate(zip(base.get("independent", []), base.get("standard_errors", []))):
-        alone = K.ndim != 2 or K.shape[0] <= i or not np.any(K[i])
-        if alone and s is not None and np.isfinite(s):
-            se[name] = float(s)
+    se = {} if base is None else base.standard_error_alone()
     out = {}
     names = model.layout.names
     for b in model.layout.blocks_of("joint_friction") + model.layout.blocks_of("motor_friction"):
@@ -262,7 +257,7 @@ class MomentumResiduals:
 def momentum_residuals(model: RobotModel, phi: np.ndarray, t: np.ndarray, q: np.ndarray,
                        inputs: dict[str, np.ndarray], tau: dict[str, np.ndarray], ft: dict[str, np.ndarray],
                        gravity: np.ndarray | None = None, *, bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ,
-                       min_speed: float = 0.01, band: dict | None = None,
+                       min_speed: float = DEFAULT_MIN_SPEED, band: dict | None = None,
                        velocity_window_s: float = VELOCITY_WINDOW_S, tracking=None,
                        dq: np.ndarray | None = None, hold_time_constants: float = HOLD_TIME_CONSTANTS
                        ) -> MomentumResiduals:

@@ -15,12 +15,14 @@ and the estimated external torque and wrench, scoring against labels (`dynid det
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import DataError
+from ..io.bad_rows import DEFAULT_POLICY
+from ..identify.model_sections import ALPHA, BaseSection, MomentumCalibration, ObserverEntry, ObserverSection, Quantiles
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from ..robot.regressors.stack import gravity_per_sample
@@ -49,7 +51,7 @@ class MomentumDetector:
     ft_thresholds: dict[str, float]  # sensor -> α-quantile of its channels' share of T²
     samples: int
     velocity_window_s: float = VELOCITY_WINDOW_S
-    quantiles: dict = field(default_factory=dict)  # {levels, values} of the calibration T²
+    quantiles: Quantiles | None = None  # of the calibration T²
 
     def t2(self, e: np.ndarray) -> np.ndarray:
         return np.sum(e**2 / self.variance, axis=1)
@@ -74,6 +76,18 @@ class MomentumDetector:
                 "min_speed": self.min_speed, "band_sigmas": self.band_sigmas, "ft_thresholds": self.ft_thresholds,
                 "calibration_samples": self.samples, "velocity_window_s": self.velocity_window_s}
 
+    def section(self) -> MomentumCalibration:
+        """What the model file keeps of it (an `observer` entry's detector)."""
+        extra = {"variant": "momentum", "rest_threshold": self.rest_threshold}
+        return MomentumCalibration(self.bandwidth_hz, self.variance, self.tau_variance, self.threshold, self.alpha,
+                                   self.min_speed, self.band_sigmas, dict(self.ft_thresholds), self.samples,
+                                   self.velocity_window_s, self.quantiles, extra)
+
+    @classmethod
+    def of(cls, s: MomentumCalibration) -> MomentumDetector:
+        return cls(s.bandwidth_hz, s.variance, s.tau_variance, s.threshold, s.alpha, s.min_speed, s.band_sigmas,
+                   dict(s.ft_thresholds), s.calibration_samples, s.velocity_window_s, s.quantiles)
+
 
 def run_residuals(model: RobotModel, phi: np.ndarray, dataset, bandwidth_hz: float, min_speed: float,
                   band: dict, tracking=None, velocity_window_s: float = VELOCITY_WINDOW_S,
@@ -92,7 +106,7 @@ def run_residuals(model: RobotModel, phi: np.ndarray, dataset, bandwidth_hz: flo
                               dq=measured_velocity(model, dataset) if measured else None)
 
 
-def calibrate_momentum(model: RobotModel, phi: np.ndarray, record: dict | None, datasets: Sequence,
+def calibrate_momentum(model: RobotModel, phi: np.ndarray, base: BaseSection | None, datasets: Sequence,
                        alpha: float, min_speed: float, bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ,
                        band_sigmas: float = BAND_SIGMAS, tracking=None,
                        velocity_window_s: float = VELOCITY_WINDOW_S, measured: bool = True) -> MomentumDetector:
@@ -100,7 +114,7 @@ def calibrate_momentum(model: RobotModel, phi: np.ndarray, record: dict | None, 
     observer runs every sample: a bounded time), less its first 5 time constants."""
     from ..io.load import apply_window
 
-    band = friction_band(model, phi, record, band_sigmas)
+    band = friction_band(model, phi, base, band_sigmas)
     es, rests, taus = [], [], []
     settle = SETTLE_TIME_CONSTANTS / (2 * np.pi * bandwidth_hz)
     for ds in datasets:
@@ -129,7 +143,7 @@ def calibrate_momentum(model: RobotModel, phi: np.ndarray, record: dict | None, 
         ft_thresholds[s.name] = float(np.quantile(np.sum(e[:, rows] ** 2 / variance[rows], axis=1), alpha))
     return MomentumDetector(bandwidth_hz, variance, tau_variance, float(np.quantile(t2, alpha)), alpha, min_speed,
                             band_sigmas, ft_thresholds, int(e.shape[0]), velocity_window_s,
-                            {"levels": QUANTILE_LEVELS.tolist(), "values": np.quantile(t2, QUANTILE_LEVELS).tolist()})
+                            Quantiles(QUANTILE_LEVELS.copy(), np.quantile(t2, QUANTILE_LEVELS)))
 
 
 # The calibration made once, at fit time, and kept in the model file's `observer` section (docs/formats.md): `detect`
@@ -138,33 +152,18 @@ def calibrate_momentum(model: RobotModel, phi: np.ndarray, record: dict | None, 
 OBSERVER_VERSION = 1
 
 
-def detector_from_dict(d: dict) -> MomentumDetector:
-    """The detector `MomentumDetector.as_dict` (with its `quantiles`) describes."""
-    return MomentumDetector(float(d["bandwidth_hz"]), np.asarray(d["variance"], float),
-                            np.asarray(d["tau_variance"], float), float(d["threshold"]), float(d["alpha"]),
-                            float(d["min_speed"]), float(d["band_sigmas"]),
-                            {k: float(v) for k, v in d["ft_thresholds"].items()}, int(d["calibration_samples"]),
-                            float(d["velocity_window_s"]), d.get("quantiles", {}))
-
-
-def _settings_entry(det: MomentumDetector, measured: bool) -> dict:
-    return {"alpha": det.alpha, "bandwidth_hz": det.bandwidth_hz, "velocity_window_s": det.velocity_window_s,
-            "band_sigmas": det.band_sigmas, "measured": measured,
-            "detector": {**det.as_dict(), "quantiles": det.quantiles}}
-
-
-def observer_record(identified, datasets: Sequence, monitor_alpha: float) -> dict:
+def observer_record(identified, datasets: Sequence, monitor_alpha: float) -> ObserverSection:
     """The model file's `observer` section: the momentum detector calibrated on the fit's own (whole, contact-free)
-    runs as `dynid detect` calibrates it by default (the data's q̇, α = 0.99) and as `dynid export` does for the
+    runs as `dynid detect` calibrates it by default (the data's q̇, α = ALPHA) and as `dynid export` does for the
     monitor (its causal q̇, the model's α), with the sha256 of the runs it was calibrated on."""
     model, phi = identified.robot_model, identified.phi
     entries = {}
-    for key, measured, alpha in (("detect", True, 0.99), ("monitor", False, monitor_alpha)):
-        det = calibrate_momentum(model, phi, identified.record, datasets, alpha, identified.min_speed,
+    for key, measured, alpha in (("detect", True, ALPHA), ("monitor", False, monitor_alpha)):
+        det = calibrate_momentum(model, phi, identified.base, datasets, alpha, identified.min_speed,
                                  tracking=identified.supply_tracking, measured=measured)
-        entries[key] = _settings_entry(det, measured)
-    return {"version": OBSERVER_VERSION, "data_sha256": [d.get("sha256") for d in identified.record.get("data", [])],
-            **entries}
+        entries[key] = ObserverEntry(det.alpha, det.bandwidth_hz, det.velocity_window_s, det.band_sigmas, measured,
+                                     det.section())
+    return ObserverSection(OBSERVER_VERSION, tuple(run.sha256 for run in identified.data), **entries)
 
 
 def stored_detector(identified, use: str, alpha: float, bandwidth_hz: float, velocity_window_s: float,
@@ -174,22 +173,22 @@ def stored_detector(identified, use: str, alpha: float, bandwidth_hz: float, vel
     without the section needs."""
     from ..identify.model_file import data_digest
 
-    section = identified.record.get("observer") or {}
-    entry = section.get(use)
-    if section.get("version") != OBSERVER_VERSION or not entry:
+    section = identified.observer
+    entry = None if section is None else section.entry(use)
+    if entry is None or section.version != OBSERVER_VERSION:
         return None
-    if (entry["alpha"], entry["bandwidth_hz"], entry["velocity_window_s"], entry["band_sigmas"]) != (
+    if (entry.alpha, entry.bandwidth_hz, entry.velocity_window_s, entry.band_sigmas) != (
             alpha, bandwidth_hz, velocity_window_s, band_sigmas):
         return None
-    if entry["detector"]["min_speed"] != (identified.min_speed if min_speed is None else min_speed):
+    if entry.detector.min_speed != (identified.min_speed if min_speed is None else min_speed):
         return None
-    paths = [d["path"] for d in identified.record.get("data", [])]
-    stored = section.get("data_sha256") or []
+    paths = identified.data_paths
+    stored = section.data_sha256
     if not paths or len(stored) != len(paths) or any(d is None for d in stored):
         return None
     if any(data_digest(p) != d for p, d in zip(paths, stored)):
         return None
-    return detector_from_dict(entry["detector"])
+    return MomentumDetector.of(entry.detector)
 
 
 def _widened(t: np.ndarray, mask: np.ndarray, margin_s: float) -> np.ndarray:
@@ -236,25 +235,24 @@ def contact_events(model: RobotModel, det: MomentumDetector, res: MomentumResidu
 
 def calibration_runs(identified, paths: Sequence[str] | None, window=(None, None)) -> tuple[list, list[str]]:
     """The contact-free runs to calibrate on: `paths` (cut to `window`), or the runs the model was fitted on."""
-    from ..identify.model_file import run_options
     from ..identify.validation import load_run
 
     model = identified.robot_model
     given = bool(paths)
     if not paths:
-        paths = [d["path"] for d in identified.record.get("data", [])]
+        paths = identified.data_paths
         missing = [p for p in paths if not Path(p).exists()]
         if not paths or missing:
             raise DataError(f"{identified.path}: the runs it was fitted on are not at hand ({(missing or ['none'])[0]}); "
                             "give contact-free runs to calibrate the momentum detector with --calibration DATA")
     runs = []
-    records = {} if given else {d["path"]: d for d in identified.record.get("data", [])}
+    records = {} if given else {run.path: run for run in identified.data}
     for p in paths:
-        entry = records.get(p, {})
-        own, policy = run_options(entry) if entry else ((None, None), "refuse")  # the fit's window and --bad-rows
-        run_window = window if window != (None, None) else own
-        ds = load_run(str(p), model, run_window, entry.get("payload"), policy)  # a payload the fit was told of
-        fitted = entry.get("samples")
+        entry = records.get(p)
+        own, policy = (entry.reload_window, entry.bad_rows_policy) if entry else ((None, None), DEFAULT_POLICY)
+        run_window = window if window != (None, None) else own  # the fit's window and --bad-rows, unless given
+        ds = load_run(str(p), model, run_window, entry.payload_dict if entry else None, policy)  # a payload the fit was told of
+        fitted = entry.samples if entry else None
         if fitted is not None and run_window == (None, None) and fitted != ds.n_samples:  # a window the file does not name
             raise DataError(f"{identified.path} was fitted on {fitted} of the {ds.n_samples} samples of {p} (a --from/--to "
                             "window); give the contact-free runs to calibrate the momentum detector with --calibration "
@@ -284,9 +282,9 @@ def momentum_detection(identified, dataset, calibration: Sequence | None, alpha:
         raise DataError(f"{identified.path}: an augmented model (named effects) has no momentum residual yet; use "
                         "--residual acceleration")
     tracking = identified.supply_tracking
-    det = detector or calibrate_momentum(model, phi, identified.record, calibration or [], alpha, identified.min_speed,
+    det = detector or calibrate_momentum(model, phi, identified.base, calibration or [], alpha, identified.min_speed,
                                          bandwidth_hz, tracking=tracking, velocity_window_s=velocity_window_s)
-    band = friction_band(model, phi, identified.record, det.band_sigmas)
+    band = friction_band(model, phi, identified.base, det.band_sigmas)
     res = run_residuals(model, phi, dataset, bandwidth_hz, identified.min_speed, band, tracking, velocity_window_s)
     stat = det.statistic(res.e, res.at_rest)
     result = score_with_delays(dataset.t, stat, 1.0, dataset.contact, side, shift_s)

@@ -24,13 +24,13 @@ import numpy as np
 
 from ..errors import DataError
 from ..identify.fit import SignalSource
+from ..identify.model_sections import ALPHA, DEFAULT_N_MODE, DetectorSection, Quantiles, T2Calibration
 from ..identify.supply import SupplyTracking, smoothed_residuals
 from ..io.dataset import contact_episodes
 from ..robot.model import RobotModel
 from ..robot.outputs import divisors, output_channels
-from ..robot.regressors.stack import Signals, friction_coordinates, rows_at_rest
+from ..robot.regressors.stack import DEFAULT_MIN_SPEED, Signals, friction_coordinates, rows_at_rest
 
-ALPHA = 0.99
 VARIANTS: tuple[str, ...] = ("calibrated", "paper")
 CALIBRATION_CHUNK = 30_000  # samples (even, so the stride stays aligned across chunks)
 CALIBRATION_STRIDE = 2  # every other sample of the identification run calibrates T² (quantiles need no more)
@@ -71,14 +71,13 @@ class Detector:
             e = static_band_residuals(model, phi, dq, e, self.min_speed)
         return np.sum(np.where(self.active(model, dq), e**2 / self.variance, 0.0), axis=1)
 
-    def as_dict(self) -> dict:
-        return {"variant": self.variant, "variance": self.variance.tolist(), "threshold": self.threshold,
-                "alpha": self.alpha, "min_speed": self.min_speed, "n": self.n}
+    def section(self) -> T2Calibration:
+        """What the model file keeps of it (its `detector` section's entry)."""
+        return T2Calibration(self.variant, self.variance, self.threshold, self.alpha, self.min_speed, self.n)
 
     @classmethod
-    def from_dict(cls, d: dict) -> Detector:
-        return cls(d["variant"], np.asarray(d["variance"], float), float(d["threshold"]), float(d["alpha"]),
-                   float(d["min_speed"]), int(d["n"]))
+    def of(cls, s: T2Calibration) -> Detector:
+        return cls(s.variant, s.variance, s.threshold, s.alpha, s.min_speed, s.n)
 
 
 def static_band_residuals(model: RobotModel, phi: np.ndarray, dq: np.ndarray, e: np.ndarray,
@@ -159,16 +158,17 @@ def run_calibration_residuals(model: RobotModel, ds, settings,  # noqa: ANN001 -
     return e, dq, constant
 
 
-def detector_record(model: RobotModel, detectors: dict[str, Detector], e: np.ndarray, dq: np.ndarray) -> dict:
+def detector_record(model: RobotModel, detectors: dict[str, Detector], e: np.ndarray,
+                    dq: np.ndarray) -> DetectorSection:
     """The model file's `detector` section: both variants, N, and the calibrated T²'s quantiles (`--alpha`)."""
     t2 = detectors["calibrated"].t2(model, e, dq)
-    return {**{k: d.as_dict() for k, d in detectors.items()}, "calibration_samples": int(e.shape[0]),
-            "calibrated_t2_quantiles": {"levels": QUANTILE_LEVELS.tolist(),
-                                        "values": np.quantile(t2, QUANTILE_LEVELS).tolist()}}
+    return DetectorSection(detectors["paper"].section(), detectors["calibrated"].section(), int(e.shape[0]),
+                           Quantiles(QUANTILE_LEVELS.copy(), np.quantile(t2, QUANTILE_LEVELS)))
 
 
-def calibrate(model: RobotModel, phi: np.ndarray, e: np.ndarray, dq: np.ndarray, alpha: float = ALPHA, min_speed: float = 0.01,
-              n_mode: str = "dim", nu: int | None = None, variants: Sequence[str] = VARIANTS,
+def calibrate(model: RobotModel, phi: np.ndarray, e: np.ndarray, dq: np.ndarray, alpha: float = ALPHA,
+              min_speed: float = DEFAULT_MIN_SPEED,
+              n_mode: str = DEFAULT_N_MODE, nu: int | None = None, variants: Sequence[str] = VARIANTS,
               e_constant: np.ndarray | None = None) -> dict[str, Detector]:
     """The detectors (both by default) from contact-free residuals e (N, n_out) of the identification data, fitted Φ;
     the paper's variant, as published, on the residuals with constant gains `e_constant` (default e)."""

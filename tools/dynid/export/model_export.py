@@ -18,14 +18,16 @@ from ..detect.momentum_t2 import MomentumDetector, calibrate_momentum, stored_de
 from ..detect.online import FixedLagSavitzkyGolay, OnlineCalibration, calibrate_online, estimator_for
 from ..detect.t2 import f_threshold
 from ..errors import DataError
-from ..identify.model_file import IdentifiedModel, data_digest, file_digest, run_options
+from ..identify.model_file import IdentifiedModel, data_digest, file_digest
+from ..identify.model_sections import ALPHA
 from ..identify.supply import SupplyTracking
 from ..identify.validation import load_run
+from ..io.bad_rows import DEFAULT_POLICY
 from ..io.dataset import Dataset
 from ..robot.effects import Effect
 from ..robot.model import RobotModel
 from ..robot.outputs import divisors, output_channels
-from ..robot.regressors.stack import group_row_maps, group_rows
+from ..robot.regressors.stack import DEFAULT_MIN_SPEED, group_row_maps, group_rows
 from .plausible import Implausible, check_plausible
 from .coefficients import (
     EventSettings,
@@ -94,24 +96,24 @@ def calibration_data(identified: IdentifiedModel, model: RobotModel, data: Seque
         if missing is not None:
             raise DataError(f"{missing}: no such data (a file, a `dynid simulate` directory, a yarpdatadumper folder "
                             "or a ROS 2 bag)")
-        options = [((None, None), "refuse")] * len(paths)
+        options = [((None, None), DEFAULT_POLICY)] * len(paths)
     else:
-        record = identified.record.get("data") or []
-        if not record:
+        if not identified.data:
             raise DataError(f"{identified.path} names no identification data; pass --data")
         paths, digests = [], []
-        for entry in record:
-            digest = data_digest(entry["path"])
+        for entry in identified.data:
+            digest = data_digest(entry.path)
             if digest is None:
-                raise DataError(f"the identification data {entry['path']} are gone; pass the contact-free data with --data")
-            if entry.get("sha256") is None:
-                raise DataError(f"{identified.path} holds no sha256 of its identification data {entry['path']} (a "
+                raise DataError(f"the identification data {entry.path} are gone; pass the contact-free data with --data")
+            if entry.sha256 is None:
+                raise DataError(f"{identified.path} holds no sha256 of its identification data {entry.path} (a "
                                 "model fitted in Python, or by an older dynid); pass the contact-free data with --data")
-            if digest != entry["sha256"]:
-                raise DataError(f"the identification data {entry['path']} changed since the fit (sha256); pass --data")
-            paths.append(entry["path"])
+            if digest != entry.sha256:
+                raise DataError(f"the identification data {entry.path} changed since the fit (sha256); pass --data")
+            paths.append(entry.path)
             digests.append(digest)
-            options.append(run_options(entry))  # the fit's --from/--to and --bad-rows skip, if it had them
+            # the fit's --from/--to and --bad-rows skip, if it had them
+            options.append((entry.reload_window, entry.bad_rows_policy))
     runs = [load_run(p, model, window, bad_rows=policy) for p, (window, policy) in zip(paths, options)]
     return runs, ",".join(str(d) for d in digests)
 
@@ -133,9 +135,8 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
     for ds in datasets[1:]:
         if abs(estimator_for(model, ds.t, settings.lag, settings.window).sample_period - est.sample_period) > 1e-9:
             raise DataError("the calibration data have different sample rates")
-    det = identified.record.get("detector", {}).get("calibrated", {})
-    alpha = float(det.get("alpha", 0.99)) if settings.alpha is None else settings.alpha
-    min_speed = float(det.get("min_speed", 0.01))
+    alpha = identified.alpha if settings.alpha is None else settings.alpha
+    min_speed = identified.calibration_min_speed
     tracking = identified.supply_tracking
     residual = settings.residual or "acceleration"
     if residual == "momentum" and effects:
@@ -155,7 +156,7 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
                 raise
             note = str(e)
     provenance = Provenance(file_digest(identified.path) if identified.path else "", calibration_digest,
-                            str(identified.record.get("estimator", "")))
+                            identified.estimator or "")
     c = build_coefficients(model, identified.phi, detector, est, provenance, effects, tracking, observer, residual)
     if observer is not None and residual == "acceleration":
         try:
@@ -179,9 +180,9 @@ def monitor_observer(identified: IdentifiedModel, datasets: Sequence[Dataset], a
     det = None if settings.data else stored_detector(identified, "monitor", alpha, settings.bandwidth_hz,
                                                      VELOCITY_WINDOW_S, min_speed=min_speed)
     if det is None:
-        det = calibrate_momentum(model, phi, identified.record, datasets, alpha, min_speed, settings.bandwidth_hz,
+        det = calibrate_momentum(model, phi, identified.base, datasets, alpha, min_speed, settings.bandwidth_hz,
                                  tracking=identified.supply_tracking, measured=False)
-    band = friction_band(model, phi, identified.record, det.band_sigmas)
+    band = friction_band(model, phi, identified.base, det.band_sigmas)
     return MonitorObserver(det, velocity_window_samples(datasets[0].t, det.velocity_window_s), band)
 
 
@@ -194,12 +195,12 @@ def export_cad(config: RobotConfig, out: str | Path, settings: ExportSettings = 
         phi[model.layout.block("motor_gain", m).start] = config.motor(m).nominal_gain
     outs = output_channels(model)
     variance = np.array([o.sigma for o in outs]) ** 2
-    alpha = 0.99 if settings.alpha is None else settings.alpha
+    alpha = ALPHA if settings.alpha is None else settings.alpha
     t = np.arange(3) / settings.cad_rate_hz
     est = estimator_for(model, t, settings.lag, settings.window)
     residual = settings.residual or "acceleration"
     detector = MonitorDetector(variance, f_threshold(len(outs), CAD_SAMPLES, alpha),
-                               {s.name: f_threshold(6, CAD_SAMPLES, alpha) for s in config.ft_sensors}, alpha, 0.01,
+                               {s.name: f_threshold(6, CAD_SAMPLES, alpha) for s in config.ft_sensors}, alpha, DEFAULT_MIN_SPEED,
                                CAD_SAMPLES, settings.events_for(residual), cad_tau_variance(model, variance * divisors(model, phi) ** 2))
     observer = cad_observer(model, phi, variance, alpha, t, settings.bandwidth_hz)
     check_monitor_supports(model)
@@ -225,6 +226,6 @@ def cad_observer(model: RobotModel, phi: np.ndarray, variance: np.ndarray, alpha
     row_variance = variance * divisors(model, phi) ** 2
     tau_variance = cad_tau_variance(model, row_variance)
     det = MomentumDetector(bandwidth_hz, row_variance, tau_variance,
-                           float(stats.chi2.ppf(alpha, row_variance.size)), alpha, 0.01, 0.0,
+                           float(stats.chi2.ppf(alpha, row_variance.size)), alpha, DEFAULT_MIN_SPEED, 0.0,
                            {s.name: float(stats.chi2.ppf(alpha, 6)) for s in model.config.ft_sensors}, CAD_SAMPLES)
     return MonitorObserver(det, velocity_window_samples(t), friction_band(model, phi, None, 0.0))

@@ -130,18 +130,19 @@ def link_parts(robot: RobotModel, tree: ET.ElementTree) -> list[LinkPart]:
 def base_map(identified: IdentifiedModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The base-parameter map B (β = B Φ) of the fit, its inertial columns' part, and the base standard errors."""
     layout = identified.robot_model.layout
-    base = identified.record.get("base") or {}
+    base = identified.base
+    if base is None:
+        raise DataError(f"{identified.path}: the model's base section is unusable (it has none)")
     try:
-        ind = [layout.index(n) for n in base["independent"]]
-        dep = [layout.index(n) for n in base["dependent"]]
-        K = np.asarray(base["K"], float).reshape(len(ind), len(dep))
-    except (KeyError, TypeError, ValueError) as e:
+        ind = [layout.index(n) for n in base.independent]
+        dep = [layout.index(n) for n in base.dependent]
+    except (KeyError, ValueError) as e:
         raise DataError(f"{identified.path}: the model's base section is unusable ({e.__class__.__name__})") from None
     B = np.zeros((len(ind), len(layout)))
     B[np.arange(len(ind)), ind] = 1.0
     if dep:
-        B[:, dep] += K
-    sigma = np.asarray(base.get("standard_errors") or np.ones(len(ind)), float).reshape(-1)
+        B[:, dep] += base.K
+    sigma = base.standard_errors if base.standard_errors.size else np.ones(len(ind))
     if sigma.size != len(ind) or not np.all(np.isfinite(sigma)):
         sigma = np.ones(len(ind))
     return B, B[:, layout.span("inertial")], sigma
@@ -164,7 +165,7 @@ def export_urdf(identified: IdentifiedModel, out: str | Path, allow_residual: bo
     try:
         physical = nearest_physical_set(parts, phi[inertial], B_in[rows], sigma[rows], allow_residual)
     except NotReproducible:
-        if identified.record.get("consistent"):  # its own set is physical, but on the cone's boundary
+        if identified.consistent is not None:  # its own set is physical, but on the cone's boundary
             raise InputError("the solver finds no physically consistent full set that reproduces this consistent "
                              "fit's base parameters exactly (its bodies sit on the boundary of the physical set); "
                              "export the nearest one, with its residual, by --nearest-physical") from None
@@ -275,7 +276,7 @@ def _side_record(identified: IdentifiedModel, out: Path, source: Path, physical:
             "model": {"path": str(model_path.resolve()) if model_path else None,
                       "sha256": file_digest(model_path) if model_path and model_path.is_file() else None},
             "source_urdf": {"path": str(source.resolve()), "sha256": file_digest(source)},
-            "estimator": identified.record.get("estimator"),
+            "estimator": identified.estimator,
         },
         "tree": {"base_link": config.base_link, "rerooted": bool(robot.reversed_joints),
                  "note": "written in the URDF's original tree; inertias are per link in link frames"},
@@ -297,8 +298,8 @@ def _side_record(identified: IdentifiedModel, out: Path, source: Path, physical:
         "coupling": coupling,
         "ft_sensors": ft,
     }
-    if identified.record.get("effects"):
-        record["effects"] = identified.record["effects"]
+    if identified.named_effects:
+        record["effects"] = [e.as_dict() for e in identified.named_effects]
     if notes:
         record["notes"] = notes
     return _plain(record)

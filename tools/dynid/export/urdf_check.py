@@ -79,8 +79,6 @@ def physical_model(identified: IdentifiedModel) -> IdentifiedModel:
     """A copy of the model whose inertial Φ is the nearest physical set (`--nearest-physical`'s) and whose base
     values are that set's: a model that carries a physical full Φ reproducing its own base parameters, as a
     physically consistent fit hands on (for the round-trip tests while the fit they use is unconstrained)."""
-    import copy
-
     from .physical_set import nearest_physical_set
     from .urdf import base_map, link_parts
 
@@ -95,8 +93,6 @@ def physical_model(identified: IdentifiedModel) -> IdentifiedModel:
     written = {p.link: done.links.get(p.link, p.cad) for p in parts}
     phi[span] = np.concatenate([sum((p.A @ written[p.link] for p in parts if p.body == k), np.zeros(10))
                                 for k in range(len(robot.bodies))])
-    record = copy.deepcopy(identified.record)
-    record["base"]["values"] = (B @ phi).tolist()
-    out = IdentifiedModel(copy.deepcopy(identified.robot), dict(zip(robot.layout.names, phi.tolist())), record)
-    out._config, out._model = identified._config, identified._model
-    return out
+    assert identified.base is not None  # base_map refused a model without one
+    return replace(identified, parameters=dict(zip(robot.layout.names, phi.tolist())),
+                   base=replace(identified.base, values=B @ phi), path=None)

@@ -3,19 +3,20 @@ standard errors, and the model file `dynid gaps --out` writes (dynid.identify.mo
 
 from __future__ import annotations
 
-import copy
 from collections.abc import Sequence
-from typing import Any
+from dataclasses import replace
 
 import numpy as np
 
 from ..identify.fit import FitSettings
-from ..identify.model_file import IdentifiedModel
+from ..identify.model_file import IdentifiedModel, robot_record
+from ..identify.model_sections import ALPHA, GapsSection
 from ..io.dataset import Dataset
 from ..pipeline import DetectorSettings, build_model
 from ..robot.effect_library import Candidate, Context
 from ..robot.effects import Effect
 from ..robot.model import RobotModel
+from ..robot.regressors.stack import DEFAULT_MIN_SPEED
 from .selection import Design
 
 
@@ -70,28 +71,22 @@ def refit(current: Design, V: np.ndarray, accepted: list[Candidate], ctx: Contex
 
 
 def augmented_model(model: RobotModel, ds: Dataset, data_path: str, result: dict, phi: np.ndarray,
-                    effects: list[Effect], given: IdentifiedModel | None, alpha: float = 0.99,
-                    min_speed: float = 0.01, folded: Sequence[Effect] = ()) -> IdentifiedModel:
-    """The model file of the refit: the given model's sections (or a fresh record), the refitted Φ, the effects,
+                    effects: list[Effect], given: IdentifiedModel | None, alpha: float = ALPHA,
+                    min_speed: float = DEFAULT_MIN_SPEED, folded: Sequence[Effect] = ()) -> IdentifiedModel:
+    """The model file of the refit: the given model's sections (or fresh ones), the refitted Φ, the effects,
     Λ and the T² detector recalibrated on the run with the effects (so detect and export see the augmented
     residuals), through dynid.pipeline.build_model as `dynid fit` does. Sections that describe the given model's
     own fit (base, estimators, cv) are dropped: they no longer describe these parameters. `folded`: payloads
     named and already added to Φ, recorded for the reader."""
-    record: dict[str, Any] = copy.deepcopy(given.record) if given is not None else {}
-    for stale in ("base", "estimators", "cv", "n_components", "fit_time_s"):
-        record.pop(stale, None)
-    if given is not None:
-        det = record.get("detector", {}).get("calibrated", {})
-        alpha, min_speed = float(det.get("alpha", alpha)), float(det.get("min_speed", min_speed))
-    tracking = given.supply_tracking if given is not None else None  # `record` keeps it: detect will track too
-    record.update({
-        "estimator": "gaps",
-        "settings": {**record.get("settings", {}), "estimator": "gaps", "alpha": alpha, "min_speed": min_speed},
-        "effects": [eff.as_dict() for eff in effects],
-        "gaps": {"given_model": result.get("given_model"), "gap": result["gap"], "thresholds": result["thresholds"],
-                 "rank": result["rank"], "blocks": result["blocks"],
-                 "in_inertial_parameters": [e.as_dict() for e in folded]},  # payloads, added to their links' Φ
-    })
-    return build_model(model, phi, [ds], [data_path], record, FitSettings(min_speed=min_speed),
-                       detector=DetectorSettings(alpha), tracking=tracking, effects=effects,
-                       robot=given.robot if given is not None else None).model
+    if given is not None and given.calibrated is not None:
+        alpha, min_speed = given.calibrated.alpha, given.calibrated.min_speed
+    start = given if given is not None else IdentifiedModel(robot_record(model.config), {})
+    sections = replace(
+        start, base=None, estimators={}, cv=None, n_components=None, fit_time_s=None, estimator="gaps",
+        settings=replace(start.settings, estimator="gaps", alpha=alpha, min_speed=min_speed),
+        named_effects=tuple(effects),
+        gaps=GapsSection(result.get("given_model"), result["gap"], result["thresholds"], result["rank"],
+                         result["blocks"], [e.as_dict() for e in folded]))  # payloads, added to their links' Φ
+    tracking = given.supply_tracking if given is not None else None  # kept: detect will track too
+    return build_model(model, phi, [ds], [data_path], sections, FitSettings(min_speed=min_speed),
+                       detector=DetectorSettings(alpha), tracking=tracking, effects=effects).model

@@ -40,12 +40,11 @@ from ..robot.outputs import output_channels
 from ..robot.regressors.base import BaseParameters, base_parameters_from_factor, structural_base_parameters
 from ..robot.regressors.stack import DEFAULT_MIN_SPEED, Signals, row_weights, signals_from_dataset
 from .consistent import LAMBDAS, ConsistentSettings, consistent_fit
+from .model_sections import DEFAULT_BLOCKS, DEFAULT_ESTIMATOR, INSTRUMENT_WINDOW_S
 from .regression import InputColumns, base_least_squares, instrumental_variables, pls_path, unseen_directions
 from .statistics import MIN_BLOCK_SAMPLES, Statistics, accumulate
 
 ESTIMATORS: tuple[str, ...] = ("iv", "pls", "ols")
-DEFAULT_ESTIMATOR = "iv"  # the best measured on the simulated arm (README: gains within 1.2 %, against −9…−11 % for OLS and PLS)
-INSTRUMENT_WINDOW_S = 0.2
 IV_TOL = 1e-10  # the IV iteration's fixed point: largest relative change of β̂ in one iteration
 # The IV has settled when its last step moved no combination by more than 0.1 % of its value: immaterial beside the
 # 10 % that determines one (a short run's rounding floor is near 1e-8; a diverging iteration's steps exceed 1).
@@ -65,7 +64,7 @@ class FitSettings:
     estimator: str = DEFAULT_ESTIMATOR
     n_components: int | None = None  # PLS ν; None: cross-validated
     min_speed: float = DEFAULT_MIN_SPEED
-    blocks: int = 10
+    blocks: int = DEFAULT_BLOCKS
     instrument_window_s: float = INSTRUMENT_WINDOW_S
     iv_iterations: int = 100
     workers: int | None = None

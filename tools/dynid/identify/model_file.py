@@ -42,9 +42,11 @@ import numpy as np
 from ..config.robot_config import RobotConfig, load_config
 from ..errors import DataError, InputError
 from ..io.dataset import SIMULATION_DATASET, atomic_write
-from ..robot.effects import finite_number, parse_effects
+from ..robot.effects import Effect, check_effect_targets, finite_number, parse_effects
 from ..robot.model import RobotModel
 from .model_schema import check_sections
+from .model_sections import (BaseSection, ConsistentFit, DataRun, DetectorSection, EstimatorSection, GapsSection,
+                             ObserverSection, OutputsSection, Payload, RobotSection, Settings, T2Calibration, section)
 from .supply import SupplyTracking
 
 FORMAT_NAME = "dynid-model"
@@ -53,12 +55,34 @@ FORMAT_VERSION = 2  # 2: an `effects` section; files without one are still writt
 
 @dataclass
 class IdentifiedModel:
-    robot: dict[str, Any]
+    """A model file in memory: one typed section per part of the file (dynid.identify.model_sections), read by
+    attribute. `load_model` builds it from the JSON once; `to_json` writes it back as `dynid fit` writes it."""
+
+    robot: RobotSection
     parameters: dict[str, float]
-    record: dict[str, Any] = field(default_factory=dict)  # every other section, as in the file
+    outputs: OutputsSection | None = None  # None only while dynid.pipeline.build_model has not calibrated it yet
+    settings: Settings = field(default_factory=Settings)
+    estimator: str | None = None  # the regression `parameters` come from ("gaps" for an augmented model)
+    n_components: int | None = None  # PLS ν (cross-validated unless given)
+    cv: dict[str, Any] | None = None  # the held-out error for every ν
+    jackknife: dict[str, Any] | None = None  # the folds of the block jackknife and those that miss a direction
+    consistent: ConsistentFit | None = None  # None: `--consistent off`
+    base: BaseSection | None = None
+    estimators: dict[str, EstimatorSection] = field(default_factory=dict)
+    cad_ft_offsets: np.ndarray | None = None  # the F/T offsets fitted beside the CAD inertias (Table II's CAD column)
+    supply_tracking: SupplyTracking | None = None  # None: constant motor gains (or a model of an earlier dynid)
+    detector: DetectorSection | None = None
+    derivatives: dict[str, Any] | None = None  # the offline derivative estimator (the configuration's)
+    data: tuple[DataRun, ...] = ()
+    observer: ObserverSection | None = None
+    fit_time_s: float | None = None
+    plausibility: list[dict[str, Any]] | None = None
+    named_effects: tuple[Effect, ...] | None = None  # `effects` as written (format_version 2); `effects` checks them
+    gaps: GapsSection | None = None
+    extra: dict[str, Any] = field(default_factory=dict)  # sections this dynid does not know, written back unchanged
     path: str | None = None
-    _config: RobotConfig | None = None
-    _model: RobotModel | None = None
+    _config: RobotConfig | None = field(default=None, repr=False)
+    _model: RobotModel | None = field(default=None, repr=False)
 
     @property
     def config(self) -> RobotConfig:
@@ -80,48 +104,78 @@ class IdentifiedModel:
         names = self.robot_model.layout.names
         missing = [n for n in names if n not in self.parameters]
         if missing:
-            raise DataError(f"model file lacks parameter '{missing[0]}' of {self.robot['name']}")
+            raise DataError(f"model file lacks parameter '{missing[0]}' of {self.robot.name}")
         return np.array([self.parameters[n] for n in names], dtype=float)
 
     @property
-    def effects(self) -> list:  # list[dynid.robot.effects.Effect]
-
-        return parse_effects(self.record.get("effects"), self.robot_model, self.path or "model file")
-
-    @property
-    def supply_tracking(self):  # dynid.identify.supply.SupplyTracking | None
-        """The input channels' supply tracking, None for a model fitted without it (or by an earlier dynid)."""
-        d = self.record.get("supply_tracking")
-        if d is None:
-            return None
-        try:
-            return SupplyTracking.from_dict(d)
-        except (KeyError, TypeError, ValueError, OverflowError, InputError) as e:  # OverflowError: a huge integer
-            raise DataError(f"{self.path or 'model file'}: bad supply_tracking section: {e}") from None
+    def effects(self) -> list[Effect]:
+        """The named effects of an augmented model (`dynid gaps --out`), each checked to act on this robot."""
+        return check_effect_targets(list(self.named_effects or ()), self.robot_model, self.path or "model file")
 
     @property
     def min_speed(self) -> float:
-        return float(self.record.get("settings", {}).get("min_speed", 0.01))
+        return self.settings.min_speed
 
     @property
     def output_channels(self) -> list[str]:
-        return list(self.record["outputs"]["channels"])
+        return list(self._outputs.channels)
 
     @property
     def residual_variance(self) -> np.ndarray:
-        return np.asarray(self.record["outputs"]["residual_variance"], dtype=float)
+        return self._outputs.residual_variance
+
+    @property
+    def _outputs(self) -> OutputsSection:
+        if self.outputs is None:
+            raise DataError(f"{self.path or 'model'}: model file lacks its 'outputs' section")
+        return self.outputs
+
+    @property
+    def calibrated(self) -> T2Calibration | None:
+        """The calibrated T² detector of the fit; None in a file without a `detector` section."""
+        return None if self.detector is None else self.detector.calibrated
+
+    @property
+    def alpha(self) -> float:
+        """The confidence level the model's detectors were calibrated at (its settings' without a detector)."""
+        return self.settings.alpha if self.calibrated is None else self.calibrated.alpha
+
+    @property
+    def calibration_min_speed(self) -> float:
+        """The min speed the model's detectors were calibrated with (its settings' without a detector)."""
+        return self.settings.min_speed if self.calibrated is None else self.calibrated.min_speed
+
+    @property
+    def data_paths(self) -> list[str]:
+        return [run.path for run in self.data]
 
     def base_values(self, parameters: dict[str, float]) -> np.ndarray:
         """β of any full parameter set (CAD, truth) in this fit's base combinations."""
-        b = self.record["base"]
-        ind = np.array([parameters[n] for n in b["independent"]], dtype=float)
-        dep = np.array([parameters[n] for n in b["dependent"]], dtype=float)
-        return ind + (np.asarray(b["K"], dtype=float).reshape(len(ind), len(dep)) @ dep if len(dep) else 0.0)
+        if self.base is None:
+            raise DataError(f"{self.path or 'model'}: model file lacks its 'base' section")
+        return self.base.base_values(parameters)
 
     def to_json(self) -> dict[str, Any]:
-        version = FORMAT_VERSION if self.record.get("effects") else 1
-        return {"format": FORMAT_NAME, "format_version": version, "robot": self.robot,
-                "parameters": self.parameters, **self.record}
+        version = FORMAT_VERSION if self.named_effects else 1
+        sections: list[tuple[str, Any]] = [
+            ("estimator", self.estimator), ("settings", self.settings.to_json()), ("n_components", self.n_components),
+            ("cv", self.cv), ("jackknife", self.jackknife),
+            ("base", None if self.base is None else self.base.to_json()),
+            ("estimators", {k: v.to_json() for k, v in self.estimators.items()} or None),
+            ("cad_ft_offsets", _plain(self.cad_ft_offsets)),
+            ("outputs", None if self.outputs is None else self.outputs.to_json()),
+            ("detector", None if self.detector is None else self.detector.to_json()),
+            ("derivatives", self.derivatives), ("data", [run.to_json() for run in self.data] or None),
+            ("observer", None if self.observer is None else self.observer.to_json()),
+            ("fit_time_s", self.fit_time_s), ("plausibility", self.plausibility),
+            ("effects", None if self.named_effects is None else [e.as_dict() for e in self.named_effects]),
+            ("gaps", None if self.gaps is None else self.gaps.to_json())]
+        out = {"format": FORMAT_NAME, "format_version": version, "robot": self.robot.to_json(),
+               "parameters": self.parameters, **{k: v for k, v in sections if v is not None}}
+        # null is what these say when off (`--consistent off`, `--supply-time-constant 0`)
+        out["consistent"] = None if self.consistent is None else self.consistent.to_json()
+        out["supply_tracking"] = None if self.supply_tracking is None else self.supply_tracking.as_dict()
+        return {**out, **self.extra}
 
     def save(self, path: str | Path) -> None:
         """Write the model file atomically; one that every command would refuse (check_values) is never written."""
@@ -132,28 +186,31 @@ class IdentifiedModel:
         self.path = str(path)
 
 
-def _config_from(robot: dict[str, Any]) -> RobotConfig:
+def _plain(array: np.ndarray | None) -> list | None:
+    return None if array is None else np.asarray(array).tolist()
+
+
+def _config_from(robot: RobotSection) -> RobotConfig:
     """The configuration the model was fitted for (its source if unchanged, else the embedded text), which must be
     the robot the file names: an edited name used to pass, and export wrote another robot's monitor file."""
     config = _config_of(robot)
-    if config.name != robot["name"]:
-        raise DataError(f"the model file names robot '{robot['name']}', but the configuration it embeds is "
+    if config.name != robot.name:
+        raise DataError(f"the model file names robot '{robot.name}', but the configuration it embeds is "
                         f"{config.name}'s")
     return config
 
 
-def _config_of(robot: dict[str, Any]) -> RobotConfig:
-    source = robot.get("config_source", "")
-    urdf = robot.get("urdf")  # the URDF it was fitted with (a supplied one is not found again without it)
-    urdf = urdf if urdf and Path(urdf).is_file() else None
+def _config_of(robot: RobotSection) -> RobotConfig:
+    source = robot.config_source
+    urdf = robot.urdf if robot.urdf and Path(robot.urdf).is_file() else None  # a supplied one is found through it
     try:
         config = load_config(source, urdf)
-        if config.digest == robot["config_digest"]:
+        if config.digest == robot.config_digest:
             return _with_noise(config, robot)
     except Exception:  # noqa: BLE001 - a moved or edited source falls back to the embedded copy below
         pass
-    text = robot.get("config_text")
-    if not text or hashlib.sha256(text.encode()).hexdigest() != robot["config_digest"]:
+    text = robot.config_text
+    if not text or hashlib.sha256(text.encode()).hexdigest() != robot.config_digest:
         raise DataError(f"the model's robot configuration '{source}' changed or is gone, and no intact copy is embedded")
     directory = Path(source).parent if Path(source).is_file() else None
     with tempfile.NamedTemporaryFile("w", suffix=".yaml", dir=directory, delete=False, encoding="utf-8") as f:
@@ -164,19 +221,18 @@ def _config_of(robot: dict[str, Any]) -> RobotConfig:
         Path(f.name).unlink(missing_ok=True)
 
 
-def robot_record(config: RobotConfig) -> dict[str, Any]:
-    return {"name": config.name, "config_digest": config.digest, "config_source": config.source,
-            "config_text": Path(config.source).read_text(encoding="utf-8"), "urdf": str(config.urdf.resolve()),
-            "noise_per_channel": dict(config.noise.per_channel)}
+def robot_record(config: RobotConfig) -> RobotSection:
+    return RobotSection(config.name, config.digest, config.source, Path(config.source).read_text(encoding="utf-8"),
+                        str(config.urdf.resolve()), dict(config.noise.per_channel))
 
 
-def _with_noise(config: RobotConfig, robot: dict[str, Any]) -> RobotConfig:
+def _with_noise(config: RobotConfig, robot: RobotSection) -> RobotConfig:
     """The configuration with the per-channel noise the model was fitted with (estimated by `fit --noise
     estimate`, or the configuration's own)."""
-    per = robot.get("noise_per_channel")
+    per = robot.noise_per_channel
     if not per:
         return config
-    return replace(config, noise=replace(config.noise, per_channel={k: float(v) for k, v in per.items()}))
+    return replace(config, noise=replace(config.noise, per_channel=dict(per)))
 
 
 def load_model(path: str | Path) -> IdentifiedModel:
@@ -206,8 +262,41 @@ def load_model(path: str | Path) -> IdentifiedModel:
     _check_sections(data, path)
     check_sections(data, str(path))
     check_values(data, str(path))
-    record = {k: v for k, v in data.items() if k not in ("format", "format_version", "robot", "parameters")}
-    return IdentifiedModel(data["robot"], {k: float(v) for k, v in params.items()}, record, str(path))
+    return model_from_json(data, str(path))
+
+
+# The top-level sections and how each is built; the JSON's types are checked before (model_schema.check_sections)
+_BUILDERS: dict[str, Any] = {
+    "settings": Settings.from_json, "estimator": str, "n_components": int, "cv": dict, "jackknife": dict,
+    "consistent": ConsistentFit.from_json, "base": BaseSection.from_json,
+    "estimators": lambda d: {k: EstimatorSection.from_json(v) for k, v in d.items()},
+    "cad_ft_offsets": lambda v: np.asarray(v, float), "supply_tracking": SupplyTracking.from_dict,
+    "outputs": OutputsSection.from_json, "detector": DetectorSection.from_json, "derivatives": dict,
+    "data": lambda runs: tuple(DataRun.from_json(r) for r in runs), "observer": ObserverSection.from_json,
+    "fit_time_s": float, "plausibility": list, "effects": parse_effects, "gaps": GapsSection.from_json,
+}
+
+
+def model_from_json(data: dict[str, Any], path: str = "model file") -> IdentifiedModel:
+    """The typed model of a checked model-file document; a value no section can hold is one line (DataError)."""
+    kwargs: dict[str, Any] = {}
+    for key, build in _BUILDERS.items():
+        if data.get(key) is None:
+            continue
+        if key == "effects":
+            kwargs["named_effects"] = tuple(parse_effects(data[key], path))
+            continue
+        if key == "supply_tracking":  # its own checks raise InputError: the model file is the bad input here
+            try:
+                kwargs[key] = SupplyTracking.from_dict(data[key])
+            except (KeyError, TypeError, ValueError, OverflowError, InputError) as e:
+                raise DataError(f"{path}: bad supply_tracking section: {e}") from None
+            continue
+        kwargs[key] = section(key, build, data[key], path)
+    known = {"format", "format_version", "robot", "parameters", *_BUILDERS}
+    extra = {k: v for k, v in data.items() if k not in known}
+    return IdentifiedModel(section("robot", RobotSection.from_json, data["robot"], path),
+                           {k: float(v) for k, v in data["parameters"].items()}, **kwargs, extra=extra, path=path)
 
 
 MAX_BODY_MASS = 1000.0  # kg: rt_monitor/include/rt_monitor/plausibility.hpp's kMaxMass (no robot link weighs more)
@@ -286,27 +375,18 @@ def data_digest(path: str | Path) -> str | None:
 
 def data_record(path: str | Path, samples: int, duration_s: float,
                 payload: dict[str, Any] | None = None, window: list[float | None] | None = None,
-                bad_rows: dict[str, Any] | None = None) -> dict[str, Any]:
+                bad_rows: dict[str, Any] | None = None) -> DataRun:
     """What a model file says of the data it was fitted on (export checks the sha256 before reusing them), with the
     known payload the run carried, its --from/--to window and the bad rows `--bad-rows skip` dropped (so a reload
     takes the same samples). Data that never was a file (a `Dataset` built in Python) has no path to resolve and
     no sha256."""
     digest = data_digest(path)
-    out = {"path": str(path) if digest is None else str(Path(path).resolve()), "sha256": digest, "samples": samples,
-           "duration_s": duration_s}
-    if payload:
-        out["payload"] = {"mass": float(payload["mass"]), "com": payload.get("com")}
-    if window is not None and any(w is not None for w in window):
-        out["window"] = [None if w is None else float(w) for w in window]
-    if bad_rows:
-        out["bad_rows"] = bad_rows
-    return out
-
-
-def run_options(entry: dict[str, Any]) -> tuple[tuple[float | None, float | None], str]:
-    """The window and the bad-rows policy to reload a recorded run with (`data_record`'s window and bad_rows)."""
-    window = entry.get("window") or [None, None]
-    return (window[0], window[1]), "skip" if entry.get("bad_rows") else "refuse"
+    has_window = window is not None and any(w is not None for w in window)
+    return DataRun(str(path) if digest is None else str(Path(path).resolve()), digest, samples, duration_s,
+                   Payload(float(payload["mass"]), None if payload.get("com") is None else
+                           tuple(float(c) for c in payload["com"])) if payload else None,  # type: ignore[arg-type]
+                   tuple(None if w is None else float(w) for w in window) if has_window else None,  # type: ignore[union-attr,arg-type]
+                   bad_rows or None)
 
 
 def file_digest(path: str | Path) -> str:

@@ -2,8 +2,8 @@
 
 The commands read deep into a model file (`detector.calibrated.threshold`, `base.independent`, `data[0].path`);
 a section of the wrong JSON type, or a key lost to a flipped bit, used to end validate, detect, export and report
-with a traceback (issue 22's sweep). Every section a command reads is described here, and a file that does not
-match is refused with one line naming the first key that is wrong. Sections no command reads are not checked.
+with a traceback (issue 22's sweep). Every section the typed model (dynid.identify.model_sections) is built from is
+described here, and a file that does not match is refused with one line naming the first key that is wrong.
 """
 
 from __future__ import annotations
@@ -51,13 +51,15 @@ _OBSERVER = {"alpha": NUMBER, "bandwidth_hz": NUMBER, "velocity_window_s": NUMBE
 
 # Top-level sections: each may be absent (robot, parameters and outputs are required, and model_file.load_model says
 # so first), but one that is there must have this shape; null is refused where the readers take the section as an
-# object (`record.get("settings", {}).get(...)` fails on null), allowed where they test for it (supply_tracking).
+# object, allowed where null means "off" (supply_tracking, consistent).
 SECTIONS: dict[str, Any] = {
     "robot": {"name": TEXT, "config_digest": TEXT, "config_source": TEXT, "config_text": Opt(TEXT),
               "urdf": Opt(TEXT), "noise_per_channel": Opt(MapOf(NUMBER))},
     "outputs": {"channels": ListOf(TEXT), "residual_variance": ListOf(NUMBER), "units": Opt(ListOf(TEXT)),
                 "noise_std": Opt(ListOf(NUMBER))},
-    "settings": {"min_speed": Opt(NUMBER), "n_mode": Opt(TEXT), "alpha": Opt(NUMBER), "estimator": Opt(TEXT)},
+    "settings": {"min_speed": Opt(NUMBER), "n_mode": Opt(TEXT), "alpha": Opt(NUMBER), "estimator": Opt(TEXT),
+                 "consistent": Opt(FLAG), "consistent_sphere": Opt(FLAG), "cad_pull": Opt(FLAG),
+                 "n_components": Opt(INTEGER), "blocks": Opt(INTEGER), "instrument_window_s": Opt(NUMBER)},
     "detector": {"paper": _DETECTOR, "calibrated": _DETECTOR, "calibration_samples": INTEGER,
                  "calibrated_t2_quantiles": {"levels": ListOf(NUMBER), "values": ListOf(NUMBER)}},
     "base": {"rank": INTEGER, "combinations": ListOf(TEXT), "independent": ListOf(TEXT), "dependent": ListOf(TEXT),
@@ -74,6 +76,11 @@ SECTIONS: dict[str, Any] = {
     "effects": ListOf(MapOf(ANY)),
     "gaps": MapOf(ANY),
     "derivatives": MapOf(ANY),
+    "cv": MapOf(ANY),
+    "jackknife": MapOf(ANY),
+    "consistent": Opt({"status": TEXT, "from": TEXT}),
+    "plausibility": ListOf(MapOf(ANY)),
+    "fit_time_s": NUMBER,
     # the momentum observer calibrated at fit time (dynid.detect.momentum_t2.observer_record); absent in older files
     "observer": {"version": INTEGER, "data_sha256": ListOf(Opt(TEXT)), "detect": Opt(_OBSERVER),
                  "monitor": Opt(_OBSERVER)},

@@ -47,14 +47,17 @@ def load_run(path: str, model: RobotModel, window: Window = (None, None),
     return ds
 
 
-def cad_phi(model: RobotModel, record: dict, missing: float = 0.0) -> np.ndarray:
+def cad_phi(model: RobotModel, identified: IdentifiedModel, missing: float = 0.0) -> np.ndarray:
     """The CAD parameters, with the F/T offsets that fit them best on the identification data (when the model
     file has them); `missing` where a CAD model has no value (friction, gains)."""
     phi = np.nan_to_num(model.cad_parameters(), nan=missing)
-    offsets = record.get("cad_ft_offsets")
+    offsets = identified.cad_ft_offsets
     if offsets is not None:
+        if offsets.shape != (len(model.layout),):
+            raise DataError(f"{identified.path or 'model file'}: cad_ft_offsets holds {offsets.size} numbers for "
+                            f"{len(model.layout)} parameters")
         span = model.layout.span("ft_offset")
-        phi[span] = np.asarray(offsets, float)[span]
+        phi[span] = offsets[span]
     return phi
 
 
@@ -106,7 +109,7 @@ def cad_ft_residuals(ev: Evaluated) -> np.ndarray | None:
     ft = [o.row for o in outs if o.kind == "ft"]
     if not ft:
         return None
-    cad = cad_phi(ev.model, ev.identified.record)
+    cad = cad_phi(ev.model, ev.identified)
     gains = [o.gain_index for o in outs if o.gain_index is not None]
     cad[gains] = 1.0  # the CAD model has no gains: its input predictions are undefined, not used
     return residuals(ev.model, cad, ev.signals)[:, ft]

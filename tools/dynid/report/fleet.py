@@ -29,6 +29,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from scipy.stats import norm
 
+from ..errors import DataError
 from ..identify.model_file import IdentifiedModel
 from . import html as H
 from .figures import png
@@ -66,10 +67,11 @@ def shared_parameters(models: dict[str, IdentifiedModel], layout_kinds: dict[str
     robots = list(models)
     per_robot = []
     for r in robots:
-        base = models[r].record["base"]
-        K = np.asarray(base["K"], float).reshape(len(base["independent"]), len(base["dependent"]))
-        per_robot.append({_key(name, k, base["dependent"]): (float(v), float(e), c) for name, k, c, v, e in
-                          zip(base["independent"], K, base["combinations"], base["values"], base["standard_errors"])})
+        base = models[r].base
+        if base is None:
+            raise DataError(f"{models[r].path}: model file lacks its 'base' section")
+        per_robot.append({_key(name, k, list(base.dependent)): (float(v), float(e), c) for name, k, c, v, e in
+                          zip(base.independent, base.K, base.combinations, base.values, base.standard_errors)})
     shared = [key for key in per_robot[0] if all(key in p for p in per_robot[1:])]
     out = []
     for key in shared:

@@ -131,9 +131,8 @@ def write_report(args: ReportSettings) -> dict[str, Any]:
     v, dv, dc = state["validation"], state["det_val"], state["det_con"]
     ev_val = state["val"]
     units = {o.name: o.unit for o in ev_val.outputs}
-    record = identified.record
     result: dict[str, Any] = {
-        "model": args.model, "robot": identified.config.name, "estimator": record.get("estimator"),
+        "model": args.model, "robot": identified.config.name, "estimator": identified.estimator,
         "out": str(out), "alpha": args.alpha, "n_mode": args.n_mode,
         "validation": v, "detection": {"validation": dv.result, "contact": None if dc is None else dc.result},
         # The paper's figures describe its arm only: no reference rows for another robot.
@@ -207,17 +206,17 @@ def _trace_figures(out: list, state: dict[str, Any], args: ReportSettings) -> tu
 
 def _page(r: dict[str, Any], identified: IdentifiedModel, units: dict[str, str],
           figures: list[tuple[str, str, bytes]]) -> str:
-    record = identified.record
-    base = record.get("base", {})
-    data = ", ".join(H.esc(d.get("path", "?")) for d in record.get("data", []))
+    base = identified.base
+    data = ", ".join(H.esc(p) for p in identified.data_paths)
     alpha = r["alpha"]
     shown = {fid: H.figure(fid, png, caption) for fid, caption, png in figures}
     v = r["validation"]
     words = input_words(identified)
     sections = [
         f"<p>Model <code>{H.esc(r['model'])}</code> of <b>{H.esc(r['robot'])}</b>, estimator "
-        f"<b>{H.esc(r['estimator'])}</b>, fitted on {data}: base-parameter rank {H.esc(base.get('rank'))}, "
-        f"{sum(base.get('identified', []))} combinations determined; PLS ν = {H.esc(record.get('n_components'))}. "
+        f"<b>{H.esc(r['estimator'])}</b>, fitted on {data}: base-parameter rank {H.esc(None if base is None else base.rank)}, "
+        f"{0 if base is None else int(base.identified.sum())} combinations determined; PLS ν = "
+        f"{H.esc(identified.n_components)}. "
         f"Validation run <code>{H.esc(v['data'])}</code> ({v['samples']} samples), "
         + (f"contact run <code>{H.esc(r['detection']['contact']['data'])}</code>. " if r["detection"]["contact"]
            else "no run with contact ground truth. ")

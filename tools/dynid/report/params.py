@@ -82,7 +82,7 @@ def find_truth(identified: IdentifiedModel, data_paths: list[str], explicit: str
         if not path.is_file():
             raise DataError(f"truth file not found: {path}")
         return read_truth(path, robot)
-    candidates = [d.get("path", "") for d in identified.record.get("data", []) if isinstance(d, dict)] + data_paths
+    candidates = identified.data_paths + data_paths
     for c in candidates:
         path = beside_run(c, TRUTH_FILE)
         if path.is_file():
@@ -95,17 +95,14 @@ def find_truth(identified: IdentifiedModel, data_paths: list[str], explicit: str
 
 def parameter_table(identified: IdentifiedModel, truth: Truth | None) -> list[dict[str, Any]]:
     """One row per base parameter: combination, identified value ± standard error, identified flag, CAD, true."""
-    base = identified.record.get("base")
-    if not isinstance(base, dict):
+    base = identified.base
+    if base is None:
         raise DataError(f"{identified.path}: model file lacks its 'base' section")
-    keys = ("combinations", "independent", "values", "standard_errors", "identified")
-    if any(k not in base for k in keys) or len({len(base[k]) for k in keys}) != 1:
-        raise DataError(f"{identified.path}: the model file's 'base' section is incomplete")
-
     model = identified.robot_model
-    cad = dict(zip(model.layout.names, cad_phi(model, identified.record, missing=float("nan")).tolist()))
+    cad = dict(zip(model.layout.names, cad_phi(model, identified, missing=float("nan")).tolist()))
     rows = []
-    for text, name, value, se, ok in zip(*(base[k] for k in keys)):
+    for text, name, value, se, ok in zip(base.combinations, base.independent, base.values, base.standard_errors,
+                                         base.identified):
         terms = parse_combination(text)
         if terms[0][1] != name:
             raise DataError(f"{identified.path}: base parameter '{name}' does not lead its combination '{text}'")
@@ -118,17 +115,16 @@ def parameter_table(identified: IdentifiedModel, truth: Truth | None) -> list[di
 
 def gains_by_estimator(identified: IdentifiedModel, truth: Truth | None) -> list[dict[str, Any]]:
     """Every motor gain by every estimator the fit ran (the closed-loop bias shows here), with the truth."""
-    estimators = identified.record.get("estimators", {})
     names = [n for n in identified.robot_model.layout.names if n.endswith(".phi_m")]
-    independent = identified.record.get("base", {}).get("independent", [])
+    independent = list(identified.base.independent) if identified.base is not None else []
     rows = []
     for n in names:
         if n not in independent:
             continue
         i = independent.index(n)
         row: dict[str, Any] = {"name": n, "true": truth.parameters.get(n) if truth else None, "estimators": {}}
-        for est, rec in estimators.items():
-            row["estimators"][est] = {"value": float(rec["values"][i]), "standard_error": float(rec["standard_errors"][i])}
+        for est, rec in identified.estimators.items():
+            row["estimators"][est] = {"value": float(rec.values[i]), "standard_error": float(rec.standard_errors[i])}
         rows.append(row)
     return rows
 

@@ -59,8 +59,9 @@ class Effect:
                 "coefficients": list(self.coefficients), "search": self.search}
 
 
-def parse_effects(raw: Any, model: RobotModel, where: str = "model file") -> list[Effect]:
-    """The ``effects`` section, checked: a malformed one is a DataError naming the problem."""
+def parse_effects(raw: Any, where: str = "model file") -> list[Effect]:
+    """The ``effects`` section, checked in its shape: a malformed one is a DataError naming the problem (that each
+    acts on the robot is `check_effect_targets`')."""
     if raw is None:
         return []
     if not isinstance(raw, list):
@@ -82,12 +83,18 @@ def parse_effects(raw: Any, model: RobotModel, where: str = "model file") -> lis
         missing = [p for p in REQUIRED.get(effect.kind, ()) if p not in effect.parameters]
         if missing:
             raise DataError(f"{where}: effect {i} ({effect.kind}) lacks parameter '{missing[0]}'")
+        out.append(effect)
+    return out
+
+
+def check_effect_targets(effects: list[Effect], model: RobotModel, where: str = "model file") -> list[Effect]:
+    """`effects`, each of a kind with a closed form acting on a joint of `model` (else a DataError naming it)."""
+    for i, effect in enumerate(effects):
         kind, name = effect.target
         if effect.kind in REQUIRED and (kind != "joint" or name not in model.config.joints):
             raise DataError(f"{where}: effect {i} ({effect.kind}) acts on '{effect.where}', not a joint of "
                             f"{model.config.name}")
-        out.append(effect)
-    return out
+    return effects
 
 
 def finite_number(v: Any) -> bool:
