@@ -208,6 +208,18 @@ LoadResult check_plausible(const dynid::coefficients_t& c) {
             if (!within(p[k], -P::kMaxInertia, P::kMaxInertia))
                 return implausible(body + ": its inertia", p[k], -P::kMaxInertia, P::kMaxInertia, "kg m²");
     }
+    double length = 0, mass = 0;
+    for (int i = 0; i < c.n_bodies; ++i) {
+        length += std::sqrt(c.translation[i][0] * c.translation[i][0] + c.translation[i][1] * c.translation[i][1] +
+                            c.translation[i][2] * c.translation[i][2]);
+        mass += c.inertial[i][0];
+    }
+    if (!(length >= P::kMinChainLength))
+        return implausible("the chain's length (its joint frames' offsets summed)", length, P::kMinChainLength, P::kMaxTranslation * c.n_bodies, "m");
+    // By magnitude: an unconstrained fit's full φ is one representative of its base parameters, and its bodies' masses
+    // need not be physical, nor their sum positive (a 10 s run of the arm gives −12 kg); all of them zero is no robot.
+    if (!(std::abs(mass) >= P::kMinTotalMass))
+        return implausible("the robot's total mass |Σm|", std::abs(mass), P::kMinTotalMass, P::kMaxMass * c.n_bodies, "kg");
     for (int j = 0; j < c.n_joints; ++j)
         if (!(c.joint_limits[j][0] < c.joint_limits[j][1]) || !within(c.joint_limits[j][0], -P::kMaxJointRange, P::kMaxJointRange) ||
             !within(c.joint_limits[j][1], -P::kMaxJointRange, P::kMaxJointRange))

@@ -364,6 +364,18 @@ struct Parser {
                    number(span) + ", less than the plausible " + number(span_min) + " (a full scale far too small)";
             return false;
         }
+        // A sensor that reads both ways (velocity, force, torque, duty, current) reads zero inside its range, and not
+        // at an edge: an offset that puts zero outside the middle half of the decoded range is a wrong offset.
+        if (s.target != Target::kQ) {
+            const double first = s.type == SignalType::kSigned ? -std::ldexp(1.0, s.length - 1) : 0.0;
+            const double lo = std::min(first * s.scale, (first + std::ldexp(1.0, s.length) - 1.0) * s.scale) + s.offset;
+            const double hi = lo + span;
+            if (!(lo + span / 4 <= 0 && 0 <= hi - span / 4)) {
+                what = "'" + t + "': offset " + number(s.offset) + " puts its decoded range at " + number(lo) + " to " +
+                       number(hi) + ": a sensor that reads both ways holds zero in the middle half of its range";
+                return false;
+            }
+        }
         return true;
     }
 

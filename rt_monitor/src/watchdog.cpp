@@ -13,7 +13,8 @@ namespace dynid::rt {
 namespace {
 
 constexpr const char* kNames[kFaultKinds] = {"blind", "silent frame", "T² not finite", "sample period",
-                                            "joint out of range", "source stopped"};
+                                            "joint out of range", "source stopped", "duty out of range",
+                                            "model does not fit at start"};
 
 int index_of(Fault f) noexcept {
     int i = 0;
@@ -31,8 +32,14 @@ void Watchdog::init(const MonitorConfig& cfg, const Coefficients& coef, const As
     set_ = settings;
     set_.period_samples = std::clamp(set_.period_samples, 3, int(spacing_.size()));
     blind_us_ = int64_t(set_.blind_periods * coef.sample_period * 1e6);
+    // A sample's frames: those sent every sample (period 0 or one sample period). A pause of the sender mid-sample is
+    // not blindness; blind_periods samples' worth of frames with no sample is.
+    int per_sample = 0;
+    for (const FrameDef& f : cfg.bus.frames) per_sample += f.period_us <= int64_t(coef.sample_period * 1e6);
+    blind_frames_ = int64_t(set_.blind_periods * std::max(per_sample, 1));
     for (auto& r : reasons_) r.fill('\0');  // touched here, not in the loop
     spacing_.fill(0);
+    for (int i = 0; i < coef.n_outputs; ++i) is_pwm_[size_t(i)] = coef.channel_names[size_t(i)].rfind("pwm.", 0) == 0;
 }
 
 char* Watchdog::text(Fault f) noexcept { return reasons_[size_t(index_of(f))].data(); }
@@ -54,7 +61,10 @@ void Watchdog::raise(Fault f) noexcept {
 
 void Watchdog::sample(const Sample& s) noexcept {
     if (s.stale) last_stale_slot_ = s.stale_slot;
-    else if (!s.held) last_good_ = s.t_us;  // fresh: one the sample clock may still hold (a late sender) is not blindness
+    else if (!s.held) {  // fresh: one the sample clock may still hold (a late sender) is not blindness
+        last_good_ = s.t_us;
+        waiting_since_ = -1;
+    }
     if (!period_checked_) {
         if (last_sample_t_ >= 0 && n_spacing_ < set_.period_samples) spacing_[size_t(n_spacing_++)] = s.t_us - last_sample_t_;
         if (n_spacing_ == set_.period_samples) {
@@ -70,6 +80,18 @@ void Watchdog::sample(const Sample& s) noexcept {
         }
     }
     last_sample_t_ = s.t_us;
+    // A duty cycle beyond ±1, for consecutive samples: the PWM's scale or offset is wrong
+    int duty = -1;
+    for (int i = 0; i < coef_->n_outputs && duty < 0; ++i)
+        if (is_pwm_[size_t(i)] && std::abs(s.y[size_t(i)]) > 1.0 + set_.duty_margin) duty = i;
+    if (duty < 0) {
+        duty_out_ = 0;
+        clear(kDutyRange);
+    } else if (++duty_out_ == set_.range_samples) {
+        std::snprintf(text(kDutyRange), 256, "%.80s at %.4g, beyond ±1 duty: a wrong PWM scale or offset in the "
+                      "configuration?", coef_->channel_names[size_t(duty)].c_str(), s.y[size_t(duty)]);
+        raise(kDutyRange);
+    }
     // A position beyond its joint's range by the margin, for consecutive samples: the encoder's scale or zero is wrong
     const int nj = coef_->n_joints;
     int out = -1;
@@ -94,12 +116,22 @@ void Watchdog::sample(const Sample& s) noexcept {
 
 void Watchdog::evaluated(const Output& o, int64_t t_us) noexcept {
     last_evaluated_ = t_us;
+    waiting_since_ = -1;
     clear(kBlind);
     const MonitorCounters& c = asm_->counters();
     unpaired_at_eval_ = c.unpaired_strain;
     clock_at_eval_ = c.strain_frames;
     samples_at_eval_ = c.samples;
     if (!o.ready) return;
+    if (fit_evaluated_ < set_.fit_samples) {
+        fit_above_ += o.above;
+        if (++fit_evaluated_ == set_.fit_samples && 4 * fit_above_ > 3 * fit_evaluated_) {
+            std::snprintf(text(kStartFit), 256, "T² above T²_α on %d of the first %d samples (α allows %.2g %%): the "
+                          "model or the configuration does not fit this robot (or it was touched all through the start)",
+                          fit_above_, fit_evaluated_, 100 * (1 - coef_->alpha));
+            raise(kStartFit);
+        }
+    }
     if (!std::isfinite(o.p.t2)) {
         int worst = -1;
         for (int i = 0; i < coef_->n_outputs && worst < 0; ++i)
@@ -139,8 +171,7 @@ void Watchdog::blind_reason(int64_t now_us) noexcept {
 
 uint32_t Watchdog::check(int64_t now_us) noexcept {
     if (first_frame_ < 0) return active_;
-    const int64_t since = std::max({last_evaluated_, last_good_, first_frame_});
-    if (last_frame_ > since && now_us - since > blind_us_) {
+    if (waiting_since_ >= 0 && frames_waiting_ > blind_frames_ && now_us - waiting_since_ > blind_us_) {
         if (!(active_ & kBlind)) {
             blind_reason(now_us);
             raise(kBlind);

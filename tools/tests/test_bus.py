@@ -75,6 +75,10 @@ REFUSED = {
     "a big-endian signal overlapping": (
         lambda b: _frame(b, "TPDO1_2")["signals"][1].update(start=31, byte_order="big"),
         "field 'bus.frames[1].signals[1].start' overlaps signal 'Position' in frame 'TPDO1_2'"),
+    "a torque's zero at the edge of its range": (
+        lambda b: _frame(b, "TPDO1_2")["signals"][2].update(offset=300),
+        "field 'bus.frames[1].signals[2].offset' 300 puts 'tau.panda_joint2' at -27.68 to 627.67: a sensor that reads "
+        "both ways holds zero in the middle half of its range"),
     "a 16-bit float": (lambda b: _frame(b, "TPDO1_2")["signals"][1].update(type="float"),
                        "field 'bus.frames[1].signals[1].length' must be 32 or 64 for an IEEE float, got 16"),
     "a scale of 0": (lambda b: _frame(b, "TPDO1_2")["signals"][1].update(scale=0),

@@ -24,7 +24,7 @@ from dynid.io.load import load_data
 
 ROOT = Path(__file__).resolve().parents[2]
 RT_MONITOR = ROOT / "build" / "rt_monitor" / "rt_monitor"
-BLIND, SILENT, NOT_FINITE, PERIOD, JOINT_RANGE, STOPPED = 1, 2, 4, 8, 16, 32
+BLIND, SILENT, NOT_FINITE, PERIOD, JOINT_RANGE, STOPPED, DUTY_RANGE, START_FIT = 1, 2, 4, 8, 16, 32, 64, 128
 EXIT_BLIND = 6
 
 
@@ -91,6 +91,36 @@ def test_an_implausible_scale_is_refused_at_load(bench: dict, target: str, scale
     code, err, msgs = replay(bench, f"scale-{target}", change)
     assert code == 2 and err.count("\n") == 1, err
     assert f"'{target}': scale {scale.replace('+', '')}" in err.replace("e+", "e") and "outside the plausible" in err, err
+
+
+def test_an_offset_that_puts_zero_at_the_edge_is_refused_at_load(bench: dict) -> None:
+    """The strain board's fx offset 0 instead of −200: a force sensor that would read 0 to 400 N."""
+    code, err, _ = replay(bench, "ft-offset", lambda t: re.sub(r"^(signal \S+ \d+ \d+ \w+ \w \S+) -200.0 (ft.r_arm_ft.fx)$",
+                                                               r"\1 0.0 \2", t, flags=re.M))
+    assert code == 2 and err.count("\n") == 1, err
+    assert "'ft.r_arm_ft.fx': offset 0 puts its decoded range at 0 to 399.994" in err and "middle half" in err, err
+
+
+def test_a_pwm_offset_is_a_duty_fault(bench: dict) -> None:
+    """pwm.m0's offset −1 (in range for the signal): duties beyond ±1, named on status and stderr."""
+    code, err, msgs = replay(bench, "duty", lambda t: re.sub(r"^(signal \S+ \d+ \d+ \w+ \w \S+) 0.0 (pwm.m0)$",
+                                                         r"\1 -1.0 \2", t, flags=re.M))
+    assert "fault: duty out of range: pwm.m0 at" in err and "beyond ±1 duty" in err, err
+    assert faults(msgs) & DUTY_RANGE
+
+
+def test_a_model_that_is_not_the_robots_is_a_start_fit_fault(bench: dict, tmp_path: Path) -> None:
+    """A CRC-valid file whose gravity points up: every value plausible, T² above T²_α from the start."""
+    from dynid.export.coefficients import unwrap, wrap
+    from dynid.export.lcm_coefficients import coefficients_t
+
+    c = coefficients_t.decode(unwrap(Path(bench["coef"]).read_bytes()))
+    c.gravity = [-g for g in c.gravity]
+    coef = tmp_path / "up.dcoef"
+    coef.write_bytes(wrap(c.encode()))
+    code, err, msgs = replay(bench, "gravity-up", coef=coef)
+    assert "fault: model does not fit at start: T² above T²_α on" in err and "of the first 4000 samples" in err, err
+    assert faults(msgs) & START_FIT
 
 
 def test_a_wrong_encoder_scale_is_a_joint_range_fault_not_silence(bench: dict) -> None:

@@ -16,6 +16,9 @@ constexpr double kRotationTolerance = 1e-6;   // ‖RᵀR − I‖ and ‖axis�
 constexpr double kMaxMass = 1000.0;           // kg
 constexpr double kMaxFirstMoment = 1000.0;    // kg m
 constexpr double kMaxInertia = 1000.0;        // kg m²
+// The robot as a whole, though, has a length and a mass: all offsets or all masses zero is no robot.
+constexpr double kMinChainLength = 0.01;      // m, the sum of the joint frames' offsets
+constexpr double kMinTotalMass = 0.01;        // kg, |the sum of the bodies' masses|
 // A joint's range: within ±1e6 (rad, or m; what a joint without limits is exported with), lower below upper.
 constexpr double kMaxJointRange = 1e6;
 // Gravity on Earth: 9.76–9.84 m/s² at its surface.

@@ -1,13 +1,16 @@
 // The monitor's watchdog: a safety monitor never runs blind in silence. It watches what comes in and what the core
 // makes of it, and raises a fault, with the reason it can tell, when:
-//   kBlind      frames arrive but for `blind_us` (a few sample periods) no sample has been evaluated nor a fresh one
-//               assembled (one the sample clock holds for a late sender is not blindness): unpaired
+//   kBlind      frames arrive for `blind_us` (a few sample periods), more than that many samples' frames, and no
+//               sample has been evaluated nor a fresh one assembled (one the sample clock holds for a late sender is not blindness): unpaired
 //               halves (pair_us below their spacing), no clock frame, every sample stale (which value), all held;
 //   kSilent     a frame of the robot's bus never came within a second of the first frame, or stopped for a second;
 //   kNotFinite  T² is not a number (a model or a scale that overflows);
 //   kPeriod     the stream's sample spacing is not the coefficient file's sample period (±20 %);
 //   kJointRange a decoded joint position left its range by `range_margin` (a wrong encoder scale or zero);
-//   kStopped    a live source delivered nothing for a second after frames flowed.
+//   kStopped    a live source delivered nothing for a second after frames flowed;
+//   kDutyRange  a PWM channel's duty beyond ±1 by `duty_margin` (a wrong PWM scale or offset);
+//   kStartFit   T² above T²_α on more than three quarters of the first `fit_samples` evaluated samples: the model or the
+//               configuration does not fit this robot (or it was touched all through the start).
 // Faults are a bitmask on the status message (`faults`, and `faults_seen` since the start); each one raised is one
 // line on stderr with its reason, written once from a buffer sized at start-up (no allocation in the loop).
 // Nothing here decides a contact: a fault is never an event.
@@ -30,8 +33,10 @@ enum Fault : uint32_t {
     kPeriod = 1u << 3,
     kJointRange = 1u << 4,
     kStopped = 1u << 5,
+    kDutyRange = 1u << 6,
+    kStartFit = 1u << 7,
 };
-constexpr int kFaultKinds = 6;
+constexpr int kFaultKinds = 8;
 
 struct WatchdogSettings {
     double blind_periods = 5;      // sample periods without an evaluated sample while frames arrive
@@ -40,6 +45,8 @@ struct WatchdogSettings {
     int period_samples = 64;       // samples the spacing is measured on, from the start
     double range_margin = 0.2;     // rad (or m) beyond a joint's range before a position is implausible
     int range_samples = 10;        // consecutive samples out of range before the fault
+    double duty_margin = 0.05;     // beyond ±1 duty
+    int fit_samples = 4000;        // the start-up block (4 s at 1 kHz) whose T² is checked against T²_α
 };
 
 class Watchdog {
@@ -48,7 +55,12 @@ public:
     void init(const MonitorConfig& cfg, const Coefficients& coef, const Assembler& assembler,
               const WatchdogSettings& settings = {}) noexcept;
     // A frame was read (CAN time µs).
-    void frame(int64_t t_us) noexcept { last_frame_ = t_us; first_frame_ = first_frame_ < 0 ? t_us : first_frame_; }
+    void frame(int64_t t_us) noexcept {
+        last_frame_ = t_us;
+        first_frame_ = first_frame_ < 0 ? t_us : first_frame_;
+        if (waiting_since_ < 0) waiting_since_ = t_us, frames_waiting_ = 0;
+        ++frames_waiting_;
+    }
     // A sample was assembled (evaluated or not).
     void sample(const Sample& s) noexcept;
     // The core evaluated a sample at CAN time t_us.
@@ -78,6 +90,10 @@ private:
     int64_t blind_us_ = 0;
     uint32_t active_ = 0, seen_ = 0;
     int64_t first_frame_ = -1, last_frame_ = -1, last_evaluated_ = -1, last_good_ = -1;
+    // The first frame since the last evaluated (or fresh) sample: blindness is frames arriving for blind_us with no
+    // sample, not a pause of the sender (its next frames complete a sample at once)
+    int64_t waiting_since_ = -1;
+    int64_t frames_waiting_ = 0, blind_frames_ = 0;  // frames since then; blind_periods samples' worth of the bus's
     int64_t unpaired_at_eval_ = 0, clock_at_eval_ = 0, samples_at_eval_ = 0;
     int last_stale_slot_ = -1;
     // the stream's sample spacing: the first stamps' differences
@@ -88,6 +104,9 @@ private:
     int out_of_range_ = 0;
     int range_joint_ = -1;
     double range_value_ = 0;
+    std::array<bool, kMaxOutputs> is_pwm_{};
+    int duty_out_ = 0;
+    int fit_evaluated_ = 0, fit_above_ = 0;
     std::array<std::array<char, 256>, kFaultKinds> reasons_{};
 };
 

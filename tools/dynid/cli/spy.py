@@ -32,7 +32,8 @@ SIDE = {1: "distal", -1: "proximal", 0: "unknown side"}
 PROBLEMS = ("stale_samples", "unknown_id", "bad_length", "error_frames", "unpaired_strain", "saturated",
             "board_faults", "board_restarts", "source_bad", "interpolated", "late", "filter_restarts", "overruns")
 # The watchdog's fault bits (rt_monitor/include/rt_monitor/watchdog.hpp, the status message's `faults`)
-FAULTS = ("BLIND", "FRAME SILENT", "T² NOT FINITE", "SAMPLE PERIOD", "JOINT OUT OF RANGE", "SOURCE STOPPED")
+FAULTS = ("BLIND", "FRAME SILENT", "T² NOT FINITE", "SAMPLE PERIOD", "JOINT OUT OF RANGE", "SOURCE STOPPED",
+          "DUTY OUT OF RANGE", "MODEL DOES NOT FIT AT START")
 
 
 def fault_text(bits: int) -> str:

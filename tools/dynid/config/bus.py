@@ -401,6 +401,14 @@ def _signal(sg: Fields, joints: tuple[str, ...], motors: dict[str, str], sensors
     elif is_value_target(target):
         if (why := _value_target_ok(target, joints, motors, sensors)):
             raise sg.fail("target", f"'{target}' {why}")
+        if base != "q" and kind != "float":
+            # A sensor that reads both ways holds zero in the middle half of its decoded range (rt_monitor's rule)
+            first = -(2.0 ** (length - 1)) if kind == "signed" else 0.0
+            ends = sorted((first * scale + offset, (first + 2.0**length - 1) * scale + offset))
+            quarter = (ends[1] - ends[0]) / 4
+            if not ends[0] + quarter <= 0 <= ends[1] - quarter:
+                raise sg.fail("offset", f"{offset:g} puts '{target}' at {ends[0]:g} to {ends[1]:g}: a sensor that reads "
+                              "both ways holds zero in the middle half of its range")
     elif base == "skin":
         if rest not in patches:
             raise sg.fail("target", f"'{target}' names patch '{rest}', which is not in 'patches'")

@@ -74,6 +74,13 @@ def check_plausible(c: coefficients_t) -> None:
         for v in p[4:10]:
             if not _within(v, -P["MaxInertia"], P["MaxInertia"]):
                 _refuse(f"{body}: its inertia", v, -P["MaxInertia"], P["MaxInertia"], "kg m²")
+    length = sum(math.sqrt(sum(v * v for v in c.translation[i])) for i in range(c.n_bodies))
+    mass = sum(c.inertial[i][0] for i in range(c.n_bodies))
+    if not length >= P["MinChainLength"]:
+        _refuse("the chain's length (its joint frames' offsets summed)", length, P["MinChainLength"],
+                P["MaxTranslation"] * c.n_bodies, "m")
+    if not abs(mass) >= P["MinTotalMass"]:  # by magnitude: an unconstrained fit's full φ need not sum positive
+        _refuse("the robot's total mass |Σm|", abs(mass), P["MinTotalMass"], P["MaxMass"] * c.n_bodies, "kg")
     for j in range(c.n_joints):
         lo, hi = c.joint_limits[j]
         if not (lo < hi and _within(lo, -P["MaxJointRange"], P["MaxJointRange"])

@@ -140,7 +140,8 @@ class monitor_status_t(object):
         core steps longer than the sample period
         The watchdog (rt_monitor/include/rt_monitor/watchdog.hpp): faults now active and every one seen since the start,
         bit 0 blind (frames arrive, no sample evaluated), 1 a frame of the bus silent, 2 T² not finite, 3 the stream's
-        sample period is not the file's, 4 a joint position out of its range, 5 the source stopped. Never a contact.
+        sample period is not the file's, 4 a joint position out of its range, 5 the source stopped, 6 a duty beyond ±1,
+        7 the model does not fit at start (T² above T²_α on most of the first samples). Never a contact.
         LCM Type: int32_t
         """
 
