@@ -12,14 +12,13 @@ from ..config.robot_config import RobotConfig, load_config
 from ..detect.evaluation import detection
 from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S
 from ..detect.momentum_t2 import calibration_runs, momentum_detection, stored_detector, stored_in_sample
-from ..identify.model_sections import CROSS_VALIDATED, IN_SAMPLE
 from ..detect.t2 import ALPHA
 from ..errors import DataError, InputError
 from ..cluster import executor
 from ..identify.fit import (DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_INERTIA_ONLY, FitResult, FitSettings,
                             iv_settled)
 from ..identify.model_file import IdentifiedModel
-from ..identify.model_sections import DEFAULT_BLOCKS, DEFAULT_N_MODE, N_MODES, BaseSection
+from ..identify.model_sections import CROSS_VALIDATED, DEFAULT_BLOCKS, DEFAULT_N_MODE, IN_SAMPLE, N_MODES, BaseSection
 from ..identify.runs import RunRef, stream_run
 from ..identify.supply import SupplyTracking
 from ..identify.validation import evaluate, validation
@@ -325,8 +324,10 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
         found.result["events"] = momentum.events
         found.result["calibration"] = paths
     found.result["residual"] = "momentum" if momentum is not None else "acceleration"
-    found.result["out_of_sample"] = out_of_sample(ev.identified, args.data, paths if momentum is not None else [],
-                                                  calibration_given, found.result["variants"])
+    found.result["out_of_sample"] = out_of_sample(ev.identified, args.data, window(args),
+                                                  paths if momentum is not None else [], calibration_given,
+                                                  (args.calibration_from, args.calibration_to),
+                                                  found.result["variants"])
     if skipped:
         found.result["momentum_skipped"] = skipped
     print(f"T² contact detection with {args.model} on {args.data} ({ev.dataset.n_samples} samples), α = {args.alpha}")
@@ -374,17 +375,26 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
     return found.result
 
 
-def out_of_sample(identified, data: str, calibration_paths: list[str], calibration_given: bool,
-                  variants: dict[str, dict[str, Any]]) -> dict[str, Any]:
-    """`detect --json`'s `out_of_sample`: whether DATA lies outside the runs the model was fitted and calibrated on
-    (sha256), what Λ and T²_α were calibrated on, and per variant the FPR on DATA's contact-free samples (an
-    out-of-sample figure where DATA is outside) beside the FPR the in-sample calibration gives on them."""
+def _overlap(a: tuple, b: tuple) -> bool:
+    """Two windows [from, to] of a run's seconds (None: open) share some time."""
+    lo = max(-np.inf if a[0] is None else a[0], -np.inf if b[0] is None else b[0])
+    hi = min(np.inf if a[1] is None else a[1], np.inf if b[1] is None else b[1])
+    return lo < hi
+
+
+def out_of_sample(identified, data: str, data_window: tuple, calibration_paths: list[str], calibration_given: bool,
+                  calibration_window: tuple, variants: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """`detect --json`'s `out_of_sample`: whether DATA (in its --from/--to window) lies outside the runs, and their
+    windows, the model was fitted and calibrated on (sha256), what Λ and T²_α were calibrated on, and per variant the
+    FPR on DATA's contact-free samples (an out-of-sample figure where DATA is outside) beside the FPR the in-sample
+    calibration gives on them."""
     from ..identify.model_file import data_digest
 
     digest = data_digest(data)
-    fitted = {run.sha256 for run in identified.data if run.sha256 is not None}
-    given = {data_digest(p) for p in calibration_paths} if calibration_given else set()
-    outside = digest is not None and digest not in fitted | given
+    seen = [(run.sha256, run.window or (None, None)) for run in identified.data if run.sha256 is not None]
+    if calibration_given:
+        seen += [(data_digest(p), calibration_window) for p in calibration_paths]
+    outside = digest is not None and not any(d == digest and _overlap(w, data_window) for d, w in seen)
     det = identified.detector
     calibration = {"calibrated": det.calibration if det is not None else IN_SAMPLE}
     if "momentum" in variants:
