@@ -279,10 +279,13 @@ class ContactDetector(BaseEstimator):
         if runs is None and hasattr(self, "momentum_"):
             return self.momentum_
         identified = self.model.model_
-        if runs is None:
+        folds = None
+        if runs is None:  # the runs it was fitted on: each time block through the Φ fitted without it
             runs, _ = calibration_runs(identified, None)
+            folds = identified.folds
         det = calibrate_momentum(identified.robot_model, identified.phi, identified.base, runs, self._alpha(),
-                                 identified.min_speed, self.bandwidth_hz, tracking=identified.supply_tracking)
+                                 identified.min_speed, self.bandwidth_hz, tracking=identified.supply_tracking,
+                                 folds=folds)
         self.momentum_ = det
         return det
 
@@ -309,10 +312,12 @@ class ContactDetector(BaseEstimator):
         phi, effects = identified.phi, identified.effects
         settings = FitSettings(min_speed=identified.min_speed)
 
-        def residual_of(sig, t):  # noqa: ANN001, ANN202
-            return augmented_residuals(robot, phi, effects, sig, t) if effects else residuals(robot, phi, sig)
+        def residual_of(sig, t, phi_k):  # noqa: ANN001, ANN202
+            return augmented_residuals(robot, phi_k, effects, sig, t) if effects else residuals(robot, phi_k, sig)
 
-        e, dq, e_constant = calibration_residuals(robot, runs, settings, residual_of, identified.supply_tracking)
+        # runs given to calibrate on: out of sample by the caller's choice, through the model's Φ
+        e, dq, e_constant, _ = calibration_residuals(robot, runs, settings, residual_of, identified.supply_tracking,
+                                                     phi)
         found = calibrate(robot, phi, e, dq, self._alpha(), identified.min_speed, variants=(self.variant,),
                           e_constant=e_constant)
         self.detector_ = found[self.variant]

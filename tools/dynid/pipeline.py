@@ -26,7 +26,7 @@ from .detect.t2 import (Detector, calibrate, calibration_residuals, calibration_
 from .identify.fit import CONSISTENT, Estimate, FitResult, FitSettings, fit
 from .identify.model_file import IdentifiedModel, data_record, robot_record
 from .identify.model_sections import (ALPHA, DEFAULT_N_MODE, BaseSection, ConsistentFit, EstimatorSection,
-                                      OutputsSection, Settings, Uncertainty)
+                                      FoldsSection, OutputsSection, Settings, Uncertainty)
 from .identify.plausibility import implausible
 from .identify.runs import RunRef, fit_on_cluster, worker_model, worker_run
 from .identify.statistics import Statistics
@@ -89,32 +89,41 @@ def build_model(model: RobotModel, phi: np.ndarray, datasets: Sequence[Dataset],
                 sections: IdentifiedModel, settings: FitSettings, *, detector: DetectorSettings = DetectorSettings(),
                 tracking: SupplyTracking | None = None, effects: Sequence[Effect] = (), nu: int | None = None,
                 residual_variance: np.ndarray | None = None,
-                cluster: Any = None, refs: Sequence[RunRef] | None = None) -> Built:
+                cluster: Any = None, refs: Sequence[RunRef] | None = None,
+                folds: FoldsSection | None = None) -> Built:
     """Calibrate T² for Φ (and the effects) on the contact-free `datasets` (read with `settings`' derivatives and
     min_speed), and fill the sections every model file has: outputs (Λ: `residual_variance`, else the calibrated
     detector's), detector, supply_tracking, derivatives (where `sections` has none), data. `sections` brings the
     robot and the rest (the fit's sections, or the gap workflow's); the model returned carries Φ as `parameters`.
-    With a `cluster` (dynid.cluster) and the runs' `refs`, each run's calibration residuals are a task on it."""
+    With a `cluster` (dynid.cluster) and the runs' `refs`, each run's calibration residuals are a task on it.
+    With `folds` (the fit's), Λ and T²_α are calibrated on cross-validated residuals: each time block's through the Φ
+    fitted without it (docs/detection.md#out-of-sample); the in-sample calibration is kept beside, for comparison."""
     effects = list(effects)
 
-    def residual_of(sig, t):  # noqa: ANN001, ANN202 - (Signals, s since the run's start) -> e
-        return augmented_residuals(model, phi, effects, sig, t) if effects else residuals(model, phi, sig)
+    def residual_of(sig, t, phi_k):  # noqa: ANN001, ANN202 - (Signals, s since the run's start, Φ) -> e
+        return augmented_residuals(model, phi_k, effects, sig, t) if effects else residuals(model, phi_k, sig)
 
+    segments = None if folds is None else [folds.segments(i, ds.n_samples, phi) for i, ds in enumerate(datasets)]
     if cluster is not None and refs is not None and not effects:  # each run's residuals a task of its own
         stride = calibration_stride(sum(ds.n_samples for ds in datasets))
-        parts = cluster.map(calibration_task, [(model.config, ref, settings, phi, tracking, stride) for ref in refs],
+        parts = cluster.map(calibration_task, [(model.config, ref, settings, phi, tracking, stride,
+                                                None if segments is None else segments[i])
+                                               for i, ref in enumerate(refs)],
                             "calibrating T²", runs=list(range(len(refs))))
-        e, dq, e_constant = join_calibration(parts)
+        e, dq, e_constant, e_in = join_calibration(parts)
     else:
-        e, dq, e_constant = calibration_residuals(model, datasets, settings, residual_of, tracking)
+        e, dq, e_constant, e_in = calibration_residuals(model, datasets, settings, residual_of, tracking, phi,
+                                                        segments)
     detectors = calibrate(model, phi, e, dq, detector.alpha, settings.min_speed, detector.n_mode, nu, e_constant=e_constant)
+    in_sample = None if folds is None else calibrate(model, phi, e_in, dq, detector.alpha, settings.min_speed,
+                                                      variants=("calibrated",))["calibrated"]
     outs = output_channels(model)
     variance = detectors["calibrated"].variance if residual_variance is None else residual_variance
     identified = replace(
         sections, parameters=dict(zip(model.layout.names, phi.tolist())),
         outputs=OutputsSection(tuple(o.name for o in outs), np.asarray(variance, float), tuple(o.unit for o in outs),
                                np.array([o.sigma for o in outs])),
-        detector=detector_record(model, detectors, e, dq),
+        detector=detector_record(model, detectors, e, dq, in_sample),
         supply_tracking=tracking, derivatives=sections.derivatives or derivatives_record(model),
         data=tuple(data_record(p, ds.n_samples, ds.duration, ds.meta.get("payload"), ds.meta.get("window"),
                                ds.meta.get("bad_rows")) for p, ds in zip(data_paths, datasets)),
@@ -195,13 +204,15 @@ def check_scale(model: RobotModel, datasets: Sequence[Dataset], payload_possible
 
 
 def calibration_task(config: RobotConfig, ref: RunRef, settings: FitSettings, phi: np.ndarray,
-                     tracking: SupplyTracking | None, stride: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A worker's task: one run's T² calibration residuals for Φ (dynid.detect.t2.run_calibration_residuals)."""
+                     tracking: SupplyTracking | None, stride: int,
+                     segments: list | None = None) -> tuple[np.ndarray, ...]:
+    """A worker's task: one run's T² calibration residuals for Φ, or for each fold's Φ on its block
+    (dynid.detect.t2.run_calibration_residuals)."""
     model = worker_model(config)
     run = worker_run(ref, model)
     with threadpool_limits(limits=1, user_api="blas"):
-        return run_calibration_residuals(model, run, settings, lambda sig, t: residuals(model, phi, sig), tracking,
-                                         stride)
+        return run_calibration_residuals(model, run, settings, lambda sig, t, phi_k: residuals(model, phi_k, sig),
+                                         tracking, stride, phi, segments)
 
 
 def identify(model: RobotModel, datasets: Sequence[Run], data_paths: Sequence[str | Path],
@@ -239,14 +250,16 @@ def _identify(model: RobotModel, datasets: Sequence[Run], data_paths: Sequence[s
         model = with_estimated_noise(model, result)
         result = fitted(model)
     fit_time = time.perf_counter() - started
+    folds = folds_record(model, result)
     sections = replace(fit_record(model, model.config, result, settings.fit, settings.detector,
                                   settings.fit.n_components),
-                       cad_ft_offsets=cad_ft_offsets(model, result.statistics))
+                       cad_ft_offsets=cad_ft_offsets(model, result.statistics), folds=folds)
     built = build_model(model, result.phi, datasets, data_paths, sections, settings.fit,
                         detector=settings.detector, nu=result.cv["n_components"],
                         # only a PWM input drifts with its supply (dynid.identify.supply)
                         tracking=settings.tracking if model.config.motors_with_input("pwm") else None,
-                        residual_variance=result.residual_variance[result.chosen], cluster=cluster, refs=refs)
+                        residual_variance=result.residual_variance[result.chosen], cluster=cluster, refs=refs,
+                        folds=folds)
     identified = built.model
     if settings.observer:
         try:
@@ -258,6 +271,26 @@ def _identify(model: RobotModel, datasets: Sequence[Run], data_paths: Sequence[s
     # With --consistent off nothing keeps each body physical: say where the estimate is not (identify/plausibility.py)
     identified.plausibility = implausible(model, result.phi)
     return Identification(identified, result, built.detectors, fit_time, total, model)
+
+
+def folds_record(model: RobotModel, result: FitResult) -> FoldsSection | None:
+    """The model file's `folds`: each time block of the fit (its run, its samples in that run) and the chosen
+    estimate's Φ fitted without it. A fold the jackknife left out, or whose Φ no model could hold (not finite, a
+    motor gain that is not positive: a short run's fold), is marked in-sample: its block takes the whole fit's Φ."""
+    chosen = result.estimates[result.chosen]
+    if chosen.folds is None:
+        return None
+    stats = result.statistics
+    edges = np.asarray(stats.block_samples)
+    runs = np.asarray(stats.block_run)
+    first = {int(r): int(edges[np.flatnonzero(runs == r)[0]]) for r in np.unique(runs)}
+    samples = np.array([[edges[k] - first[int(runs[k])], edges[k + 1] - first[int(runs[k])]]
+                        for k in range(stats.n_blocks)], dtype=int)
+    gains = [b.start for b in model.layout.blocks_of("motor_gain")]
+    kept = chosen.folds_kept if chosen.folds_kept is not None else np.ones(stats.n_blocks, dtype=bool)
+    usable = kept & np.all(np.isfinite(chosen.folds), axis=1) & np.all(chosen.folds[:, gains] > 0, axis=1)
+    parameters = np.where(usable[:, None], chosen.folds, result.phi[None, :])
+    return FoldsSection(runs.astype(int), samples, parameters, tuple(int(k) for k in np.flatnonzero(~usable)))
 
 
 def _head(run: Run) -> Dataset:

@@ -11,14 +11,14 @@ import numpy as np
 from ..config.robot_config import RobotConfig, load_config
 from ..detect.evaluation import detection
 from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S
-from ..detect.momentum_t2 import calibration_runs, momentum_detection, stored_detector
+from ..detect.momentum_t2 import calibration_runs, momentum_detection, stored_detector, stored_in_sample
 from ..detect.t2 import ALPHA
 from ..errors import DataError, InputError
 from ..cluster import executor
 from ..identify.fit import (DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_INERTIA_ONLY, FitResult, FitSettings,
                             iv_settled)
 from ..identify.model_file import IdentifiedModel
-from ..identify.model_sections import DEFAULT_BLOCKS, DEFAULT_N_MODE, N_MODES, BaseSection
+from ..identify.model_sections import CROSS_VALIDATED, DEFAULT_BLOCKS, DEFAULT_N_MODE, IN_SAMPLE, N_MODES, BaseSection
 from ..identify.runs import RunRef, stream_run
 from ..identify.supply import SupplyTracking
 from ..identify.validation import evaluate, validation
@@ -310,8 +310,11 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
             else:
                 runs, paths = calibration_runs(ev.identified, args.calibration,
                                                (args.calibration_from, args.calibration_to))
+            # the runs it was fitted on: each time block's residual through the Φ fitted without it
+            folds = None if calibration_given else ev.identified.folds
             momentum = momentum_detection(ev.identified, ev.dataset, runs, args.alpha, args.bandwidth,
-                                          args.label_widening, found.side, detector=stored)
+                                          args.label_widening, found.side, detector=stored, folds=folds,
+                                          in_sample=stored_in_sample(ev.identified) if stored is not None else None)
         except DataError as e:
             if args.residual == "momentum" or calibration_given:  # asked for: its failure is the command's
                 raise
@@ -321,6 +324,10 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
         found.result["events"] = momentum.events
         found.result["calibration"] = paths
     found.result["residual"] = "momentum" if momentum is not None else "acceleration"
+    found.result["out_of_sample"] = out_of_sample(ev.identified, args.data, window(args),
+                                                  paths if momentum is not None else [], calibration_given,
+                                                  (args.calibration_from, args.calibration_to),
+                                                  found.result["variants"])
     if skipped:
         found.result["momentum_skipped"] = skipped
     print(f"T² contact detection with {args.model} on {args.data} ({ev.dataset.n_samples} samples), α = {args.alpha}")
@@ -337,6 +344,7 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
     if momentum is not None:
         print(f"  momentum: observer bandwidth {args.bandwidth:g} Hz, calibrated on {momentum.detector.samples} "
               f"contact-free samples; {len(momentum.events)} contact events")
+    print_out_of_sample(found.result["out_of_sample"])
     for variant, s in found.result["variants"].items():
         tpr = "n/a" if s.get("tpr") is None else f"{100 * s['tpr']:.1f} %"
         line = f"  {variant:10s} threshold {s['threshold']:9.3g}: TPR {tpr}, FPR {100 * s['fpr']:.2f} %"
@@ -365,6 +373,52 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
     if ev.config.name == PAPER_ROBOT:
         print(f"  paper (real iCub arm, α = 0.99): TPR {100 * PAPER['tpr']:.0f} %, FPR {100 * PAPER['fpr']:.0f} %")
     return found.result
+
+
+def _overlap(a: tuple, b: tuple) -> bool:
+    """Two windows [from, to] of a run's seconds (None: open) share some time."""
+    lo = max(-np.inf if a[0] is None else a[0], -np.inf if b[0] is None else b[0])
+    hi = min(np.inf if a[1] is None else a[1], np.inf if b[1] is None else b[1])
+    return lo < hi
+
+
+def out_of_sample(identified, data: str, data_window: tuple, calibration_paths: list[str], calibration_given: bool,
+                  calibration_window: tuple, variants: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """`detect --json`'s `out_of_sample`: whether DATA (in its --from/--to window) lies outside the runs, and their
+    windows, the model was fitted and calibrated on (sha256), what Λ and T²_α were calibrated on, and per variant the
+    FPR on DATA's contact-free samples (an out-of-sample figure where DATA is outside) beside the FPR the in-sample
+    calibration gives on them."""
+    from ..identify.model_file import data_digest
+
+    digest = data_digest(data)
+    seen = [(run.sha256, run.window or (None, None)) for run in identified.data if run.sha256 is not None]
+    if calibration_given:
+        seen += [(data_digest(p), calibration_window) for p in calibration_paths]
+    outside = digest is not None and not any(d == digest and _overlap(w, data_window) for d, w in seen)
+    det = identified.detector
+    calibration = {"calibrated": det.calibration if det is not None else IN_SAMPLE}
+    if "momentum" in variants:
+        calibration["momentum"] = "given runs" if calibration_given else (
+            CROSS_VALIDATED if identified.folds is not None else IN_SAMPLE)
+    per = {}
+    for name in ("momentum", "calibrated"):
+        if name in variants:
+            v = variants[name]
+            per[name] = {"calibration": calibration[name], "fpr": v.get("fpr"),
+                         "in_sample_calibration_fpr": v.get("in_sample_fpr")}
+    return {"data_outside_fit_and_calibration": outside, "variants": per}
+
+
+def print_out_of_sample(o: dict[str, Any]) -> None:
+    where = "outside the fit and calibration" if o["data_outside_fit_and_calibration"] else \
+        "among the runs fitted or calibrated on (an in-sample figure)"
+    for name, v in o["variants"].items():
+        if v["fpr"] is None:
+            continue
+        line = f"  {name}: FPR {100 * v['fpr']:.2f} % on data {where}, Λ and T²_α {v['calibration']}"
+        if v["in_sample_calibration_fpr"] is not None:
+            line += f"; calibrated in-sample: {100 * v['in_sample_calibration_fpr']:.2f} %"
+        print(line)
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:

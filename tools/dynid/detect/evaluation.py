@@ -65,6 +65,13 @@ def detection(ev: Evaluated, model_label: str, data_label: str, alpha: float, n_
         t2s[variant] = d.t2(ev.model, e, ev.signals.dq, ev.identified.phi)
         result["variants"][variant] = score_with_delays(ev.dataset.t, t2s[variant], d.threshold, ev.dataset.contact,
                                                          side, shift_s)
+    stored = ev.identified.detector
+    if stored is not None and stored.in_sample is not None and alpha == stored.in_sample.alpha:
+        # the calibrated variant as the fit's own residuals would calibrate it: its FPR on the same samples, beside
+        in_sample = Detector.of(stored.in_sample)
+        alarm = in_sample.t2(ev.model, ev.e, ev.signals.dq) > in_sample.threshold
+        free = np.ones(alarm.size, bool) if ev.dataset.contact is None else np.asarray(ev.dataset.contact) == 0
+        result["variants"]["calibrated"]["in_sample_fpr"] = float(alarm[free].mean()) if free.any() else None
     truth = beside_run(data_label, "truth.npz")
     if ev.dataset.contact is not None and ev.dataset.contact.any() and truth.is_file():
         result["visibility"] = visibility(ev, dets["calibrated"], t2s["calibrated"], np.load(truth))

@@ -22,7 +22,8 @@ import numpy as np
 
 from ..errors import DataError
 from ..io.bad_rows import DEFAULT_POLICY
-from ..identify.model_sections import ALPHA, BaseSection, MomentumCalibration, ObserverEntry, ObserverSection, Quantiles
+from ..identify.model_sections import (ALPHA, CROSS_VALIDATED, IN_SAMPLE, BaseSection, FoldsSection, MomentumCalibration, ObserverEntry,
+                                      ObserverSection, Quantiles)
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from ..robot.regressors.stack import gravity_per_sample
@@ -109,25 +110,56 @@ def run_residuals(model: RobotModel, phi: np.ndarray, dataset, bandwidth_hz: flo
 def calibrate_momentum(model: RobotModel, phi: np.ndarray, base: BaseSection | None, datasets: Sequence,
                        alpha: float, min_speed: float, bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ,
                        band_sigmas: float = BAND_SIGMAS, tracking=None,
-                       velocity_window_s: float = VELOCITY_WINDOW_S, measured: bool = True) -> MomentumDetector:
+                       velocity_window_s: float = VELOCITY_WINDOW_S, measured: bool = True,
+                       folds: FoldsSection | None = None) -> MomentumDetector:
     """Λ and T²_α of the momentum residuals on contact-free runs: each run's first CALIBRATION_MAX_S seconds (the
-    observer runs every sample: a bounded time), less its first 5 time constants."""
+    observer runs every sample: a bounded time), less its first 5 time constants. With `folds` (the runs are the
+    ones the model was fitted on, in its `data` order), each time block's residuals come through the Φ fitted
+    without it: cross-validated, what a new run would see (docs/detection.md#out-of-sample)."""
+    e, rest, tau = momentum_calibration_residuals(model, phi, base, datasets, min_speed, bandwidth_hz, band_sigmas,
+                                                  tracking, velocity_window_s, measured, folds)
+    return momentum_detector(model, e, rest, tau, alpha, min_speed, bandwidth_hz, band_sigmas, velocity_window_s)
+
+
+def momentum_calibration_residuals(model: RobotModel, phi: np.ndarray, base: BaseSection | None, datasets: Sequence,
+                                   min_speed: float, bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ,
+                                   band_sigmas: float = BAND_SIGMAS, tracking=None,
+                                   velocity_window_s: float = VELOCITY_WINDOW_S, measured: bool = True,
+                                   folds: FoldsSection | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(e, rows at rest, τ_ext) of `calibrate_momentum`'s samples. With `folds` the observer runs block by block,
+    each through its fold's Φ (and friction band), started `warm-up` seconds before the block (its time constants,
+    the velocity window, and three of the supply tracker's where it tracks) so that only the block's samples count."""
     from ..io.load import apply_window
 
-    band = friction_band(model, phi, base, band_sigmas)
     es, rests, taus = [], [], []
     settle = SETTLE_TIME_CONSTANTS / (2 * np.pi * bandwidth_hz)
-    for ds in datasets:
+    warm_s = settle + velocity_window_s + (3.0 * tracking.time_constant_s if tracking is not None else 0.0)
+    for i, ds in enumerate(datasets):
         if ds.duration > CALIBRATION_MAX_S:
             ds = apply_window(ds, None, float(ds.t[0]) + CALIBRATION_MAX_S, source="calibration run")
-        res = run_residuals(model, phi, ds, bandwidth_hz, min_speed, band, tracking, velocity_window_s, measured)
-        keep = res.t - res.t[0] >= settle
-        if ds.contact is not None:  # a labelled run: its contacts, widened by CONTACT_MARGIN_S, are left out
-            keep &= ~_widened(res.t, np.asarray(ds.contact) != 0, CONTACT_MARGIN_S)
-        es.append(res.e[keep])
-        rests.append(res.at_rest[keep])
-        taus.append(res.tau_ext[keep])
-    e, rest, tau = np.vstack(es), np.vstack(rests), np.vstack(taus)
+        segments = [(0, ds.n_samples, phi)] if folds is None else folds.segments(i, ds.n_samples, phi)
+        warm = int(np.ceil(warm_s / ds.median_step()))
+        t0 = float(ds.t[0])
+        for lo, hi, phi_k in segments:
+            start = 0 if lo <= warm else lo - warm
+            part = ds if (start, hi) == (0, ds.n_samples) else ds.slice(start, hi)
+            band = friction_band(model, phi_k, base, band_sigmas)
+            res = run_residuals(model, phi_k, part, bandwidth_hz, min_speed, band, tracking, velocity_window_s,
+                                measured)
+            index = start + np.arange(res.t.size)
+            keep = (index >= lo) & (res.t - t0 >= settle)
+            if part.contact is not None:  # a labelled run: its contacts, widened by CONTACT_MARGIN_S, are left out
+                keep &= ~_widened(res.t, np.asarray(part.contact) != 0, CONTACT_MARGIN_S)
+            es.append(res.e[keep])
+            rests.append(res.at_rest[keep])
+            taus.append(res.tau_ext[keep])
+    return np.vstack(es), np.vstack(rests), np.vstack(taus)
+
+
+def momentum_detector(model: RobotModel, e: np.ndarray, rest: np.ndarray, tau: np.ndarray, alpha: float,
+                      min_speed: float, bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ, band_sigmas: float = BAND_SIGMAS,
+                      velocity_window_s: float = VELOCITY_WINDOW_S) -> MomentumDetector:
+    """Λ, T²_α, the sides' thresholds and the τ_ext noise from contact-free observer residuals."""
     if e.shape[0] < 100:
         raise DataError(f"{e.shape[0]} calibration samples for the momentum detector: too few")
     moving = (~rest).sum(axis=0)
@@ -149,20 +181,26 @@ def calibrate_momentum(model: RobotModel, phi: np.ndarray, base: BaseSection | N
 # The calibration made once, at fit time, and kept in the model file's `observer` section (docs/formats.md): `detect`
 # and `export` read it instead of running the observer over the identification runs again. Bumped whenever the
 # calibration's procedure changes (a stored one of another version is recomputed, as a file without one is).
-OBSERVER_VERSION = 1
+OBSERVER_VERSION = 2  # 2: cross-validated over the fit's time blocks (the model's `folds`); 1: in-sample
 
 
 def observer_record(identified, datasets: Sequence, monitor_alpha: float) -> ObserverSection:
     """The model file's `observer` section: the momentum detector calibrated on the fit's own (whole, contact-free)
     runs as `dynid detect` calibrates it by default (the data's q̇, α = ALPHA) and as `dynid export` does for the
-    monitor (its causal q̇, the model's α), with the sha256 of the runs it was calibrated on."""
+    monitor (its causal q̇, the model's α), with the sha256 of the runs it was calibrated on: cross-validated where the
+    model has its `folds`, with the detect entry's in-sample calibration beside (what `detect` compares against)."""
     model, phi = identified.robot_model, identified.phi
+    folds = identified.folds
     entries = {}
     for key, measured, alpha in (("detect", True, ALPHA), ("monitor", False, monitor_alpha)):
         det = calibrate_momentum(model, phi, identified.base, datasets, alpha, identified.min_speed,
-                                 tracking=identified.supply_tracking, measured=measured)
+                                 tracking=identified.supply_tracking, measured=measured, folds=folds)
+        in_sample = None
+        if folds is not None and key == "detect":
+            in_sample = calibrate_momentum(model, phi, identified.base, datasets, alpha, identified.min_speed,
+                                           tracking=identified.supply_tracking, measured=measured).section()
         entries[key] = ObserverEntry(det.alpha, det.bandwidth_hz, det.velocity_window_s, det.band_sigmas, measured,
-                                     det.section())
+                                     det.section(), CROSS_VALIDATED if folds is not None else IN_SAMPLE, in_sample)
     return ObserverSection(OBSERVER_VERSION, tuple(run.sha256 for run in identified.data), **entries)
 
 
@@ -189,6 +227,20 @@ def stored_detector(identified, use: str, alpha: float, bandwidth_hz: float, vel
     if any(data_digest(p) != d for p, d in zip(paths, stored)):
         return None
     return MomentumDetector.of(entry.detector)
+
+
+def stored_in_sample(identified, use: str = "detect") -> MomentumDetector | None:
+    """The in-sample calibration the fit kept beside its cross-validated one (for `detect`'s comparison); None where
+    it kept none (an older file, or a model without folds). Read after `stored_detector` accepted the entry."""
+    section = identified.observer
+    entry = None if section is None else section.entry(use)
+    return None if entry is None or entry.in_sample is None else MomentumDetector.of(entry.in_sample)
+
+
+def contact_free_rate(alarm: np.ndarray, contact: np.ndarray | None) -> float | None:
+    """The share of alarms among the samples without contact (all of them without labels); None: no such sample."""
+    free = np.ones(alarm.size, dtype=bool) if contact is None else np.asarray(contact) == 0
+    return float(alarm[free].mean()) if free.any() else None
 
 
 def _widened(t: np.ndarray, mask: np.ndarray, margin_s: float) -> np.ndarray:
@@ -274,16 +326,23 @@ def momentum_detection(identified, dataset, calibration: Sequence | None, alpha:
                        bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ, shift_s: float = 0.0,
                        side: np.ndarray | None = None,
                        velocity_window_s: float = VELOCITY_WINDOW_S,
-                       detector: MomentumDetector | None = None) -> MomentumDetection:
-    """Calibrate on the contact-free `calibration` runs (or take `detector`, calibrated already: the model file's,
-    `stored_detector`), then T², events and scores on `dataset`."""
+                       detector: MomentumDetector | None = None, folds: FoldsSection | None = None,
+                       in_sample: MomentumDetector | None = None) -> MomentumDetection:
+    """Calibrate on the contact-free `calibration` runs (cross-validated with the model's `folds` when they are the
+    runs it was fitted on), or take `detector`, calibrated already (the model file's, `stored_detector`), then T²,
+    events and scores on `dataset`; with `in_sample` (the detector the fit's own residuals calibrate) its FPR on the
+    same samples comes beside (`in_sample_fpr`)."""
     model, phi = identified.robot_model, identified.phi
     if identified.effects:
         raise DataError(f"{identified.path}: an augmented model (named effects) has no momentum residual yet; use "
                         "--residual acceleration")
     tracking = identified.supply_tracking
     det = detector or calibrate_momentum(model, phi, identified.base, calibration or [], alpha, identified.min_speed,
-                                         bandwidth_hz, tracking=tracking, velocity_window_s=velocity_window_s)
+                                         bandwidth_hz, tracking=tracking, velocity_window_s=velocity_window_s,
+                                         folds=folds)
+    if in_sample is None and detector is None and folds is not None:
+        in_sample = calibrate_momentum(model, phi, identified.base, calibration or [], alpha, identified.min_speed,
+                                       bandwidth_hz, tracking=tracking, velocity_window_s=velocity_window_s)
     band = friction_band(model, phi, identified.base, det.band_sigmas)
     res = run_residuals(model, phi, dataset, bandwidth_hz, identified.min_speed, band, tracking, velocity_window_s)
     stat = det.statistic(res.e, res.at_rest)
@@ -291,5 +350,7 @@ def momentum_detection(identified, dataset, calibration: Sequence | None, alpha:
     result["threshold"] = det.threshold
     result["statistic"] = "T²/T²_α (T²_α: calibrated, or rest_threshold where every row rests); a contact above 1"
     result["detector"] = det.as_dict()
+    if in_sample is not None:
+        result["in_sample_fpr"] = contact_free_rate(in_sample.statistic(res.e, res.at_rest) > 1.0, dataset.contact)
     events = contact_events(model, det, res, stat)
     return MomentumDetection(result, det, res, stat, events)

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import DataError
+from ..identify.model_sections import FoldsSection
 from ..identify.supply import SupplyTracking, tracked_residuals
 from ..io.derivatives import SavitzkyGolay
 from ..robot.effects import augmented_residuals
@@ -157,16 +158,28 @@ def online_times(est: FixedLagSavitzkyGolay, t: np.ndarray) -> np.ndarray:
 
 def calibrate_online(model: RobotModel, phi: np.ndarray, datasets: list, est: FixedLagSavitzkyGolay, alpha: float,
                      min_speed: float, stride: int = 2, effects: list | None = None,
-                     tracking: SupplyTracking | None = None, tau_map: np.ndarray | None = None) -> OnlineCalibration:
+                     tracking: SupplyTracking | None = None, tau_map: np.ndarray | None = None,
+                     folds: FoldsSection | None = None) -> OnlineCalibration:
     """Λ and the thresholds of dynid's calibrated detector, on contact-free data seen through the online filter
     (with the augmented model's `effects`, dynid.robot.effects, and the supply `tracking`, as the monitor evaluates
-    them; the tracker sees every `stride`-th sample, with the same time constant in seconds)."""
+    them; the tracker sees every `stride`-th sample, with the same time constant in seconds). With `folds` (the runs
+    are those the model was fitted on, in its `data` order) each time block's residual is taken through the Φ
+    fitted without it: cross-validated, what the monitor sees on a new run."""
     es, dqs = [], []
-    for ds in datasets:
+    for i, ds in enumerate(datasets):
         raw = raw_signals(model, ds)
         keep = slice(None, None, stride)
         sig = online_signals(model, est, *raw, gravity=gravity_per_sample(model, ds)).slice(keep)
-        e = augmented_residuals(model, phi, effects or [], sig)
+        if folds is None:
+            e = augmented_residuals(model, phi, effects or [], sig)
+        else:  # the filter's k-th estimate is of sample window − 1 − lag + k of the run
+            index = est.window - 1 - est.lag + stride * np.arange(sig.q.shape[0])
+            parts = []
+            for a, b, phi_k in folds.segments(i, ds.n_samples, phi):
+                lo, hi = np.searchsorted(index, a), np.searchsorted(index, b)
+                if hi > lo:
+                    parts.append(augmented_residuals(model, phi_k, effects or [], sig.slice(slice(lo, hi))))
+            e = np.vstack(parts)
         es.append(tracked_residuals(model, tracking, min_speed, e, sig, online_times(est, raw[0])[keep]))
         dqs.append(sig.dq)
     e, dq = np.vstack(es), np.vstack(dqs)

@@ -24,7 +24,8 @@ import numpy as np
 
 from ..errors import DataError
 from ..identify.fit import SignalSource
-from ..identify.model_sections import ALPHA, DEFAULT_N_MODE, DetectorSection, Quantiles, T2Calibration
+from ..identify.model_sections import (ALPHA, CROSS_VALIDATED, DEFAULT_N_MODE, IN_SAMPLE, DetectorSection,
+                                      Quantiles, T2Calibration)
 from ..identify.supply import SupplyTracking, smoothed_residuals
 from ..io.dataset import contact_episodes
 from ..robot.model import RobotModel
@@ -114,56 +115,83 @@ def calibration_stride(total_samples: int) -> int:
     return max(CALIBRATION_STRIDE, -(-int(total_samples) // MAX_CALIBRATION_SAMPLES))
 
 
+Segments = Sequence[tuple[int, int, np.ndarray]]  # [start, stop) of a run's samples and the Φ its residual takes
+
+
 def calibration_residuals(model: RobotModel, datasets: Sequence, settings,
-                          residual_of: Callable[[Signals, np.ndarray], np.ndarray],
-                          tracking: SupplyTracking | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(e, q̇, e with constant gains) on every `calibration_stride`-th sample of the contact-free runs, a chunk at
-    a time (bounded memory), with offline derivatives; residual_of(signals, t since the run's start) gives e of a
-    chunk. With `tracking`, e's input channels are those of the offline, two-sided supply estimate
-    (dynid.identify.supply.smoothed_residuals) of each run; without, the two residual arrays are the same."""
+                          residual_of: Callable[[Signals, np.ndarray, np.ndarray], np.ndarray],
+                          tracking: SupplyTracking | None = None, phi: np.ndarray | None = None,
+                          segments: Sequence[Segments | None] | None = None) -> tuple[np.ndarray, ...]:
+    """(e, q̇, e with constant gains, e in-sample) on every `calibration_stride`-th sample of the contact-free runs,
+    a chunk at a time (bounded memory), with offline derivatives; residual_of(signals, t since the run's start, Φ)
+    gives e of a chunk. With each run's `segments` (dynid.identify.model_sections.FoldsSection.segments), e is
+    cross-validated: each block's through the Φ fitted without it; the in-sample e (through `phi`) comes beside.
+    With `tracking`, the input channels are those of the offline, two-sided supply estimate
+    (dynid.identify.supply.smoothed_residuals) of each run; without, e and e with constant gains are the same."""
     stride = calibration_stride(sum(ds.n_samples for ds in datasets))
-    parts = [run_calibration_residuals(model, ds, settings, residual_of, tracking, stride) for ds in datasets]
+    parts = [run_calibration_residuals(model, ds, settings, residual_of, tracking, stride, phi,
+                                       None if segments is None else segments[i]) for i, ds in enumerate(datasets)]
     return join_calibration(parts)
 
 
-def join_calibration(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> tuple[np.ndarray, ...]:
-    """`calibration_residuals`' three arrays from each run's, in the runs' order."""
-    return tuple(np.vstack([p[i] for p in parts]) for i in range(3))  # type: ignore[return-value]
+def join_calibration(parts: Sequence[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, ...]:
+    """`calibration_residuals`' arrays from each run's, in the runs' order."""
+    return tuple(np.vstack([p[i] for p in parts]) for i in range(len(parts[0])))
 
 
 def run_calibration_residuals(model: RobotModel, ds, settings,  # noqa: ANN001 - a Run, FitSettings
-                              residual_of: Callable[[Signals, np.ndarray], np.ndarray],
-                              tracking: SupplyTracking | None, stride: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                              residual_of: Callable[[Signals, np.ndarray, np.ndarray], np.ndarray],
+                              tracking: SupplyTracking | None, stride: int, phi: np.ndarray | None = None,
+                              segments: Segments | None = None) -> tuple[np.ndarray, ...]:
     """One run's part of `calibration_residuals` (a task of its own on a Dask cluster)."""
     source = SignalSource(model, ds, settings, instruments=False)
     keep = slice(None, None, stride)
     chunk = stride * (CALIBRATION_CHUNK // stride)  # about CALIBRATION_CHUNK samples, a multiple of the stride
     t0 = float(ds.times(0, 1)[0])
-    run_e, run_dq, run_t, run_inputs = [], [], [], []
+    run_e, run_in, run_dq, run_t, run_inputs = [], [], [], [], []
     for lo in range(0, ds.n_samples, chunk):
         hi = min(lo + chunk, ds.n_samples)
         sig = source(lo, hi)[0].slice(keep)
         t = ds.times(lo, hi)[keep].copy()
-        run_e.append(residual_of(sig, t - t0))
+        e_in = residual_of(sig, t - t0, phi)
+        run_in.append(e_in)
+        run_e.append(e_in if segments is None else _segment_residuals(sig, t - t0, lo, stride, segments, residual_of))
         # Copies: a strided view would keep its whole chunk alive, and every chunk of the run with it
         run_dq.append(sig.dq.copy())
         run_t.append(t)
         run_inputs.append({m: v.copy() for m, v in sig.inputs.items()})
-    e, dq = np.vstack(run_e), np.vstack(run_dq)
+    e, e_in, dq = np.vstack(run_e), np.vstack(run_in), np.vstack(run_dq)
     constant = e
     if tracking is not None:  # two-sided over the whole run (the strided samples: the same seconds)
         inputs = {m: np.concatenate([part[m] for part in run_inputs]) for m in run_inputs[0]}
         whole = Signals(dq, dq, dq, inputs, {}, {})  # the tracker reads q̇ and the inputs only
-        e = smoothed_residuals(model, tracking, settings.min_speed, e, whole, np.concatenate(run_t))
-    return e, dq, constant
+        t_all = np.concatenate(run_t)
+        e = smoothed_residuals(model, tracking, settings.min_speed, e, whole, t_all)
+        e_in = e if segments is None else smoothed_residuals(model, tracking, settings.min_speed, e_in, whole, t_all)
+    return e, dq, constant, e_in
+
+
+def _segment_residuals(sig: Signals, t: np.ndarray, lo: int, stride: int, segments: Segments,
+                       residual_of: Callable[[Signals, np.ndarray, np.ndarray], np.ndarray]) -> np.ndarray:
+    """e of a strided chunk whose first sample is the run's sample `lo`: each segment's samples through its Φ."""
+    index = lo + stride * np.arange(t.size)  # the run's sample of each row
+    parts = []
+    for a, b, phi in segments:
+        i, j = np.searchsorted(index, a), np.searchsorted(index, b)
+        if j > i:
+            parts.append(residual_of(sig.slice(slice(i, j)), t[i:j], phi))
+    return np.vstack(parts)
 
 
 def detector_record(model: RobotModel, detectors: dict[str, Detector], e: np.ndarray,
-                    dq: np.ndarray) -> DetectorSection:
-    """The model file's `detector` section: both variants, N, and the calibrated T²'s quantiles (`--alpha`)."""
+                    dq: np.ndarray, in_sample: Detector | None = None) -> DetectorSection:
+    """The model file's `detector` section: both variants, N, the calibrated T²'s quantiles (`--alpha`), and with
+    `in_sample` (e cross-validated) the calibrated variant as the fit's own residuals would have calibrated it."""
     t2 = detectors["calibrated"].t2(model, e, dq)
     return DetectorSection(detectors["paper"].section(), detectors["calibrated"].section(), int(e.shape[0]),
-                           Quantiles(QUANTILE_LEVELS.copy(), np.quantile(t2, QUANTILE_LEVELS)))
+                           Quantiles(QUANTILE_LEVELS.copy(), np.quantile(t2, QUANTILE_LEVELS)),
+                           CROSS_VALIDATED if in_sample is not None else IN_SAMPLE,
+                           None if in_sample is None else in_sample.section())
 
 
 def calibrate(model: RobotModel, phi: np.ndarray, e: np.ndarray, dq: np.ndarray, alpha: float = ALPHA,

@@ -143,8 +143,10 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
         raise DataError(f"{identified.path}: an augmented model (named effects) has no momentum residual yet; export "
                         "it with --residual acceleration")
     events = settings.events_for(residual)
+    # On the runs it was fitted on, each time block's residual through the Φ fitted without it (docs/detection.md)
+    folds = None if settings.data or effects else identified.folds
     cal = calibrate_online(model, identified.phi, datasets, est, alpha, min_speed, effects=effects, tracking=tracking,
-                           tau_map=external_torque_map(model))
+                           tau_map=external_torque_map(model), folds=folds)
     detector = MonitorDetector(cal.variance, cal.threshold, cal.ft_thresholds, alpha, min_speed, cal.samples, events,
                                cal.tau_variance)
     observer, note = None, "an augmented model's effects have no momentum form yet" if effects else ""
@@ -181,7 +183,8 @@ def monitor_observer(identified: IdentifiedModel, datasets: Sequence[Dataset], a
                                                      VELOCITY_WINDOW_S, min_speed=min_speed)
     if det is None:
         det = calibrate_momentum(model, phi, identified.base, datasets, alpha, min_speed, settings.bandwidth_hz,
-                                 tracking=identified.supply_tracking, measured=False)
+                                 tracking=identified.supply_tracking, measured=False,
+                                 folds=None if settings.data else identified.folds)
     band = friction_band(model, phi, identified.base, det.band_sigmas)
     return MonitorObserver(det, velocity_window_samples(datasets[0].t, det.velocity_window_s), band)
 

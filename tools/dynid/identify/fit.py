@@ -91,6 +91,10 @@ class Estimate:
     se_blocks: np.ndarray | None = None  # delete-one-time-block jackknife (within runs): today's only error
     se_runs: np.ndarray | None = None  # delete-one-unit jackknife over runs (or pairs); None with one unit
     units: np.ndarray | None = None  # (units, rank) the estimate of each unit alone (directions it misses: prior)
+    # (B, p) a full Φ fitted without each time block (the jackknife's folds), and which of them the jackknife kept (an
+    # IV fold that did not settle is left out): each block's residual through its fold's Φ is out of sample
+    folds: np.ndarray | None = None
+    folds_kept: np.ndarray | None = None
 
 
 @dataclass
@@ -360,7 +364,8 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
             alone = np.array([_estimate(name, stats, ~f, base, settings, nu, inputs, beta, beta_prior)[0]
                               for f in unit_folds])
         se = se_blocks if se_runs is None else np.maximum(se_blocks, se_runs)
-        estimates[name] = Estimate(name, beta, se, expand(base, beta, prior), detail, se_blocks, se_runs, alone)
+        estimates[name] = Estimate(name, beta, se, expand(base, beta, prior), detail, se_blocks, se_runs, alone,
+                                   np.array([expand(base, b, prior) for b in jack]), settled_folds)
     chosen_name = settings.estimator
     consistent = None
     if settings.consistent:
@@ -495,7 +500,8 @@ def _consistent(model: RobotModel, stats: Statistics, base: BaseParameters, unco
     if "last_step" in unconstrained.detail:  # the IV iterate it starts from: settled or not
         detail["last_step"] = unconstrained.detail["last_step"]
         detail["iterations"] = unconstrained.detail.get("iterations")
-    return record, Estimate(CONSISTENT, base.base(done.phi), _jackknife_se(fold_betas), done.phi, detail)
+    return record, Estimate(CONSISTENT, base.base(done.phi), _jackknife_se(fold_betas), done.phi, detail,
+                            folds=np.asarray(done.folds, float), folds_kept=np.ones(len(done.folds), dtype=bool))
 
 
 def _unseen(gram: np.ndarray, base: BaseParameters) -> np.ndarray:

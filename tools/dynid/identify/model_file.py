@@ -24,6 +24,8 @@ JSON (``format: dynid-model``, ``format_version: 1``), written atomically:
     derivatives       the offline derivative estimator (the configuration's)
     data              [{path, sha256, samples, duration_s, payload?, window?, bad_rows?}]: what it was fitted on
     detector          calibration for T² (added by the fit; see dynid.detect.t2)
+    folds             {run, samples, parameters, in_sample}: the fit's time blocks and the Φ fitted without each;
+                      the detectors are calibrated on each block's residual through its own fold's Φ
     effects           (format_version 2, written by `dynid gaps --out`) the named missing effects, refitted with
                       the standard parts (dynid.robot.effects); `gaps` what the refit was made on and its gap
 """
@@ -45,8 +47,8 @@ from ..io.dataset import SIMULATION_DATASET, atomic_write
 from ..robot.effects import Effect, check_effect_targets, finite_number, parse_effects
 from ..robot.model import RobotModel
 from .model_schema import check_sections
-from .model_sections import (BaseSection, ConsistentFit, DataRun, DetectorSection, EstimatorSection, GapsSection,
-                             ObserverSection, OutputsSection, Payload, RobotSection, Settings, T2Calibration, section)
+from .model_sections import (BaseSection, ConsistentFit, DataRun, DetectorSection, EstimatorSection, FoldsSection,
+                             GapsSection, ObserverSection, OutputsSection, Payload, RobotSection, Settings, T2Calibration, section)
 from .supply import SupplyTracking
 
 FORMAT_NAME = "dynid-model"
@@ -75,6 +77,7 @@ class IdentifiedModel:
     derivatives: dict[str, Any] | None = None  # the offline derivative estimator (the configuration's)
     data: tuple[DataRun, ...] = ()
     observer: ObserverSection | None = None
+    folds: FoldsSection | None = None  # the Φ fitted without each time block (None: an older file, or gaps' refit)
     fit_time_s: float | None = None
     plausibility: list[dict[str, Any]] | None = None
     named_effects: tuple[Effect, ...] | None = None  # `effects` as written (format_version 2); `effects` checks them
@@ -167,6 +170,7 @@ class IdentifiedModel:
             ("detector", None if self.detector is None else self.detector.to_json()),
             ("derivatives", self.derivatives), ("data", [run.to_json() for run in self.data] or None),
             ("observer", None if self.observer is None else self.observer.to_json()),
+            ("folds", None if self.folds is None else self.folds.to_json()),
             ("fit_time_s", self.fit_time_s), ("plausibility", self.plausibility),
             ("effects", None if self.named_effects is None else [e.as_dict() for e in self.named_effects]),
             ("gaps", None if self.gaps is None else self.gaps.to_json())]
@@ -273,6 +277,7 @@ _BUILDERS: dict[str, Any] = {
     "cad_ft_offsets": lambda v: np.asarray(v, float), "supply_tracking": SupplyTracking.from_dict,
     "outputs": OutputsSection.from_json, "detector": DetectorSection.from_json, "derivatives": dict,
     "data": lambda runs: tuple(DataRun.from_json(r) for r in runs), "observer": ObserverSection.from_json,
+    "folds": FoldsSection.from_json,
     "fit_time_s": float, "plausibility": list, "effects": parse_effects, "gaps": GapsSection.from_json,
 }
 

@@ -42,12 +42,12 @@ _DETECTOR = {"variant": TEXT, "variance": ListOf(NUMBER), "threshold": NUMBER, "
 _ESTIMATOR = {"values": ListOf(NUMBER), "standard_errors": ListOf(NUMBER), "detail": Opt(MapOf(ANY)),
               "parameters": Opt(MapOf(NUMBER))}
 
+_MOMENTUM = {"variance": ListOf(NUMBER), "tau_variance": ListOf(NUMBER), "threshold": NUMBER,
+             "alpha": NUMBER, "min_speed": NUMBER, "band_sigmas": NUMBER, "bandwidth_hz": NUMBER,
+             "ft_thresholds": MapOf(NUMBER), "calibration_samples": INTEGER,
+             "velocity_window_s": NUMBER, "quantiles": MapOf(ANY)}
 _OBSERVER = {"alpha": NUMBER, "bandwidth_hz": NUMBER, "velocity_window_s": NUMBER, "band_sigmas": NUMBER,
-             "measured": FLAG,
-             "detector": {"variance": ListOf(NUMBER), "tau_variance": ListOf(NUMBER), "threshold": NUMBER,
-                          "alpha": NUMBER, "min_speed": NUMBER, "band_sigmas": NUMBER, "bandwidth_hz": NUMBER,
-                          "ft_thresholds": MapOf(NUMBER), "calibration_samples": INTEGER,
-                          "velocity_window_s": NUMBER, "quantiles": MapOf(ANY)}}
+             "measured": FLAG, "detector": _MOMENTUM, "calibration": Opt(TEXT), "in_sample": Opt(_MOMENTUM)}
 
 # Top-level sections: each may be absent (robot, parameters and outputs are required, and model_file.load_model says
 # so first), but one that is there must have this shape; null is refused where the readers take the section as an
@@ -61,7 +61,8 @@ SECTIONS: dict[str, Any] = {
                  "consistent": Opt(FLAG), "consistent_sphere": Opt(FLAG), "cad_pull": Opt(FLAG),
                  "n_components": Opt(INTEGER), "blocks": Opt(INTEGER), "instrument_window_s": Opt(NUMBER)},
     "detector": {"paper": _DETECTOR, "calibrated": _DETECTOR, "calibration_samples": INTEGER,
-                 "calibrated_t2_quantiles": {"levels": ListOf(NUMBER), "values": ListOf(NUMBER)}},
+                 "calibrated_t2_quantiles": {"levels": ListOf(NUMBER), "values": ListOf(NUMBER)},
+                 "calibration": Opt(TEXT), "in_sample": Opt(_DETECTOR)},
     "base": {"rank": INTEGER, "combinations": ListOf(TEXT), "independent": ListOf(TEXT), "dependent": ListOf(TEXT),
              "K": ListOf(ANY), "values": ListOf(NUMBER), "standard_errors": ListOf(NUMBER),
              "identified": ListOf(FLAG)},
@@ -81,6 +82,10 @@ SECTIONS: dict[str, Any] = {
     "consistent": Opt({"status": TEXT, "from": TEXT}),
     "plausibility": ListOf(MapOf(ANY)),
     "fit_time_s": NUMBER,
+    # the fit's time blocks and the Φ fitted without each (dynid.identify.model_sections.FoldsSection); absent in
+    # older files, whose detectors were calibrated in-sample
+    "folds": {"run": ListOf(INTEGER), "samples": ListOf(ListOf(INTEGER)), "parameters": ListOf(ListOf(NUMBER)),
+              "in_sample": Opt(ListOf(INTEGER))},
     # the momentum observer calibrated at fit time (dynid.detect.momentum_t2.observer_record); absent in older files
     "observer": {"version": INTEGER, "data_sha256": ListOf(Opt(TEXT)), "detect": Opt(_OBSERVER),
                  "monitor": Opt(_OBSERVER)},

@@ -22,9 +22,9 @@ from ..errors import DataError
 from ..io.bad_rows import DEFAULT_POLICY
 from ..robot.regressors.stack import DEFAULT_MIN_SPEED
 
-__all__ = ["ALPHA", "DEFAULT_BLOCKS", "DEFAULT_ESTIMATOR", "DEFAULT_MIN_SPEED", "DEFAULT_N_MODE", "INSTRUMENT_WINDOW_S",
+__all__ = ["ALPHA", "CROSS_VALIDATED", "DEFAULT_BLOCKS", "DEFAULT_ESTIMATOR", "DEFAULT_MIN_SPEED", "DEFAULT_N_MODE", "INSTRUMENT_WINDOW_S",
            "N_MODES", "BaseSection", "ConsistentFit", "DataRun", "DetectorSection", "EstimatorSection", "GapsSection",
-           "MomentumCalibration", "ObserverEntry", "ObserverSection", "OutputsSection", "Payload", "Quantiles",
+           "FoldsSection", "IN_SAMPLE", "MomentumCalibration", "ObserverEntry", "ObserverSection", "OutputsSection", "Payload", "Quantiles",
            "RobotSection", "Settings", "T2Calibration", "Uncertainty"]
 
 ALPHA = 0.99  # the T² detectors' confidence level, unless the fit was given another (`--alpha`)
@@ -32,6 +32,9 @@ N_MODES = ("dim", "nu")  # n of the paper's F threshold: dim(e) (the default, do
 DEFAULT_N_MODE = "dim"
 DEFAULT_ESTIMATOR = "iv"  # the best measured on the simulated arm (README: gains within 1.2 %, against −9…−11 % for OLS and PLS)
 DEFAULT_BLOCKS = 10  # time blocks of the cross-validation and the jackknife
+# What the detectors' Λ and T²_α were calibrated on: each time block's residual through the Φ fitted without it (the
+# default since issue 30), or the fit's own residuals (files of an earlier dynid; a gap workflow's refit)
+CROSS_VALIDATED, IN_SAMPLE = "cross-validated", "in-sample"
 INSTRUMENT_WINDOW_S = 0.2  # the IV instruments' smoothing window (dynid.identify.fit)
 
 Json = dict[str, Any]
@@ -296,20 +299,30 @@ class DetectorSection:
     calibrated: T2Calibration
     calibration_samples: int
     calibrated_t2_quantiles: Quantiles
+    calibration: str = IN_SAMPLE  # CROSS_VALIDATED or IN_SAMPLE (files of an earlier dynid: in-sample)
+    # the calibrated variant as the fit's own (in-sample) residuals calibrate it, beside a cross-validated one
+    in_sample: T2Calibration | None = None
     extra: Json = field(default_factory=dict, compare=False)
 
-    KEYS = ("paper", "calibrated", "calibration_samples", "calibrated_t2_quantiles")
+    KEYS = ("paper", "calibrated", "calibration_samples", "calibrated_t2_quantiles", "calibration", "in_sample")
 
     @classmethod
     def from_json(cls, d: Json) -> DetectorSection:
+        calibration = str(d.get("calibration", IN_SAMPLE))
+        if calibration not in (CROSS_VALIDATED, IN_SAMPLE):
+            raise ValueError(f"detector.calibration is '{calibration}' ({CROSS_VALIDATED} or {IN_SAMPLE})")
         return cls(T2Calibration.from_json(d["paper"]), T2Calibration.from_json(d["calibrated"]),
-                   int(d["calibration_samples"]), Quantiles.from_json(d["calibrated_t2_quantiles"]),
-                   _extra(d, cls.KEYS))
+                   int(d["calibration_samples"]), Quantiles.from_json(d["calibrated_t2_quantiles"]), calibration,
+                   T2Calibration.from_json(d["in_sample"]) if d.get("in_sample") else None, _extra(d, cls.KEYS))
 
     def to_json(self) -> Json:
-        return {"paper": self.paper.to_json(), "calibrated": self.calibrated.to_json(),
-                "calibration_samples": self.calibration_samples,
-                "calibrated_t2_quantiles": self.calibrated_t2_quantiles.to_json(), **self.extra}
+        out = {"paper": self.paper.to_json(), "calibrated": self.calibrated.to_json(),
+               "calibration_samples": self.calibration_samples,
+               "calibrated_t2_quantiles": self.calibrated_t2_quantiles.to_json(), "calibration": self.calibration,
+               **self.extra}
+        if self.in_sample is not None:
+            out["in_sample"] = self.in_sample.to_json()
+        return out
 
 
 @dataclass(frozen=True)
@@ -386,6 +399,50 @@ class DataRun:
 
 
 @dataclass(frozen=True)
+class FoldsSection:
+    """`folds`: the fit's time blocks and the Φ fitted without each, so that every block's residual can be taken
+    with parameters that never saw it (cross-validated residuals: what a new run would see). The detectors'
+    Λ and T²_α are calibrated on those (dynid.detect: `fold_segments`), not on the fit's in-sample residuals."""
+
+    run: np.ndarray  # (B,) index of the run (the model's `data` order) each block belongs to
+    samples: np.ndarray  # (B, 2) [start, stop) of the block, in that run's own samples (as fitted: its window)
+    parameters: np.ndarray  # (B, p) Φ fitted without the block (the layout's order)
+    # blocks whose fold estimate the model does not use (an IV iteration that did not settle, left out of the
+    # jackknife too): their samples take the whole fit's Φ, in-sample
+    in_sample: tuple[int, ...] = ()
+
+    @classmethod
+    def from_json(cls, d: Json) -> FoldsSection:
+        run, samples, parameters = _array(d["run"], int), _array(d["samples"], int), _array(d["parameters"])
+        B = run.size
+        if run.ndim != 1 or samples.shape != (B, 2) or parameters.ndim != 2 or parameters.shape[0] != B:
+            raise ValueError("folds need one run, one [start, stop) and one parameter vector per block")
+        if np.any(samples[:, 1] <= samples[:, 0]) or np.any(samples < 0) or np.any(run < 0):
+            raise ValueError("a fold's samples must be a non-empty [start, stop) of a run")
+        return cls(run, samples, parameters, tuple(int(k) for k in d.get("in_sample", ())))
+
+    def to_json(self) -> Json:
+        return {"run": self.run.tolist(), "samples": self.samples.tolist(), "parameters": self.parameters.tolist(),
+                "in_sample": list(self.in_sample)}
+
+    def segments(self, run: int, n_samples: int, phi: np.ndarray) -> list[tuple[int, int, np.ndarray]]:
+        """[start, stop) and the Φ that never saw them, covering samples 0 … n_samples of run `run`: each block's
+        fold Φ, the whole fit's `phi` on samples no block holds (none, for a run read as fitted)."""
+        out: list[tuple[int, int, np.ndarray]] = []
+        at = 0
+        for k in np.flatnonzero(self.run == run)[np.argsort(self.samples[self.run == run, 0])]:
+            lo, hi = (int(min(v, n_samples)) for v in self.samples[k])
+            if lo > at:
+                out.append((at, lo, phi))
+            if hi > lo:
+                out.append((lo, hi, phi if int(k) in self.in_sample else self.parameters[k]))
+            at = max(at, hi)
+        if at < n_samples:
+            out.append((at, n_samples, phi))
+        return out
+
+
+@dataclass(frozen=True)
 class MomentumCalibration:
     """The momentum observer's detector as calibrated (dynid.detect.momentum_t2.MomentumDetector is built from it)."""
 
@@ -431,15 +488,25 @@ class ObserverEntry:
     band_sigmas: float
     measured: bool  # q̇ the data's own (detect) or the monitor's causal estimate (export)
     detector: MomentumCalibration
+    calibration: str = IN_SAMPLE  # CROSS_VALIDATED (the fit's folds) or IN_SAMPLE
+    in_sample: MomentumCalibration | None = None  # beside a cross-validated one: the fit's own residuals' calibration
 
     @classmethod
     def from_json(cls, d: Json) -> ObserverEntry:
+        calibration = str(d.get("calibration", IN_SAMPLE))
+        if calibration not in (CROSS_VALIDATED, IN_SAMPLE):
+            raise ValueError(f"observer calibration is '{calibration}' ({CROSS_VALIDATED} or {IN_SAMPLE})")
         return cls(float(d["alpha"]), float(d["bandwidth_hz"]), float(d["velocity_window_s"]), float(d["band_sigmas"]),
-                   bool(d["measured"]), MomentumCalibration.from_json(d["detector"]))
+                   bool(d["measured"]), MomentumCalibration.from_json(d["detector"]), calibration,
+                   MomentumCalibration.from_json(d["in_sample"]) if d.get("in_sample") else None)
 
     def to_json(self) -> Json:
-        return {"alpha": self.alpha, "bandwidth_hz": self.bandwidth_hz, "velocity_window_s": self.velocity_window_s,
-                "band_sigmas": self.band_sigmas, "measured": self.measured, "detector": self.detector.to_json()}
+        out = {"alpha": self.alpha, "bandwidth_hz": self.bandwidth_hz, "velocity_window_s": self.velocity_window_s,
+               "band_sigmas": self.band_sigmas, "measured": self.measured, "detector": self.detector.to_json(),
+               "calibration": self.calibration}
+        if self.in_sample is not None:
+            out["in_sample"] = self.in_sample.to_json()
+        return out
 
 
 @dataclass(frozen=True)

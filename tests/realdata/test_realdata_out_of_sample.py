@@ -1,0 +1,70 @@
+"""α out of sample on real robots (issue 30): false positives at α = 0.99 on contact-free data the fit and its
+(cross-validated) calibration never saw. Figures and the misses: docs/detection.md#out-of-sample."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from . import cli, convert
+
+UR = convert.REALDATA / "ur10e_mamedov"
+LEG = convert.REALDATA / "icub_leg_insitu"
+pytestmark = pytest.mark.skipif(not convert.REALDATA.is_dir(), reason=f"no real data at {convert.REALDATA}")
+
+
+def held_out(result: dict, variant: str = "momentum") -> tuple[float, float | None]:
+    oos = result["out_of_sample"]
+    assert oos["data_outside_fit_and_calibration"] is True
+    v = oos["variants"][variant]
+    assert v["calibration"] == "cross-validated"
+    return v["fpr"], v["in_sample_calibration_fpr"]
+
+
+@pytest.mark.skipif(not UR.is_dir(), reason=f"no UR10e data at {UR}")
+def test_ur10e_contact_runs_outside_their_episodes(tmp_path: Path) -> None:
+    model = tmp_path / "ur.json"
+    cli.dynid("fit", "--robot", "ur10e_known_gains", "--urdf", str(UR / "ur10e.urdf"), "--data",
+              str(UR / "identification" / "ur-20_02_19_14harm50sec.csv"), "--out", str(model))
+    figures = {}
+    for name in ("collision_3link", "ur-20_01_22-push_pose_1"):
+        run = UR / "contact" / f"{name}.csv"
+        figures[name] = held_out(cli.dynid("detect", "--model", str(model), "--data", str(run), "--episodes",
+                                           str(UR / "contact" / f"{name}.episodes.csv"), "--label-widening", "0.1"))
+    print(f"UR10e momentum FPR cross-validated / in-sample: {figures}")
+    fpr, in_sample = figures["collision_3link"]
+    assert fpr <= 0.02 and fpr < in_sample  # measured 1.03 % against 1.35 %
+    assert figures["ur-20_01_22-push_pose_1"][0] <= 0.02  # measured 0.00 %
+
+
+def test_panda_last_third(tmp_path: Path) -> None:
+    full = tmp_path / "full.csv"
+    convert.convert_panda().write(full)
+    lines = full.read_text().splitlines()
+    n = len(lines) - 1
+    train, test = tmp_path / "train.csv", tmp_path / "test.csv"
+    train.write_text("\n".join([lines[0], *lines[1 : 1 + 2 * n // 3]]) + "\n")
+    test.write_text("\n".join([lines[0], *lines[1 + 2 * n // 3 :]]) + "\n")
+    model = tmp_path / "panda.json"
+    cli.dynid("fit", "--robot", "panda", "--data", str(train), "--out", str(model))
+    result = cli.dynid("detect", "--model", str(model), "--data", str(test))
+    momentum, calibrated = held_out(result), held_out(result, "calibrated")
+    print(f"Panda last third: momentum {momentum}, calibrated {calibrated} (cross-validated, in-sample)")
+    assert momentum[0] <= 0.02  # measured 1.07 % (in-sample calibration 1.21 %)
+    assert calibrated[0] <= 0.02 and calibrated[0] < calibrated[1]  # measured 0.73 % against 1.72 %
+
+
+@pytest.mark.skipif(not (LEG / "dumperLeftLegNoIMU").is_dir(), reason=f"no iCub leg data at {LEG}")
+def test_icub_leg_swing_left_out(tmp_path: Path) -> None:
+    """Fitted on the swing's second half, the first half (14-39.5 s, after the lift-off transient) is held out. The
+    other way round is not met (6.2 %: docs/detection.md#out-of-sample says why) and is not asserted."""
+    leg = LEG / "dumperLeftLegNoIMU"
+    model = tmp_path / "leg.json"
+    cli.dynid("fit", "--robot", "icub_right_leg_standing", "--urdf", str(LEG / "iCubGenova02.urdf"), "--data",
+              str(leg), "--from", "39.5", "--to", "65", "--out", str(model), keep_urdf_path=False)
+    result = cli.dynid("detect", "--model", str(model), "--data", str(leg), "--from", "14", "--to", "39.5",
+                       keep_urdf_path=False)
+    fpr, in_sample = held_out(result)
+    print(f"iCub leg swing 14-39.5 s: momentum FPR {100 * fpr:.2f} % (in-sample calibration {100 * in_sample:.2f} %)")
+    assert fpr <= 0.02 and fpr < in_sample  # measured 1.49 % against 6.55 %
