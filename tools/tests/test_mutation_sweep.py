@@ -3,9 +3,9 @@ of the monitor configuration and of a CRC-valid coefficient file, replayed throu
 contact run, is refused at load, flagged by the watchdog, or gives the unmutated replay's events. The full sweep:
 `.venv/bin/python tools/benchmarks/mutation_sweep.py --append-docs`.
 
-What stays silent is what no monitor can tell from the right value, and it is named here: a model whose friction
-or gating is another plausible one (a frictionless joint, a motor never gated), and a PWM zero off by one duty on a
-motor whose duty stays within ±1 (docs/fuzzing.md)."""
+What stays silent is what no monitor can tell from the right value, and it is named here: a model whose friction,
+gating or supply tracking is another plausible one (a frictionless joint, a motor never gated, tracking off), and a
+PWM zero off by one duty on a motor whose duty stays within ±1 (docs/fuzzing.md)."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ SPEC.loader.exec_module(sweep_module)
 
 # Plausible in isolation, so nothing at load or at run time can refuse them: the known silent class.
 UNDETECTABLE_FIELDS = ("joint_friction", "motor_friction", "motor_friction_on", "gate_joints", "gate_motors",
-                       "min_speed")
+                       "min_speed", "supply_time_constant", "supply_prior", "supply_gate")
 
 
 def undetectable(b: dict) -> bool:
