@@ -440,9 +440,10 @@ FLAGS = [
           make=spoiled("coef", "c.dcoef", flip(0.4))),
     dynid("export-print-a-directory", "export", "--print", "{in}", says="coefficient file not found"),
     # Found by this sweep: a forged file (valid CRC) whose indices run past its joint count, which the monitor
-    # refuses (exit 18), was an IndexError traceback here; now dumped with the index marked (the control).
-    accepted(dynid("export-print-forged-joint-count", "export", "--print", "{in}/c.dcoef", says="",
-                   make=coef(coef_field("n_joints", 3))), prints="(out of range)"),
+    # refuses (exit 18), was an IndexError traceback here; then dumped with the index marked; now refused as the
+    # monitor's plausibility refuses it (a motor left coupled to no joint).
+    dynid("export-print-forged-joint-count", "export", "--print", "{in}/c.dcoef",
+          says="its largest coupling ratio (it drives no joint) is 0", make=coef(coef_field("n_joints", 3))),
     dynid("gaps-figures-onto-a-file", "gaps", "--data", D, "--figures", "{in}/f",
           says="cannot write to '{in}/f' (--figures): it exists and is not a directory", make=raw("f", b"keep me")),
     dynid("gaps-out-into-missing-directory", "gaps", "--data", D, "--out", "{out}/no/m.json", says="does not exist"),

@@ -12,8 +12,8 @@ from ..config.bus import LOAD_LIMIT
 from ..config.robot_config import load_config
 from ..errors import InputError
 from ..export.coefficients import (
-    DEFAULT_DEBOUNCE_OFF,
-    DEFAULT_DEBOUNCE_ON,
+    DEFAULT_END_S,
+    DEFAULT_ONSET_S,
     DEFAULT_HYSTERESIS,
     MAX_WINDOW,
     EventSettings,
@@ -26,7 +26,7 @@ from ..identify.model_file import load_model
 from .commands import COMMANDS
 from .common import check_outputs
 from .common import confidence as alpha
-from .common import int_in, json_arg, positive_float
+from .common import int_in, json_arg, positive_float, split_data_window
 from .common import non_negative_int as lag
 
 
@@ -42,8 +42,10 @@ def _settings(args: argparse.Namespace) -> ExportSettings:
         fallback = (default.debounce_on, default.debounce_off, default.hysteresis)
         return EventSettings(*(g if g is not None else d for g, d in zip(given, fallback)))
 
-    return ExportSettings(args.data or (), args.lag, args.window, args.alpha, events(EventSettings()),
-                          args.residual, args.bandwidth, events(MOMENTUM_EVENTS), args.rate or 1000.0)
+    split = [split_data_window(text) for text in args.data or ()]  # --data RUN@FROM:TO, as every command takes it
+    return ExportSettings(tuple(p for p, _ in split), tuple(w for _, w in split), args.lag, args.window, args.alpha,
+                          events(EventSettings()), args.residual, args.bandwidth, events(MOMENTUM_EVENTS),
+                          args.rate or 1000.0)
 
 
 def _export_bus(args: argparse.Namespace) -> dict[str, Any]:
@@ -258,10 +260,11 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--bandwidth", type=positive_float, default=DEFAULT_BANDWIDTH_HZ, metavar="HZ",
                     help=f"the momentum observer's bandwidth K_O/2π (default {DEFAULT_BANDWIDTH_HZ:g} Hz)")
     sp.add_argument("--debounce-on", type=int_in(1, MAX_DEBOUNCE), default=None, metavar="N",
-                    help=f"samples above T²_α for an onset (default {DEFAULT_DEBOUNCE_ON} with acceleration, "
-                    f"{MOMENTUM_EVENTS.debounce_on} with momentum)")
+                    help=f"samples above T²_α for an onset (default {DEFAULT_ONSET_S * 1e3:g} ms of samples at the "
+                    "file's rate: 10 at 1 kHz, 1 at 100 Hz)")
     sp.add_argument("--debounce-off", type=int_in(1, MAX_DEBOUNCE), default=None, metavar="N",
-                    help=f"samples below the hysteresis level for an end (default {DEFAULT_DEBOUNCE_OFF})")
+                    help=f"samples below the hysteresis level for an end (default {DEFAULT_END_S * 1e3:g} ms of "
+                    "samples: 100 at 1 kHz)")
     sp.add_argument("--hysteresis", type=fraction, default=None,
                     help=f"end level as a fraction of T²_α (default {DEFAULT_HYSTERESIS})")
     json_arg(sp)

@@ -53,7 +53,9 @@ NO_LIMIT = 1e6  # rad or m: the range written for a joint without limits (plausi
 # Events, not samples: the filtered residuals are autocorrelated over the filter window, so single samples above
 # T²_α come in bursts. On the default simulated runs, 5 samples gave an onset every 3 s on contact-free data;
 # 10 gave none there and caught 21 of the contact run's 28 episodes (rt_monitor/README.md).
-DEFAULT_DEBOUNCE_ON, DEFAULT_DEBOUNCE_OFF, DEFAULT_HYSTERESIS = 10, 100, 0.5
+# The default debounce is a time, counted in samples at the file's rate: 10 and 100 samples at 1 kHz, 1 and 10 at
+# 100 Hz (where 10 samples, 100 ms, outlast the UR10e's collisions: the monitor found none of 11)
+DEFAULT_ONSET_S, DEFAULT_END_S, DEFAULT_HYSTERESIS = 0.010, 0.100, 0.5
 
 
 def wrap(payload: bytes, version: int = FILE_VERSION) -> bytes:
@@ -128,9 +130,15 @@ def _joint(model: RobotModel, jid: int) -> tuple[int, np.ndarray]:
 class EventSettings:
     """How the monitor turns T² samples into contact events."""
 
-    debounce_on: int = DEFAULT_DEBOUNCE_ON  # samples above T²_α for an onset
-    debounce_off: int = DEFAULT_DEBOUNCE_OFF  # samples below the hysteresis level for an end
+    debounce_on: int | None = None  # samples above T²_α for an onset (None: DEFAULT_ONSET_S at the file's rate)
+    debounce_off: int | None = None  # samples below the hysteresis level for an end (None: DEFAULT_END_S)
     hysteresis: float = DEFAULT_HYSTERESIS  # the end level as a fraction of T²_α
+
+    def at(self, period: float) -> EventSettings:
+        """The counts at a sample period of `period` s: given ones as they are, the defaults' times in samples."""
+        on = self.debounce_on if self.debounce_on is not None else max(1, round(DEFAULT_ONSET_S / period))
+        off = self.debounce_off if self.debounce_off is not None else max(1, round(DEFAULT_END_S / period))
+        return EventSettings(int(on), int(off), self.hysteresis)
 
 
 @dataclass(frozen=True)
@@ -286,6 +294,7 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDete
     c.ft_threshold = [float(d.ft_thresholds[s.name]) for s in sensors]
     c.accel_tau_variance = (np.zeros(len(joints)) if d.tau_variance is None else np.asarray(d.tau_variance, float)).tolist()
     c.calibration_samples = int(d.samples)
+    ev = ev.at(est.sample_period)
     c.debounce_on, c.debounce_off, c.hysteresis = int(ev.debounce_on), int(ev.debounce_off), float(ev.hysteresis)
     c.sample_period, c.window, c.order, c.lag = est.sample_period, est.window, est.order, est.lag
     c.filter = est.weights().tolist()

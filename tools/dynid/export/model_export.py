@@ -45,7 +45,7 @@ from .coefficients import (
 CAD_SAMPLES = 100_000  # the N of the F threshold of an uncalibrated (CAD) export
 # The observer's events: on the live mission of the default arm, 3 samples gave 40 false onsets in 120 s, 10 gave one
 # and found every visible episode (docs/detection.md#the-monitor).
-MOMENTUM_EVENTS = EventSettings(debounce_on=10, debounce_off=100, hysteresis=0.5)
+MOMENTUM_EVENTS = EventSettings(hysteresis=0.5)  # the default times: 10 ms on, 100 ms off
 
 
 @dataclass(frozen=True)
@@ -53,6 +53,7 @@ class ExportSettings:
     """The monitor's filter and event logic, and what Λ and T²_α are calibrated on."""
 
     data: Sequence[str] = ()  # contact-free runs; default: the model's identification data (checked by sha256)
+    data_windows: Sequence[tuple[float | None, float | None] | None] = ()  # each run's --data RUN@FROM:TO window
     lag: int | None = None  # filter lag in samples, 0 = causal; default window // 4
     window: int | None = None  # filter window in samples; default the configuration's offline window
     alpha: float | None = None  # default: the model's
@@ -86,8 +87,10 @@ class Exported:
     observer_note: str = ""  # why the file carries no observer
 
 
-def calibration_data(identified: IdentifiedModel, model: RobotModel, data: Sequence[str]) -> tuple[list[Dataset], str]:
-    """The contact-free data Λ and T²_α come from: `data`, else what the model was fitted on (checked by sha256)."""
+def calibration_data(identified: IdentifiedModel, model: RobotModel, data: Sequence[str],
+                     windows: Sequence[tuple[float | None, float | None] | None] = ()) -> tuple[list[Dataset], str]:
+    """The contact-free data Λ and T²_α come from: `data` (each in its window, if given), else what the model was
+    fitted on (checked by sha256)."""
     options: list[tuple[tuple[float | None, float | None], str]] = []
     if data:
         paths = list(data)
@@ -96,7 +99,8 @@ def calibration_data(identified: IdentifiedModel, model: RobotModel, data: Seque
         if missing is not None:
             raise DataError(f"{missing}: no such data (a file, a `dynid simulate` directory, a yarpdatadumper folder "
                             "or a ROS 2 bag)")
-        options = [((None, None), DEFAULT_POLICY)] * len(paths)
+        own = list(windows) + [None] * (len(paths) - len(windows))
+        options = [(w or (None, None), DEFAULT_POLICY) for w in own]
     else:
         if not identified.data:
             raise DataError(f"{identified.path} names no identification data; pass --data")
@@ -129,7 +133,7 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
     effects = identified.effects
     check_monitor_supports(model, effects)  # before any data is read: a robot the core cannot run is refused at once
     exportable_effects(effects)  # before the (slow) calibration: an effect the monitor lacks is refused at once
-    datasets, calibration_digest = calibration_data(identified, model, settings.data)
+    datasets, calibration_digest = calibration_data(identified, model, settings.data, settings.data_windows)
     est = estimator_for(model, datasets[0].t, settings.lag, settings.window)
     check_window(est)  # before the calibration: a window the monitor cannot hold is refused at once
     for ds in datasets[1:]:
@@ -142,7 +146,7 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
     if residual == "momentum" and effects:
         raise DataError(f"{identified.path}: an augmented model (named effects) has no momentum residual yet; export "
                         "it with --residual acceleration")
-    events = settings.events_for(residual)
+    events = settings.events_for(residual).at(est.sample_period)
     # On the runs it was fitted on, each time block's residual through the Φ fitted without it (docs/detection.md)
     folds = None if settings.data or effects else identified.folds
     cal = calibrate_online(model, identified.phi, datasets, est, alpha, min_speed, effects=effects, tracking=tracking,
@@ -204,7 +208,7 @@ def export_cad(config: RobotConfig, out: str | Path, settings: ExportSettings = 
     residual = settings.residual or "acceleration"
     detector = MonitorDetector(variance, f_threshold(len(outs), CAD_SAMPLES, alpha),
                                {s.name: f_threshold(6, CAD_SAMPLES, alpha) for s in config.ft_sensors}, alpha, DEFAULT_MIN_SPEED,
-                               CAD_SAMPLES, settings.events_for(residual), cad_tau_variance(model, variance * divisors(model, phi) ** 2))
+                               CAD_SAMPLES, settings.events_for(residual).at(est.sample_period), cad_tau_variance(model, variance * divisors(model, phi) ** 2))
     observer = cad_observer(model, phi, variance, alpha, t, settings.bandwidth_hz)
     check_monitor_supports(model)
     c = build_coefficients(model, phi, detector, est, Provenance(estimator="cad"), observer=observer, residual=residual)

@@ -1,0 +1,128 @@
+"""Real runs through the monitor, matched offline (issue 30): for each robot's given run, a model fitted on its own
+data and exported (`dynid export`, calibrated on that data), the evaluation run played onto the robot's bus (`dynid
+play --stamps nominal`, candump), replayed by `rt_monitor --replay` with every sample's T² on DYNID_RESIDUAL, and
+the same samples decoded from the same log by `dynid import` and put through the core alone (`rt_eval --stream`):
+T² equal to 1e-9 relative on every sample and the same contact events. (The core predicts what dynid predicts on
+every bundled robot: tools/tests/test_rt_robots.py.) The UR10e's collisions are counted against the model-free
+episode labels beside the run. One test per robot; each skips, with the reason, without the data.
+"""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dynid.config.robot_config import load_config
+from dynid.export.coefficients import read_coefficients
+from dynid.export.monitor_log import read_lcm_log
+from dynid.export.rt_eval_io import detector_columns, raw_samples, run_stream
+from dynid.io.load import load_data
+
+from . import convert
+
+REALDATA = convert.REALDATA
+ROOT = Path(__file__).resolve().parents[2]
+RT_MONITOR = ROOT / "build" / "rt_monitor" / "rt_monitor"
+RT_EVAL = ROOT / "build" / "rt_monitor" / "rt_eval"
+DYNID = Path(sys.executable).with_name("dynid")
+T0_US = 1_700_000_000_000_000  # dynid play's default first stamp
+
+# robot: (fit run, its window, evaluation run, its window, URDF, export options)
+RUNS = {
+    "icub_right_leg_standing": ("icub_leg_insitu/dumperLeftLegNoIMU", (23, 47), "icub_leg_insitu/dumperLeftLegNoIMU",
+                                (14, 65), "icub_leg_insitu/iCubGenova02.urdf", ()),
+    "ur10e_known_gains": ("ur10e_mamedov/identification/ur-20_02_19_14harm50sec.csv", None,
+                          "ur10e_mamedov/contact/collision_3link.csv", None, "ur10e_mamedov/ur10e.urdf",
+                          ("--residual", "momentum")),
+    # The converted runs are played on the window the file is calibrated on: the file's period is its median step, and
+    # a window of another median drifts against it by a sample in a few thousand (the sample clock then bridges one).
+    # The Panda's log misses a sample 54 times in 21 s; the monitor's filter takes one per period, so the file is
+    # calibrated (export --data) on the longest stretch without one, 7.78-9.55 s.
+    "panda": ("panda", None, "panda", (7.78, 9.55), None, ("--data", "EVAL")),
+    "tiago_wrist": ("tiago", None, "tiago", None, "tiago_wrist_ft/urdf/tiago_48_hey5.urdf", ()),
+}
+
+
+def run(*args: object) -> subprocess.CompletedProcess:
+    return subprocess.run([str(a) for a in args], capture_output=True, text=True, timeout=900)
+
+
+def _window(path: Path, span: tuple[float, float] | None) -> str:
+    """RUN@FROM:TO in the run's seconds."""
+    return str(path) if span is None else f"{path}@{float(span[0])!r}:{float(span[1])!r}"
+
+
+def events_of(kinds: np.ndarray) -> list[tuple[int, int]]:
+    return [(int(k), int(kinds[k])) for k in np.flatnonzero(kinds)]
+
+
+@pytest.mark.parametrize("robot", sorted(RUNS))
+def test_a_real_run_through_the_monitor_is_the_core_on_the_decoded_samples(robot: str, tmp_path: Path) -> None:
+    fit_source, fit_span, eval_source, eval_span, urdf, export_options = RUNS[robot]
+    if not REALDATA.is_dir():
+        pytest.skip(f"real robot data not found at {REALDATA} (clone shared/ beside the repository)")
+    urdf_args = ("--urdf", REALDATA / urdf) if urdf else ()
+    config = load_config(robot, REALDATA / urdf if urdf else None)
+    paths = {}
+    for source in {fit_source, eval_source}:
+        if source in ("panda", "tiago"):  # raw files: the project's converter makes their CSV
+            paths[source] = tmp_path / f"{source}.csv"
+            (convert.convert_panda() if source == "panda" else convert.convert_tiago()).write(paths[source])
+        else:
+            paths[source] = REALDATA / source
+    fit_data = _window(paths[fit_source], fit_span)
+    eval_data = _window(paths[eval_source], eval_span)
+    export_options = tuple(eval_data if o == "EVAL" else o for o in export_options)
+
+    model, coef, log, conf = (tmp_path / n for n in ("model.json", "model.dcoef", "run.log", "monitor.conf"))
+    lcm = tmp_path / "monitor.lcmlog"
+    steps = [
+        ("fit", "--robot", robot, *urdf_args, "--data", fit_data, "--bad-rows", "skip", "--out", model),
+        ("export", "--model", model, *export_options, "--out", coef),
+        ("export", "--robot", robot, *urdf_args, "--monitor-config", conf, "--lcm-url", f"file://{lcm}?mode=w"),
+        ("play", "--robot", robot, *urdf_args, "--data", eval_data, "--sink", f"candump:{log}", "--bad-rows", "skip",
+         "--stamps", "nominal"),
+    ]
+    for step in steps:
+        done = run(DYNID, *step)
+        assert done.returncode == 0, f"dynid {' '.join(map(str, step))}: {done.stderr}"
+    # Every evaluated sample's T² on DYNID_RESIDUAL
+    conf.write_text(re.sub(r"^residual_every \d+$", "residual_every 1", conf.read_text(), flags=re.M))
+    done = run(RT_MONITOR, "--model", coef, "--config", conf, "--replay", log)
+    assert done.returncode == 0, done.stderr
+    assert "fault:" not in done.stderr, done.stderr  # a clean run of the robot's own model: no watchdog fault
+    c = read_coefficients(coef)
+    imported = load_data(log, config)
+    n = imported.n_samples
+    assert f"samples {n}, evaluated {n}, stale 0," in done.stdout, done.stdout
+
+    out = run_stream(RT_EVAL, coef, raw_samples(imported, c), tmp_path)
+    cols = detector_columns(c)
+    period_us = round(c.sample_period * 1e6)
+    msgs = read_lcm_log(lcm)
+    residual = {round((m.utime - T0_US) / period_us): m.t2 for m in msgs["DYNID_RESIDUAL"]}
+    ready = np.flatnonzero(np.isfinite(out[:, cols["t2"]]) & (np.arange(n) >= c.window - 1))
+    assert len(residual) >= len(ready) - 1 > 0.9 * n - c.window
+    worst = max(abs(residual[k] - out[k, cols["t2"]]) / max(abs(out[k, cols["t2"]]), 1e-12) for k in residual)
+    print(f"{robot}: {n} samples through the monitor, T² against the core on the decoded samples: worst relative "
+          f"difference {worst:.1e}; {len(msgs.get('DYNID_CONTACT', []))} contact events")
+    assert worst <= 1e-9
+    monitor_events = [(round((m.utime - T0_US) / period_us), int(m.kind)) for m in msgs.get("DYNID_CONTACT", [])]
+    assert monitor_events == events_of(out[:, cols["event"]])
+
+    if robot == "ur10e_known_gains":  # the collisions against the episode labels beside the run
+        episodes = np.loadtxt(paths[eval_source].with_suffix(".episodes.csv"), delimiter=",", skiprows=1, ndmin=2)
+        t_raw = load_data(paths[eval_source], config, bad_rows="skip").t
+        onsets = [t_raw[k] for k, kind in monitor_events if kind == 1]  # sample k: the run's k-th, at its own stamp
+        found = sum(any(a - 0.1 <= t <= b + 0.5 for t in onsets) for a, b in episodes[:, :2])
+        false = [t for t in onsets if not any(a - 0.1 <= t <= b + 0.5 for a, b in episodes[:, :2])]
+        print(f"UR10e collision_3link through the monitor (momentum): {found} of {len(episodes)} episodes, "
+              f"{len(false)} onsets outside them")
+        # Measured 5 of 11 and 14 onsets outside them (offline, the momentum detector finds 11 of 11 at 1.35 %: the
+        # monitor's causal observer and filter at 100 Hz do not reach it; docs/detection.md#the-monitor)
+        assert len(episodes) == 11 and found >= 5
