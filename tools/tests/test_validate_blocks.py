@@ -111,7 +111,7 @@ def test_time_blocks_cover_the_run_once() -> None:
     (("--blocks", "0"), "must be at least 2"),
     (("--blocks", "-3"), "must be at least 2"),
     (("--blocks", "two"), "is not an integer"),
-    (("--blocks", "400"), "fewer than the"),  # blocks shorter than a window and the q̇, q̈ filter allow
+    (("--blocks", "30", "--from", "1", "--to", "3"), "fewer than the"),  # shorter than a window and the filter allow
     (("--blocks", "4", "--from", "1", "--to", "1.3"), "fewer than the"),
 ])
 def test_bad_blocks_is_one_line_and_exit_2(default_model: Path, default_experiments: dict[str, Path],
