@@ -231,6 +231,11 @@ LoadResult check_plausible(const dynid::coefficients_t& c) {
         for (int j = 0; j < c.n_joints; ++j)
             if (!within(c.motor_velocity[k][j], -P::kMaxRatio, P::kMaxRatio))
                 return implausible("motor " + shown_name(c.motor_names[k]) + ": a coupling ratio", c.motor_velocity[k][j], -P::kMaxRatio, P::kMaxRatio, "");
+        double largest = 0;
+        for (int j = 0; j < c.n_joints; ++j) largest = std::max(largest, std::abs(c.motor_velocity[k][j]));
+        if (!(largest >= P::kMinRatio))
+            return implausible("motor " + shown_name(c.motor_names[k]) + ": its largest coupling ratio (it drives no joint)",
+                               largest, P::kMinRatio, P::kMaxRatio, "");
         for (double f : c.motor_friction[k])
             if (!within(f, -P::kMaxFriction, P::kMaxFriction))
                 return implausible("motor " + shown_name(c.motor_names[k]) + ": a friction coefficient", f, -P::kMaxFriction, P::kMaxFriction, "Nm or Nm·s/rad");
@@ -274,6 +279,11 @@ LoadResult check_plausible(const dynid::coefficients_t& c) {
     if (!within(c.alpha, P::kMinAlpha, 1)) return implausible("α", c.alpha, P::kMinAlpha, 1, "");
     if (!within(c.supply_time_constant, 0, P::kMaxSupplyTimeConstant))
         return implausible("the supply tracking's time constant", c.supply_time_constant, 0, P::kMaxSupplyTimeConstant, "s");
+    if (c.supply_time_constant > 0 && !(c.supply_time_constant >= P::kMinSupplyPeriods * c.sample_period))
+        return implausible("the supply tracking's time constant (0: off)", c.supply_time_constant,
+                           P::kMinSupplyPeriods * c.sample_period, P::kMaxSupplyTimeConstant, "s");
+    if (!within(c.hysteresis, P::kMinHysteresis, 1))
+        return implausible("the end level (hysteresis, a fraction of T²_α)", c.hysteresis, P::kMinHysteresis, 1, "");
     // The filter's weights: a fitted polynomial reproduces a constant (value weights sum to 1, derivatives' to 0).
     for (int r = 0; r < 3; ++r) {
         double sum = 0, size = 0;

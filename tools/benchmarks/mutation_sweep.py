@@ -5,7 +5,7 @@ as an edit, an exporter bug or a wrong board address would make them, each repla
         [--only config|coefficients] [--json OUT] [--append-docs]
 
 Inputs: the monitor configuration dynid compiles for the bundled arm (`dynid export --monitor-config`), the
-coefficient file of the default model (or --model), and 8 s of the default contact run (or --data) from 1 s before
+coefficient file of the default model (or --model), and 20 s of the default contact run (or --data) from 1 s before
 its first contact, as a candump log.
 - configuration: every line deleted, duplicated, swapped with the next; every number of every line set to 0, −1,
   1e-300, 1e300, NaN, a hex integer and an out-of-range integer;
@@ -46,6 +46,7 @@ TABLE_HEADER = "| date | commit | mutations | refused | flagged | harmless | sil
 CONFIG_VALUES = ("0", "-1", "1e-300", "1e300", "nan", "0x7fffffff", "99999999")
 REAL_VALUES = (("0", 0.0), ("tiny", 1e-300), ("huge", 1e300), ("nan", math.nan))
 INT_VALUES = (("0", 0), ("-1", -1), ("max", 2**31 - 1))
+WINDOW = 20_000  # samples: 20 s of the contact run at 1 kHz, several episodes
 NUMBER = re.compile(r"^[-+]?(0x[0-9a-fA-F]+|(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?|nan|inf)$")
 
 
@@ -192,7 +193,7 @@ def make_inputs(work: Path, model: Path | None, data: Path | None) -> tuple[Path
     contact = np.loadtxt(Path(data) / "data.csv", delimiter=",", skiprows=1, usecols=head.index("contact"))
     start = max(int(np.flatnonzero(contact > 0)[0]) - 1000, 0) if contact.any() else 0
     log = work / "sweep.log"
-    write_candump(run.slice(start, min(start + 8000, run.n_samples)), config, log)
+    write_candump(run.slice(start, min(start + WINDOW, run.n_samples)), config, log)
     return model, monitor_config_text(config, "file:///dev/null"), log
 
 

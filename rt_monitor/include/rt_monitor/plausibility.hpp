@@ -43,6 +43,7 @@ constexpr double kMaxGain = 1e6;
 constexpr double kMaxFriction = 1e4;          // Nm, Nm·s/rad
 constexpr double kMaxOffset = 1e5;            // N, Nm
 constexpr double kMaxRatio = 1e3;             // row map, coupling
+constexpr double kMinRatio = 1e-3;            // a motor's largest coupling ratio: a motor drives some joint
 // A polynomial fit reproduces a constant: the value weights sum to 1, the derivatives' to 0.
 constexpr double kFilterSumTolerance = 1e-6;
 // Effects: a Stribeck bump and a spring of a joint.
@@ -54,6 +55,8 @@ constexpr double kMaxRest = 100;              // rad
 constexpr double kMaxMinSpeed = 10;           // rad/s
 constexpr double kMinAlpha = 0.5;
 constexpr double kMaxSupplyTimeConstant = 1e4;  // s
+constexpr double kMinSupplyPeriods = 10;      // a time constant on (not 0) spans at least this many sample periods
+constexpr double kMinHysteresis = 0.05;       // the end level as a fraction of T²_α: below, no contact ever ends
 constexpr double kMaxIsolationSigmas = 100;
 constexpr double kMaxTauSigma = 1e4;          // Nm, the external joint torque's calibration noise
 

@@ -93,6 +93,10 @@ def check_plausible(c: coefficients_t) -> None:
         for v in c.motor_velocity[k][: c.n_joints]:
             if not _within(v, -P["MaxRatio"], P["MaxRatio"]):
                 _refuse(f"motor {c.motor_names[k]}: a coupling ratio", v, -P["MaxRatio"], P["MaxRatio"], "")
+        largest = max((abs(v) for v in c.motor_velocity[k][: c.n_joints]), default=0.0)
+        if not largest >= P["MinRatio"]:
+            _refuse(f"motor {c.motor_names[k]}: its largest coupling ratio (it drives no joint)", largest, P["MinRatio"],
+                    P["MaxRatio"], "")
         for v in c.motor_friction[k]:
             if not _within(v, -P["MaxFriction"], P["MaxFriction"]):
                 _refuse(f"motor {c.motor_names[k]}: a friction coefficient", v, -P["MaxFriction"], P["MaxFriction"],
@@ -137,6 +141,11 @@ def check_plausible(c: coefficients_t) -> None:
         _refuse("α", c.alpha, P["MinAlpha"], 1, "")
     if not _within(c.supply_time_constant, 0, P["MaxSupplyTimeConstant"]):
         _refuse("the supply tracking's time constant", c.supply_time_constant, 0, P["MaxSupplyTimeConstant"], "s")
+    if c.supply_time_constant > 0 and not c.supply_time_constant >= P["MinSupplyPeriods"] * c.sample_period:
+        _refuse("the supply tracking's time constant (0: off)", c.supply_time_constant,
+                P["MinSupplyPeriods"] * c.sample_period, P["MaxSupplyTimeConstant"], "s")
+    if not _within(c.hysteresis, P["MinHysteresis"], 1):
+        _refuse("the end level (hysteresis, a fraction of T²_α)", c.hysteresis, P["MinHysteresis"], 1, "")
     for r, name in enumerate(("value", "slope", "curvature")):
         w = c.filter[r][: c.window]
         total, size, want = sum(w), sum(abs(x) for x in w), 1.0 if r == 0 else 0.0
