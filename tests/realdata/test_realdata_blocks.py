@@ -72,3 +72,46 @@ def test_every_block_of_the_ur10e_point_to_point_run(tmp_path: Path) -> None:
     fitted = cli.dynid("validate", "--model", str(model), "--data", str(identification), "--blocks", "3",
                        keep_urdf_path=False)
     assert [b["fit_overlap"] for b in fitted["blocks"]["blocks"]] == [1.0, 1.0, 1.0]
+
+
+PANDA = convert.REALDATA / "panda_gaz2019"
+TIAGO = convert.REALDATA / "tiago_wrist_ft"
+
+
+@pytest.mark.skipif(not PANDA.is_dir(), reason=f"no real Panda data at {PANDA}")
+def test_every_block_of_the_panda_run(tmp_path: Path) -> None:
+    """docs/robots/panda.md: fitted on the first 2/3 (t ≤ 13.9189 s), the two held-out blocks inside the fitted
+    blocks' spread; the worst block is a fitted one."""
+    data = tmp_path / "panda.csv"
+    convert.convert_panda().write(data)
+    model = tmp_path / "panda.json"
+    cli.dynid("fit", "--robot", "panda", "--data", str(data), "--to", "13.9189", "--out", str(model))
+    blocks = cli.dynid("validate", "--model", str(model), "--data", str(data), "--blocks", "6")["blocks"]
+    rows, torque = blocks["blocks"], blocks["summary"]["figures"]["relative_torque_error"]
+    assert [b["in_fit"] for b in rows] == [True] * 4 + [False] * 2
+    # measured: 1.76 % worst (block 1, fitted), 0.94 % best (block 3), 1.41 and 1.51 % on the held-out blocks
+    assert torque["worst_block"] == 0 and torque["max"] == pytest.approx(0.0176, rel=0.1)
+    assert torque["min"] == pytest.approx(0.0094, rel=0.1)
+    for k, measured in ((4, 0.0141), (5, 0.0151)):
+        assert rows[k]["figures"]["relative_torque_error"] == pytest.approx(measured, rel=0.1)
+
+
+@pytest.mark.skipif(not TIAGO.is_dir(), reason=f"no real TIAGo data at {TIAGO}")
+def test_every_block_of_the_tiago_run(tmp_path: Path) -> None:
+    """docs/robots/tiago_wrist.md: fitted on protocol.yaml's rows 921–6790, identified below CAD on every block."""
+    data = tmp_path / "tiago.csv"
+    convert.convert_tiago().write(data)
+    model = tmp_path / "tiago.json"
+    cli.dynid("fit", "--robot", "tiago_wrist", "--urdf", str(convert.TIAGO_URDF), "--data", str(data),
+              "--from", "9.210663557", "--to", "67.900500059", "--out", str(model), keep_urdf_path=False)
+    blocks = cli.dynid("validate", "--model", str(model), "--data", str(data), "--blocks", "8",
+                       keep_urdf_path=False)["blocks"]
+    rows, figures = blocks["blocks"], blocks["summary"]["figures"]
+    assert [b["in_fit"] for b in rows] == [True] * 7 + [False]
+    # measured: force 0.665 N worst (block 3), torque 0.0362 Nm worst (block 1); identified/CAD at most 0.49
+    assert figures["ft.wrist_ft.force_identified"]["worst_block"] == 2
+    assert figures["ft.wrist_ft.force_identified"]["max"] == pytest.approx(0.665, rel=0.1)
+    assert figures["ft.wrist_ft.torque_identified"]["worst_block"] == 0
+    assert figures["ft.wrist_ft.torque_identified"]["max"] == pytest.approx(0.0362, rel=0.1)
+    for what in ("force", "torque"):
+        assert figures[f"ft.wrist_ft.{what}_identified_vs_cad"]["max"] < 0.6
