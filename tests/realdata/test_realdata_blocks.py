@@ -41,7 +41,8 @@ def test_the_worst_block_is_outside_the_fit(blocks: dict) -> None:
     assert rows[3]["fit_overlap"] == pytest.approx(0.88, abs=0.01)
     assert blocks["summary"]["blocks_in_fit"] == [1, 2, 3]
     torque = blocks["summary"]["figures"][TORQUE]
-    # measured: 17.13 Nm on 14–22.5 s (CAD 0.73), 13.12 Nm on 56.5–65 s (CAD 0.81), 0.133 Nm on 48–56.5 s (CAD 0.20)
+    # measured: 17.13 Nm on 14–22.5 s (CAD 0.73), 13.12 Nm on 56.5–65 s (CAD 0.81),
+    # 0.133 Nm on 48–56.5 s (CAD 0.20)
     assert torque["worst_block"] == 0 and torque["worst_in_fit"] is False
     assert torque["max"] == pytest.approx(17.1, rel=0.1)
     assert rows[5]["figures"][TORQUE] == pytest.approx(13.1, rel=0.1)

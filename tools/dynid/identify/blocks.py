@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import DataError, InputError
+from ..errors import InputError
 from ..io.dataset import Dataset
 from ..io.derivatives import SavitzkyGolay
 from ..io.load import MIN_WINDOW_SAMPLES, apply_window
@@ -47,7 +47,8 @@ def filter_window_samples(config_derivatives: dict[str, Any], t: np.ndarray) -> 
     return SavitzkyGolay(**options).window_samples(step)
 
 
-def time_blocks(t: np.ndarray, k: int, min_samples: int = MIN_WINDOW_SAMPLES, what: str = "the data") -> list[TimeBlock]:
+def time_blocks(t: np.ndarray, k: int, min_samples: int = MIN_WINDOW_SAMPLES,
+                what: str = "the data") -> list[TimeBlock]:
     """k blocks of equal duration covering t[0] … t[-1]: block j holds the samples with t in [t0 + jT/k,
     t0 + (j+1)T/k), the last one t[-1] as well. Refused (one line) when k < 2 or a block holds fewer than
     `min_samples` samples."""
@@ -149,7 +150,8 @@ def validate_blocks(identified: IdentifiedModel, dataset: Dataset, k: int, model
     for b in blocks:
         part = apply_window(dataset, b.t_first, b.t_last, source=data_label)
         if part.n_samples != b.stop - b.start:  # times strictly increase: a window of the block's own times is it
-            raise DataError(f"{data_label}: block {b.index + 1} cut to {part.n_samples} samples, not {b.stop - b.start}")
+            raise RuntimeError(f"{data_label}: block {b.index + 1} cut to {part.n_samples} samples, "
+                               f"not {b.stop - b.start}")
         ev = evaluate(model_label, data_label, identified, part)
         result = validation(ev, model_label, data_label)
         overlap = None if fitted is None else float(fitted[b.start : b.stop].mean())
