@@ -129,3 +129,15 @@ def test_bad_blocks_is_one_line_and_exit_2(default_model: Path, default_experime
     lines = captured.err.strip().splitlines()
     assert len(lines) == 1 and message in lines[0] and "Traceback" not in captured.err, captured.err
     assert captured.out == "" and not out.exists()  # nothing printed of a half-done validation, nothing written
+
+
+def test_the_text_names_the_worst_and_the_best_block(default_model: Path, default_experiments: dict[str, Path],
+                                                     capsys: pytest.CaptureFixture) -> None:
+    assert main(["validate", "--model", str(default_model), "--data", str(default_experiments["validation"]),
+                 "--from", "10", "--to", "30", "--blocks", "2"]) == 0
+    text = capsys.readouterr().out
+    assert "every block: 2 blocks of 10 s over 10.00–30.00 s" in text
+    assert "block  1  10.00–20.00 s" in text and "block  2  20.00–30.00 s" in text
+    worst = [line for line in text.splitlines() if "relative error, overall" in line and "worst" in line]
+    assert len(worst) == 1 and "best" in worst[0] and "in fit: no" in worst[0]
+    assert text.rstrip().endswith("blocks in the fit: none")
