@@ -31,6 +31,7 @@ from .errors import InputError
 from .export.model_export import Exported, ExportSettings, export_model
 from .gaps.find import Gaps
 from .gaps.find import find_gaps as analyse_gaps
+from .identify.blocks import validate_blocks
 from .identify.fit import ESTIMATORS, PSEUDO_INERTIA_ONLY, FitSettings
 from .identify.model_file import IdentifiedModel
 from .identify.model_file import load_model as load_model_file
@@ -205,11 +206,17 @@ class DynamicsModel(BaseEstimator):
         y_true = measured_outputs(ev.model, ev.signals)
         return float(r2_score(y_true, y_true - ev.e, multioutput="uniform_average"))
 
-    def validate(self, X: Data) -> dict[str, Any]:
+    def validate(self, X: Data, blocks: int | None = None) -> dict[str, Any]:
         """The paper's Table II (F/T error norms, identified against CAD) and the per-channel RMS against the noise:
-        `dynid validate --json`."""
+        `dynid validate --json`. `blocks` = K also validates each of K equal time blocks of X alone, with whether
+        the model was fitted on it, the worst block and the spread (`validate --blocks K`: result["blocks"])."""
         ev = self._evaluated(X)
-        return validation(ev, self.model_.path or "model", str(X) if not isinstance(X, Dataset) else "dataset")
+        label = str(X) if not isinstance(X, Dataset) else "dataset"
+        result = validation(ev, self.model_.path or "model", label)
+        if blocks is not None:
+            result["blocks"] = validate_blocks(self.model_, ev.dataset, blocks, self.model_.path or "model", label,
+                                               None if isinstance(X, Dataset) else str(X))
+        return result
 
     def save(self, path: str | Path) -> DynamicsModel:
         """Write the model file (JSON, atomically); `dynid validate`, `detect`, `export` and `gaps` read it."""

@@ -21,6 +21,7 @@ from ..identify.model_file import IdentifiedModel
 from ..identify.model_sections import CROSS_VALIDATED, DEFAULT_BLOCKS, DEFAULT_N_MODE, IN_SAMPLE, N_MODES, BaseSection
 from ..identify.runs import RunRef, stream_run
 from ..identify.supply import SupplyTracking
+from ..identify.blocks import validate_blocks
 from ..identify.validation import evaluate, validation
 from ..io.dataset import contact_episodes
 from ..io.episodes import check_widening, episodes_in_data, episodes_mask, read_episodes
@@ -29,6 +30,7 @@ from ..pipeline import DetectorSettings, IdentifySettings, identify
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from .commands import COMMANDS
+from .validate_blocks import block_count, print_blocks
 from .common import confidence as alpha
 from .common import one_blas_thread
 from .common import (bad_rows, expand_data, finite_float, json_arg, min_speed_arg, non_negative_float, payload_arg, payloads,
@@ -236,6 +238,8 @@ def input_words(config: RobotConfig) -> list[str]:
 def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
     ev = evaluate(args.model, args.data, window=window(args), payload=args.payload, bad_rows=bad_rows(args))
     result = validation(ev, args.model, args.data)
+    if args.blocks is not None:  # every block computed (or refused) before anything is printed
+        result["blocks"] = validate_blocks(ev.identified, ev.dataset, args.blocks, args.model, args.data, args.data)
     print(f"validation of {args.model} on {args.data} ({result['samples']} samples)")
     if (skipped := skipped_rows(args.data, ev.dataset.meta)) is not None:
         result["bad_rows"] = skipped
@@ -274,6 +278,8 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
     if kinds:
         print(f"  CAD {' and '.join(INPUT_WORD[k] for k in kinds)} prediction: undefined; a CAD model has no friction "
               "and no motor gains")
+    if args.blocks is not None:
+        print_blocks(result["blocks"])
     return result
 
 
@@ -482,6 +488,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--data", required=True, metavar="DATA")
     window_args(sp)
     payload_arg(sp, repeatable=False)
+    sp.add_argument("--blocks", type=block_count, metavar="K",
+                    help="also validate each of K equal time blocks of the data (after --from/--to), each alone as "
+                    "--from/--to its first and last sample would, saying which the model was fitted on (its model "
+                    "file's runs and windows); then the worst block per figure and the spread (min / median / max)")
     json_arg(sp)
     sp.set_defaults(func=cmd_validate)
 
