@@ -32,6 +32,9 @@ from .t2 import calibrate
 # median step (a UR10e log at 100 Hz: 8-16 ms) is taken one sample per median step, as `dynid play --stamps nominal`
 # plays it and the robot's own loop sends it. A step this many periods long or more has samples missing in it.
 MISSING_STEPS = 1.75
+# As the monitor's sample clock does (rt_monitor/include/rt_monitor/sample_clock.hpp, kMaxBridge): up to this many
+# missing samples in a row are bridged by linear interpolation; a longer gap restarts its filter.
+MAX_BRIDGE = 3
 
 
 @dataclass(frozen=True)
@@ -76,12 +79,14 @@ class FixedLagSavitzkyGolay:
                 "sample_period": self.sample_period, "delay_s": self.lag * self.sample_period}
 
 
-def estimator_for(model: RobotModel, t: np.ndarray, lag: int | None, window: int | None = None) -> FixedLagSavitzkyGolay:
-    """The online filter for data sampled at times t: window and order of the configuration's offline smoother."""
+def estimator_for(model: RobotModel, t: np.ndarray, lag: int | None, window: int | None = None,
+                  period: float | None = None) -> FixedLagSavitzkyGolay:
+    """The online filter for data sampled at times t (at `period`, default their median step): window and order of
+    the configuration's offline smoother."""
     steps = np.diff(np.asarray(t, float))
     if steps.size == 0:
         raise DataError("the data have a single sample: no sample period")
-    dt = float(np.median(steps))
+    dt = float(np.median(steps)) if period is None else float(period)
     if not dt > 0:
         raise DataError(f"the data's median sample step is {dt:.6g} s: stamps must increase")
     if np.any(steps <= 0) or np.max(steps) >= MISSING_STEPS * dt:
@@ -93,6 +98,43 @@ def estimator_for(model: RobotModel, t: np.ndarray, lag: int | None, window: int
     sg = SavitzkyGolay(**options)
     w = window or sg.window_samples(dt)
     return FixedLagSavitzkyGolay(int(w), int(sg.polyorder), int((w - 1) // 4 if lag is None else lag), dt)
+
+
+def uniform_pieces(ds, dt: float) -> list:  # Dataset, s -> [(Dataset, (N',) int)]: io is a lower layer
+    """The run as the monitor's filter takes it: gaps of up to MAX_BRIDGE missing samples (a step of MISSING_STEPS
+    periods or more: round(step/dt) − 1 samples) bridged by linear interpolation, as its sample clock bridges them,
+    and the run cut where more are missing (the monitor restarts its filter there). Each piece with its rows'
+    original indices (a bridged row: the one before it)."""
+    from ..io.dataset import Dataset
+
+    steps = np.diff(ds.t)
+    gaps = np.flatnonzero(steps >= MISSING_STEPS * dt)
+    if gaps.size == 0:
+        return [(ds, np.arange(ds.n_samples))]
+    missing = np.maximum(np.rint(steps[gaps] / dt).astype(int), 2) - 1
+    cuts = gaps[missing > MAX_BRIDGE] + 1  # the first row after each long gap
+    pieces = []
+    for lo, hi in zip(np.r_[0, cuts], np.r_[cuts, ds.n_samples]):
+        inside = (gaps >= lo) & (gaps < hi - 1)
+        position = np.concatenate([np.arange(lo, hi, dtype=float)] +
+                                  [g + np.arange(1, m + 1) / (m + 1) for g, m in zip(gaps[inside], missing[inside])])
+        position.sort(kind="stable")
+        base = np.arange(ds.n_samples, dtype=float)
+
+        def at(x: np.ndarray, position: np.ndarray = position) -> np.ndarray:
+            if x.ndim == 1:
+                return np.interp(position, base, x)
+            return np.column_stack([np.interp(position, base, x[:, j]) for j in range(x.shape[1])])
+
+        origin = np.floor(position).astype(int)
+        pieces.append((Dataset(t=at(ds.t), joints=ds.joints, q=at(ds.q), dq=None if ds.dq is None else at(ds.dq),
+                               ddq=None if ds.ddq is None else at(ds.ddq), pwm={k: at(v) for k, v in ds.pwm.items()},
+                               current={k: at(v) for k, v in ds.current.items()},
+                               tau={k: at(v) for k, v in ds.tau.items()}, ft={k: at(v) for k, v in ds.ft.items()},
+                               contact=None if ds.contact is None else ds.contact[origin],
+                               extra={k: at(v) for k, v in ds.extra.items()},
+                               meta={**ds.meta, "bridged_samples": int(len(position) - (hi - lo))}), origin))
+    return pieces
 
 
 def online_signals(model: RobotModel, est: FixedLagSavitzkyGolay, t: np.ndarray, q: np.ndarray,
@@ -159,12 +201,14 @@ def online_times(est: FixedLagSavitzkyGolay, t: np.ndarray) -> np.ndarray:
 def calibrate_online(model: RobotModel, phi: np.ndarray, datasets: list, est: FixedLagSavitzkyGolay, alpha: float,
                      min_speed: float, stride: int = 2, effects: list | None = None,
                      tracking: SupplyTracking | None = None, tau_map: np.ndarray | None = None,
-                     folds: FoldsSection | None = None) -> OnlineCalibration:
+                     folds: FoldsSection | None = None, origins: list[np.ndarray] | None = None,
+                     runs: list[int] | None = None) -> OnlineCalibration:
     """Λ and the thresholds of dynid's calibrated detector, on contact-free data seen through the online filter
     (with the augmented model's `effects`, dynid.robot.effects, and the supply `tracking`, as the monitor evaluates
     them; the tracker sees every `stride`-th sample, with the same time constant in seconds). With `folds` (the runs
     are those the model was fitted on, in its `data` order) each time block's residual is taken through the Φ
-    fitted without it: cross-validated, what the monitor sees on a new run."""
+    fitted without it: cross-validated, what the monitor sees on a new run. Runs cut by uniform_pieces: `origins`,
+    each piece's rows' original indices, and `runs`, the run each piece is of (the folds hold the original ones)."""
     es, dqs = [], []
     for i, ds in enumerate(datasets):
         raw = raw_signals(model, ds)
@@ -174,8 +218,11 @@ def calibrate_online(model: RobotModel, phi: np.ndarray, datasets: list, est: Fi
             e = augmented_residuals(model, phi, effects or [], sig)
         else:  # the filter's k-th estimate is of sample window − 1 − lag + k of the run
             index = est.window - 1 - est.lag + stride * np.arange(sig.q.shape[0])
+            n_original = ds.n_samples
+            if origins is not None:  # a piece: its original rows, of a run as long as its last one at most
+                index, n_original = origins[i][index], int(origins[i][-1]) + 1
             parts = []
-            for a, b, phi_k in folds.segments(i, ds.n_samples, phi):
+            for a, b, phi_k in folds.segments(i if runs is None else runs[i], n_original, phi):
                 lo, hi = np.searchsorted(index, a), np.searchsorted(index, b)
                 if hi > lo:
                     parts.append(augmented_residuals(model, phi_k, effects or [], sig.slice(slice(lo, hi))))

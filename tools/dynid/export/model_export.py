@@ -15,7 +15,7 @@ import numpy as np
 from ..config.robot_config import RobotConfig
 from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S, friction_band, velocity_window_samples
 from ..detect.momentum_t2 import MomentumDetector, calibrate_momentum, stored_detector
-from ..detect.online import FixedLagSavitzkyGolay, OnlineCalibration, calibrate_online, estimator_for
+from ..detect.online import FixedLagSavitzkyGolay, OnlineCalibration, calibrate_online, uniform_pieces, estimator_for
 from ..detect.t2 import f_threshold
 from ..errors import DataError
 from ..identify.model_file import IdentifiedModel, data_digest, file_digest
@@ -133,11 +133,21 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
     effects = identified.effects
     check_monitor_supports(model, effects)  # before any data is read: a robot the core cannot run is refused at once
     exportable_effects(effects)  # before the (slow) calibration: an effect the monitor lacks is refused at once
-    datasets, calibration_digest = calibration_data(identified, model, settings.data, settings.data_windows)
-    est = estimator_for(model, datasets[0].t, settings.lag, settings.window)
+    originals, calibration_digest = calibration_data(identified, model, settings.data, settings.data_windows)
+    # A log that misses samples (the Panda's: 54 times in 21 s) as the monitor takes it: short gaps bridged, the run
+    # cut at longer ones (its filter restarts there)
+    pieces = [(piece, origin, run) for run, ds in enumerate(originals)
+              for piece, origin in uniform_pieces(ds, ds.median_step())]
+    longest = max(pieces, key=lambda p: p[0].n_samples)
+    est = estimator_for(model, longest[0].t, settings.lag, settings.window, originals[longest[2]].median_step())
+    kept = [p for p in pieces if p[0].n_samples >= est.window + 1]
+    if not kept:
+        raise DataError(f"no stretch of the calibration data without a gap is longer than the filter's window "
+                        f"({est.window} samples)")
+    datasets, origins, runs = [p[0] for p in kept], [p[1] for p in kept], [p[2] for p in kept]
     check_window(est)  # before the calibration: a window the monitor cannot hold is refused at once
-    for ds in datasets[1:]:
-        if abs(estimator_for(model, ds.t, settings.lag, settings.window).sample_period - est.sample_period) > 1e-9:
+    for ds in originals[1:]:
+        if abs(ds.median_step() - originals[0].median_step()) > 1e-3 * originals[0].median_step():
             raise DataError("the calibration data have different sample rates")
     alpha = identified.alpha if settings.alpha is None else settings.alpha
     min_speed = identified.calibration_min_speed
@@ -150,13 +160,13 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
     # On the runs it was fitted on, each time block's residual through the Φ fitted without it (docs/detection.md)
     folds = None if settings.data or effects else identified.folds
     cal = calibrate_online(model, identified.phi, datasets, est, alpha, min_speed, effects=effects, tracking=tracking,
-                           tau_map=external_torque_map(model), folds=folds)
+                           tau_map=external_torque_map(model), folds=folds, origins=origins, runs=runs)
     detector = MonitorDetector(cal.variance, cal.threshold, cal.ft_thresholds, alpha, min_speed, cal.samples, events,
                                cal.tau_variance)
     observer, note = None, "an augmented model's effects have no momentum form yet" if effects else ""
     if not effects:
         try:
-            observer = monitor_observer(identified, datasets, alpha, min_speed, settings)
+            observer = monitor_observer(identified, originals, alpha, min_speed, settings)  # the observer takes stamps
         except DataError as e:  # the acceleration residuals the monitor runs do not need it: said, not fatal
             if residual == "momentum":
                 raise
