@@ -104,12 +104,10 @@ void Watchdog::sample(const Sample& s) noexcept {
         clear(kJointRange);
         return;
     }
-    range_joint_ = out;
-    range_value_ = s.q[size_t(out)];
     if (++out_of_range_ == set_.range_samples) {
         std::snprintf(text(kJointRange), 256, "%.80s at %.4g, outside its range [%.4g, %.4g] by more than %.3g: a wrong "
                       "encoder scale or zero in the configuration?", coef_->joint_names[size_t(out)].c_str(),
-                      range_value_, coef_->joint_lower[size_t(out)], coef_->joint_upper[size_t(out)], set_.range_margin);
+                      s.q[size_t(out)], coef_->joint_lower[size_t(out)], coef_->joint_upper[size_t(out)], set_.range_margin);
         raise(kJointRange);
     }
 }
@@ -120,7 +118,6 @@ void Watchdog::evaluated(const Output& o, int64_t t_us) noexcept {
     clear(kBlind);
     const MonitorCounters& c = asm_->counters();
     unpaired_at_eval_ = c.unpaired_strain;
-    clock_at_eval_ = c.strain_frames;
     samples_at_eval_ = c.samples;
     if (!o.ready) return;
     if (fit_evaluated_ < set_.fit_samples) {

@@ -92,8 +92,9 @@ def replay(coef: Path, conf_text: str, log: Path, work: Path, tag: str) -> Repla
 
 def classify(r: Replay, base: Replay) -> str:
     lines = [line for line in r.stderr.splitlines() if line.strip()]
-    if r.code == 2 or 10 <= r.code <= 21:
-        return "refused" if len(lines) == 1 or (r.code == 2 and "error:" in lines[0]) else "broken"
+    if r.code == 2 or 10 <= r.code <= 21:  # one error line (a usage error: that line, then the synopsis)
+        one_line = bool(lines) and lines[0].startswith("rt_monitor: error: ")
+        return "refused" if one_line and (len(lines) == 1 or r.code == 2) else "broken"
     if r.code == 6 or (r.code == 0 and r.faults):
         return "flagged"
     if r.code != 0:

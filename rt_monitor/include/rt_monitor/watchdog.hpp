@@ -56,7 +56,6 @@ public:
               const WatchdogSettings& settings = {}) noexcept;
     // A frame was read (CAN time µs).
     void frame(int64_t t_us) noexcept {
-        last_frame_ = t_us;
         first_frame_ = first_frame_ < 0 ? t_us : first_frame_;
         if (waiting_since_ < 0) waiting_since_ = t_us, frames_waiting_ = 0;
         ++frames_waiting_;
@@ -89,12 +88,12 @@ private:
     WatchdogSettings set_;
     int64_t blind_us_ = 0;
     uint32_t active_ = 0, seen_ = 0;
-    int64_t first_frame_ = -1, last_frame_ = -1, last_evaluated_ = -1, last_good_ = -1;
+    int64_t first_frame_ = -1, last_evaluated_ = -1, last_good_ = -1;
     // The first frame since the last evaluated (or fresh) sample: blindness is frames arriving for blind_us with no
     // sample, not a pause of the sender (its next frames complete a sample at once)
     int64_t waiting_since_ = -1;
     int64_t frames_waiting_ = 0, blind_frames_ = 0;  // frames since then; blind_periods samples' worth of the bus's
-    int64_t unpaired_at_eval_ = 0, clock_at_eval_ = 0, samples_at_eval_ = 0;
+    int64_t unpaired_at_eval_ = 0, samples_at_eval_ = 0;
     int last_stale_slot_ = -1;
     // the stream's sample spacing: the first stamps' differences
     std::array<int64_t, 256> spacing_{};
@@ -102,8 +101,6 @@ private:
     int64_t last_sample_t_ = -1;
     bool period_checked_ = false;
     int out_of_range_ = 0;
-    int range_joint_ = -1;
-    double range_value_ = 0;
     std::array<bool, kMaxOutputs> is_pwm_{};
     int duty_out_ = 0;
     int fit_evaluated_ = 0, fit_above_ = 0;

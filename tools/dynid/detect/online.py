@@ -113,13 +113,13 @@ def uniform_pieces(ds, dt: float) -> list:  # Dataset, s -> [(Dataset, (N',) int
         return [(ds, np.arange(ds.n_samples))]
     missing = np.maximum(np.rint(steps[gaps] / dt).astype(int), 2) - 1
     cuts = gaps[missing > MAX_BRIDGE] + 1  # the first row after each long gap
+    base = np.arange(ds.n_samples, dtype=float)
     pieces = []
     for lo, hi in zip(np.r_[0, cuts], np.r_[cuts, ds.n_samples]):
         inside = (gaps >= lo) & (gaps < hi - 1)
         position = np.concatenate([np.arange(lo, hi, dtype=float)] +
                                   [g + np.arange(1, m + 1) / (m + 1) for g, m in zip(gaps[inside], missing[inside])])
         position.sort(kind="stable")
-        base = np.arange(ds.n_samples, dtype=float)
 
         def at(x: np.ndarray, position: np.ndarray = position) -> np.ndarray:
             if x.ndim == 1:
