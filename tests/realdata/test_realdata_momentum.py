@@ -32,28 +32,30 @@ def ur_detect(model: Path, name: str) -> dict:
 
 
 def test_ur10e_collisions(ur_model: Path) -> None:
-    """All 11 episodes, FP outside them under 2 %; the onsets sit about one sample (10 ms) after the model-free
+    """All 11 episodes, FP outside them under 2 %; the onsets sit one or two samples (8-16 ms) after the model-free
     deviation's own crossing (the labels' start + 0.1 s), one at 344 ms: the issue's "every onset within 100 ms
-    of the label" is not reached (docs/detection.md)."""
+    of the label" is not reached (docs/detection.md). The thresholds are calibrated out of sample (cross-validated
+    residuals), so they sit higher than the fit's own residuals would put them: 104 ms and 1.35 % in-sample."""
     result = ur_detect(ur_model, "collision_3link")
     m = result["variants"]["momentum"]
     print("UR10e collision_3link:", {k: (v["episodes_detected"], v["fpr"], v["delay_s"]) for k, v in
                                      result["variants"].items()})
     assert result["episodes_file"]["episodes"] == 11
-    assert m["episodes_detected"] == 11 and m["fpr"] <= 0.02  # measured 11/11, 1.35 %
-    assert m["delay_s"]["median"] <= 0.11  # measured 104 ms (4 ms after labels' start + 0.1 s)
+    assert m["episodes_detected"] == 11 and m["fpr"] <= 0.02  # measured 11/11, 1.03 %
+    assert m["delay_s"]["median"] <= 0.125  # measured 114 ms (14 ms after labels' start + 0.1 s)
     assert m["delay_s"]["max"] <= 0.36  # measured 344 ms
-    assert result["variants"]["calibrated"]["fpr"] > m["fpr"]  # today's: 3.25 % on this run
+    assert result["variants"]["calibrated"]["fpr"] > m["fpr"]  # today's: 3.00 % on this run
 
 
 def test_ur10e_pushes_on_the_resting_arm(ur_model: Path) -> None:
-    """Every push found while the arm rests (today's calibrated detector leaves resting joints out: 2/4)."""
+    """The pushes found while the arm rests: 3 of 4 with out-of-sample thresholds (4 of 4 in-sample, at the cost of
+    the FP rate the collision run shows); today's calibrated detector leaves resting joints out: 2/4."""
     result = ur_detect(ur_model, "ur-20_01_22-push_pose_1")
     m = result["variants"]["momentum"]
     print("UR10e push_pose_1:", {k: (v["episodes_detected"], v["fpr"], v["tpr"]) for k, v in result["variants"].items()})
-    assert m["episodes_detected"] == m["episodes"] == 4  # measured 4/4
+    assert m["episodes"] == 4 and m["episodes_detected"] >= 3  # measured 3/4
     assert m["fpr"] <= 0.02  # measured 0.00 %
-    assert m["tpr"] >= 0.25  # measured 29.9 % of the labelled samples (labels widened by 0.1 s)
+    assert m["tpr"] >= 0.25  # measured 29.2 % of the labelled samples (labels widened by 0.1 s)
     events = result["events"]
     assert events and all(len(e["tau_ext_nm"]) == 6 and e["joint"] is not None for e in events)
 

@@ -355,7 +355,8 @@ def run(name: str, a: argparse.Namespace, coef: Path, csv: Path, seconds: float,
         mon = subprocess.Popen(monitor, stdin=subprocess.PIPE if not paced else subprocess.DEVNULL,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=nice)
         mon_pid = child_pid(mon.pid) if netns else mon.pid
-        sampler = RssSampler(mon_pid, 1.0 if paced else 0.2)
+        # The fast run may last under a second on a quick core: sample often enough to fit a slope to it.
+        sampler = RssSampler(mon_pid, 1.0 if paced else 0.01)
         sampler.start()
         fd = bd = None
         finished = False
