@@ -17,6 +17,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+
 
 def dynid(*args: str) -> None:
     done = subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True)
@@ -94,8 +96,9 @@ def main() -> None:
                       if d else "-")
             tpr = "-" if s.get("tpr") is None else f"{100 * s['tpr']:.1f} %"
             found = f"{s['episodes_detected']}/{s['episodes']}" if s.get("episodes") else "-"
-            print(f"| {name} | {variant} | {found} | {delays} | {100 * s['fpr']:.2f} % | {tpr} | "
-                  f"{s.get('auc', float('nan')):.3f} |")
+            auc = s.get("auc")
+            auc = f"{auc:.3f}" if auc is not None and np.isfinite(auc) else "-"  # no contact labelled: no ROC
+            print(f"| {name} | {variant} | {found} | {delays} | {100 * s['fpr']:.2f} % | {tpr} | {auc} |")
         if args.figures is not None and any("roc" in s for s in result["variants"].values()):
             args.figures.mkdir(parents=True, exist_ok=True)
             figure(name, result, args.figures / f"detection_roc_{name}.png")
