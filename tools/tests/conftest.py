@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from filelock import FileLock
 from hypothesis import HealthCheck, Phase
 from hypothesis import settings as hypothesis_settings
 
@@ -31,6 +34,25 @@ def dynid(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True, timeout=900)
 
 
+def made_once(tmp_path_factory: pytest.TempPathFactory, name: str, make: Callable[[Path], None]) -> Path:
+    """A directory `make(dir)` fills once per test run, whichever pytest-xdist worker asks first; the others wait for
+    it and read it (pytest-xdist's documented recipe: a lock beside the workers' common base temp). Without xdist,
+    simply made. Only what `make` finished is reused: a worker whose `make` failed leaves no mark, and the next one
+    tries again and fails the same way."""
+    if os.environ.get("PYTEST_XDIST_WORKER") is None:
+        root = tmp_path_factory.mktemp(name)
+        make(root)
+        return root
+    shared = tmp_path_factory.getbasetemp().parent / name
+    with FileLock(str(shared) + ".lock"):
+        done = shared / ".made"
+        if not done.is_file():
+            shared.mkdir(exist_ok=True)
+            make(shared)
+            done.write_text(json.dumps({"by": os.environ["PYTEST_XDIST_WORKER"]}))
+    return shared
+
+
 @pytest.fixture(scope="session")
 def default_experiments(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """The three default experiments, through the command line, as scripts/main runs them.
@@ -40,32 +62,38 @@ def default_experiments(tmp_path_factory: pytest.TempPathFactory) -> dict[str, P
     reuse = os.environ.get("DYNID_TEST_EXPERIMENTS")
     if reuse:
         return {kind: Path(reuse) / kind for kind in KINDS}
-    root = tmp_path_factory.mktemp("sim")
-    out = {}
-    for kind in KINDS:
-        out[kind] = root / kind
-        done = dynid("simulate", "--kind", kind, "--out", str(out[kind]), "--json", str(root / f"{kind}.json"))
-        assert done.returncode == 0, done.stderr
-    return out
+
+    def simulate(root: Path) -> None:
+        for kind in KINDS:
+            done = dynid("simulate", "--kind", kind, "--out", str(root / kind), "--json", str(root / f"{kind}.json"))
+            assert done.returncode == 0, done.stderr
+
+    root = made_once(tmp_path_factory, "sim", simulate)
+    return {kind: root / kind for kind in KINDS}
 
 
 @pytest.fixture(scope="session")
 def default_model(default_experiments: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> Path:
     """`dynid fit` on the default identification experiment, as scripts/main runs it."""
-    out = tmp_path_factory.mktemp("fit") / "model.json"
-    done = dynid("fit", "--data", str(default_experiments["identification"]), "--out", str(out),
-                 "--json", str(out.with_suffix(".fit.json")))
-    assert done.returncode == 0, done.stderr
-    return out
+
+    def fit(root: Path) -> None:
+        out = root / "model.json"
+        done = dynid("fit", "--data", str(default_experiments["identification"]), "--out", str(out),
+                     "--json", str(out.with_suffix(".fit.json")))
+        assert done.returncode == 0, done.stderr
+
+    return made_once(tmp_path_factory, "fit", fit) / "model.json"
 
 
 @pytest.fixture(scope="session")
 def exported(default_model: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """`dynid export` of the default model: the coefficient file rt_monitor loads, as scripts/main writes it."""
-    out = tmp_path_factory.mktemp("export") / "model.dcoef"
-    done = dynid("export", "--model", str(default_model), "--out", str(out))
-    assert done.returncode == 0, done.stderr
-    return out
+
+    def export(root: Path) -> None:
+        done = dynid("export", "--model", str(default_model), "--out", str(root / "model.dcoef"))
+        assert done.returncode == 0, done.stderr
+
+    return made_once(tmp_path_factory, "export", export) / "model.dcoef"
 
 
 HIDDEN_EFFECTS = ["--effect", "stribeck:joint=r_elbow,excess=2,velocity=0.05",
@@ -76,14 +104,16 @@ HIDDEN_EFFECTS = ["--effect", "stribeck:joint=r_elbow,excess=2,velocity=0.05",
 def hidden_effects_runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Two runs of the default arm with a hidden Stribeck (elbow) and spring (shoulder yaw): "fit" (40 s, seed 0) for
     `dynid gaps`, "replay" (30 s, seed 1) to replay its augmented model on."""
-    root = tmp_path_factory.mktemp("hidden_effects")
-    runs = {}
-    for name, seed, duration in (("fit", "0", "40"), ("replay", "1", "30")):
-        runs[name] = root / name
-        done = dynid("simulate", "--kind", "identification", "--duration", duration, "--seed", seed, *HIDDEN_EFFECTS,
-                     "--out", str(runs[name]))
-        assert done.returncode == 0, done.stderr
-    return runs
+    runs = {"fit": ("0", "40"), "replay": ("1", "30")}
+
+    def simulate(root: Path) -> None:
+        for name, (seed, duration) in runs.items():
+            done = dynid("simulate", "--kind", "identification", "--duration", duration, "--seed", seed,
+                         *HIDDEN_EFFECTS, "--out", str(root / name))
+            assert done.returncode == 0, done.stderr
+
+    root = made_once(tmp_path_factory, "hidden_effects", simulate)
+    return {name: root / name for name in runs}
 
 
 def exit_counter(stdout: str, name: str) -> int:
