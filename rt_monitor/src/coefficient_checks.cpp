@@ -333,6 +333,8 @@ LoadResult check_plausible(const dynid::coefficients_t& c) {
         for (int j = 0; j < c.n_joints; ++j)
             if (!within(std::sqrt(c.tau_variance[j]), 0, P::kMaxTauSigma))
                 return implausible("joint " + shown_name(c.joint_names[j]) + ": the observer's τ_ext noise", std::sqrt(c.tau_variance[j]), 0, P::kMaxTauSigma, "Nm");
+        if (c.combined_scale > 0 && !within(c.combined_scale, P::kMinCombinedScale, P::kMaxCombinedScale))
+            return implausible("the combined detector's κ", c.combined_scale, P::kMinCombinedScale, P::kMaxCombinedScale, "");
     }
     return LoadResult{};
 }

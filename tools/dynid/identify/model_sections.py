@@ -322,8 +322,6 @@ class DetectorSection:
                **self.extra}
         if self.in_sample is not None:
             out["in_sample"] = self.in_sample.to_json()
-        if self.combined is not None:
-            out["combined"] = self.combined.to_json()
         return out
 
 
