@@ -17,7 +17,7 @@ finds the most proximal contacts at the lowest false-positive rate (tools/benchm
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -195,3 +195,19 @@ def combined_detection(identified, dataset, momentum, acceleration_t2: np.ndarra
     result["detector"] = detector.as_dict()
     events = contact_events(identified.robot_model, momentum.detector, momentum.residuals, stat)
     return CombinedDetection(result, detector, stat, events)
+
+
+def fit_combined(identified, datasets: Sequence) -> Callable[[MomentumDetector, tuple], CombinedCalibration | None]:
+    """What `dynid fit` hands dynid.detect.momentum_t2.observer_record: the combined level on the momentum detector's
+    own calibration samples (cross-validated with the model's folds), against the fit's calibrated acceleration
+    detector at the same α; None for an augmented model (no momentum form) or another α."""
+    def combine(det_m: MomentumDetector, samples: tuple) -> CombinedCalibration | None:
+        if identified.detector is None or identified.effects:
+            return None
+        det_c = Detector.of(identified.detector.calibrated)
+        if det_c.alpha != det_m.alpha:
+            return None
+        return calibrate_combined(identified, det_m, det_c, datasets, identified.folds,
+                                  momentum_samples=samples).section()
+
+    return combine

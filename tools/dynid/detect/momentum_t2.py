@@ -14,7 +14,7 @@ and the estimated external torque and wrench, scoring against labels (`dynid det
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -22,7 +22,8 @@ import numpy as np
 
 from ..errors import DataError
 from ..io.bad_rows import DEFAULT_POLICY
-from ..identify.model_sections import (ALPHA, CROSS_VALIDATED, IN_SAMPLE, BaseSection, FoldsSection, MomentumCalibration, ObserverEntry,
+from ..identify.model_sections import (ALPHA, CROSS_VALIDATED, IN_SAMPLE, BaseSection, CombinedCalibration, FoldsSection,
+                                      MomentumCalibration, ObserverEntry,
                                       ObserverSection, Quantiles)
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
@@ -199,11 +200,15 @@ def momentum_detector(model: RobotModel, e: np.ndarray, rest: np.ndarray, tau: n
 OBSERVER_VERSION = 2  # 2: cross-validated over the fit's time blocks (the model's `folds`); 1: in-sample
 
 
-def observer_record(identified, datasets: Sequence, monitor_alpha: float) -> ObserverSection:
+def observer_record(identified, datasets: Sequence, monitor_alpha: float,
+                    combine: Callable[[MomentumDetector, tuple], CombinedCalibration | None] | None = None
+                    ) -> ObserverSection:
     """The model file's `observer` section: the momentum detector calibrated on the fit's own (whole, contact-free)
     runs as `dynid detect` calibrates it by default (the data's q̇, α = ALPHA) and as `dynid export` does for the
     monitor (its causal q̇, the model's α), with the sha256 of the runs it was calibrated on: cross-validated where the
-    model has its `folds`, with the detect entry's in-sample calibration beside (what `detect` compares against)."""
+    model has its `folds`, with the detect entry's in-sample calibration beside (what `detect` compares against), and
+    `combine(detector, its calibration samples)`'s combined level on the detect entry (dynid.detect.combined, which
+    builds on this module: the caller hands it in)."""
     model, phi = identified.robot_model, identified.phi
     folds = identified.folds
     entries = {}
@@ -215,14 +220,8 @@ def observer_record(identified, datasets: Sequence, monitor_alpha: float) -> Obs
         if folds is not None and key == "detect":
             in_sample = calibrate_momentum(model, phi, identified.base, datasets, alpha, identified.min_speed,
                                            tracking=identified.supply_tracking, measured=measured).section()
-        if key == "detect" and identified.detector is not None and not identified.effects:
-            from .combined import calibrate_combined  # it builds on this module
-            from .t2 import Detector
-
-            calibrated = Detector.of(identified.detector.calibrated)
-            if calibrated.alpha == alpha:
-                combined = calibrate_combined(identified, det, calibrated, datasets, folds, measured,
-                                              momentum_samples=samples).section()
+        if key == "detect" and combine is not None:
+            combined = combine(det, samples)
         entries[key] = ObserverEntry(det.alpha, det.bandwidth_hz, det.velocity_window_s, det.band_sigmas, measured,
                                      det.section(), CROSS_VALIDATED if folds is not None else IN_SAMPLE, in_sample,
                                      combined)
