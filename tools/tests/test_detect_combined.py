@@ -87,3 +87,16 @@ def test_no_blind_side_on_the_default_runs(default_model: Path, default_experime
     assert validation["variants"]["combined"]["fpr"] <= 0.012
     # --residual momentum: the momentum detector and the acceleration variants, as before
     assert "combined" not in detect(default_model, default_experiments["validation"], "--residual", "momentum")["variants"]
+
+
+def test_the_api_runs_the_same_combined_detector(default_model: Path, default_experiments: dict) -> None:
+    """`ContactDetector(model, variant="combined")` scores the run as `dynid detect`'s default does (the same
+    statistic: κ calibrated again on the fit's runs, cross-validated, equals the one the fit kept)."""
+    from dynid.api import ContactDetector, DynamicsModel
+
+    model = DynamicsModel.load(default_model)
+    ours = ContactDetector(model, variant="combined").evaluate(default_experiments["contact"])
+    cli = detect(default_model, default_experiments["contact"])["variants"]["combined"]
+    for key in ("tpr", "fpr"):
+        assert ours[key] == pytest.approx(cli[key], abs=1e-4), key
+    assert ours["tpr_by_side"]["proximal"] == pytest.approx(cli["tpr_by_side"]["proximal"], abs=1e-4)
