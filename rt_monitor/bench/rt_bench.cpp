@@ -1,6 +1,6 @@
 // rt_bench: time per sample of the full real-time core (filter, RNEA prediction, residuals, T², detector), of the
-// core running the momentum observer instead (momentum terms, observer, band, T², detector, τ_ext), and in the same
-// run Pinocchio's rnea on the same chain (built from the same coefficient file: any robot dynid exports).
+// core running the momentum observer instead (momentum terms, observer, band, T², detector, τ_ext), of the combined
+// detector (both, where the file carries its κ), and in the same run Pinocchio's rnea on the same chain (built from the same coefficient file: any robot dynid exports).
 //   rt_bench [COEF_FILE] [--samples N]
 // Each call is timed alone (steady_clock; its own overhead is reported and not subtracted). The heap allocations
 // the core's steps make are counted (alloc_count.cpp) and must be zero: exit 3 otherwise.
@@ -116,8 +116,10 @@ int main(int argc, char** argv) {
         for (auto& t : c->observer_ft_threshold) t = 1e300;
     }
     auto core = std::make_unique<Core>(*c);
+    core->set_residual(Residual::kAcceleration);  // each residual timed on its own, whatever the file selects
     auto observer = std::make_unique<Core>(*c);
-    core->set_residual(Residual::kAcceleration);
+    auto combined = std::make_unique<Core>(*c);
+    const bool combines = combined->set_residual(Residual::kCombined);  // both residuals (a file with κ)
     if (!observer->set_residual(Residual::kMomentum)) {
         std::fprintf(stderr, "rt_bench: the momentum observer of %s does not start\n", path.c_str());
         return 2;
@@ -131,7 +133,7 @@ int main(int argc, char** argv) {
     for (int j = 0; j < nj; ++j) at[size_t(j)] = pm.joints[pm.getJointId(c->joint_names[j])].idx_q();
 
     std::vector<double> t_core(static_cast<size_t>(n)), t_rnea(static_cast<size_t>(n)), t_clock(static_cast<size_t>(n));
-    std::vector<double> t_obs(static_cast<size_t>(n));
+    std::vector<double> t_obs(static_cast<size_t>(n)), t_comb(static_cast<size_t>(n));
     volatile double sink = 0;
     long long core_allocations = 0;  // counted outside the timed spans
     for (long k = 0; k < n; ++k) {  // interleaved, so both see the same machine state
@@ -153,6 +155,15 @@ int main(int argc, char** argv) {
         core_allocations += allocations() - a1;
         sink = sink + ob.p.t2;
         t_obs[k] = std::chrono::duration<double, std::nano>(t5 - t4).count();
+        if (combines) {
+            const long long a2 = allocations();
+            const auto t6 = Clock::now();
+            const Output& oc = combined->step(&Q[k * nj], &Y[k * no]);
+            const auto t7 = Clock::now();
+            core_allocations += allocations() - a2;
+            sink = sink + oc.p.t2;
+            t_comb[k] = std::chrono::duration<double, std::nano>(t7 - t6).count();
+        }
         t_core[k] = std::chrono::duration<double, std::nano>(t1 - t0).count();
         t_rnea[k] = std::chrono::duration<double, std::nano>(t3 - t2).count();
         t_clock[k] = std::chrono::duration<double, std::nano>(t4 - t3).count();
@@ -186,25 +197,35 @@ int main(int argc, char** argv) {
     t_rnea.erase(t_rnea.begin(), t_rnea.begin() + warm);
     t_clock.erase(t_clock.begin(), t_clock.begin() + warm);
     t_obs.erase(t_obs.begin(), t_obs.begin() + warm);
-    const Stats sc = stats(t_core), sr = stats(t_rnea), sk = stats(t_clock), so = stats(t_obs);
+    t_comb.erase(t_comb.begin(), t_comb.begin() + warm);
+    const Stats sc = stats(t_core), sr = stats(t_rnea), sk = stats(t_clock), so = stats(t_obs), sb = stats(t_comb);
     std::printf("rt_bench: %s, %d joints, %d outputs, filter window %d; %ld samples timed one by one\n",
                 c->robot_name.c_str(), nj, no, c->window, n - warm);
     std::printf("  full core step       median %7.1f ns  p99.9 %7.1f ns  max %9.1f ns  mean %7.1f ns\n", sc.median,
                 sc.p999, sc.max, sc.mean);
     std::printf("  observer core step   median %7.1f ns  p99.9 %7.1f ns  max %9.1f ns  mean %7.1f ns%s\n", so.median,
                 so.p999, so.max, so.mean, placeholder_observer ? " (placeholder gains: the file has none)" : "");
+    if (combines)
+        std::printf("  combined core step   median %7.1f ns  p99.9 %7.1f ns  max %9.1f ns  mean %7.1f ns\n", sb.median,
+                    sb.p999, sb.max, sb.mean);
     std::printf("  pinocchio::rnea      median %7.1f ns  p99.9 %7.1f ns  max %9.1f ns  mean %7.1f ns\n", sr.median,
                 sr.p999, sr.max, sr.mean);
     std::printf("  timer overhead       median %7.1f ns (included in both)\n", sk.median);
     std::printf("  ratio core / rnea (medians): %.2f\n", sc.median / sr.median);
     std::printf("  ratio observer core / rnea (medians): %.2f\n", so.median / sr.median);
-    const bool observes = c->residual == Residual::kMomentum;
-    std::printf("  the file selects the %s residuals: core / rnea %.2f\n", observes ? "momentum-observer" : "acceleration",
-                (observes ? so.median : sc.median) / sr.median);
+    if (combines) std::printf("  ratio combined core / rnea (medians): %.2f\n", sb.median / sr.median);
+    const double selected = c->residual == Residual::kMomentum   ? so.median
+                            : c->residual == Residual::kCombined ? sb.median
+                                                                 : sc.median;
+    std::printf("  the file selects the %s residuals: core / rnea %.2f\n",
+                c->residual == Residual::kMomentum   ? "momentum-observer"
+                : c->residual == Residual::kCombined ? "combined (momentum-observer and acceleration)"
+                                                     : "acceleration",
+                selected / sr.median);
     std::printf("  joint torques, core vs Pinocchio: max relative difference %.2e\n", worst);
     std::printf("  momentum M q̇ and Cᵀq̇ − g, core vs Pinocchio: max relative difference %.2e, %.2e\n", worst_p,
                 worst_beta);
-    std::printf("  heap allocations in %ld core steps: %lld (the process's, set-up included: %lld)%s\n", 2 * n,
+    std::printf("  heap allocations in %ld core steps: %lld (the process's, set-up included: %lld)%s\n", (combines ? 3 : 2) * n,
                 core_allocations, allocations(), allocations_count_malloc() ? "" : " (operator new only)");
     if (core_allocations != 0) return 3;
     return sink == 12345.678 ? 1 : 0;

@@ -119,6 +119,7 @@ LoadResult check_shape(const uint8_t* p, size_t n) {
     w.array(2, 8);                                  // observer_threshold, observer_rest_threshold
     w.array(ns, 8);                                 // observer_ft_threshold
     w.array(int64_t(nj) * no + nj + 1, 8);          // tau_map, tau_variance, isolation_sigmas
+    w.array(1, 8);                                  // combined_scale
     if (!w.ok() || w.at() != n) return not_this;
     return LoadResult{};
 }
@@ -126,13 +127,19 @@ LoadResult check_shape(const uint8_t* p, size_t n) {
 // The observer's section: absent (velocity_window 0) unless the file selects it; when present, complete and usable.
 LoadResult check_observer(const dynid::coefficients_t& c) {
     auto dim = [](const std::string& m) { return fail(LoadError::kDimension, m); };
-    if (c.residual != 0 && c.residual != 1)
-        return dim("unknown residual " + str(c.residual) + " (this monitor knows 0 acceleration, 1 momentum)");
+    if (c.residual != 0 && c.residual != 1 && c.residual != 2)
+        return dim("unknown residual " + str(c.residual) + " (this monitor knows 0 acceleration, 1 momentum, 2 combined)");
+    if (!std::isfinite(c.combined_scale)) return fail(LoadError::kNotFinite, "non-finite combined_scale");
+    if (c.combined_scale < 0) return dim("combined_scale must be ≥ 0 (0: no combined detector)");
+    if (c.residual == 2 && !(c.combined_scale > 0)) return dim("the file selects the combined detector but carries no combined_scale");
     if (c.velocity_window == 0) {
-        if (c.residual == 1) return dim("the file selects the momentum residual but carries no observer");
+        if (c.residual == 1 || c.residual == 2)
+            return dim(std::string("the file selects the ") + (c.residual == 1 ? "momentum residual" : "combined detector") +
+                       " but carries no observer");
+        if (c.combined_scale > 0) return dim("combined_scale without an observer");
         return LoadResult{};
     }
-    if (c.residual == 1 && c.n_effects > 0) return dim("the momentum observer has no form for named effects");
+    if (c.residual != 0 && c.n_effects > 0) return dim("the momentum observer has no form for named effects");
     if (c.velocity_window < 3) return dim("velocity filter window " + str(c.velocity_window) + " below 3 samples");
     auto nf = [](const char* what) { return fail(LoadError::kNotFinite, std::string("non-finite value in ") + what); };
     if (!finite_all(c.velocity_filter) || !finite_all(c.observer_variance) || !finite_all(c.tau_variance))
@@ -326,6 +333,8 @@ LoadResult check_plausible(const dynid::coefficients_t& c) {
         for (int j = 0; j < c.n_joints; ++j)
             if (!within(std::sqrt(c.tau_variance[j]), 0, P::kMaxTauSigma))
                 return implausible("joint " + shown_name(c.joint_names[j]) + ": the observer's τ_ext noise", std::sqrt(c.tau_variance[j]), 0, P::kMaxTauSigma, "Nm");
+        if (c.combined_scale > 0 && !within(c.combined_scale, P::kMinCombinedScale, P::kMaxCombinedScale))
+            return implausible("the combined detector's κ", c.combined_scale, P::kMinCombinedScale, P::kMaxCombinedScale, "");
     }
     return LoadResult{};
 }

@@ -89,7 +89,7 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     if (std::memcmp(data, kMagic, sizeof kMagic) != 0)
         return fail(LoadError::kMagic, "not a dynid coefficient file (bad magic)");
     const uint32_t version = read_le32(data + 8);
-    if (version != kFileVersion)
+    if (version != uint32_t(kFileVersion))
         return fail(LoadError::kVersion, "format version " + std::to_string(version) + ", this monitor reads " +
                                              std::to_string(kFileVersion) + ": export the model again (dynid export)");
     const uint64_t length = read_le32(data + 12);
@@ -318,6 +318,7 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     out.observer_threshold = c.observer_threshold;
     out.observer_rest_threshold = c.observer_rest_threshold;
     out.isolation_sigmas = c.isolation_sigmas;
+    out.combined_scale = c.combined_scale;
     out.n_effects = c.n_effects;
     for (int k = 0; k < c.n_effects; ++k) {
         out.effect_kind[k] = EffectKind(c.effect_kind[k]);

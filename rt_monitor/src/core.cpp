@@ -84,7 +84,10 @@ Core::Core(const Coefficients& c) noexcept : c_(c) {
     if (c.supply_time_constant > 0) lambda_ = std::exp(-c.sample_period / c.supply_time_constant);
     if (c.has_observer()) decay_ = std::exp(-2.0 * M_PI * c.observer_bandwidth * c.sample_period);
     ratio_.fill(1.0);  // stays 1 on every channel but the tracked motor inputs
-    residual_ = c.has_observer() ? c.residual : Residual::kAcceleration;
+    obs_ratio_.fill(1.0);
+    residual_ = c.residual;
+    if ((residual_ == Residual::kMomentum && !c.has_observer()) || (residual_ == Residual::kCombined && !c.has_combined()))
+        residual_ = Residual::kAcceleration;  // the loader refuses such a file; a core built on one runs what it can
     reset();
 }
 
@@ -93,15 +96,19 @@ void Core::reset() noexcept {
     slot_ = 0;
     count_ = 0;
     above_run_ = below_run_ = 0;
-    window_ = residual_ == Residual::kMomentum ? c_.velocity_window : c_.window;
+    window_ = residual_ == Residual::kMomentum   ? c_.velocity_window
+              : residual_ == Residual::kCombined ? std::max(c_.window, c_.velocity_window)
+                                                 : c_.window;
     observing_ = false;
     r_.setZero();
     inputs_.setZero();
     out_ = Output{};
+    acc_ = Output{};
 }
 
 bool Core::set_residual(Residual r) noexcept {
     if (r == Residual::kMomentum && !c_.has_observer()) return false;
+    if (r == Residual::kCombined && !c_.has_combined()) return false;
     residual_ = r;
     reset();
     return true;
@@ -234,44 +241,69 @@ const Output& Core::step(const double* q, const double* y) noexcept {
     slot_ = slot_ + 1 == W ? 0 : slot_ + 1;
     ++count_;
     out_.event = Event::kNone;
+    if (residual_ == Residual::kCombined) {
+        combine(q, y);
+        return out_;
+    }
     if (count_ < W) {
         out_.ready = false;
         return out_;
     }
     out_.ready = true;
-    if (residual_ == Residual::kMomentum) observe(q, y);
-    else accelerate();
+    if (residual_ == Residual::kAcceleration) {
+        accelerate(out_);
+        detect(c_.threshold, c_.ft_threshold);
+        track_supply(out_);  // after this sample's residual: the sample never explains itself
+    } else if (residual_ == Residual::kMomentum) {
+        detect(observe(q, y), c_.observer_ft_threshold);
+    }
     return out_;
 }
 
-void Core::accelerate() noexcept {
-    const int W = window_, nj = c_.n_joints, no = c_.n_outputs;
-    // The window, oldest first, is rows slot_ … slot_ + W − 1: each estimate is a dot product over a channel's
-    // contiguous column, the three weights of a joint in one pass over it.
-    const double* window = &ring_(slot_, 0);
+void Core::combine(const double* q, const double* y) noexcept {
+    // Both residuals, each from its own window's start (as each alone would run: the observer from the sample its q̇
+    // window fills, the filter from the sample its window fills), then s = (T²_o/T²_o,α + T²/T²_α)/κ on the
+    // samples where both have run (dynid.detect.combined, its monitor pairing).
+    double observer_threshold = 0;
+    if (count_ >= c_.velocity_window) observer_threshold = observe(q, y);
+    if (count_ >= c_.window) {
+        accelerate(acc_);
+        track_supply(acc_);
+    }
+    out_.ready = count_ >= window_;
+    if (!out_.ready) return;
+    out_.observer_ratio = out_.p.t2 / observer_threshold;
+    out_.acceleration_ratio = acc_.p.t2 / c_.threshold;
+    out_.p.t2 = (out_.observer_ratio + out_.acceleration_ratio) / c_.combined_scale;
+    detect(1.0, c_.observer_ft_threshold);
+}
+
+void Core::accelerate(Output& o) noexcept {
+    const int W = c_.window, nj = c_.n_joints, no = c_.n_outputs;
+    // The window, oldest first: each estimate is a dot product over a channel's contiguous column, the three weights
+    // of a joint in one pass over it.
+    const double* window = newest(W);
     const int stride = int(ring_.outerStride());
     const double* w = c_.filter.data();  // columns: value, slope, curvature
-    filter_window(window, stride, nj, W, w, w + kMaxWindow, w + 2 * kMaxWindow, out_.q.data(), out_.dq.data(),
-                  out_.ddq.data());
-    filter_window(window + size_t(nj) * size_t(stride), stride, no, W, w, nullptr, nullptr, out_.y.data(), nullptr,
+    filter_window(window, stride, nj, W, w, w + kMaxWindow, w + 2 * kMaxWindow, o.q.data(), o.dq.data(),
+                  o.ddq.data());
+    filter_window(window + size_t(nj) * size_t(stride), stride, no, W, w, nullptr, nullptr, o.y.data(), nullptr,
                   nullptr);
-    predict(out_.q, out_.dq, out_.ddq, out_.y, out_.p);
-    for (int k = 0; k < c_.n_sensors; ++k) out_.wrench[k] = out_.p.e.segment<6>(6 * k);
+    predict(o.q, o.dq, o.ddq, o.y, o.p);
+    for (int k = 0; k < c_.n_sensors; ++k) o.wrench[k] = o.p.e.segment<6>(6 * k);
     // Each row's residual as a torque on it, τ_ext = tau_map · (divisor ⊙ e), over the rows in T² (a row at rest
     // carries the static friction the model lacks)
     VecO rows = VecO::Zero();
-    for (int i = c_.n_ft(); i < c_.n_outputs; ++i) rows[i] = out_.p.active[i] ? c_.divisor[i] * out_.p.e[i] : 0.0;
-    isolate(rows, c_.accel_tau_variance);
-    detect(c_.threshold, c_.ft_threshold);
-    track_supply();  // after this sample's residual: the sample never explains itself
+    for (int i = c_.n_ft(); i < c_.n_outputs; ++i) rows[i] = o.p.active[i] ? c_.divisor[i] * o.p.e[i] : 0.0;
+    isolate(o, rows, c_.accel_tau_variance);
 }
 
-void Core::observe(const double* q, const double* y) noexcept {
+double Core::observe(const double* q, const double* y) noexcept {
     // dynid.detect.momentum term for term: r = low-pass of τ_meas − τ_model with τ_model = ṗ − β (no q̈), on the raw
     // q and the causal q̇ estimate; ṗ is the difference of p over the step (0 on the observer's first sample).
-    const int W = window_, nj = c_.n_joints, no = c_.n_outputs, nft = c_.n_ft();
+    const int W = c_.velocity_window, nj = c_.n_joints, no = c_.n_outputs, nft = c_.n_ft();
     const double T = c_.sample_period, ms = c_.min_speed;
-    filter_window(&ring_(slot_, 0), int(ring_.outerStride()), nj, W, c_.velocity_filter.data(), nullptr, nullptr,
+    filter_window(newest(W), int(ring_.outerStride()), nj, W, c_.velocity_filter.data(), nullptr, nullptr,
                   out_.dq.data(), nullptr, nullptr);
     for (int k = 0; k < nj; ++k) out_.q[k] = q[k];
     for (int k = 0; k < no; ++k) out_.y[k] = y[k];
@@ -328,12 +360,12 @@ void Core::observe(const double* q, const double* y) noexcept {
             if (!(c_.supply_gate[i] > 0)) continue;
             inputs_[i] = a * inputs_[i] + (1.0 - a) * y[i];
             const double g = c_.divisor[i], u = inputs_[i];
-            const double predicted = u - r_[i] / g, residual = u - ratio_[i] * predicted;
+            const double predicted = u - r_[i] / g, residual = u - obs_ratio_[i] * predicted;
             out_.r[i] = residual * g;
             if (!rest[i] && std::abs(residual) <= c_.supply_gate[i]) {
-                num_[i] = lambda_ * num_[i] + (1.0 - lambda_) * predicted * u;
-                den_[i] = lambda_ * den_[i] + (1.0 - lambda_) * predicted * predicted;
-                ratio_[i] = (num_[i] + c_.supply_prior) / (den_[i] + c_.supply_prior);
+                obs_num_[i] = lambda_ * obs_num_[i] + (1.0 - lambda_) * predicted * u;
+                obs_den_[i] = lambda_ * obs_den_[i] + (1.0 - lambda_) * predicted * predicted;
+                obs_ratio_[i] = (obs_num_[i] + c_.supply_prior) / (obs_den_[i] + c_.supply_prior);
             }
         }
     }
@@ -349,27 +381,27 @@ void Core::observe(const double* q, const double* y) noexcept {
         p.t2 += z;
         if (i < nft) p.t2_sensor[i / 6] += z;
     }
-    isolate(out_.r, c_.tau_variance);
+    isolate(out_, out_.r, c_.tau_variance);
     for (int k = 0; k < c_.n_sensors; ++k) out_.wrench[k] = out_.r.segment<6>(6 * k);
-    detect(all_rest ? c_.observer_rest_threshold : c_.observer_threshold, c_.observer_ft_threshold);
+    return all_rest ? c_.observer_rest_threshold : c_.observer_threshold;
 }
 
-void Core::isolate(const VecO& rows, const std::array<double, kMaxJoints>& variance) noexcept {
+void Core::isolate(Output& o, const VecO& rows, const std::array<double, kMaxJoints>& variance) noexcept {
     const int nj = c_.n_joints, no = c_.n_outputs;
-    out_.tau_ext.head(nj).noalias() = c_.tau_map.topLeftCorner(nj, no) * rows.head(no);
-    out_.joint = -1;
-    for (int j = nj - 1; j >= 0 && out_.joint < 0; --j)
-        if (variance[j] > 0 && std::abs(out_.tau_ext[j]) > c_.isolation_sigmas * std::sqrt(variance[j])) out_.joint = j;
+    o.tau_ext.head(nj).noalias() = c_.tau_map.topLeftCorner(nj, no) * rows.head(no);
+    o.joint = -1;
+    for (int j = nj - 1; j >= 0 && o.joint < 0; --j)
+        if (variance[j] > 0 && std::abs(o.tau_ext[j]) > c_.isolation_sigmas * std::sqrt(variance[j])) o.joint = j;
 }
 
-void Core::track_supply() noexcept {
+void Core::track_supply(const Output& o) noexcept {
     // dynid.identify.supply.SupplyTracker, term for term: only moving rows (in T²) whose residual is inside the gate.
     if (c_.supply_time_constant <= 0) return;
     const double a = 1.0 - lambda_;
     for (int i = 0; i < c_.n_outputs; ++i) {
-        if (c_.channel_kind[i] != ChannelKind::kInput || !out_.p.active[i]) continue;
-        if (!(std::abs(out_.p.e[i]) <= c_.supply_gate[i])) continue;  // outside the gate, or not a number
-        const double p = out_.p.y_model[i], y = out_.y[i];
+        if (c_.channel_kind[i] != ChannelKind::kInput || !o.p.active[i]) continue;
+        if (!(std::abs(o.p.e[i]) <= c_.supply_gate[i])) continue;  // outside the gate, or not a number
+        const double p = o.p.y_model[i], y = o.y[i];
         num_[i] = lambda_ * num_[i] + a * p * y;
         den_[i] = lambda_ * den_[i] + a * p * p;
         ratio_[i] = (num_[i] + c_.supply_prior) / (den_[i] + c_.supply_prior);

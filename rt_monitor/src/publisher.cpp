@@ -15,7 +15,7 @@ Publisher::Publisher(lcm::LCM& lcm, const Coefficients& coef, const Core& core)
     event_.n_channels = n_out;
     event_.channel.assign(coef.channel_names.begin(), coef.channel_names.begin() + n_out);
     event_.normalized_residual.assign(size_t(n_out), 0.0);
-    event_.residual = int8_t(core.residual() == Residual::kMomentum);
+    event_.residual = int8_t(core.residual());  // 0 acceleration, 1 momentum, 2 combined
     event_.n_sensors = n_sensors;
     event_.sensor.assign(coef.sensor_names.begin(), coef.sensor_names.begin() + n_sensors);
     event_.side.assign(size_t(n_sensors), 0);

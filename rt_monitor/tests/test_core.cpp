@@ -120,10 +120,10 @@ TEST(Loader, RefusesDamagedBytes) {
     crc[200] ^= 0x40;
     cases.push_back({"flipped bit", crc, LoadError::kCrc, "CRC mismatch"});
     auto version = good;
-    put_le32(version, 8, 4);  // a file of the format before any number of F/T sensors: refused, not misread
+    put_le32(version, 8, 5);  // a file of the format before the combined detector: refused, not misread
     reseal(version);
-    cases.push_back({"version 4", version, LoadError::kVersion,
-                     "format version 4, this monitor reads 5: export the model again"});
+    cases.push_back({"version 5", version, LoadError::kVersion,
+                     "format version 5, this monitor reads 6: export the model again"});
     auto magic = good;
     magic[0] = 'X';
     cases.push_back({"magic", magic, LoadError::kMagic, "bad magic"});
@@ -226,7 +226,8 @@ TEST(Loader, RefusesASamplePeriodOutOfRange) {
 void no_allocation_over_100000_samples(Residual residual) {
     auto c = load_fixture();
     // With an augmented model's effects on (the CAD fixture has none): their evaluation allocates nothing either.
-    c->n_effects = residual == Residual::kMomentum ? 0 : 2;
+    c->n_effects = residual == Residual::kAcceleration ? 2 : 0;
+    if (residual == Residual::kCombined) c->combined_scale = 1.5;  // the CAD fixture carries none
     c->effect_kind[0] = EffectKind::kStribeck;
     c->effect_joint[0] = 6;
     c->effect_param[0] = {0.3, 0.05, 0.0};
@@ -296,6 +297,7 @@ void no_allocation_over_100000_samples(Residual residual) {
 
 TEST(Core, NoHeapAllocationOver100000Samples) { no_allocation_over_100000_samples(Residual::kAcceleration); }
 TEST(Core, NoHeapAllocationOver100000SamplesWithTheObserver) { no_allocation_over_100000_samples(Residual::kMomentum); }
+TEST(Core, NoHeapAllocationOver100000SamplesCombined) { no_allocation_over_100000_samples(Residual::kCombined); }
 
 namespace {
 // A smooth motion (q linear in time: the filter reproduces it exactly) with its exact model outputs, plus a
@@ -471,5 +473,52 @@ TEST(Observer, RefusedWhereTheFileHasNone) {
     c->velocity_window = 0;  // a file without the observer's section
     Core core(*c);
     EXPECT_FALSE(core.set_residual(Residual::kMomentum));
+    EXPECT_EQ(core.residual(), Residual::kAcceleration);
+}
+
+// The combined detector runs both residuals as each alone would (the observer from its q̇ window, the filter from its
+// window, each with its own supply tracker), and its statistic is their normalised T² summed over κ.
+TEST(Combined, IsTheSumOfBothResidualsRunAlone) {
+    auto c = load_fixture();
+    c->combined_scale = 1.7;
+    c->supply_time_constant = 1.0;
+    c->supply_prior = 1e-4;
+    for (int i = 6; i < c->n_outputs; ++i) c->supply_gate[i] = 0.02;
+    Core combined(*c), observer(*c), filter(*c);
+    ASSERT_TRUE(combined.set_residual(Residual::kCombined));
+    ASSERT_TRUE(observer.set_residual(Residual::kMomentum));
+    ASSERT_TRUE(filter.set_residual(Residual::kAcceleration));
+    EXPECT_EQ(combined.threshold(), 1.0);
+    const int first = std::max(c->window, c->velocity_window) - 1;
+    std::array<double, kMaxJoints> q{};
+    std::array<double, kMaxOutputs> y{};
+    int compared = 0;
+    for (int k = 0; k < 3000; ++k) {
+        const double t = 1e-3 * k;
+        for (int j = 0; j < 7; ++j) q[size_t(j)] = 0.3 * std::sin(0.7 * t * (j + 1) + j);
+        for (int i = 0; i < 10; ++i) y[size_t(i)] = 0.01 * std::cos(3.0 * t + i) + (k > 2000 && i == 8 ? 0.05 : 0.0);
+        const Output& s = combined.step(q.data(), y.data());
+        const Output& o = observer.step(q.data(), y.data());
+        const Output& a = filter.step(q.data(), y.data());
+        ASSERT_EQ(s.ready, k >= first) << k;
+        if (!s.ready) continue;
+        ASSERT_TRUE(o.ready && a.ready);
+        // the observer's T² over its threshold (all rows rest nowhere here: the moving arm)
+        const double m = o.p.t2 / c->observer_threshold, acc = a.p.t2 / c->threshold;
+        EXPECT_DOUBLE_EQ(s.observer_ratio, m);
+        EXPECT_DOUBLE_EQ(s.acceleration_ratio, acc);
+        EXPECT_NEAR(s.p.t2, (m + acc) / c->combined_scale, 1e-12 * (1 + s.p.t2));
+        EXPECT_EQ(s.above, s.p.t2 > 1.0);
+        for (int i = 0; i < c->n_outputs; ++i) EXPECT_EQ(s.p.e[i], o.p.e[i]);  // the output is the observer's
+        EXPECT_EQ(combined.acceleration_output().p.t2, a.p.t2);
+        ++compared;
+    }
+    EXPECT_EQ(compared, 3000 - first);
+}
+
+TEST(Combined, RefusedWhereTheFileHasNoScale) {
+    auto c = load_fixture();
+    Core core(*c);  // the CAD fixture: an observer, no combined_scale
+    EXPECT_FALSE(core.set_residual(Residual::kCombined));
     EXPECT_EQ(core.residual(), Residual::kAcceleration);
 }

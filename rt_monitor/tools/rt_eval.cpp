@@ -2,9 +2,10 @@
 //   rt_eval --capacity                                    this build's capacity (capacity.hpp), one `name N` a line
 //   rt_eval --coef FILE [--robot NAME] --check
 //   rt_eval --coef FILE [--robot NAME] --predict IN OUT   IN rows: q, q̇, q̈, y   OUT: ŷ, e, active, T², T²_s (per sensor)
-//   rt_eval --coef FILE [--robot NAME] [--residual acceleration|momentum] --stream IN OUT
+//   rt_eval --coef FILE [--robot NAME] [--residual acceleration|momentum|combined] --stream IN OUT
 //       IN rows: raw q, y    OUT: ready, q, q̇, q̈, y, ŷ, e, T², T²_s (per sensor), above, in_contact, event,
-//       side (per sensor), r, τ_ext, joint (the residual the file selects, or the one named; r is the observer's)
+//       side (per sensor), r, τ_ext, joint (the residual the file selects, or the one named; r is the observer's;
+//       combined: T² is s, the outputs the observer's)
 // Matrices: "DYMX", int64 rows, int64 cols, then float64 row-major (little-endian). Exit 2 on bad usage or
 // data, 10 + LoadError on a refused coefficient file.
 #include "rt_monitor/core.hpp"
@@ -91,12 +92,15 @@ int main(int argc, char** argv) {
     }
     Matrix x;
     if (!read_matrix(in, x)) return usage(("cannot read matrix " + in).c_str());
-    if (!residual.empty() && residual != "acceleration" && residual != "momentum")
-        return usage(("--residual is acceleration or momentum, not '" + residual + "'").c_str());
+    if (!residual.empty() && residual != "acceleration" && residual != "momentum" && residual != "combined")
+        return usage(("--residual is acceleration, momentum or combined, not '" + residual + "'").c_str());
     auto core = std::make_unique<Core>(*c);
-    if (!residual.empty() &&
-        !core->set_residual(residual == "momentum" ? Residual::kMomentum : Residual::kAcceleration))
-        return usage("--residual momentum: the coefficient file carries no momentum observer");
+    const Residual chosen = residual == "momentum"   ? Residual::kMomentum
+                            : residual == "combined" ? Residual::kCombined
+                                                     : Residual::kAcceleration;
+    if (!residual.empty() && !core->set_residual(chosen))
+        return usage(("--residual " + residual + ": the coefficient file carries no " +
+                      (residual == "momentum" ? "momentum observer" : "combined detector")).c_str());
     Matrix y;
     y.rows = x.rows;
     if (mode == "predict") {

@@ -47,12 +47,13 @@ void on_signal(int) { g_stop = 1; }
 
 constexpr const char* kSynopsis =
     "usage: rt_monitor --model COEF --config CONFIG [--replay CANDUMP.log [--realtime]] [--loopback DIR] "
-    "[--lcm-url URL] [--residual acceleration|momentum] [--mlockall] [--priority N] [--cpu LIST] [--latency-out FILE] [--stats-out FILE] [--help]\n";
+    "[--lcm-url URL] [--residual acceleration|momentum|combined] [--mlockall] [--priority N] [--cpu LIST] [--latency-out FILE] [--stats-out FILE] [--help]\n";
 
 constexpr const char* kHelp = R"(
 The real-time contact monitor: reads the boards' CAN frames, assembles samples (one per F/T strain pair),
-predicts the F/T wrench and the PWMs with the identified model (the acceleration residuals) or runs its momentum
-observer (the file says which, --residual overrides), computes Hotelling T2 and publishes contact events (with the
+predicts the F/T wrench and the PWMs with the identified model (the acceleration residuals), runs its momentum
+observer, or both in the combined detector (the file says which, --residual overrides), computes Hotelling T2 and
+publishes contact events (with the
 observer: the external joint torques and the isolated joint), a status (counters, loop times, supply ratios) and
 decimated residuals on LCM (channels DYNID_CONTACT, DYNID_STATUS, DYNID_RESIDUAL). SIGINT or SIGTERM ends the
 run; the final counters are printed on stdout.
@@ -70,8 +71,9 @@ frame source (default: SocketCAN raw sockets on the configured buses, kernel fil
                         (`boards --sink loopback:DIR --realtime` sends to it); excludes --replay
 
 detection:
-  --residual R          acceleration or momentum: run this residual instead of the one the file selects (momentum
-                        needs a file that carries the observer: `dynid export` writes it)
+  --residual R          acceleration, momentum or combined: run this instead of what the file selects (momentum
+                        needs a file that carries the observer, combined one with its combined_scale too:
+                        `dynid export` writes them)
 
 output:
   --lcm-url URL         LCM URL, overriding the configuration's lcm_url (default: LCM's own, UDP multicast);
@@ -295,8 +297,8 @@ int main(int argc, char** argv) {
     }
     if (model.empty() || config.empty()) return usage("--model and --config are required");
     if (!replay.empty() && !loopback.empty()) return usage("--replay and --loopback exclude each other");
-    if (!residual.empty() && residual != "acceleration" && residual != "momentum")
-        return usage("--residual is acceleration or momentum, not '" + residual + "'");
+    if (!residual.empty() && residual != "acceleration" && residual != "momentum" && residual != "combined")
+        return usage("--residual is acceleration, momentum or combined, not '" + residual + "'");
     // Range checks are the system's (SCHED_FIFO's priorities, the allowed CPUs): a refusal has its own exit code.
     if (rts.fifo && !parse_int(priority, -1000000, 1000000, rts.priority))
         return usage("--priority needs an integer, got '" + priority + "'");
@@ -330,6 +332,9 @@ int main(int argc, char** argv) {
     if (residual == "momentum" && !coef->has_observer())
         return bad_config(model + ": carries no momentum observer (export it again with dynid export), so "
                           "--residual momentum cannot run");
+    if (residual == "combined" && !coef->has_combined())
+        return bad_config(model + ": carries no combined detector (export it again with dynid export, from a model "
+                          "whose observer it can calibrate), so --residual combined cannot run");
     Assembler asm_;
     if (!asm_.init(cfg, *coef, err)) return bad_config(config + ": " + err);
 
@@ -362,13 +367,18 @@ int main(int argc, char** argv) {
     sigaction(SIGINT, &sa, nullptr);
     sigaction(SIGTERM, &sa, nullptr);
     auto core = std::make_unique<Core>(*coef);
-    if (!residual.empty()) core->set_residual(residual == "momentum" ? Residual::kMomentum : Residual::kAcceleration);
+    if (!residual.empty())
+        core->set_residual(residual == "momentum"   ? Residual::kMomentum
+                           : residual == "combined" ? Residual::kCombined
+                                                    : Residual::kAcceleration);
     core->set_detector({coef->debounce_on, coef->debounce_off, coef->hysteresis});
     std::fprintf(stderr, "rt_monitor: running: %s; LCM %s; %s; %s residuals\n",
                  !replay.empty() ? ("replay of " + replay + (realtime ? " in real time" : "")).c_str()
                  : !loopback.empty() ? ("loopback transport in " + loopback).c_str() : "SocketCAN",
                  (url.empty() ? std::string("default URL") : url).c_str(), describe_rt_settings(rts).c_str(),
-                 core->residual() == Residual::kMomentum ? "momentum-observer" : "acceleration");
+                 core->residual() == Residual::kMomentum   ? "momentum-observer"
+                 : core->residual() == Residual::kCombined ? "combined (momentum-observer and acceleration)"
+                                                           : "acceleration");
     Publisher publisher(*lcm, *coef, *core);
     auto watchdog = std::make_unique<Watchdog>();
     watchdog->init(cfg, *coef, asm_);

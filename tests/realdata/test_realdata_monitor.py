@@ -129,8 +129,9 @@ def test_a_real_run_through_the_monitor_is_the_core_on_the_decoded_samples(robot
             print(f"leg event kind {m.kind} at {t:.2f} s, T² {m.t2:.1f}: " + ", ".join(
                 f"{name} side {side} |f| {np.linalg.norm(w[:3]):.1f} N" for name, side, w in zip(m.sensor, m.side,
                                                                                               m.wrench)))
-        # Measured: an onset at 65.75 s, distal of both sensors, the foot sensor's residual force 15.4 N (the leg's
-        # 26.0 N), never ended; before it a 0.18 s onset in the swing (16.67 s) and one in the put-down (63.59 s).
+        # Measured with the combined detector (the export's default): an onset at 65.73 s, distal of both sensors, the
+        # foot sensor's residual force 23.4 N (the leg's 42.9 N), never ended; before it a 0.19 s onset in the swing
+        # (16.66 s) and one in the put-down (63.86 s). (The acceleration residuals: 65.75 s, 15.4 N, 16.67 and 63.59 s.)
         t_on, foot = events[-1]
         assert foot.kind == 1 and 65.6 <= t_on <= 65.9, events
         sensors = dict(zip(foot.sensor, zip(foot.side, foot.wrench)))

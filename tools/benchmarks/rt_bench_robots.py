@@ -6,7 +6,8 @@ sample ≤ 1× Pinocchio's rnea on the same robot in the same run, no allocation
 
 Each robot's CAD model is exported (`dynid export --cad --rate HZ`) and timed by `build/rt_monitor/rt_bench`, which
 interleaves the acceleration core, the momentum-observer core (placeholder gains where the file has none: timing
-only) and Pinocchio's rnea on the same chain, and counts the core's heap allocations. The full-capacity chain is
+only), the combined detector where the file carries its κ (an identified `--model`), and Pinocchio's rnea on the
+same chain, and counts the core's heap allocations. The full-capacity chain is
 generated here: capacity.hpp's joints, one F/T sensor per group of joints up to its sensors, every joint with a
 torque sensor (6 × sensors + joints outputs). Robots whose URDF is not found are listed as skipped.
 """
@@ -85,10 +86,12 @@ def bench(coef: Path, samples: int) -> dict[str, str]:
     head = re.search(r"rt_bench: [^,]+, (\d+) joints, (\d+) outputs, filter window (\d+)", out)
     acc, obs, rnea = median("full core step"), median("observer core step"), median("pinocchio::rnea")
     allocs = re.search(r"heap allocations in (\d+) core steps: (\d+)", out)
+    both = median("combined core step") if "combined core step" in out else None  # a file with the combined κ
     return {"shape": f"{head.group(1)} joints, {head.group(2)} outputs, window {head.group(3)}",
             "core": f"{acc / 1e3:.2f} µs ({acc / rnea:.2f}×)", "observer": f"{obs / 1e3:.2f} µs ({obs / rnea:.2f}×)",
+            "combined": "-" if both is None else f"{both / 1e3:.2f} µs ({both / rnea:.2f}×)",
             "rnea": f"{rnea / 1e3:.2f} µs", "allocations": f"{allocs.group(2)} in {allocs.group(1)}",
-            "placeholder": "placeholder gains" in out, "worst": max(acc, obs) / rnea}
+            "placeholder": "placeholder gains" in out, "worst": max(acc, obs, both or 0) / rnea}
 
 
 def main() -> None:
@@ -117,11 +120,13 @@ def main() -> None:
             print(f"{name}: done", file=sys.stderr)
         for path in args.model:
             rows.append((str(path), bench(path, args.samples)))
-    print("| robot | shape | acceleration core (÷ rnea) | observer core (÷ rnea) | rnea | core allocations |")
-    print("|---|---|---|---|---|---|")
+    print("| robot | shape | acceleration core (÷ rnea) | observer core (÷ rnea) | combined core (÷ rnea) | rnea | "
+          "core allocations |")
+    print("|---|---|---|---|---|---|---|")
     for name, r in rows:
         note = " ¹" if r["placeholder"] else ""
-        print(f"| {name} | {r['shape']} | {r['core']} | {r['observer']}{note} | {r['rnea']} | {r['allocations']} |")
+        print(f"| {name} | {r['shape']} | {r['core']} | {r['observer']}{note} | {r['combined']} | {r['rnea']} | "
+              f"{r['allocations']} |")
     if any(r["placeholder"] for _, r in rows):
         print("\n¹ the file carries no observer: rt_bench gives it placeholder gains, for timing only")
     worst = max(rows, key=lambda r: r[1]["worst"])

@@ -23,6 +23,7 @@ from sklearn.metrics import r2_score
 from sklearn.utils.validation import check_is_fitted
 
 from .config import RobotConfig, load_config
+from .detect.combined import CombinedDetector, calibrate_combined
 from .detect.evaluation import detectors
 from .detect.momentum_t2 import MomentumDetector, calibrate_momentum, calibration_runs, friction_band, run_residuals
 from .detect.t2 import ALPHA, VARIANTS, Detector, calibrate, calibration_residuals, score_with_delays
@@ -247,12 +248,14 @@ class ContactDetector(BaseEstimator):
     ----------
     model : DynamicsModel
         A fitted model.
-    variant : {"calibrated", "paper", "momentum"}
+    variant : {"calibrated", "paper", "momentum", "combined"}
         "calibrated" (the default: Λ and T²_α from contact-free data, so α keeps its promise), "paper"
-        (diagonal Λ and the F threshold, as published) or "momentum" (T² on the generalized-momentum observer's
-        residuals, no q̈, calibrated like "calibrated": docs/detection.md; its decision function is T²/T²_α).
+        (diagonal Λ and the F threshold, as published), "momentum" (T² on the generalized-momentum observer's
+        residuals, no q̈, calibrated like "calibrated": docs/detection.md; its decision function is T²/T²_α) or
+        "combined" (`dynid detect`'s default: both residuals' T²/T²_α summed over κ; its decision function is that
+        sum over κ: docs/detection.md#no-blind-side).
     bandwidth_hz : float
-        The momentum observer's bandwidth (variant "momentum" only).
+        The momentum observer's bandwidth (variants "momentum" and "combined").
     alpha : float or None
         Confidence level; None takes the model's.
     """
@@ -266,8 +269,8 @@ class ContactDetector(BaseEstimator):
 
     def _check(self) -> None:
         check_is_fitted(self.model, "model_")
-        if self.variant not in (*VARIANTS, "momentum"):
-            raise InputError(f"variant must be one of {', '.join(VARIANTS)}, momentum, got {self.variant!r}")
+        if self.variant not in (*VARIANTS, "momentum", "combined"):
+            raise InputError(f"variant must be one of {', '.join(VARIANTS)}, momentum, combined, got {self.variant!r}")
         if self.alpha is not None and not 0.5 <= self.alpha < 1:
             raise InputError(f"alpha must be in [0.5, 1), got {self.alpha!r}")
 
@@ -280,7 +283,20 @@ class ContactDetector(BaseEstimator):
         self._check()
         if hasattr(self, "detector_"):
             return self.detector_
-        return detectors(self.model.model_, self._alpha(), self.model.model_.settings.n_mode)[self.variant]
+        variant = "calibrated" if self.variant == "combined" else self.variant  # the combined one's acceleration part
+        return detectors(self.model.model_, self._alpha(), self.model.model_.settings.n_mode)[variant]
+
+    def _combined_detector(self, runs: list | None = None) -> CombinedDetector:
+        if runs is None and hasattr(self, "combined_"):
+            return self.combined_
+        identified = self.model.model_
+        momentum = self._momentum_detector(runs)  # on the given runs, or (cached) on the fit's, cross-validated
+        folds = None
+        if runs is None:  # the runs it was fitted on, cross-validated, as the momentum detector's
+            runs, _ = calibration_runs(identified, None)
+            folds = identified.folds
+        self.combined_ = calibrate_combined(identified, momentum, self._detector(), runs, folds)
+        return self.combined_
 
     def _momentum_detector(self, runs: list | None = None) -> MomentumDetector:
         if runs is None and hasattr(self, "momentum_"):
@@ -295,6 +311,13 @@ class ContactDetector(BaseEstimator):
                                  folds=folds)
         self.momentum_ = det
         return det
+
+    def _combined_statistic(self, X: Data) -> tuple[Dataset, np.ndarray]:
+        det = self._combined_detector()
+        ds, momentum = self._momentum_statistic(X)
+        ev = self.model._evaluated(X)
+        acceleration = self._detector()
+        return ds, det.statistic(momentum, acceleration.t2(ev.model, ev.e, ev.signals.dq) / acceleration.threshold)
 
     def _momentum_statistic(self, X: Data) -> tuple[Dataset, np.ndarray]:
         identified = self.model.model_
@@ -316,6 +339,7 @@ class ContactDetector(BaseEstimator):
         if self.variant == "momentum":
             self._momentum_detector(runs)
             return self
+        variant = "calibrated" if self.variant == "combined" else self.variant
         phi, effects = identified.phi, identified.effects
         settings = FitSettings(min_speed=identified.min_speed)
 
@@ -325,23 +349,28 @@ class ContactDetector(BaseEstimator):
         # runs given to calibrate on: out of sample by the caller's choice, through the model's Φ
         e, dq, e_constant, _ = calibration_residuals(robot, runs, settings, residual_of, identified.supply_tracking,
                                                      phi)
-        found = calibrate(robot, phi, e, dq, self._alpha(), identified.min_speed, variants=(self.variant,),
+        found = calibrate(robot, phi, e, dq, self._alpha(), identified.min_speed, variants=(variant,),
                           e_constant=e_constant)
-        self.detector_ = found[self.variant]
+        self.detector_ = found[variant]
+        if self.variant == "combined":  # both parts on the given runs, then κ on them
+            self._combined_detector(runs)
         return self
 
     def decision_function(self, X: Data) -> np.ndarray:
-        """T² per sample (NaN where the detector is gated off); T²/T²_α for the momentum variant."""
+        """T² per sample (NaN where the detector is gated off); T²/T²_α for the momentum variant, s for the
+        combined one."""
         self._check()
         if self.variant == "momentum":
             return self._momentum_statistic(X)[1]
+        if self.variant == "combined":
+            return self._combined_statistic(X)[1]
         ev = self.model._evaluated(X)
         e = ev.e_constant if self.variant == "paper" else ev.e  # the paper's model has constant gains
         return self._detector().t2(ev.model, e, ev.signals.dq, ev.identified.phi)
 
     def predict(self, X: Data) -> np.ndarray:
         """Contact (True) where T² exceeds T²_α."""
-        threshold = 1.0 if self.variant == "momentum" else self._detector().threshold
+        threshold = 1.0 if self.variant in ("momentum", "combined") else self._detector().threshold
         return np.nan_to_num(self.decision_function(X), nan=0.0) > threshold
 
     def score(self, X: Data, y: np.ndarray | None = None) -> float:
@@ -362,8 +391,8 @@ class ContactDetector(BaseEstimator):
         """TPR, FPR, ROC/AUC, episodes found and onset delays against the run's ground truth: this variant's
         part of `dynid detect --json`."""
         self._check()
-        if self.variant == "momentum":
-            ds, stat = self._momentum_statistic(X)
+        if self.variant in ("momentum", "combined"):
+            ds, stat = (self._momentum_statistic if self.variant == "momentum" else self._combined_statistic)(X)
             return score_with_delays(ds.t, stat, 1.0, ds.contact, ds.extra.get("skin.side"))
         ev = self.model._evaluated(X)
         e = ev.e_constant if self.variant == "paper" else ev.e

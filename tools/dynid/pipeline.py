@@ -20,6 +20,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from .config.robot_config import RobotConfig
+from .detect.combined import fit_combined
 from .detect.momentum_t2 import CALIBRATION_MAX_S, observer_record
 from .detect.t2 import (Detector, calibrate, calibration_residuals, calibration_stride, detector_record,
                         join_calibration, run_calibration_residuals)
@@ -263,7 +264,9 @@ def _identify(model: RobotModel, datasets: Sequence[Run], data_paths: Sequence[s
     identified = built.model
     if settings.observer:
         try:
-            identified.observer = observer_record(identified, [_head(run) for run in datasets], settings.detector.alpha)
+            heads = [_head(run) for run in datasets]
+            identified.observer = observer_record(identified, heads, settings.detector.alpha,
+                                                  combine=fit_combined(identified, heads))
         except DataError:  # e.g. too few contact-free samples: `detect` calibrates then, and says why, as before
             pass
     total = time.perf_counter() - started

@@ -41,10 +41,10 @@ def rt_eval(*args: str, exe: Path = RT_EVAL) -> subprocess.CompletedProcess:
     return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=600)
 
 
-def stream(coef: Path, raw: np.ndarray, work: Path) -> np.ndarray:
-    """The core's per-sample output rows (`rt_eval --stream`) for the raw samples `raw`."""
+def stream(coef: Path, raw: np.ndarray, work: Path, *options: str) -> np.ndarray:
+    """The core's per-sample output rows (`rt_eval OPTIONS --stream`) for the raw samples `raw`."""
     assert RT_EVAL.is_file(), f"{RT_EVAL} is not built (scripts/setup)"
-    return run_stream(RT_EVAL, coef, raw, work)
+    return run_stream(RT_EVAL, coef, raw, work, *options)
 
 
 def python_mirror(identified, c: coefficients_t, t: np.ndarray, q: np.ndarray, inputs: dict, ft: dict):
@@ -157,7 +157,8 @@ def test_stream_matches_the_python_mirror(exported: Path, default_model: Path, d
     det = Detector("calibrated", np.asarray(c.residual_variance), c.threshold, c.alpha, c.min_speed, c.n_outputs)
     t2 = det.t2(model, e, sig.dq)
 
-    out = stream(exported, np.hstack([q, ft["r_arm_ft"]] + [inputs[m][:, None] for m in c.motor_names]), tmp_path)
+    out = stream(exported, np.hstack([q, ft["r_arm_ft"]] + [inputs[m][:, None] for m in c.motor_names]), tmp_path,
+                 "--residual", "acceleration")  # the file selects the combined detector; these are its filter's
     nj, no = c.n_joints, c.n_outputs
     ready = out[:, 0] == 1
     assert not ready[: c.window - 1].any() and ready[c.window - 1 :].all()
@@ -178,7 +179,7 @@ def test_threshold_keeps_its_promise_online(exported: Path, default_experiments:
     config = load_config("icub_right_arm")
     ds = load_data(default_experiments["validation"], config)
     assert ds.contact is None or not ds.contact.any(), "the validation run must be contact-free"
-    out = stream(exported, raw_samples(ds, c), tmp_path)
+    out = stream(exported, raw_samples(ds, c), tmp_path, "--residual", "acceleration")
     out = out[out[:, 0] == 1]
     above = out[:, detector_columns(c)["above"]]
     fpr = float(above.mean())
@@ -218,18 +219,18 @@ def test_cad_fixture_is_current(tmp_path: Path) -> None:
     assert_same_coefficients(read_coefficients(out), read_coefficients(FIXTURE))
 
 
-PREVIOUS_VERSION = ROOT / "tools" / "tests" / "data" / "icub_cad_version4.dcoef"  # `dynid export --cad` of 5bbb0bd
+PREVIOUS_VERSION = ROOT / "tools" / "tests" / "data" / "icub_cad_version5.dcoef"  # `dynid export --cad` of aa5aba4
 
 
 @pytest.mark.parametrize("exe", BUILDS, ids=lambda p: p.name)
 def test_a_previous_version_file_is_refused_saying_what_to_do(exe: Path, tmp_path: Path) -> None:
-    """A genuine version-4 file (one F/T sensor, before any number of them): the monitor and dynid refuse it in one
-    line that says to export again; it is never misread."""
+    """A genuine version-5 file (before the combined detector): the monitor and dynid refuse it in one line that says
+    to export again; it is never misread."""
     done = rt_eval("--coef", str(PREVIOUS_VERSION), "--check", exe=exe / "rt_monitor" / "rt_eval")
     assert done.returncode == EXIT_BASE + 4, done.stderr
-    assert done.stderr.count("\n") == 1 and "format version 4, this monitor reads 5: export the model again" in done.stderr
+    assert done.stderr.count("\n") == 1 and "format version 5, this monitor reads 6: export the model again" in done.stderr
     done = dynid("export", "--print", str(PREVIOUS_VERSION))
-    assert done.returncode == 2 and "format version 4, this dynid reads 5: export the model again" in done.stderr
+    assert done.returncode == 2 and "format version 5, this dynid reads 6: export the model again" in done.stderr
     done = subprocess.run([str(exe / "rt_monitor" / "rt_monitor"), "--model", str(PREVIOUS_VERSION), "--config",
                            str(ROOT / "rt_monitor" / "config" / "icub_right_arm.conf"), "--replay", "/dev/null",
                            "--lcm-url", "memq://"], capture_output=True, text=True, timeout=60)
@@ -279,7 +280,7 @@ def _bad_files(good: bytes) -> dict[str, tuple[bytes, int, str]]:
     flipped = bytearray(good)
     flipped[len(good) // 2] ^= 0x01
     bad["wrong CRC"] = (bytes(flipped), EXIT_BASE + 5, "CRC mismatch")
-    bad["wrong version"] = (wrap(payload, version=3), EXIT_BASE + 4, "format version 3, this monitor reads 5")
+    bad["wrong version"] = (wrap(payload, version=3), EXIT_BASE + 4, "format version 3, this monitor reads 6")
 
     c = coefficients_t.decode(payload)
     nj = capacity().joints + 1  # one above the capacity
@@ -312,6 +313,19 @@ def _bad_files(good: bytes) -> dict[str, tuple[bytes, int, str]]:
     c = coefficients_t.decode(payload)
     c.supply_time_constant = float("inf")
     bad["infinite supply time constant"] = (_reencode(c), EXIT_BASE + 9, "non-finite value in the supply tracking")
+
+    c = coefficients_t.decode(payload)
+    c.residual = 2  # the combined detector without its κ (the CAD fixture carries none)
+    bad["combined without κ"] = (_reencode(c), EXIT_BASE + 8, "selects the combined detector but carries no combined_scale")
+
+    c = coefficients_t.decode(payload)
+    c.residual, c.combined_scale = 2, float("nan")
+    bad["combined κ not a number"] = (_reencode(c), EXIT_BASE + 9, "non-finite combined_scale")
+
+    c = coefficients_t.decode(payload)
+    c.residual, c.combined_scale = 3, 1.5
+    bad["unknown residual"] = (_reencode(c), EXIT_BASE + 8, "unknown residual 3 (this monitor knows 0 acceleration, 1 "
+                               "momentum, 2 combined)")
 
     c = coefficients_t.decode(payload)
     c.robot_name = "panda_arm"
@@ -378,7 +392,7 @@ def test_contact_run_side_and_detection(exported: Path, default_experiments: dic
     """The contact run through the core: distal contacts are detected, and the side named is the skin's."""
     c = read_coefficients(exported)
     ds = load_data(default_experiments["contact"], load_config("icub_right_arm"))
-    out = stream(exported, raw_samples(ds, c), tmp_path)
+    out = stream(exported, raw_samples(ds, c), tmp_path, "--residual", "acceleration")
     lag = c.lag  # output k is the estimate of sample k − lag
     truth, side = np.zeros(len(out), bool), np.zeros(len(out))
     truth[lag:], side[lag:] = ds.contact[:-lag] != 0, ds.extra["skin.side"][:-lag]

@@ -134,8 +134,8 @@ def test_observer_section_is_checked(exported: Path, tmp_path: Path) -> None:
     old.write_bytes(wrap(unwrap(good), version=3))
     done = rt_eval("--coef", str(old), "--check")
     assert done.returncode == EXIT_BASE + 4
-    assert "format version 3, this monitor reads 5: export the model again" in done.stderr
-    with pytest.raises(Exception, match="format version 3, this dynid reads 5"):
+    assert "format version 3, this monitor reads 6: export the model again" in done.stderr
+    with pytest.raises(Exception, match="format version 3, this dynid reads 6"):
         read_coefficients(old)
     # the observer's q̇ weights are the causal quadratic slope dynid uses
     np.testing.assert_allclose(c.velocity_filter, causal_velocity_weights(c.velocity_window, c.sample_period),

@@ -2,6 +2,8 @@
 // their storage from these, and dynid reads them from this file (dynid.export.capacity) to refuse, before it writes
 // anything, a robot the monitor could not take. A file or configuration that needs more is refused, never truncated.
 //
+// The coefficient file's format version lives here too (kFileVersion, read by dynid.export.capacity the same way).
+//
 // Sized for every bundled robot with room to spare: a whole iCub carries six F/T sensors (arms, legs, feet) and
 // about 32 joints without its hands; the bundled set-ups need at most 12 joints (the iCub standing on one leg), 2
 // sensors and a 151-sample filter window (the UR10e's 0.3 s at 500 Hz). Keep the form `constexpr int kName = N;`:
@@ -21,5 +23,10 @@ constexpr int kMaxBuses = 8;                // CAN interfaces the monitor reads
 constexpr int kMaxFrames = 256;             // CAN frames of the robot's bus description
 constexpr int kMaxSignals = 1024;           // signals in those frames
 constexpr int kMaxSkins = 16;               // skin patches (bits of a sample's contact mask)
+
+// The coefficient file's format version: 2 effects (Stribeck, spring) of an augmented model; 3 supply tracking; 4 the
+// momentum observer; 5 any number of F/T sensors, the acceleration residuals' external-torque variance, the joints'
+// ranges; 6 the combined detector (residual 2, combined_scale). A file of another version is refused, named.
+constexpr int kFileVersion = 6;
 
 }  // namespace dynid::rt

@@ -16,9 +16,6 @@ namespace dynid::rt {
 // The sample period a file may give: 100 kHz to 1 Hz (the sample clock counts periods between µs stamps in int64).
 constexpr double kMinSamplePeriod = 1e-5, kMaxSamplePeriod = 1.0;
 
-// 2: effects (Stribeck, spring) of an augmented model; 3: supply tracking; 4: the momentum observer; 5: any number
-// of F/T sensors (0 to kMaxSensors), the acceleration residuals' external-torque variance, the joints' ranges
-constexpr uint32_t kFileVersion = 5;
 constexpr char kMagic[8] = {'D', 'Y', 'N', 'I', 'D', 'C', 'O', 'F'};
 
 using Vec3 = Eigen::Vector3d;
@@ -30,8 +27,9 @@ enum class ChannelKind : int8_t { kFt = 0, kInput = 1, kTorque = 2 };
 // Extra joint torques of an augmented model (`dynid gaps --out`), added to τ + τ_f of their joint:
 // Stribeck p0·sign(q̇)·exp(−(q̇/p1)²), spring p0·(q − p1).
 enum class EffectKind : int8_t { kStribeck = 1, kSpring = 2 };
-// The residual the core runs: the acceleration residuals (fixed-lag filter, q̈) or the momentum observer's.
-enum class Residual : int8_t { kAcceleration = 0, kMomentum = 1 };
+// The residual the core runs: the acceleration residuals (fixed-lag filter, q̈), the momentum observer's, or both
+// in the combined detector (dynid.detect.combined).
+enum class Residual : int8_t { kAcceleration = 0, kMomentum = 1, kCombined = 2 };
 
 struct Coefficients {
     std::string robot_name, config_digest, dynid_version, model_sha256, data_sha256, estimator;
@@ -97,6 +95,9 @@ struct Coefficients {
     std::array<double, kMaxJoints> tau_variance{};
     double isolation_sigmas = 0;
     bool has_observer() const { return velocity_window > 0; }
+    // The combined detector (format version 6): s = (T²_o/T²_o,α + T²/T²_α)/combined_scale; 0: not calibrated.
+    double combined_scale = 0;
+    bool has_combined() const { return has_observer() && combined_scale > 0; }
 
     std::array<std::string, kMaxJoints> joint_names;
     std::array<double, kMaxJoints> joint_lower{}, joint_upper{};  // each joint's range (rad, or m)

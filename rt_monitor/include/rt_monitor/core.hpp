@@ -1,6 +1,7 @@
-// The real-time evaluation core: per sample, either the fixed-lag derivative filter and a fixed-size recursive
+// The real-time evaluation core: per sample, the fixed-lag derivative filter and a fixed-size recursive
 // Newton-Euler prediction of the F/T wrench and the motor inputs (the acceleration residuals), or the
-// generalized-momentum observer (no q̈: dynid.detect.momentum); then T², the debounced detector with hysteresis,
+// generalized-momentum observer (no q̈: dynid.detect.momentum), or both in the combined detector
+// (dynid.detect.combined); then T², the debounced detector with hysteresis,
 // the contact side, the wrench and, with the observer, the external joint torques and the isolated joint. After
 // construction: no allocation, no locks, no exceptions, no I/O (rt_monitor/README.md, "Real-time core").
 #pragma once
@@ -44,6 +45,10 @@ struct Output {
     // calibration noise (the contact is on its link or beyond), −1 if none (or no variance was calibrated).
     VecJ tau_ext = VecJ::Zero();
     int joint = -1;
+    // The combined detector: each residual's T² over its own T²_α (the observer's at this sample, the acceleration
+    // residuals' at sample k − lag); p.t2 is then their sum over combined_scale, s, and the threshold 1. Everything
+    // else above is the observer's. Zero with one residual.
+    double observer_ratio = 0, acceleration_ratio = 0;
 };
 
 struct DetectorSettings {
@@ -63,18 +68,25 @@ public:
     // Restart the filter, the observer and the detector (after a gap in the frames). The supply estimate survives:
     // a gap in the data does not change the boards' supply, and starting it over would put its drift back into e.
     void reset() noexcept;
-    // Run the other residual than the file selects (start-up only; it resets). False: the file carries no observer.
+    // Run another residual than the file selects (start-up only; it resets). False: the file carries no observer
+    // (momentum), or no combined_scale (combined).
     bool set_residual(Residual r) noexcept;
     Residual residual() const noexcept { return residual_; }
-    // Λ of channel i for the residual that runs.
+    // Λ of channel i for the residual whose e the output carries (the observer's in the combined detector).
     double variance(int i) const noexcept {
-        return residual_ == Residual::kMomentum ? c_.observer_variance[i] : c_.variance[i];
+        return residual_ == Residual::kAcceleration ? c_.variance[i] : c_.observer_variance[i];
     }
+    // T²_α of p.t2 (1 in the combined detector: p.t2 is s).
     double threshold() const noexcept {
-        return residual_ == Residual::kMomentum ? c_.observer_threshold : c_.threshold;
+        return residual_ == Residual::kAcceleration ? c_.threshold
+               : residual_ == Residual::kMomentum   ? c_.observer_threshold
+                                                    : 1.0;
     }
-    // The supply ratio r of output channel i (1 on untracked channels; dynid.identify.supply).
-    double supply_ratio(int i) const noexcept { return ratio_[i]; }
+    // The supply ratio r of output channel i (1 on untracked channels; dynid.identify.supply): the acceleration
+    // residuals' tracker, or the observer's where only the observer runs.
+    double supply_ratio(int i) const noexcept { return residual_ == Residual::kMomentum ? obs_ratio_[i] : ratio_[i]; }
+    // The combined detector's acceleration residuals (its output's p, q, q̇, q̈, y at sample k − lag).
+    const Output& acceleration_output() const noexcept { return acc_; }
     void set_detector(const DetectorSettings& s) noexcept { det_ = s; }
     const DetectorSettings& detector() const noexcept { return det_; }
     const Output& output() const noexcept { return out_; }
@@ -82,17 +94,21 @@ public:
 private:
     void rnea(const VecJ& q, const VecJ& dq, const VecJ& ddq, VecJ& tau,
               std::array<Vec6, kMaxSensors>& sensor_force) const noexcept;
-    void accelerate() noexcept;
-    void observe(const double* q, const double* y) noexcept;
-    void isolate(const VecO& rows, const std::array<double, kMaxJoints>& variance) noexcept;
+    // The newest n samples of the ring, oldest first (rows of n contiguous samples, one column a channel).
+    const double* newest(int n) const noexcept { return &ring_(slot_ + window_ - n, 0); }
+    void accelerate(Output& o) noexcept;
+    void combine(const double* q, const double* y) noexcept;
+    // The observer into out_; returns its T²_α at this sample (the rest threshold where every row rests).
+    double observe(const double* q, const double* y) noexcept;
+    void isolate(Output& o, const VecO& rows, const std::array<double, kMaxJoints>& variance) noexcept;
     void detect(double threshold, const std::array<double, kMaxSensors>& ft_threshold) noexcept;
-    void track_supply() noexcept;
+    void track_supply(const Output& o) noexcept;
 
     const Coefficients& c_;
     DetectorSettings det_;
     Residual residual_ = Residual::kAcceleration;
     int width_ = 0;  // channels per raw sample: n_joints + n_outputs
-    int window_ = 0;  // samples in the ring: the derivative filter's window, or the observer's velocity window
+    int window_ = 0;  // samples in the ring: the derivative filter's window, the observer's velocity window, or both
     // The last samples, one row a sample and one column a channel (q, then y): each sample is stored twice, at rows
     // slot and slot + window, so the window is always a contiguous block, and each channel's window is a contiguous
     // column the filter takes dot products with. Plain storage: a fixed-size Eigen matrix of the capacity is above
@@ -103,9 +119,11 @@ private:
     int slot_ = 0;
     long count_ = 0;
     int above_run_ = 0, below_run_ = 0;
-    // Supply tracking: exponentially forgotten sums of ŷ y and ŷ², and their ratio r, per output channel.
+    // Supply tracking: exponentially forgotten sums of ŷ y and ŷ², and their ratio r, per output channel; the
+    // acceleration residuals' and the observer's each their own (the combined detector runs both).
     double lambda_ = 1.0;
     std::array<double, kMaxOutputs> num_{}, den_{}, ratio_{};
+    std::array<double, kMaxOutputs> obs_num_{}, obs_den_{}, obs_ratio_{};
     // The observer: a = exp(−K_O·T), its output r, the previous momentum (joints, then the sensor's 6), the
     // low-passed inputs of the tracked channels.
     double decay_ = 0;
@@ -115,6 +133,7 @@ private:
     std::array<Vec6, kMaxSensors> ps_prev_{};
     MomentumTerms terms_;
     Output out_;
+    Output acc_;  // the combined detector's acceleration residuals
 };
 
 }  // namespace dynid::rt

@@ -58,6 +58,10 @@ constexpr double kMaxSupplyTimeConstant = 1e4;  // s
 constexpr double kMinSupplyPeriods = 10;      // a time constant on (not 0) spans at least this many sample periods
 constexpr double kMinHysteresis = 0.05;       // the end level as a fraction of T²_α: below, no contact ever ends
 constexpr double kMaxIsolationSigmas = 100;
+// The combined detector's κ: the α-quantile of two statistics each 1 at its own α-quantile, summed, lies between
+// about 1 (one of them always 0) and 2 (the two equal); far outside, the file is blind or alarms forever.
+constexpr double kMinCombinedScale = 0.5;
+constexpr double kMaxCombinedScale = 20;
 constexpr double kMaxTauSigma = 1e4;          // Nm, the external joint torque's calibration noise
 
 // The monitor's configuration: a value signal's scale (its resolution, physical units per count) and the span its

@@ -190,15 +190,22 @@ def _export_coefficients(args: argparse.Namespace) -> dict[str, Any]:
               "calibration samples")
     else:
         print(f"  momentum observer: not carried ({done.observer_note})")
+    if done.combined_scale > 0:
+        print(f"  combined detector: s = (T²_o/T²_o,α + T²/T²_α)/{done.combined_scale:.4g}, κ the sum's α-quantile on "
+              "paired contact-free samples of both residuals")
+    else:
+        print(f"  combined detector: not carried ({done.combined_note})")
     ev = done.events
+    level = "1 (s)" if done.residual == "combined" else "T²_α"
     print(f"  the monitor runs the {done.residual} residuals; events: onset after {ev.debounce_on} samples above "
-          f"T²_α, end after {ev.debounce_off} below {ev.hysteresis:g}·T²_α")
+          f"{level}, end after {ev.debounce_off} below {ev.hysteresis:g}·{level}")
     momentum = None if obs is None else {
         "bandwidth_hz": obs.detector.bandwidth_hz, "velocity_window": obs.velocity_window,
         "threshold": obs.detector.threshold, "ft_thresholds": obs.detector.ft_thresholds,
         "residual_variance": dict(zip(done.channels, obs.detector.variance.tolist())),
         "calibration_samples": obs.detector.samples}
     return {"model": args.model, "out": args.out, "residual": done.residual, "momentum": momentum,
+            "combined_scale": done.combined_scale or None,
             "events": {"debounce_on": ev.debounce_on, "debounce_off": ev.debounce_off, "hysteresis": ev.hysteresis},
             "bytes": done.size, "threshold": cal.threshold,
             "ft_thresholds": cal.ft_thresholds, "alpha": alpha,
@@ -253,10 +260,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--window", type=int_in(3, MAX_WINDOW), metavar="N", help="filter window in samples, 3 to "
                     f"{MAX_WINDOW} (the monitor's capacity; default: the configuration's offline window)")
     sp.add_argument("--alpha", type=alpha, help="confidence level (default: the model's)")
-    sp.add_argument("--residual", choices=["acceleration", "momentum"], default=None,
-                    help="the residual the monitor runs: acceleration (default: the fixed-lag derivative filter's "
-                    "q̈) or momentum (the generalized-momentum observer, no q̈; not for a model with named effects). "
-                    "The file carries both calibrations (rt_monitor --residual switches); docs/detection.md#the-monitor")
+    sp.add_argument("--residual", choices=["combined", "acceleration", "momentum"], default=None,
+                    help="what the monitor runs: combined (default where the observer and the combined level can be "
+                    "calibrated: both residuals' T² summed, docs/detection.md#no-blind-side; else acceleration), "
+                    "acceleration (the fixed-lag derivative filter's q̈) or momentum (the generalized-momentum "
+                    "observer, no q̈; not for a model with named effects). The file carries every calibration it can "
+                    "(rt_monitor --residual switches); docs/detection.md#the-monitor")
     sp.add_argument("--bandwidth", type=positive_float, default=DEFAULT_BANDWIDTH_HZ, metavar="HZ",
                     help=f"the momentum observer's bandwidth K_O/2π (default {DEFAULT_BANDWIDTH_HZ:g} Hz)")
     sp.add_argument("--debounce-on", type=int_in(1, MAX_DEBOUNCE), default=None, metavar="N",

@@ -11,6 +11,7 @@ import numpy as np
 from ..config.robot_config import RobotConfig, load_config
 from ..detect.evaluation import detection
 from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S
+from ..detect.combined import calibrate_combined, combined_detection, stored_combined
 from ..detect.momentum_t2 import calibration_runs, momentum_detection, stored_detector, stored_in_sample
 from ..detect.t2 import ALPHA
 from ..errors import DataError, InputError
@@ -305,7 +306,7 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
     if labels is not None:
         found.result["episodes_file"] = {"path": args.episodes, "episodes": int(len(labels)),
                                          "in_data": len(contact_episodes(ev.dataset.contact))}
-    momentum, skipped = None, None
+    momentum, skipped, skipped_combined = None, None, None
     if args.residual in (None, "momentum"):
         try:
             # the fit's own calibration where it matches (the model file's `observer` section), else calibrate now
@@ -325,17 +326,30 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
             if args.residual == "momentum" or calibration_given:  # asked for: its failure is the command's
                 raise
             skipped = str(e)  # the default: say why, and report the acceleration-based variants
-    if momentum is not None:
+    combined = None
+    if momentum is not None and args.residual is None:  # the default: both residuals in one detector
+        try:
+            combined = combine(ev, found, momentum, args, stored is not None, calibration_given, runs, folds)
+        except DataError as e:
+            if calibration_given:
+                raise
+            skipped_combined = str(e)
         found.result["variants"] = {"momentum": momentum.result, **found.result["variants"]}
         found.result["events"] = momentum.events
         found.result["calibration"] = paths
-    found.result["residual"] = "momentum" if momentum is not None else "acceleration"
+    if combined is not None:
+        found.result["variants"] = {"combined": combined.result, **found.result["variants"]}
+        found.result["events"] = combined.events
+    found.result["residual"] = "combined" if combined is not None else "momentum" if momentum is not None else \
+        "acceleration"
     found.result["out_of_sample"] = out_of_sample(ev.identified, args.data, window(args),
                                                   paths if momentum is not None else [], calibration_given,
                                                   (args.calibration_from, args.calibration_to),
                                                   found.result["variants"])
     if skipped:
         found.result["momentum_skipped"] = skipped
+    if skipped_combined:
+        found.result["combined_skipped"] = skipped_combined
     print(f"T² contact detection with {args.model} on {args.data} ({ev.dataset.n_samples} samples), α = {args.alpha}")
     if (skipped_bad := skipped_rows(args.data, ev.dataset.meta)) is not None:
         found.result["bad_rows"] = skipped_bad
@@ -347,6 +361,8 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
         print("  no contact ground truth in the data: FPR assumes the run is contact-free")
     if skipped:
         print(f"  momentum residual skipped: {skipped}")
+    if skipped_combined:
+        print(f"  combined detector skipped: {skipped_combined}")
     if momentum is not None:
         print(f"  momentum: observer bandwidth {args.bandwidth:g} Hz, calibrated on {momentum.detector.samples} "
               f"contact-free samples; {len(momentum.events)} contact events")
@@ -381,6 +397,21 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
     return found.result
 
 
+def combine(ev, found, momentum, args: argparse.Namespace, stored: bool, calibration_given: bool, runs, folds):
+    """The combined detector (dynid.detect.combined) on the run: its level κ the fit kept, else calibrated now on the
+    momentum detector's calibration runs (cross-validated where they are the fit's own)."""
+    if ev.identified.effects or "calibrated" not in found.detectors:
+        return None
+    det_c = found.detectors["calibrated"]
+    det = stored_combined(ev.identified, args.alpha) if stored else None
+    if det is None:
+        if runs is None:
+            runs, _ = calibration_runs(ev.identified, args.calibration, (args.calibration_from, args.calibration_to))
+        det = calibrate_combined(ev.identified, momentum.detector, det_c, runs, folds)
+    return combined_detection(ev.identified, ev.dataset, momentum, found.t2["calibrated"], det_c, det, found.side,
+                              args.label_widening)
+
+
 def _overlap(a: tuple, b: tuple) -> bool:
     """Two windows [from, to] of a run's seconds (None: open) share some time."""
     lo = max(-np.inf if a[0] is None else a[0], -np.inf if b[0] is None else b[0])
@@ -403,11 +434,12 @@ def out_of_sample(identified, data: str, data_window: tuple, calibration_paths: 
     outside = digest is not None and not any(d == digest and _overlap(w, data_window) for d, w in seen)
     det = identified.detector
     calibration = {"calibrated": det.calibration if det is not None else IN_SAMPLE}
-    if "momentum" in variants:
-        calibration["momentum"] = "given runs" if calibration_given else (
-            CROSS_VALIDATED if identified.folds is not None else IN_SAMPLE)
+    for name in ("combined", "momentum"):
+        if name in variants:
+            calibration[name] = "given runs" if calibration_given else (
+                CROSS_VALIDATED if identified.folds is not None else IN_SAMPLE)
     per = {}
-    for name in ("momentum", "calibrated"):
+    for name in ("combined", "momentum", "calibrated"):
         if name in variants:
             v = variants[name]
             per[name] = {"calibration": calibration[name], "fpr": v.get("fpr"),
@@ -510,9 +542,11 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"confidence level (default {ALPHA})")
     sp.add_argument("--n-mode", choices=N_MODES, default=DEFAULT_N_MODE, help="n of the paper's F threshold")
     sp.add_argument("--residual", choices=["momentum", "acceleration"], default=None,
-                    help="momentum (the default where it can be calibrated): T² on the generalized-momentum "
-                    "observer's residuals, which need no q̈ (docs/detection.md), reported beside the two "
-                    "acceleration-based variants; acceleration: those two only")
+                    help="default: the combined detector (the momentum observer's and the calibrated acceleration "
+                    "residuals' T² summed, docs/detection.md#no-blind-side) and, beside it, the momentum detector and "
+                    "the two acceleration-based variants; momentum: T² on the generalized-momentum observer's "
+                    "residuals, which need no q̈, beside the acceleration-based variants (without the combined "
+                    "detector); acceleration: those two only")
     sp.add_argument("--bandwidth", type=positive_float, default=DEFAULT_BANDWIDTH_HZ, metavar="HZ",
                     help=f"the momentum observer's bandwidth K_O/2π (default {DEFAULT_BANDWIDTH_HZ:g} Hz: "
                     f"a {1e3 / (2 * np.pi * DEFAULT_BANDWIDTH_HZ):.1f} ms time constant)")

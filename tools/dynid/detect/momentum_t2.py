@@ -14,7 +14,7 @@ and the estimated external torque and wrench, scoring against labels (`dynid det
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -22,7 +22,8 @@ import numpy as np
 
 from ..errors import DataError
 from ..io.bad_rows import DEFAULT_POLICY
-from ..identify.model_sections import (ALPHA, CROSS_VALIDATED, IN_SAMPLE, BaseSection, FoldsSection, MomentumCalibration, ObserverEntry,
+from ..identify.model_sections import (ALPHA, CROSS_VALIDATED, IN_SAMPLE, BaseSection, CombinedCalibration, FoldsSection,
+                                      MomentumCalibration, ObserverEntry,
                                       ObserverSection, Quantiles)
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
@@ -126,12 +127,26 @@ def momentum_calibration_residuals(model: RobotModel, phi: np.ndarray, base: Bas
                                    band_sigmas: float = BAND_SIGMAS, tracking=None,
                                    velocity_window_s: float = VELOCITY_WINDOW_S, measured: bool = True,
                                    folds: FoldsSection | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(e, rows at rest, τ_ext) of `calibrate_momentum`'s samples. With `folds` the observer runs block by block,
-    each through its fold's Φ (and friction band), started `warm-up` seconds before the block (its time constants,
-    the velocity window, and three of the supply tracker's where it tracks) so that only the block's samples count."""
+    """(e, rows at rest, τ_ext) of `calibrate_momentum`'s samples (`momentum_calibration_samples` without where
+    they are)."""
+    e, rest, tau, _ = momentum_calibration_samples(model, phi, base, datasets, min_speed, bandwidth_hz, band_sigmas,
+                                                   tracking, velocity_window_s, measured, folds)
+    return e, rest, tau
+
+
+def momentum_calibration_samples(model: RobotModel, phi: np.ndarray, base: BaseSection | None, datasets: Sequence,
+                                 min_speed: float, bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ,
+                                 band_sigmas: float = BAND_SIGMAS, tracking=None,
+                                 velocity_window_s: float = VELOCITY_WINDOW_S, measured: bool = True,
+                                 folds: FoldsSection | None = None
+                                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(e, rows at rest, τ_ext, where) of `calibrate_momentum`'s samples, `where` (N, 2) each one's run (its index in
+    `datasets`) and sample in that run. With `folds` the observer runs block by block, each through its fold's Φ
+    (and friction band), started `warm-up` seconds before the block (its time constants, the velocity window, and
+    three of the supply tracker's where it tracks) so that only the block's samples count."""
     from ..io.load import apply_window
 
-    es, rests, taus = [], [], []
+    es, rests, taus, wheres = [], [], [], []
     settle = SETTLE_TIME_CONSTANTS / (2 * np.pi * bandwidth_hz)
     warm_s = settle + velocity_window_s + (3.0 * tracking.time_constant_s if tracking is not None else 0.0)
     for i, ds in enumerate(datasets):
@@ -153,7 +168,8 @@ def momentum_calibration_residuals(model: RobotModel, phi: np.ndarray, base: Bas
             es.append(res.e[keep])
             rests.append(res.at_rest[keep])
             taus.append(res.tau_ext[keep])
-    return np.vstack(es), np.vstack(rests), np.vstack(taus)
+            wheres.append(np.column_stack([np.full(int(keep.sum()), i), index[keep]]))
+    return np.vstack(es), np.vstack(rests), np.vstack(taus), np.vstack(wheres)
 
 
 def momentum_detector(model: RobotModel, e: np.ndarray, rest: np.ndarray, tau: np.ndarray, alpha: float,
@@ -184,23 +200,31 @@ def momentum_detector(model: RobotModel, e: np.ndarray, rest: np.ndarray, tau: n
 OBSERVER_VERSION = 2  # 2: cross-validated over the fit's time blocks (the model's `folds`); 1: in-sample
 
 
-def observer_record(identified, datasets: Sequence, monitor_alpha: float) -> ObserverSection:
+def observer_record(identified, datasets: Sequence, monitor_alpha: float,
+                    combine: Callable[[MomentumDetector, tuple], CombinedCalibration | None] | None = None
+                    ) -> ObserverSection:
     """The model file's `observer` section: the momentum detector calibrated on the fit's own (whole, contact-free)
     runs as `dynid detect` calibrates it by default (the data's q̇, α = ALPHA) and as `dynid export` does for the
     monitor (its causal q̇, the model's α), with the sha256 of the runs it was calibrated on: cross-validated where the
-    model has its `folds`, with the detect entry's in-sample calibration beside (what `detect` compares against)."""
+    model has its `folds`, with the detect entry's in-sample calibration beside (what `detect` compares against), and
+    `combine(detector, its calibration samples)`'s combined level on the detect entry (dynid.detect.combined, which
+    builds on this module: the caller hands it in)."""
     model, phi = identified.robot_model, identified.phi
     folds = identified.folds
     entries = {}
     for key, measured, alpha in (("detect", True, ALPHA), ("monitor", False, monitor_alpha)):
-        det = calibrate_momentum(model, phi, identified.base, datasets, alpha, identified.min_speed,
-                                 tracking=identified.supply_tracking, measured=measured, folds=folds)
-        in_sample = None
+        samples = momentum_calibration_samples(model, phi, identified.base, datasets, identified.min_speed,
+                                               tracking=identified.supply_tracking, measured=measured, folds=folds)
+        det = momentum_detector(model, *samples[:3], alpha, identified.min_speed)
+        in_sample = combined = None
         if folds is not None and key == "detect":
             in_sample = calibrate_momentum(model, phi, identified.base, datasets, alpha, identified.min_speed,
                                            tracking=identified.supply_tracking, measured=measured).section()
+        if key == "detect" and combine is not None:
+            combined = combine(det, samples)
         entries[key] = ObserverEntry(det.alpha, det.bandwidth_hz, det.velocity_window_s, det.band_sigmas, measured,
-                                     det.section(), CROSS_VALIDATED if folds is not None else IN_SAMPLE, in_sample)
+                                     det.section(), CROSS_VALIDATED if folds is not None else IN_SAMPLE, in_sample,
+                                     combined)
     return ObserverSection(OBSERVER_VERSION, tuple(run.sha256 for run in identified.data), **entries)
 
 

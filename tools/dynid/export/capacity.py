@@ -1,4 +1,5 @@
-"""The real-time monitor's compile-time capacity, read from the one place that sets it.
+"""The real-time monitor's compile-time capacity and its coefficient file's format version, read from the one place
+that sets them.
 
 `rt_monitor/include/rt_monitor/capacity.hpp` holds `constexpr int kName = N;` lines; the core, the loader and the
 assembler size their storage from them, and `dynid export` checks a robot against them before it writes anything
@@ -15,6 +16,7 @@ from pathlib import Path
 
 HEADER = Path(__file__).resolve().parents[3] / "rt_monitor" / "include" / "rt_monitor" / "capacity.hpp"
 _LINE = re.compile(r"^\s*constexpr\s+int\s+kMax(\w+)\s*=\s*(\d+)\s*;", re.MULTILINE)
+_VERSION = re.compile(r"^\s*constexpr\s+int\s+kFileVersion\s*=\s*(\d+)\s*;", re.MULTILINE)
 
 
 @dataclass(frozen=True)
@@ -49,3 +51,15 @@ def capacity(header: Path = HEADER) -> Capacity:
         return Capacity(**{k: values[k] for k in Capacity.__dataclass_fields__})
     except KeyError as e:
         raise RuntimeError(f"{header} does not define kMax{e.args[0].title().replace('_', '')}") from None
+
+
+@lru_cache(maxsize=1)
+def file_version(header: Path = HEADER) -> int:
+    """The coefficient file's format version the monitor reads (`kFileVersion` of `header`)."""
+    try:
+        found = _VERSION.search(header.read_text())
+    except OSError as e:
+        raise RuntimeError(f"the monitor's capacity header is missing ({header}: {e.strerror})") from None
+    if found is None:
+        raise RuntimeError(f"{header} does not define kFileVersion")
+    return int(found.group(1))

@@ -34,20 +34,20 @@ from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from ..robot.regressors.stack import group_row_maps, group_rows
 from ..version import __version__
-from .capacity import capacity
+from .capacity import capacity, file_version
 from .lcm_coefficients import coefficients_t
 from .plausible import Implausible, check_plausible
 
 MAGIC = b"DYNIDCOF"
-# 2: the effects of an augmented model (Stribeck, spring); 3: supply tracking; 4: the momentum observer; 5: any number
-# of F/T sensors, the acceleration residuals' τ_ext variance. Older files are refused, named: re-export them.
-FILE_VERSION = 5
+# rt_monitor/include/rt_monitor/capacity.hpp names the versions (6: the combined detector). Older files are refused,
+# named: re-export them.
+FILE_VERSION = file_version()
 HEADER = struct.Struct("<8sII")
 # The monitor's compile-time filter capacity (kMaxWindow, rt_monitor/include/rt_monitor/capacity.hpp): a longer
 # window was exported without a word and the monitor then refused the file (exit 17).
 MAX_WINDOW = capacity().window
 KIND = {"ft": 0, "input": 1, "torque": 2}
-RESIDUAL = {"acceleration": 0, "momentum": 1}
+RESIDUAL = {"acceleration": 0, "momentum": 1, "combined": 2}
 JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
 NO_LIMIT = 1e6  # rad or m: the range written for a joint without limits (plausibility.hpp's kMaxJointRange)
 # Events, not samples: the filtered residuals are autocorrelated over the filter window, so single samples above
@@ -205,11 +205,17 @@ def check_window(est: FixedLagSavitzkyGolay) -> None:
 def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDetector, est: FixedLagSavitzkyGolay,
                        provenance: Provenance = Provenance(), effects: Sequence[Effect] = (),
                        tracking: SupplyTracking | None = None, observer: MonitorObserver | None = None,
-                       residual: str = "acceleration") -> coefficients_t:
+                       residual: str = "acceleration", combined_scale: float = 0.0) -> coefficients_t:
     """The payload of the coefficient file for Φ (with Stribeck and spring effects), the detector and the filter,
-    and the momentum observer; `residual` names the one the monitor runs (the observer needs `observer`)."""
-    if residual not in RESIDUAL or (residual == "momentum" and observer is None):
-        raise DataError(f"the monitor's residual is acceleration or momentum (with an observer), not '{residual}'")
+    the momentum observer, and the combined detector's κ (`combined_scale`, 0: none; dynid.detect.combined);
+    `residual` names what the monitor runs (the observer needs `observer`, the combined detector both)."""
+    if residual not in RESIDUAL or (residual != "acceleration" and observer is None):
+        raise DataError(f"the monitor's residual is acceleration, or momentum or combined with an observer, not "
+                        f"'{residual}'")
+    if not (np.isfinite(combined_scale) and combined_scale >= 0) or (residual == "combined" and combined_scale == 0):
+        raise DataError(f"the combined detector needs a positive combined_scale, not {combined_scale}")
+    if combined_scale > 0 and observer is None:
+        raise DataError("a combined_scale needs the observer")
     cfg, layout, pm = model.config, model.layout, model.pin_model
     exportable_effects(effects)
     check_monitor_supports(model, effects)
@@ -312,6 +318,7 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDete
     c.supply_gate = [tracking.gate_of(o.sigma) if tracking is not None and tracked(o) else 0.0 for o in outs]
     c.tau_map, c.isolation_sigmas = external_torque_map(model).tolist(), float(ISOLATION_SIGMAS)
     _observer_section(c, model, est, observer, residual)
+    c.combined_scale = float(combined_scale)
     return c
 
 
@@ -408,7 +415,8 @@ def describe(c: coefficients_t) -> str:
     else:
         lines.append("supply tracking: off (constant motor gains)")
     if c.velocity_window > 0:
-        chosen = "the monitor runs it" if c.residual == 1 else "carried; the monitor runs the acceleration residuals"
+        chosen = {1: "the monitor runs it", 2: "the monitor runs it in the combined detector"}.get(
+            c.residual, "carried; the monitor runs the acceleration residuals")
         lines.append(f"momentum observer ({chosen}): bandwidth {c.observer_bandwidth:g} Hz, causal q̇ over "
                      f"{c.velocity_window} samples; T²_α {c.observer_threshold:.6g} (all rows at rest "
                      f"{c.observer_rest_threshold:.6g}), F/T-side thresholds "
@@ -423,6 +431,10 @@ def describe(c: coefficients_t) -> str:
                 lines.append(f"  {c.motor_names[k]:18s} static-friction band [{f(c.motor_band[k])}] Nm")
     else:
         lines.append("momentum observer: none (the monitor runs the acceleration residuals)")
+    if c.combined_scale > 0:
+        state = "the monitor runs it" if c.residual == 2 else "carried (rt_monitor --residual combined)"
+        lines.append(f"combined detector ({state}): s = (T²_o/T²_o,α + T²/T²_α)/{c.combined_scale:.6g}, a contact "
+                     "where s > 1")
     names = {1: "stribeck", 2: "spring"}
     for k in range(c.n_effects):
         j, p = _name(c.joint_names, c.effect_joint[k]), c.effect_param[k]

@@ -14,11 +14,11 @@ import struct
 
 class coefficients_t(object):
 
-    __slots__ = ["robot_name", "config_digest", "dynid_version", "model_sha256", "data_sha256", "estimator", "n_joints", "joint_names", "joint_limits", "n_bodies", "body_names", "parent", "joint_type", "joint_index", "axis", "rotation", "translation", "inertial", "gravity", "n_sensors", "sensor_names", "sensor_body", "n_motors", "motor_names", "motor_velocity", "motor_friction_on", "motor_friction", "joint_friction", "n_outputs", "channel_names", "channel_kind", "ft_offset", "row_map", "channel_motor", "divisor", "residual_variance", "gate_joints", "gate_motors", "min_speed", "alpha", "threshold", "ft_threshold", "accel_tau_variance", "calibration_samples", "debounce_on", "debounce_off", "hysteresis", "sample_period", "window", "order", "lag", "filter", "n_effects", "effect_kind", "effect_joint", "effect_param", "supply_time_constant", "supply_prior", "supply_gate", "residual", "observer_bandwidth", "velocity_window", "velocity_filter", "joint_band", "motor_band", "observer_variance", "observer_threshold", "observer_rest_threshold", "observer_ft_threshold", "tau_map", "tau_variance", "isolation_sigmas"]
+    __slots__ = ["robot_name", "config_digest", "dynid_version", "model_sha256", "data_sha256", "estimator", "n_joints", "joint_names", "joint_limits", "n_bodies", "body_names", "parent", "joint_type", "joint_index", "axis", "rotation", "translation", "inertial", "gravity", "n_sensors", "sensor_names", "sensor_body", "n_motors", "motor_names", "motor_velocity", "motor_friction_on", "motor_friction", "joint_friction", "n_outputs", "channel_names", "channel_kind", "ft_offset", "row_map", "channel_motor", "divisor", "residual_variance", "gate_joints", "gate_motors", "min_speed", "alpha", "threshold", "ft_threshold", "accel_tau_variance", "calibration_samples", "debounce_on", "debounce_off", "hysteresis", "sample_period", "window", "order", "lag", "filter", "n_effects", "effect_kind", "effect_joint", "effect_param", "supply_time_constant", "supply_prior", "supply_gate", "residual", "observer_bandwidth", "velocity_window", "velocity_filter", "joint_band", "motor_band", "observer_variance", "observer_threshold", "observer_rest_threshold", "observer_ft_threshold", "tau_map", "tau_variance", "isolation_sigmas", "combined_scale"]
 
-    __typenames__ = ["string", "string", "string", "string", "string", "string", "int32_t", "string", "double", "int32_t", "string", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "double", "int32_t", "string", "int32_t", "int32_t", "string", "double", "int8_t", "double", "double", "int32_t", "string", "int8_t", "double", "double", "int32_t", "double", "double", "int64_t", "int64_t", "double", "double", "double", "double", "double", "int32_t", "int32_t", "int32_t", "double", "double", "int32_t", "int32_t", "int32_t", "double", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "int8_t", "double", "int32_t", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double"]
+    __typenames__ = ["string", "string", "string", "string", "string", "string", "int32_t", "string", "double", "int32_t", "string", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "double", "int32_t", "string", "int32_t", "int32_t", "string", "double", "int8_t", "double", "double", "int32_t", "string", "int8_t", "double", "double", "int32_t", "double", "double", "int64_t", "int64_t", "double", "double", "double", "double", "double", "int32_t", "int32_t", "int32_t", "double", "double", "int32_t", "int32_t", "int32_t", "double", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "int8_t", "double", "int32_t", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double"]
 
-    __dimensions__ = [None, None, None, None, None, None, None, ["n_joints"], ["n_joints", 2], None, ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies", 3], ["n_bodies", 9], ["n_bodies", 3], ["n_bodies", 10], [3], None, ["n_sensors"], ["n_sensors"], None, ["n_motors"], ["n_motors", "n_joints"], ["n_motors"], ["n_motors", 4], ["n_joints", 4], None, ["n_outputs"], ["n_outputs"], ["n_sensors", 6], ["n_outputs", "n_joints"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], None, None, None, ["n_sensors"], ["n_joints"], None, None, None, None, None, None, None, None, [3, "window"], None, ["n_effects"], ["n_effects"], ["n_effects", 3], None, None, ["n_outputs"], None, None, None, ["velocity_window"], ["n_joints", 2], ["n_motors", 2], ["n_outputs"], None, None, ["n_sensors"], ["n_joints", "n_outputs"], ["n_joints"], None]
+    __dimensions__ = [None, None, None, None, None, None, None, ["n_joints"], ["n_joints", 2], None, ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies", 3], ["n_bodies", 9], ["n_bodies", 3], ["n_bodies", 10], [3], None, ["n_sensors"], ["n_sensors"], None, ["n_motors"], ["n_motors", "n_joints"], ["n_motors"], ["n_motors", 4], ["n_joints", 4], None, ["n_outputs"], ["n_outputs"], ["n_sensors", 6], ["n_outputs", "n_joints"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], None, None, None, ["n_sensors"], ["n_joints"], None, None, None, None, None, None, None, None, [3, "window"], None, ["n_effects"], ["n_effects"], ["n_effects", 3], None, None, ["n_outputs"], None, None, None, ["velocity_window"], ["n_joints", 2], ["n_motors", 2], ["n_outputs"], None, None, ["n_sensors"], ["n_joints", "n_outputs"], ["n_joints"], None, None]
 
     def __init__(self):
         self.robot_name = ""
@@ -333,7 +333,8 @@ class coefficients_t(object):
         self.residual = 0
         """
         generalized-momentum observer (format version 4, dynid.detect.momentum): the residual that needs no q̈.
-        0: the monitor runs the acceleration residuals above; 1: the observer's, with its own T² below
+        0: the monitor runs the acceleration residuals above; 1: the observer's, with its own T² below; 2 (format
+        version 6): both, combined (combined_scale below)
         LCM Type: int8_t
         """
 
@@ -384,6 +385,15 @@ class coefficients_t(object):
         """ LCM Type: double[n_joints] """
         self.isolation_sigmas = 0.0
         """ LCM Type: double """
+        self.combined_scale = 0.0
+        """
+        the combined detector (format version 6, dynid.detect.combined): s = (T²_o/T²_o,α + T²/T²_α)/combined_scale,
+        the observer's T² over its own T²_α (its rest threshold where every row rests) plus the acceleration
+        residuals' over theirs, a contact where s > 1; combined_scale κ is the sum's α-quantile on paired contact-free
+        samples of both. 0: not calibrated (then residual is 0 or 1)
+        LCM Type: double
+        """
+
 
     def encode(self):
         buf = BytesIO()
@@ -503,7 +513,7 @@ class coefficients_t(object):
         for i0 in range(self.n_joints):
             buf.write(struct.pack('>%dd' % self.n_outputs, *self.tau_map[i0][:self.n_outputs]))
         buf.write(struct.pack('>%dd' % self.n_joints, *self.tau_variance[:self.n_joints]))
-        buf.write(struct.pack(">d", self.isolation_sigmas))
+        buf.write(struct.pack(">dd", self.isolation_sigmas, self.combined_scale))
 
     @staticmethod
     def decode(data: bytes):
@@ -627,13 +637,13 @@ class coefficients_t(object):
         for i0 in range(self.n_joints):
             self.tau_map.append(struct.unpack('>%dd' % self.n_outputs, buf.read(self.n_outputs * 8)))
         self.tau_variance = struct.unpack('>%dd' % self.n_joints, buf.read(self.n_joints * 8))
-        self.isolation_sigmas = struct.unpack(">d", buf.read(8))[0]
+        self.isolation_sigmas, self.combined_scale = struct.unpack(">dd", buf.read(16))
         return self
 
     @staticmethod
     def _get_hash_recursive(parents):
         if coefficients_t in parents: return 0
-        tmphash = (0x3e0fb7fd68a0a09b) & 0xffffffffffffffff
+        tmphash = (0x630321ea63ece114) & 0xffffffffffffffff
         tmphash  = (((tmphash<<1)&0xffffffffffffffff) + (tmphash>>63)) & 0xffffffffffffffff
         return tmphash
     _packed_fingerprint = None

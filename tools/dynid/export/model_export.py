@@ -16,7 +16,8 @@ from ..config.robot_config import RobotConfig
 from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S, friction_band, velocity_window_samples
 from ..detect.momentum_t2 import MomentumDetector, calibrate_momentum, stored_detector
 from ..detect.online import FixedLagSavitzkyGolay, OnlineCalibration, calibrate_online, uniform_pieces, estimator_for
-from ..detect.t2 import f_threshold
+from ..detect.combined import calibrate_combined
+from ..detect.t2 import Detector, f_threshold
 from ..errors import DataError
 from ..identify.model_file import IdentifiedModel, data_digest, file_digest
 from ..identify.model_sections import ALPHA
@@ -58,16 +59,18 @@ class ExportSettings:
     window: int | None = None  # filter window in samples; default the configuration's offline window
     alpha: float | None = None  # default: the model's
     events: EventSettings = field(default_factory=EventSettings)
-    # The residual the monitor runs: "acceleration" (default: on the live mission of the default arm it finds more
-    # episodes, sooner, than the observer; docs/detection.md#the-monitor) or "momentum" (the observer, no q̈; not for an
-    # augmented model, whose effects have no momentum form yet). The file carries both where it can.
+    # The residual the monitor runs: "combined" (default where the observer and κ can be calibrated: both residuals in
+    # one statistic, docs/detection.md#no-blind-side), "acceleration" (the default otherwise) or "momentum" (the
+    # observer, no q̈; not for an augmented model, whose effects have no momentum form yet). The file carries each it
+    # can calibrate (rt_monitor --residual switches).
     residual: str | None = None
     bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ  # the observer's
     observer_events: EventSettings = field(default_factory=lambda: MOMENTUM_EVENTS)
     cad_rate_hz: float = 1000.0  # the boards' sample rate of a CAD export (a calibrated one takes its data's)
 
     def events_for(self, residual: str) -> EventSettings:
-        """The event settings the file carries: those of the residual the monitor runs."""
+        """The event settings the file carries: those of the residual the monitor runs (the combined detector's are
+        the acceleration residuals')."""
         return self.observer_events if residual == "momentum" else self.events
 
 
@@ -85,6 +88,8 @@ class Exported:
     observer: MonitorObserver | None
     events: EventSettings  # those of the residual the monitor runs
     observer_note: str = ""  # why the file carries no observer
+    combined_scale: float = 0.0  # κ of the combined detector (0: not carried)
+    combined_note: str = ""  # why the file carries no combined detector
 
 
 def calibration_data(identified: IdentifiedModel, model: RobotModel, data: Sequence[str],
@@ -152,11 +157,11 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
     alpha = identified.alpha if settings.alpha is None else settings.alpha
     min_speed = identified.calibration_min_speed
     tracking = identified.supply_tracking
-    residual = settings.residual or "acceleration"
-    if residual == "momentum" and effects:
+    residual = settings.residual or ("acceleration" if effects else "combined")
+    if residual != "acceleration" and effects:
         raise DataError(f"{identified.path}: an augmented model (named effects) has no momentum residual yet; export "
                         "it with --residual acceleration")
-    events = settings.events_for(residual).at(est.sample_period)
+    events = settings.events_for(residual).at(est.sample_period)  # (the combined detector: the acceleration's)
     # On the runs it was fitted on, each time block's residual through the Φ fitted without it (docs/detection.md)
     folds = None if settings.data or effects else identified.folds
     cal = calibrate_online(model, identified.phi, datasets, est, alpha, min_speed, effects=effects, tracking=tracking,
@@ -168,23 +173,53 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
         try:
             observer = monitor_observer(identified, originals, alpha, min_speed, settings)  # the observer takes stamps
         except DataError as e:  # the acceleration residuals the monitor runs do not need it: said, not fatal
-            if residual == "momentum":
+            if settings.residual in ("momentum", "combined"):
                 raise
             note = str(e)
+    scale, combined_note = 0.0, note or "no observer"
+    if observer is not None:
+        try:
+            scale = monitor_combined_scale(identified, originals, pieces, observer, detector, est, settings)
+            combined_note = ""
+        except DataError as e:
+            if settings.residual == "combined":
+                raise
+            combined_note = str(e)
+    if residual == "combined" and not scale:
+        residual = "acceleration"  # the default, where the combined detector cannot be calibrated: said
     provenance = Provenance(file_digest(identified.path) if identified.path else "", calibration_digest,
                             identified.estimator or "")
-    c = build_coefficients(model, identified.phi, detector, est, provenance, effects, tracking, observer, residual)
-    if observer is not None and residual == "acceleration":
+    c = build_coefficients(model, identified.phi, detector, est, provenance, effects, tracking, observer, residual,
+                           scale)
+    if observer is not None and settings.residual in (None, "acceleration"):
         try:
             check_plausible(c)
         except Implausible as e:  # an observer calibrated on too little: dropped, said; the file is checked again
+            residual = "acceleration"  # (the same event settings as the combined detector's)
             without = build_coefficients(model, identified.phi, detector, est, provenance, effects, tracking, None,
                                          residual)
             check_plausible(without)
             c, observer, note = without, None, f"its calibration is implausible ({e})"
+            scale, combined_note = 0.0, note
     size = write_coefficients(c, out)
     return Exported(str(out), size, alpha, est, cal, list(c.channel_names), effects, tracking, residual, observer,
-                    events, note)
+                    events, note, scale, combined_note)
+
+
+def monitor_combined_scale(identified: IdentifiedModel, originals: Sequence[Dataset], pieces: Sequence,
+                           observer: MonitorObserver, detector: MonitorDetector, est: FixedLagSavitzkyGolay,
+                           settings: ExportSettings) -> float:
+    """κ of the combined detector as the monitor runs it (dynid.detect.combined): both normalised statistics on the
+    observer's calibration samples, the acceleration residuals' through the monitor's filter and causal supply
+    tracker at the same tick, cross-validated on the runs the model was fitted on."""
+    if len(pieces) != len(originals) or any(p[0].meta.get("bridged_samples") for p in pieces):
+        raise DataError("the calibration runs miss samples (the monitor's filter restarts or bridges there), and the "
+                        "combined detector's calibration pairs every sample of both residuals")
+    model = identified.robot_model
+    det_c = Detector("calibrated", np.asarray(detector.variance, float), float(detector.threshold), detector.alpha,
+                     detector.min_speed, len(detector.variance))
+    folds = None if settings.data else identified.folds
+    return calibrate_combined(identified, observer.detector, det_c, originals, folds, measured=False, est=est).scale
 
 
 def monitor_observer(identified: IdentifiedModel, datasets: Sequence[Dataset], alpha: float, min_speed: float,

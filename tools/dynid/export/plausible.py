@@ -184,3 +184,5 @@ def check_plausible(c: coefficients_t) -> None:
             sigma = math.sqrt(c.tau_variance[j]) if c.tau_variance[j] >= 0 else float("nan")
             if not _within(sigma, 0, P["MaxTauSigma"]):
                 _refuse(f"joint {c.joint_names[j]}: the observer's τ_ext noise", sigma, 0, P["MaxTauSigma"], "Nm")
+        if c.combined_scale != 0 and not _within(c.combined_scale, P["MinCombinedScale"], P["MaxCombinedScale"]):
+            _refuse("the combined detector's κ", c.combined_scale, P["MinCombinedScale"], P["MaxCombinedScale"], "")

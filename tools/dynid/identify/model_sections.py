@@ -479,6 +479,25 @@ class MomentumCalibration:
 
 
 @dataclass(frozen=True)
+class CombinedCalibration:
+    """The combined detector's level (dynid.detect.combined): κ, the α-quantile of T²_m/T²_m,α + T²_c/T²_c,α on
+    paired contact-free calibration samples, and that sum's quantiles (κ at another α)."""
+
+    scale: float
+    alpha: float
+    calibration_samples: int
+    quantiles: Quantiles
+
+    @classmethod
+    def from_json(cls, d: Json) -> CombinedCalibration:
+        return cls(float(d["scale"]), float(d["alpha"]), int(d["calibration_samples"]), Quantiles.from_json(d["quantiles"]))
+
+    def to_json(self) -> Json:
+        return {"scale": self.scale, "alpha": self.alpha, "calibration_samples": self.calibration_samples,
+                "quantiles": self.quantiles.to_json()}
+
+
+@dataclass(frozen=True)
 class ObserverEntry:
     """How one use's momentum detector was calibrated, and the detector."""
 
@@ -490,6 +509,8 @@ class ObserverEntry:
     detector: MomentumCalibration
     calibration: str = IN_SAMPLE  # CROSS_VALIDATED (the fit's folds) or IN_SAMPLE
     in_sample: MomentumCalibration | None = None  # beside a cross-validated one: the fit's own residuals' calibration
+    # the `detect` entry's: the combined detector's level on the same samples (a file written before has none)
+    combined: CombinedCalibration | None = None
 
     @classmethod
     def from_json(cls, d: Json) -> ObserverEntry:
@@ -498,7 +519,8 @@ class ObserverEntry:
             raise ValueError(f"observer calibration is '{calibration}' ({CROSS_VALIDATED} or {IN_SAMPLE})")
         return cls(float(d["alpha"]), float(d["bandwidth_hz"]), float(d["velocity_window_s"]), float(d["band_sigmas"]),
                    bool(d["measured"]), MomentumCalibration.from_json(d["detector"]), calibration,
-                   MomentumCalibration.from_json(d["in_sample"]) if d.get("in_sample") else None)
+                   MomentumCalibration.from_json(d["in_sample"]) if d.get("in_sample") else None,
+                   CombinedCalibration.from_json(d["combined"]) if d.get("combined") else None)
 
     def to_json(self) -> Json:
         out = {"alpha": self.alpha, "bandwidth_hz": self.bandwidth_hz, "velocity_window_s": self.velocity_window_s,
@@ -506,6 +528,8 @@ class ObserverEntry:
                "calibration": self.calibration}
         if self.in_sample is not None:
             out["in_sample"] = self.in_sample.to_json()
+        if self.combined is not None:
+            out["combined"] = self.combined.to_json()
         return out
 
 

@@ -67,7 +67,7 @@ class contact_event_t(object):
 
         self.n_sensors = 0
         """
-        0 acceleration residuals, 1 momentum observer
+        0 acceleration residuals, 1 momentum observer, 2 both (combined detector)
         every F/T sensor of the chain (none on a robot without one)
         LCM Type: int32_t
         """
