@@ -186,6 +186,32 @@ LoadResult implausible(const std::string& what, double value, double lo, double 
 
 bool within(double v, double lo, double hi) { return v >= lo && v <= hi; }
 
+// A residual's plausible standard deviation on output channel i: an input (duty or A), a force or a torque.
+struct SigmaRange {
+    double lo, hi;
+    const char* unit;
+};
+SigmaRange sigma_range(const dynid::coefficients_t& c, int i) {
+    namespace P = plausible;
+    if (c.channel_kind[i] == 1) return {P::kMinInputSigma, P::kMaxInputSigma, "(duty or A)"};
+    if (c.channel_kind[i] == 0 && i % 6 < 3) return {P::kMinForceSigma, P::kMaxForceSigma, "N"};  // an F/T force
+    return {P::kMinTorqueSigma, P::kMaxTorqueSigma, "Nm"};
+}
+
+// Σ w[s]·(s·T)^power over a filter's weights (oldest first, T apart), and the same of |w[s]|: a derivative filter on
+// a ramp (power 1) gives 1, a curvature filter on a parabola (power 2) gives 2.
+struct Moment {
+    double value, size;
+};
+Moment moment(const std::vector<double>& w, int n, double T, int power) {
+    Moment m{0, 0};
+    for (int s = 0; s < n; ++s) {
+        const double t = s * T, x = w[size_t(s)] * (power == 1 ? t : t * t);
+        m.value += x, m.size += std::abs(x);
+    }
+    return m;
+}
+
 }  // namespace
 
 LoadResult check_plausible(const dynid::coefficients_t& c) {
@@ -263,12 +289,9 @@ LoadResult check_plausible(const dynid::coefficients_t& c) {
                 return implausible(ch + ": a row-map entry", c.row_map[i][j], -P::kMaxRatio, P::kMaxRatio, "");
         const double d = std::abs(c.divisor[i]);
         if (!within(d, P::kMinGain, P::kMaxGain)) return implausible(ch + ": its gain |divisor|", d, P::kMinGain, P::kMaxGain, "");
-        const bool force = c.channel_kind[i] == 0 && i % 6 < 3;
-        const double lo = c.channel_kind[i] == 1 ? P::kMinInputSigma : force ? P::kMinForceSigma : P::kMinTorqueSigma;
-        const double hi = c.channel_kind[i] == 1 ? P::kMaxInputSigma : force ? P::kMaxForceSigma : P::kMaxTorqueSigma;
-        const char* unit = c.channel_kind[i] == 1 ? "(duty or A)" : force ? "N" : "Nm";
-        if (!within(std::sqrt(c.residual_variance[i]), lo, hi))
-            return implausible(ch + ": its residual's √Λ", std::sqrt(c.residual_variance[i]), lo, hi, unit);
+        const SigmaRange r = sigma_range(c, i);
+        if (!within(std::sqrt(c.residual_variance[i]), r.lo, r.hi))
+            return implausible(ch + ": its residual's √Λ", std::sqrt(c.residual_variance[i]), r.lo, r.hi, r.unit);
         ++counted;
     }
     const double per = c.threshold / std::max(counted, 1);
@@ -291,14 +314,20 @@ LoadResult check_plausible(const dynid::coefficients_t& c) {
                            P::kMinSupplyPeriods * c.sample_period, P::kMaxSupplyTimeConstant, "s");
     if (!within(c.hysteresis, P::kMinHysteresis, 1))
         return implausible("the end level (hysteresis, a fraction of T²_α)", c.hysteresis, P::kMinHysteresis, 1, "");
-    // The filter's weights: a fitted polynomial reproduces a constant (value weights sum to 1, derivatives' to 0).
+    // The filter's weights: a fitted polynomial reproduces a constant (value weights sum to 1, derivatives' to 0), and
+    // the derivatives of a ramp and a parabola (slope weights on t give 1, curvature weights on t² give 2).
     for (int r = 0; r < 3; ++r) {
         double sum = 0, size = 0;
         for (int s = 0; s < c.window; ++s) sum += c.filter[r][s], size += std::abs(c.filter[r][s]);
         const double want = r == 0 ? 1.0 : 0.0;
+        const char* name = r == 0 ? "value" : r == 1 ? "slope" : "curvature";
         if (!(std::abs(sum - want) <= P::kFilterSumTolerance * std::max(1.0, size)))
-            return implausible(std::string("the filter's ") + (r == 0 ? "value" : r == 1 ? "slope" : "curvature") +
-                               " weights' sum", sum, want, want, "");
+            return implausible(std::string("the filter's ") + name + " weights' sum", sum, want, want, "");
+        if (r == 0) continue;
+        const Moment m = moment(c.filter[r], c.window, c.sample_period, r);
+        const double gain = r == 1 ? 1.0 : 2.0;
+        if (!(std::abs(m.value - gain) <= P::kFilterSumTolerance * std::max(1.0, m.size)))
+            return implausible(std::string("the filter's ") + name + " on " + (r == 1 ? "t" : "t²"), m.value, gain, gain, "");
     }
     for (int k = 0; k < c.n_effects; ++k) {
         const auto& p = c.effect_param[k];
@@ -322,9 +351,19 @@ LoadResult check_plausible(const dynid::coefficients_t& c) {
         for (int s = 0; s < c.velocity_window; ++s) sum += c.velocity_filter[s], size += std::abs(c.velocity_filter[s]);
         if (!(std::abs(sum) <= P::kFilterSumTolerance * std::max(1.0, size)))
             return implausible("the observer's q̇ weights' sum", sum, 0, 0, "");
+        const Moment m = moment(c.velocity_filter, c.velocity_window, c.sample_period, 1);
+        if (!(std::abs(m.value - 1.0) <= P::kFilterSumTolerance * std::max(1.0, m.size)))
+            return implausible("the observer's q̇ weights on t", m.value, 1, 1, "");
         const double nyquist = 0.5 / c.sample_period;
-        if (!within(c.observer_bandwidth, 0, nyquist))
-            return implausible("the observer's bandwidth", c.observer_bandwidth, 0, nyquist, "Hz (Nyquist)");
+        if (!within(c.observer_bandwidth, P::kMinObserverBandwidth, nyquist))
+            return implausible("the observer's bandwidth", c.observer_bandwidth, P::kMinObserverBandwidth, nyquist,
+                               "Hz (Nyquist)");
+        for (int i = 0; i < c.n_outputs; ++i) {
+            const SigmaRange r = sigma_range(c, i);
+            if (!within(std::sqrt(c.observer_variance[i]), r.lo, r.hi))
+                return implausible("channel " + shown_name(c.channel_names[i]) + ": the observer's √Λ",
+                                   std::sqrt(c.observer_variance[i]), r.lo, r.hi, r.unit);
+        }
         const double obs = c.observer_threshold / std::max(c.n_outputs, 1), rest = c.observer_rest_threshold / std::max(c.n_outputs, 1);
         if (!within(obs, P::kMinThresholdPerChannel, P::kMaxThresholdPerChannel))
             return implausible("the observer's T²_α per channel", obs, P::kMinThresholdPerChannel, P::kMaxThresholdPerChannel, "");

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import math
 
+from dynid.export.capacity import file_version
+
 from .case import Case, Maker, boards, monitor, unreadable
 from .inputs import (
     append,
@@ -102,7 +104,7 @@ COEFFICIENTS = [
     _coef("truncated-half", 12, "truncated or padded", spoiled("coef", "c.dcoef", cut(0.5))),
     _coef("padded", 12, "truncated or padded", spoiled("coef", "c.dcoef", lambda b: b + b"\0")),
     _coef("bad-magic", 13, "not a dynid coefficient file (bad magic)", spoiled("coef", "c.dcoef", flip(0, 0x20))),
-    _coef("format-version-3", 14, "format version 3, this monitor reads 5: export the model again",
+    _coef("format-version-3", 14, f"format version 3, this monitor reads {file_version()}: export the model again",
           spoiled("coef", "c.dcoef", lambda b: b[:8] + (3).to_bytes(4, "little") + b[12:])),
     _coef("length-huge", 12, "the header says 4294967315",
           spoiled("coef", "c.dcoef", lambda b: b[:12] + (0xFFFFFFFF).to_bytes(4, "little") + b[16:])),

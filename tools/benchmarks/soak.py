@@ -244,9 +244,13 @@ def judge(name: str, stats: dict, rep: dict, counts: dict[str, int], last: monit
         fails.append(f"{alloc['elsewhere']} allocations after start-up outside lcm_publish")
     if not alloc["malloc_counted"]:
         fails.append("malloc is not counted in this build")
+    # A leak grows the resident set: an upward trend, or an end above the run's lowest point. Memory given back (a
+    # quick run's first second still returns start-up pages) is not one.
     slope = rss.get("slope_kb_per_h_data", 0.0)
-    if abs(slope) > a.rss_slope_kb:
-        fails.append(f"resident set slope {slope:+.1f} kB/h above {a.rss_slope_kb:g}")
+    if slope > a.rss_slope_kb:
+        fails.append(f"resident set grows {slope:+.1f} kB/h, above {a.rss_slope_kb:g}")
+    if rss.get("last_kb", 0) - rss.get("min_kb", 0) > a.rss_slope_kb:
+        fails.append(f"resident set ends {rss['last_kb'] - rss['min_kb']} kB above its lowest point")
     over, missed = stats["processing_us"]["over_period"], stats["response_us"]["over_period"]
     if paced and a.timing == "require" and over:
         fails.append(f"{over} loop overruns (processing time above one period)")

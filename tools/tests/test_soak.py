@@ -74,8 +74,10 @@ def test_no_allocation_after_start_up_and_a_flat_resident_set(soak: tuple) -> No
         published = sum(r["stats"]["published"][c] for c in ("contact", "residual", "status"))
         assert published <= alloc["in_lcm_publish"] <= published + 1, (name, alloc, published)
         assert r["rss"]["samples"] >= 10, (name, r["rss"])  # a slope from fewer says nothing
-        assert abs(r["rss"]["slope_kb_per_h_data"]) <= 64, (name, r["rss"])
-        assert r["rss"]["max_kb"] - r["rss"]["min_kb"] <= 64, (name, r["rss"])
+        # No growth: no upward trend, and the run ends at its lowest resident set (a quick run's first second may
+        # still give back start-up pages: measured 7388 -> 5628 kB over a 1.1 s fast run).
+        assert r["rss"]["slope_kb_per_h_data"] <= 64, (name, r["rss"])
+        assert r["rss"]["last_kb"] - r["rss"]["min_kb"] <= 64, (name, r["rss"])
 
 
 def test_the_paced_run_is_timed_from_the_kernel_stamps(soak: tuple) -> None:

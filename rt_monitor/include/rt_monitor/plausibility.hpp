@@ -44,8 +44,10 @@ constexpr double kMaxFriction = 1e4;          // Nm, Nm·s/rad
 constexpr double kMaxOffset = 1e5;            // N, Nm
 constexpr double kMaxRatio = 1e3;             // row map, coupling
 constexpr double kMinRatio = 1e-3;            // a motor's largest coupling ratio: a motor drives some joint
-// A polynomial fit reproduces a constant: the value weights sum to 1, the derivatives' to 0.
+// A polynomial fit reproduces a constant, a ramp and a parabola: the value weights sum to 1, the derivatives' to 0;
+// on t the slope weights give 1, on t² the curvature weights 2 (relative to the weights' size).
 constexpr double kFilterSumTolerance = 1e-6;
+constexpr double kMinObserverBandwidth = 0.1;  // Hz: slower, the observer's lag (above 1.6 s) hides every contact
 // Effects: a Stribeck bump and a spring of a joint.
 constexpr double kMaxEffectTorque = 1e3;      // Nm
 constexpr double kMaxStribeckVelocity = 100;  // rad/s

@@ -327,13 +327,14 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
                 raise
             skipped = str(e)  # the default: say why, and report the acceleration-based variants
     combined = None
-    if momentum is not None and args.residual is None:  # the default: both residuals in one detector
-        try:
-            combined = combine(ev, found, momentum, args, stored is not None, calibration_given, runs, folds)
-        except DataError as e:
-            if calibration_given:
-                raise
-            skipped_combined = str(e)
+    if momentum is not None:
+        if args.residual is None:  # the default: both residuals in one detector
+            try:
+                combined = combine(ev, found, momentum, args, stored is not None, calibration_given, runs, folds)
+            except DataError as e:
+                if calibration_given:
+                    raise
+                skipped_combined = str(e)
         found.result["variants"] = {"momentum": momentum.result, **found.result["variants"]}
         found.result["events"] = momentum.events
         found.result["calibration"] = paths

@@ -49,6 +49,22 @@ def _within(v: float, lo: float, hi: float) -> bool:
     return lo <= v <= hi  # False for NaN, as in C++
 
 
+def _sigma_range(P: dict[str, float], c: coefficients_t, i: int) -> tuple[float, float, str]:
+    """A residual's plausible standard deviation on output channel i: an input (duty or A), a force or a torque."""
+    if c.channel_kind[i] == 1:
+        return P["MinInputSigma"], P["MaxInputSigma"], "(duty or A)"
+    if c.channel_kind[i] == 0 and i % 6 < 3:
+        return P["MinForceSigma"], P["MaxForceSigma"], "N"
+    return P["MinTorqueSigma"], P["MaxTorqueSigma"], "Nm"
+
+
+def _moment(w: list[float], period: float, power: int) -> tuple[float, float]:
+    """Σ w[s]·(s·T)^power over a filter's weights (oldest first) and the same of |w[s]|: a derivative filter on a
+    ramp gives 1, a curvature filter on a parabola 2."""
+    terms = [x * (s * period) ** power for s, x in enumerate(w)]
+    return sum(terms), sum(abs(x) for x in terms)
+
+
 def check_plausible(c: coefficients_t) -> None:
     """Raise Implausible naming the first value outside its range (the loader's order and words)."""
     P = limits()
@@ -118,10 +134,7 @@ def check_plausible(c: coefficients_t) -> None:
         d = abs(c.divisor[i])
         if not _within(d, P["MinGain"], P["MaxGain"]):
             _refuse(f"{ch}: its gain |divisor|", d, P["MinGain"], P["MaxGain"], "")
-        kind, force = c.channel_kind[i], c.channel_kind[i] == 0 and i % 6 < 3
-        lo, hi, unit = ((P["MinInputSigma"], P["MaxInputSigma"], "(duty or A)") if kind == 1 else
-                        (P["MinForceSigma"], P["MaxForceSigma"], "N") if force else
-                        (P["MinTorqueSigma"], P["MaxTorqueSigma"], "Nm"))
+        lo, hi, unit = _sigma_range(P, c, i)
         sigma = math.sqrt(c.residual_variance[i]) if c.residual_variance[i] >= 0 else float("nan")
         if not _within(sigma, lo, hi):
             _refuse(f"{ch}: its residual's √Λ", sigma, lo, hi, unit)
@@ -151,6 +164,10 @@ def check_plausible(c: coefficients_t) -> None:
         total, size, want = sum(w), sum(abs(x) for x in w), 1.0 if r == 0 else 0.0
         if not abs(total - want) <= P["FilterSumTolerance"] * max(1.0, size):
             _refuse(f"the filter's {name} weights' sum", total, want, want, "")
+        if r > 0:  # the derivatives of a ramp (slope 1) and of a parabola (curvature 2)
+            value, size = _moment(w, c.sample_period, r)
+            if not abs(value - r) <= P["FilterSumTolerance"] * max(1.0, size):
+                _refuse(f"the filter's {name} on {'t' if r == 1 else 't²'}", value, r, r, "")
     for k in range(c.n_effects):
         p, e = c.effect_param[k], f"effect {k}"
         stribeck = c.effect_kind[k] == 1
@@ -172,9 +189,17 @@ def check_plausible(c: coefficients_t) -> None:
         w = c.velocity_filter[: c.velocity_window]
         if not abs(sum(w)) <= P["FilterSumTolerance"] * max(1.0, sum(abs(x) for x in w)):
             _refuse("the observer's q̇ weights' sum", sum(w), 0, 0, "")
+        value, size = _moment(w, c.sample_period, 1)
+        if not abs(value - 1.0) <= P["FilterSumTolerance"] * max(1.0, size):
+            _refuse("the observer's q̇ weights on t", value, 1, 1, "")
         nyquist = 0.5 / c.sample_period
-        if not _within(c.observer_bandwidth, 0, nyquist):
-            _refuse("the observer's bandwidth", c.observer_bandwidth, 0, nyquist, "Hz (Nyquist)")
+        if not _within(c.observer_bandwidth, P["MinObserverBandwidth"], nyquist):
+            _refuse("the observer's bandwidth", c.observer_bandwidth, P["MinObserverBandwidth"], nyquist, "Hz (Nyquist)")
+        for i in range(c.n_outputs):
+            lo, hi, unit = _sigma_range(P, c, i)
+            sigma = math.sqrt(c.observer_variance[i]) if c.observer_variance[i] >= 0 else float("nan")
+            if not _within(sigma, lo, hi):
+                _refuse(f"channel {c.channel_names[i]}: the observer's √Λ", sigma, lo, hi, unit)
         n = max(c.n_outputs, 1)
         for what, t in (("the observer's T²_α per channel", c.observer_threshold),
                         ("the observer's rest T²_α per channel", c.observer_rest_threshold)):
