@@ -538,6 +538,8 @@ def _validate_can(f: Fields, joints: tuple[str, ...], motors: dict[str, str], se
                 not isinstance(x, bool) and isinstance(x, (int, float)) and 0 < as_float(x) < math.inf for x in fs)):
             raise b.fail("full_scale", f"must be six positive numbers (N, N, N, Nm, Nm, Nm), got {fs!r}")
         strain.append(b.data)
+    if not strain:  # config/icub_bus.py: the first strain board's torque half clocks every sample
+        raise can.fail("strain", "must list at least one strain board: the first one's frames clock the sample")
     mc = []
     for b in can.items("motor_control", []):
         b.only("bus", "address", "pwm_full_scale", "axes")
