@@ -96,7 +96,8 @@ def icub_leg(real: Path, work: Path) -> list[dict]:
     # on the other
     for fit_window, test_window in ((("14", "39.5"), ("39.5", "65")), (("39.5", "65"), ("14", "39.5"))):
         model = work / f"leg_{fit_window[0]}.json"
-        dynid("fit", *robot, "--data", str(leg), "--from", fit_window[0], "--to", fit_window[1], "--out", str(model))
+        dynid("fit", *robot, "--data", str(leg), "--from", fit_window[0], "--to", fit_window[1], "--consistent", "off",
+              "--out", str(model))
         result = dynid("detect", "--model", str(model), "--data", str(leg), "--from", test_window[0], "--to",
                        test_window[1])
         out.append(row("iCub leg", f"swing {test_window[0]}-{test_window[1]} s (fit on {fit_window[0]}-"

@@ -96,7 +96,8 @@ class DynamicsModel(BaseEstimator):
     consistent : bool or "pseudo-inertia"
         Physically consistent estimation (docs/consistency.md): the estimator's parameters projected onto physical
         ones (every pseudo-inertia positive semidefinite, each body's mass inside a sphere about its frame,
-        friction ≥ 0, gains of their sign), kept as the estimator "consistent" (default off: docs/consistency.md
+        friction ≥ 0, gains of their sign), kept as the estimator "consistent". None (the default): the robot
+        configuration's `fit.consistent`, off where it gives none (on for the iCub leg: docs/consistency.md#default
         says why). "pseudo-inertia": the same without the sphere (a body may carry mass beyond its reach).
     cad_pull : bool
         With `consistent`: a pull of the inertial parameters towards CAD, its weight cross-validated (default off).
@@ -116,7 +117,7 @@ class DynamicsModel(BaseEstimator):
     def __init__(self, robot: str | Path = "icub_right_arm", estimator: str = DEFAULT_ESTIMATOR,
                  n_components: int | None = None, blocks: int = DEFAULT_BLOCKS, min_speed: float = DEFAULT_MIN_SPEED,
                  alpha: float = ALPHA, n_mode: str = DEFAULT_N_MODE,
-                 supply_time_constant: float = SupplyTracking.time_constant_s, consistent: bool | str = False,
+                 supply_time_constant: float = SupplyTracking.time_constant_s, consistent: bool | str | None = None,
                  cad_pull: bool = False) -> None:
         self.robot = robot
         self.estimator = estimator
@@ -144,8 +145,10 @@ class DynamicsModel(BaseEstimator):
             raise InputError(f"n_mode must be 'dim' or 'nu', got {self.n_mode!r}")
         if not (np.isfinite(self.supply_time_constant) and self.supply_time_constant >= 0):
             raise InputError(f"supply_time_constant must be 0 or more, got {self.supply_time_constant!r}")
-        if not (isinstance(self.consistent, (bool, np.bool_)) or self.consistent == PSEUDO_INERTIA_ONLY):
-            raise InputError(f"consistent must be True, False or {PSEUDO_INERTIA_ONLY!r}, got {self.consistent!r}")
+        if not (self.consistent is None or isinstance(self.consistent, (bool, np.bool_))
+                or self.consistent == PSEUDO_INERTIA_ONLY):
+            raise InputError(f"consistent must be None, True, False or {PSEUDO_INERTIA_ONLY!r}, got "
+                             f"{self.consistent!r}")
         if not isinstance(self.cad_pull, (bool, np.bool_)):
             raise InputError(f"cad_pull must be True or False, got {self.cad_pull!r}")
         if self.cad_pull and self.consistent is False:
@@ -163,10 +166,15 @@ class DynamicsModel(BaseEstimator):
         """
         self._check_params()
         robot = load_robot(self.robot)
+        consistent = self.consistent
+        if consistent is None:  # the robot's default, as `dynid fit` without --consistent
+            consistent = {"off": False, "on": True}.get(robot.config.fit_consistent, robot.config.fit_consistent)
+        if self.cad_pull and consistent is False:
+            raise InputError("cad_pull weighs the CAD prior of the physically consistent fit: set consistent too")
         runs, labels = _runs(X, robot)
         fit = FitSettings(estimator=self.estimator, n_components=self.n_components, min_speed=self.min_speed,
-                          blocks=self.blocks, consistent=bool(self.consistent),
-                          cad_pull=bool(self.cad_pull), consistent_sphere=self.consistent != PSEUDO_INERTIA_ONLY)
+                          blocks=self.blocks, consistent=bool(consistent),
+                          cad_pull=bool(self.cad_pull), consistent_sphere=consistent != PSEUDO_INERTIA_ONLY)
         done = identify(robot, runs, labels, IdentifySettings(fit, DetectorSettings(self.alpha, self.n_mode),
                                                               self.supply_time_constant))
         self._set_fitted(done.model)

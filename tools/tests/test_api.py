@@ -57,7 +57,7 @@ def test_parameters_are_checked_at_fit_and_clone_keeps_them(runs: Path) -> None:
         model.fit(str(runs / "identification"))
     with pytest.raises(dynid.InputError, match="alpha"):
         dynid.DynamicsModel(alpha=1.5).fit(str(runs / "identification"))
-    with pytest.raises(dynid.InputError, match="consistent must be True, False or 'pseudo-inertia', got 'psd'"):
+    with pytest.raises(dynid.InputError, match="consistent must be None, True, False or 'pseudo-inertia', got 'psd'"):
         dynid.DynamicsModel(consistent="psd").fit(str(runs / "identification"))
     with pytest.raises(dynid.InputError, match="cad_pull weighs the CAD prior of the physically consistent fit"):
         dynid.DynamicsModel(cad_pull=True).fit(str(runs / "identification"))

@@ -78,6 +78,9 @@ BAD = [
     ("can address", _set(["can", "motor_control", 0, "address"], 16), "can.motor_control[0].address"),
     ("can full scale", _set(["can", "strain", 0, "full_scale"], [1, 2, 3]), "can.strain[0].full_scale"),
     ("skin side", _set(["can", "skin", 0, "side"], "left"), "can.skin[0].side"),
+    # a `can` section cut before its strain boards (test_reader_properties_files found it: an IndexError)
+    ("can without strain", lambda d: d["can"].pop("strain"), "'can.strain' must list at least one strain board"),
+    ("fit consistent", _set(["fit"], {"consistent": "maybe"}), "'fit.consistent' must be one of off, on"),
     ("misspelt coupling", lambda d: d["actuation"][0].__setitem__("couplng", d["actuation"][0].pop("coupling")),
      "'actuation[0].couplng' is not a known setting (did you mean 'coupling'?)"),
     ("misspelt top-level key", lambda d: d.__setitem__("nosie", d.pop("noise")), "did you mean 'noise'"),

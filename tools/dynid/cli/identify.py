@@ -44,10 +44,16 @@ SHOW_UNSEEN = 6  # name the combinations a jackknife fold misses when there are 
 
 
 def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
+    config = load_config(args.robot, args.urdf)
+    from_config = args.consistent is None
+    if from_config:  # the robot's default (its configuration's fit.consistent; docs/consistency.md#default)
+        args.consistent = config.fit_consistent
     if args.cad_pull == "cv" and args.consistent == "off":
         raise InputError("--cad-pull cv weighs the CAD prior of the physically consistent fit: give it with "
                          "--consistent on (or pseudo-inertia)")
-    config = load_config(args.robot, args.urdf)
+    if from_config and args.consistent != "off":
+        print(f"--consistent {args.consistent}: {config.name}'s default (its configuration's fit.consistent; "
+              "--consistent off for the unconstrained fit)")
     model = RobotModel(config)
     paths, windows = expand_data(args)
     refs = [RunRef(p, w, payload, bad_rows(args))
@@ -484,8 +490,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     payload_arg(sp, repeatable=True)
     sp.add_argument("--estimator", choices=ESTIMATORS, default=DEFAULT_ESTIMATOR,
                     help=f"whose parameters the model keeps (default {DEFAULT_ESTIMATOR}); all three are reported")
-    sp.add_argument("--consistent", choices=["on", "off", PSEUDO_INERTIA_ONLY], default="off",
-                    help="physically consistent estimation (default off; docs/consistency.md): the estimator's "
+    sp.add_argument("--consistent", choices=["on", "off", PSEUDO_INERTIA_ONLY], default=None,
+                    help="physically consistent estimation (default: the robot configuration's fit.consistent, off "
+                    "where it gives none; on for icub_right_leg_standing, decided by held-out blocks and runs in "
+                    "docs/consistency.md#default): the estimator's "
                     "parameters moved the least the data allow so that every body's pseudo-inertia is positive "
                     "semidefinite and its mass inside a sphere about its frame, friction is non-negative and gains "
                     "keep their sign (a semidefinite programme, Clarabel through cvxpy); the model keeps it as "

@@ -151,6 +151,9 @@ class RobotConfig:
     gravity_imu_columns: tuple[str, ...] = ()
     # What a designed excitation trajectory may do (dynid excite): position margin, velocity, acceleration.
     limits: MotionLimits = field(default_factory=MotionLimits)
+    # `dynid fit --consistent`'s default for this robot ("off", "on" or "pseudo-inertia"): the `fit: {consistent}`
+    # field, decided per robot by held-out blocks and runs (docs/consistency.md#default); "off" where it gives none.
+    fit_consistent: str = "off"
 
     @property
     def motor_names(self) -> tuple[str, ...]:
@@ -288,7 +291,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     name = root.string("name")
     f = Fields(name, "", data).only(
         "name", "urdf", "base_link", "gravity", "joints", "ft_sensors", "motors", "actuation", "noise", "can", "bus",
-        "derivatives", "columns", "payload_frame", "yarp", "ros2", "limits",
+        "derivatives", "columns", "payload_frame", "yarp", "ros2", "limits", "fit",
     )
 
     joints = f.strings("joints")
@@ -426,7 +429,23 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         yarp=parse_yarp(name, f.raw("yarp", None), joints, tuple(s.name for s in sensors)),
         ros2=parse_ros2(name, f.raw("ros2", None), joints, tuple(s.name for s in sensors), _motor_of(groups)),
         limits=_limits(f, joints),
+        fit_consistent=_fit_consistent(f),
     )
+
+
+CONSISTENT_MODES = ("off", "on", "pseudo-inertia")  # `dynid fit --consistent`'s choices
+
+
+def _fit_consistent(f: Fields) -> str:
+    """`fit: {consistent: on|off|pseudo-inertia}`: the robot's default for `dynid fit --consistent`. YAML 1.1 reads a
+    bare on/off as a boolean, so true/false are taken as on/off too."""
+    section = f.sub("fit", {}).only("consistent")
+    value = section.raw("consistent", "off")
+    if isinstance(value, bool):
+        value = "on" if value else "off"
+    if value not in CONSISTENT_MODES:
+        raise section.fail("consistent", f"must be one of {', '.join(CONSISTENT_MODES)}, got {value!r}")
+    return str(value)
 
 
 def _motor_of(groups: list[ActuationGroup]) -> dict[str, dict[str, str] | None]:
@@ -519,6 +538,8 @@ def _validate_can(f: Fields, joints: tuple[str, ...], motors: dict[str, str], se
                 not isinstance(x, bool) and isinstance(x, (int, float)) and 0 < as_float(x) < math.inf for x in fs)):
             raise b.fail("full_scale", f"must be six positive numbers (N, N, N, Nm, Nm, Nm), got {fs!r}")
         strain.append(b.data)
+    if not strain:  # config/icub_bus.py: the first strain board's torque half clocks every sample
+        raise can.fail("strain", "must list at least one strain board: the first one's frames clock the sample")
     mc = []
     for b in can.items("motor_control", []):
         b.only("bus", "address", "pwm_full_scale", "axes")
