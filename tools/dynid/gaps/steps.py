@@ -210,7 +210,7 @@ def format_step(effect: dict) -> str:
     sizes = ", ".join(f"{a} {p[f'd{a}']:+.4g} {'N' if a[0] == 'f' else 'Nm'}" for a in FT_AXES if f"d{a}" in p)
 
     def at(point: dict) -> str:
-        ev = "; ".join(f"{e['joint']} {e['event']} {'at' if e['event'] == 'arrives' else 'from'} its limit "
+        ev = "; ".join(f"{e['joint']} {'reaches' if e['event'] == 'arrives' else 'leaves'} its limit "
                        f"{e['limit_deg']:g}° at {e['at_s']:.2f} s" for e in point["events"][:2])
         return f"{point['at_s']:.2f} s" + (f" ({ev})" if ev else "")
 

@@ -170,6 +170,11 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
     log(f"gaps: {ds.n_samples} samples ({ds.duration:.0f} s), {kept} kept, {settings.n_blocks} held-out time blocks"
         + (", inertias held at the given model's" if reference is not None else "")
         + (", two passes (supply tracking)" if settings.supply is not None else ""))
+    if settings.steps:  # a declared point outside the window changes nothing here: say so
+        outside = [p for p in settings.steps if not ds.t[0] < p < ds.t[-1]]
+        log(f"gaps: declared F/T change points {', '.join(f'{p:g}' for p in settings.steps)} s"
+            + (f"; outside the data ({ds.t[0]:.6g}–{ds.t[-1]:.6g} s): {', '.join(f'{p:g}' for p in outside)} s"
+               if outside else ""))
     result = _analyse(model, ctx, A, b, w, settings, reference)
     if settings.supply is not None:
         first = result
@@ -190,6 +195,7 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
         ep["from_s"] += float(ds.t[0])
         ep["to_s"] += float(ds.t[0])
     result["t0_s"] = float(ds.t[0])  # the profile's time edges start from it
+    result["declared_steps"] = list(settings.steps)
     result["seconds"] = time.perf_counter() - started
     return result
 
