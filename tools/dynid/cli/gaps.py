@@ -68,8 +68,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp = sub.add_parser("gaps", help=COMMANDS["gaps"].help,
         description="Refit the standard model on DATA, measure the residual per channel on held-out time blocks, "
         "select missing effects from a library (Stribeck, spring, cogging, PWM dead-zone, F/T drift, armature, "
-        "load-dependent friction, PWM delay, coupling error, base tilt, F/T gain; a payload against a given "
-        "model) by "
+        "load-dependent friction, PWM delay, coupling error, base tilt, F/T gain, a wrench at a joint limit, an F/T "
+        "offset that steps between change points; a payload against a given model) by "
         "cross-validated forward selection, refit with them and print the gap before and after per channel.")
     robot_arg(sp)
     sp.add_argument("--data", required=True, metavar="DATA", help="the measured experiment (.csv, candump or .npz)")

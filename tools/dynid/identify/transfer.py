@@ -55,7 +55,7 @@ def outside_fit(identified: IdentifiedModel, joints: tuple[str, ...], q: np.ndar
         share = float(np.mean((here < lo - MARGIN_DEG) | (here > hi + MARGIN_DEG)))
         if share < MIN_SHARE:
             continue
-        limit = [float(np.rad2deg(v)) for v in limits.get(joint, ()) if np.isfinite(v)
+        limit = [float(np.round(np.rad2deg(v), 3)) for v in limits.get(joint, ()) if np.isfinite(v)
                  and (abs(np.rad2deg(v) - lo) <= AT_LIMIT_DEG or abs(np.rad2deg(v) - hi) <= AT_LIMIT_DEG)]
         out.append({"joint": joint, "fit_from_deg": lo, "fit_to_deg": hi, "here_from_deg": float(here.min()),
                     "here_to_deg": float(here.max()), "outside_share": share,
