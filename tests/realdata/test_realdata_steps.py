@@ -79,9 +79,17 @@ def test_the_fit_with_the_step_loses_the_force_error_and_validate_says_why(leg: 
                for s in why["ft_steps"])
 
 
-def test_steps_from_a_model_without_steps_is_one_line(tmp_path: Path) -> None:
+def test_gaps_against_the_fit_names_its_postures_and_steps_from_it_is_refused(tmp_path: Path) -> None:
+    """`gaps --model` (the fit on 23–47 s, no step) on the swing says where that model's fit never went; the same model
+    as `fit --steps-from` names no step: one line, exit 2, nothing written."""
     plain = tmp_path / "plain.json"
     cli.dynid("fit", *ROBOT, "--data", str(DUMP), "--from", "23", "--to", "47", "--out", str(plain), keep_urdf_path=False)
+    gaps = cli.dynid("gaps", "--model", str(plain), "--data", str(DUMP), "--from", "14", "--to", "65",
+                     keep_urdf_path=False)  # the model file records the URDF it was fitted with
+    outside = {o["joint"]: o for o in gaps["outside_given_fit"]}
+    # measured: r_hip_roll, r_hip_yaw and r_ankle_pitch outside the fit's range on 29 % of 14–65 s
+    for joint in ("r_hip_roll", "r_hip_yaw", "r_ankle_pitch"):
+        assert outside[joint]["outside_share"] == pytest.approx(0.29, abs=0.03)
     done = cli.run("fit", *ROBOT, "--data", str(DUMP), "--from", "23", "--to", "47", "--steps-from", str(plain),
                    "--out", str(tmp_path / "x.json"), keep_urdf_path=False)
     assert done.returncode == 2 and "names no F/T step" in done.stderr

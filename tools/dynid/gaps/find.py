@@ -12,6 +12,7 @@ import numpy as np
 from ..errors import InputError
 from ..identify.model_file import IdentifiedModel
 from ..identify.supply import SupplyTracking
+from ..identify.transfer import outside_fit
 from ..io.dataset import Dataset
 from ..robot.effects import Effect
 from ..robot.model import RobotModel
@@ -61,6 +62,8 @@ def find_gaps(model: RobotModel, ds: Dataset, data_label: str, given: Identified
                  log=log)
     augmented = result.pop("_augmented")
     result["data"] = data_label
+    if given is not None:  # where the given model's fit never went: why its gap may be its inertias' extrapolation
+        result["outside_given_fit"] = outside_fit(given, ds.joints, ds.q, model.joint_limits)
     # a payload is already in Φ (its link's inertial parameters): the model file lists only effects it predicts with
     effects = [e for e in augmented["effects"] if e.kind != "payload"]
     folded = [e for e in augmented["effects"] if e.kind == "payload"]

@@ -24,6 +24,7 @@ from dataclasses import replace
 import numpy as np
 import ruptures as rpt
 
+from ..margins import below
 from ..robot.effect_library import LIMIT_TOLERANCE, Candidate, Context
 from ..robot.effects import FT_AXES, FT_STEP, Effect, effect_rows, ft_step_columns
 from .selection import Design, Trial, columns_on, weighted_columns
@@ -157,14 +158,17 @@ def subset(c: Candidate, axes: Sequence[str]) -> Candidate | None:
 
 def prune(design: Design, cand: Candidate, weights: np.ndarray, cur_cv: np.ndarray) -> Trial:
     """The step on the channels whose held-out SSE it lowers, judged again without the others until every channel
-    it keeps is lowered (a Trial of gain 0 when none is). Each column of a step is one channel's."""
+    it keeps is lowered (a Trial of gain 0 when none is). Each column of a step is one channel's. (A step the
+    selection has accepted stays on the channels it had: a later effect may change them, which `held_out` shows.)"""
     c: Candidate | None = cand
     while c is not None:
         E = weighted_columns(c.values, weights)
         channels = columns_on(E)[0]
         cv = design.cv_sse(E)
         before, after = cur_cv[:, channels], cv[:, channels]
-        better = dict(zip(channels.tolist(), (after.sum(axis=0) < before.sum(axis=0)).tolist()))
+        # lowered past the margins' band (dynid.margins): a channel on it is dropped, the conservative answer
+        better = {int(ch): below(float(a), float(b))[0]
+                  for ch, a, b in zip(channels, after.sum(axis=0), before.sum(axis=0))}
         if all(better.values()):
             return Trial(c, channels, before.sum(axis=1), after.sum(axis=1), float("nan"))
         row = [int(np.flatnonzero(np.abs(c.values[:, :, k]).sum(axis=0))[0]) for k in range(len(c.labels))]

@@ -452,6 +452,14 @@ def format_report(result: dict) -> str:
     for ep in result.get("episodes", []):
         lines.append("  " + format_episode(ep))
     given = result.get("given_model")
+    outside = result.get("outside_given_fit")
+    if outside:
+        lines.append("the given model's inertias were fitted on other postures; this run takes "
+                     + "; ".join(f"{o['joint']} to {o['here_from_deg']:.1f}…{o['here_to_deg']:.1f}° against "
+                                 f"{o['fit_from_deg']:.1f}…{o['fit_to_deg']:.1f}° in its fit "
+                                 f"({100 * o['outside_share']:.0f} % of samples outside)" for o in outside[:4])
+                     + (f"; {len(outside) - 4} more joints (--json)" if len(outside) > 4 else "")
+                     + ": its gap there includes its extrapolation")
     head = f"{'given':>10s} " if given else ""
     lines.append(f"{'channel':24s} {head}{'before':>10s} {'after':>10s}  {'(× noise)':>18s}")
     for g in result["gap"]:
