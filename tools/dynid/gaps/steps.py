@@ -161,8 +161,9 @@ def prune(design: Design, cand: Candidate, weights: np.ndarray, cur_cv: np.ndarr
     it keeps is lowered (a Trial of gain 0 when none is). Each column of a step is one channel's. (A step the
     selection has accepted stays on the channels it had: a later effect may change them, which `held_out` shows.)"""
     c: Candidate | None = cand
+    full = weighted_columns(cand.values, weights)
     while c is not None:
-        E = weighted_columns(c.values, weights)
+        E = full if c is cand else design.columns_of(full, [cand.labels.index(label) for label in c.labels])
         channels = columns_on(E)[0]
         cv = design.cv_sse(E)
         before, after = cur_cv[:, channels], cv[:, channels]
@@ -173,7 +174,7 @@ def prune(design: Design, cand: Candidate, weights: np.ndarray, cur_cv: np.ndarr
             return Trial(c, channels, before.sum(axis=1), after.sum(axis=1), float("nan"))
         row = [int(np.flatnonzero(np.abs(c.values[:, :, k]).sum(axis=0))[0]) for k in range(len(c.labels))]
         c = subset(c, [label[1:] for label, r in zip(c.labels, row) if better.get(r, False)])
-    channels = columns_on(weighted_columns(cand.values, weights))[0]
+    channels = columns_on(full)[0]
     before = cur_cv[:, channels].sum(axis=1)
     return Trial(cand, channels, before, before, float("nan"))
 
@@ -275,5 +276,6 @@ def cad_offsets_with_steps(ctx: Context, A: np.ndarray, b: np.ndarray, w: np.nda
     for i, s in enumerate(model.config.ft_sensors):
         for k in range(6):
             live = w[:, 6 * i + k] > 0
-            out[layout.block("ft_offset", s.name).start + k] = float(rest[live, 6 * i + k].mean()) if live.any() else 0.0
+            level = float(rest[live, 6 * i + k].mean()) if live.any() else 0.0
+            out[layout.block("ft_offset", s.name).start + k] = level
     return out

@@ -33,8 +33,8 @@ from .episodes import format_episode, residual_episodes
 from .profile import profile
 from .refit import reference_phi, refit
 from .selection import WORSE_TOLERANCE, Design, Trial, evaluate, robust_p_value, weighted_columns, worse_channels
-from .steps import (FT_STEP, cad_offsets_with_steps, declared_candidates, describe, format_levels, format_step, found_candidates, limit_events,
-                    offset_levels, prune)
+from .steps import (FT_STEP, cad_offsets_with_steps, declared_candidates, describe, format_levels, format_step,
+                    found_candidates, limit_events, offset_levels, prune)
 
 MAX_SAMPLES = 6000  # decimated samples kept: the filtered signals are smooth, and selection stays seconds
 N_BLOCKS = 5
@@ -96,7 +96,8 @@ def _collect(model: RobotModel, ds: Dataset, stride: int) -> tuple[Context, np.n
     full = {k: np.concatenate([d[k] for d in dus]) for k in dus[0]}
     index = np.arange(0, ds.n_samples, stride)
     rate = (ds.n_samples - 1) / max(float(ds.t[-1] - ds.t[0]), 1e-12)
-    return Context(model, sig, t - ds.t[0], inputs_full=full, index_full=index, rate=rate, t0=float(ds.t[0])), np.concatenate(As), np.concatenate(bs), np.concatenate(ws)
+    ctx = Context(model, sig, t - ds.t[0], inputs_full=full, index_full=index, rate=rate, t0=float(ds.t[0]))
+    return ctx, np.concatenate(As), np.concatenate(bs), np.concatenate(ws)
 
 
 def _rms_per_channel(sse: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -252,7 +253,10 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
     for c in declared:  # known steps: in the fix whatever their held-out gain (it is reported)
         Ew = weighted_columns(c.values, w)
         tr = replace(evaluate(current, c, w, cur_cv), p_value=robust_p_value(current, Ew, batch))
-        accepted_E.append(Ew), accepted.append(c), taken.add(_key(c)), named.append({"trial": tr})
+        accepted_E.append(Ew)
+        accepted.append(c)
+        taken.add(_key(c))
+        named.append({"trial": tr})
         current = Design(np.concatenate([design.D] + accepted_E, axis=2), y, bounds)
         cur_cv = current.cv_sse(None)
     declared_cv = cur_cv  # what a found effect is judged against when it makes a channel worse
