@@ -79,17 +79,23 @@ def test_the_base_at_the_sole_beats_the_pelvis(tmp_path: Path, fitted: Path) -> 
 
 def test_the_gap_workflow_locates_the_step(tmp_path: Path) -> None:
     """No library effect is accepted that makes a channel worse on held-out blocks; the step of the leg sensor while
-    the ankle rests on its stop is reported with when it occurs and the joints held there."""
+    the ankle rests on its stop is named with its change points (`ft_step`, issue 34; test_realdata_steps.py has its
+    figures), and what the fix leaves is located with the joints held there."""
     g = dynid("gaps", *ROBOT, "--data", str(DUMP), "--from", "14", "--to", "65", "--out", str(tmp_path / "aug.json"))
     for e in g["effects"]:
         assert e["name"] != "ft_gain"  # it lowers the total but makes fy and tz worse on held-out blocks
     gap = {x["channel"]: x for x in g["gap"]}
-    assert all(x["after_over_noise"] <= 1.01 * x["before_over_noise"] for x in gap.values())
+    # the rule of dynid.gaps.selection.worse_channels: no channel's held-out RMS up by over 5 % and over its noise σ
+    # (measured: the step's refit moves the leg sensor's fy, which it does not touch, 25.49 → 25.82× noise, +1.3 %)
+    assert all(x["after_over_noise"] <= 1.05 * x["before_over_noise"]
+               or x["after_over_noise"] - x["before_over_noise"] <= 1.0 for x in gap.values())
     steps = [ep for ep in g["episodes"] if any(c.startswith("ft.r_leg_ft_sensor.") for c in ep["channels"])]
     assert steps, g["episodes"]
     held = {h["joint"]: h for ep in steps for h in ep["held_joints"]}
     assert held["r_ankle_pitch"]["limit_deg"] == pytest.approx(30.0)
-    assert any(20 < ep["from_s"] < 32 and 50 < ep["to_s"] < 62 for ep in steps)
+    named = [e["parameters"] for e in g["effects"] if e["name"] == "ft_step" and e["in_model"]
+             and e["where"] == "sensor r_leg_ft_sensor"]
+    assert any(20 < p["from_s"] < 32 and 50 < p.get("to_s", 0) < 62 for p in named), g["effects"]
 
 
 @pytest.mark.parametrize(

@@ -427,11 +427,13 @@ def export_urdf(model: DynamicsModel, path: str | Path, nearest_physical: bool =
 
 
 def find_gaps(X: Data, robot: str | Path = "icub_right_arm", model: DynamicsModel | None = None,
-              supply_tracking: bool = True, verbose: bool = False, keep_tentative: bool = False) -> Gaps:
+              supply_tracking: bool = True, verbose: bool = False, keep_tentative: bool = False,
+              steps: Sequence[float] | None = None) -> Gaps:
     """Where the model and the run disagree, the missing effects that explain it and the gap after the fix
     (`dynid gaps`): `.result` is its `--json`, `.augmented_model()` the model with the named effects (and the
     tentative ones with `keep_tentative`). With `model`, its inertias are held (a payload, a changed gain or friction
-    is then named against it)."""
+    is then named against it). `steps`: known change points of the F/T offsets (the data's own seconds), as
+    `--steps`; None: the configuration's `ft_steps`, else searched."""
     given = None
     if model is not None:
         check_is_fitted(model, "model_")
@@ -440,7 +442,7 @@ def find_gaps(X: Data, robot: str | Path = "icub_right_arm", model: DynamicsMode
     ds = X if isinstance(X, Dataset) else load_run(str(X), robot_model)
     label = str(X) if not isinstance(X, Dataset) else "dataset"
     return analyse_gaps(robot_model, ds, label, given, supply_tracking, log=print if verbose else (lambda _: None),
-                        keep_tentative=keep_tentative)
+                        keep_tentative=keep_tentative, steps=steps)
 
 
 load_model = DynamicsModel.load

@@ -72,6 +72,14 @@ def derivatives_record(model: RobotModel) -> dict[str, Any]:
     return {"method": "savgol", **cfg.derivatives} if cfg.derivatives else {"method": "savgol"}
 
 
+def joint_ranges(run: Any) -> dict[str, list[float]] | None:
+    """{joint: [min, max]} in degrees of a run in memory (a streamed one: None, not read again for this)."""
+    q = getattr(run, "q", None)
+    if not isinstance(q, np.ndarray) or q.size == 0:
+        return None
+    return {j: [float(np.rad2deg(q[:, k].min())), float(np.rad2deg(q[:, k].max()))] for k, j in enumerate(run.joints)}
+
+
 def cad_ft_offsets(model: RobotModel, stats: Statistics) -> np.ndarray:
     """F/T offsets that fit the CAD inertia best on the identification data (the CAD model has none)."""
     layout, p = model.layout, stats.p
@@ -101,7 +109,7 @@ def build_model(model: RobotModel, phi: np.ndarray, datasets: Sequence[Dataset],
     fitted without it (docs/detection.md#out-of-sample); the in-sample calibration is kept beside, for comparison."""
     effects = list(effects)
 
-    def residual_of(sig, t, phi_k):  # noqa: ANN001, ANN202 - (Signals, s since the run's start, Φ) -> e
+    def residual_of(sig, t, phi_k):  # noqa: ANN001, ANN202 - (Signals, t in the data's own seconds, Φ) -> e
         return augmented_residuals(model, phi_k, effects, sig, t) if effects else residuals(model, phi_k, sig)
 
     segments = None if folds is None else [folds.segments(i, ds.n_samples, phi) for i, ds in enumerate(datasets)]
@@ -127,7 +135,7 @@ def build_model(model: RobotModel, phi: np.ndarray, datasets: Sequence[Dataset],
         detector=detector_record(model, detectors, e, dq, in_sample),
         supply_tracking=tracking, derivatives=sections.derivatives or derivatives_record(model),
         data=tuple(data_record(p, ds.n_samples, ds.duration, ds.meta.get("payload"), ds.meta.get("window"),
-                               ds.meta.get("bad_rows")) for p, ds in zip(data_paths, datasets)),
+                               ds.meta.get("bad_rows"), joint_ranges(ds)) for p, ds in zip(data_paths, datasets)),
         path=None)
     return Built(identified, detectors)
 

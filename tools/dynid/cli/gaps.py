@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+import numpy as np
+
 from ..config.robot_config import load_config
 from ..errors import InputError
 from ..gaps.find import find_gaps
@@ -15,6 +17,19 @@ from ..robot.model import RobotModel
 from ..pipeline import check_scale
 from .commands import COMMANDS
 from .common import bad_rows, json_arg, plural, robot_arg, skipped_rows, window, window_args
+
+
+def change_points(text: str) -> tuple[float, ...]:
+    """`--steps T1,T2,...`: finite seconds, strictly increasing (argparse turns the error into one line, exit 2)."""
+    try:
+        points = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds separated by commas (24.4,61.2), got '{text}'") from None
+    if not all(np.isfinite(points)):
+        raise argparse.ArgumentTypeError(f"every change point must be a finite number of seconds, got '{text}'")
+    if any(b <= a for a, b in zip(points, points[1:])):
+        raise argparse.ArgumentTypeError(f"change points must increase, got '{text}'")
+    return points
 
 
 def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
@@ -29,7 +44,7 @@ def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
     tracking = not args.no_supply_tracking and bool(config.motors_with_input("pwm"))  # a PWM's supply drifts
     skipped = skipped_rows(args.data, ds.meta)
     found = find_gaps(model, ds, args.data, identified, supply_tracking=tracking, log=print,
-                      keep_tentative=args.keep_tentative)
+                      keep_tentative=args.keep_tentative, steps=args.steps)
     result = found.result
     if skipped is not None:
         result["bad_rows"] = skipped
@@ -53,8 +68,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp = sub.add_parser("gaps", help=COMMANDS["gaps"].help,
         description="Refit the standard model on DATA, measure the residual per channel on held-out time blocks, "
         "select missing effects from a library (Stribeck, spring, cogging, PWM dead-zone, F/T drift, armature, "
-        "load-dependent friction, PWM delay, coupling error, base tilt, F/T gain; a payload against a given "
-        "model) by "
+        "load-dependent friction, PWM delay, coupling error, base tilt, F/T gain, a wrench at a joint limit, an F/T "
+        "offset that steps between change points; a payload against a given model) by "
         "cross-validated forward selection, refit with them and print the gap before and after per channel.")
     robot_arg(sp)
     sp.add_argument("--data", required=True, metavar="DATA", help="the measured experiment (.csv, candump or .npz)")
@@ -66,6 +81,11 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     "(a model file: validate, detect, report and export accept it; export carries Stribeck and spring)")
     sp.add_argument("--keep-tentative", action="store_true", help="write the effects reported as tentative into "
                     "the augmented model too (by default it holds only the named ones)")
+    sp.add_argument("--steps", type=change_points, metavar="T1,T2,...", help="known change points of the F/T "
+                    "offsets, in the data's own seconds (as --from/--to): a step of every sensor's offset at each, "
+                    "taken as known and not searched (default: the configuration's ft_steps; else ruptures finds "
+                    "them in the residual and a step is named only if it lowers the held-out error of every channel "
+                    "it keeps)")
     sp.add_argument("--figures", metavar="DIR", help="write a figure per finding and the gap before/after (PNG + "
                     "gaps.json) to DIR; `dynid report --gaps DIR` shows them")
     sp.add_argument("--no-supply-tracking", action="store_true", help="analyse with constant motor gains (one "

@@ -18,16 +18,18 @@ from ..errors import DataError, InputError
 from ..cluster import executor
 from ..identify.fit import (DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_INERTIA_ONLY, FitResult, FitSettings,
                             iv_settled)
-from ..identify.model_file import IdentifiedModel
+from ..identify.model_file import IdentifiedModel, load_model
 from ..identify.model_sections import CROSS_VALIDATED, DEFAULT_BLOCKS, DEFAULT_N_MODE, IN_SAMPLE, N_MODES, BaseSection
 from ..identify.runs import RunRef, stream_run
 from ..identify.supply import SupplyTracking
 from ..identify.blocks import validate_blocks
-from ..identify.validation import evaluate, validation
+from ..identify.transfer import format_why
+from ..identify.validation import evaluate, load_run, validation
 from ..io.dataset import contact_episodes
 from ..io.episodes import check_widening, episodes_in_data, episodes_mask, read_episodes
 from ..paper import PAPER, PAPER_ROBOT
 from ..pipeline import DetectorSettings, IdentifySettings, identify
+from ..robot.effects import FT_STEP, Effect, check_effect_targets, without_ft_steps
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from .commands import COMMANDS
@@ -41,6 +43,16 @@ INPUT_WORD = {"pwm": "PWM", "current": "current", "tau": "joint torque"}
 GAIN_UNIT = {"pwm": "Nm per unit duty", "current": "Nm per A"}
 SHOW_COMBINATIONS = 30  # print every base combination when there are at most this many (else see --json)
 SHOW_UNSEEN = 6  # name the combinations a jackknife fold misses when there are at most this many
+
+
+def known_steps(path: str, model: RobotModel, distributed: object) -> list[Effect]:
+    """`--steps-from`: the ft_step effects of an augmented model, each on a sensor of `model` (else one line)."""
+    if distributed:
+        raise InputError("--steps-from takes the steps out of runs read in memory: not with --workers or --scheduler")
+    steps = [e for e in load_model(path).named_effects or () if e.kind == FT_STEP]
+    if not steps:
+        raise InputError(f"--steps-from {path}: it names no F/T step (ft_step); `dynid gaps --out` writes one that does")
+    return check_effect_targets(steps, model, path)
 
 
 def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
@@ -63,6 +75,10 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
                            cad_pull=args.cad_pull == "cv", consistent_sphere=args.consistent != PSEUDO_INERTIA_ONLY)
     detector = DetectorSettings(args.alpha, args.n_mode)
     runs = [stream_run(ref, model) for ref in refs]  # every run checked before any work; a dataset file streamed
+    steps = known_steps(args.steps_from, model, args.workers or args.scheduler) if args.steps_from else []
+    if steps:  # the fit with known F/T steps: the fit of the measurements with them taken out (in memory)
+        runs = [without_ft_steps(model, load_run(ref.path, model, ref.window, ref.payload, ref.bad_rows), steps)
+                for ref in refs]
     cluster = executor(args.workers, args.scheduler)
     try:
         if cluster is not None:
@@ -74,6 +90,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         if cluster is not None:
             cluster.close()
     model = done.robot or model
+    if steps:  # validate, detect and report predict with them; the T² was calibrated on the data without them
+        done.model.named_effects = tuple(steps)
     done.model.save(args.out)
     result, identified, detectors = done.fit, done.model, done.detectors
     independent = list(base_section(identified).independent)
@@ -265,6 +283,9 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
                   f"    {change}"
                   + (f"   {PAPER[key][0]} ± {PAPER[key][1]} / {PAPER[key + '_cad'][0]} ± {PAPER[key + '_cad'][1]}"
                      if paper else ""))
+    if result.get("why_worse_than_cad"):
+        for line in format_why(result["why_worse_than_cad"]):
+            print(line)
     print("  per channel: RMS of e = y − ŷ, and against the channel's noise std")
     for o in ev.outputs:
         entry = result["channels"][o.name]
@@ -479,6 +500,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     "folder (every run beneath it) or @LIST (a file naming runs, one a line); repeatable. A dataset "
                     "file is read a window at a time, never whole")
     sp.add_argument("--out", required=True, metavar="MODEL", help="the model file to write")
+    sp.add_argument("--steps-from", metavar="GAPS_MODEL", help="take the F/T offset steps (ft_step) that `dynid gaps "
+                    "--out` named in GAPS_MODEL as known, with their times and sizes: the fit sees the F/T "
+                    "measurements with them taken out, and MODEL carries them (validate, detect and report apply "
+                    "them). For a window inside one level of a step, whose size it cannot see")
     where = sp.add_mutually_exclusive_group()
     where.add_argument("--workers", type=positive_int, metavar="N",
                        help="map the runs' time blocks on a Dask LocalCluster of N worker processes started here "

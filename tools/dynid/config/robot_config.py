@@ -21,7 +21,7 @@ import yaml
 
 from ..errors import ConfigError
 from .bus import BusDescription, parse_bus
-from .fields import Fields, as_float
+from .fields import Fields, as_float, shown
 from .icub_bus import icub_bus
 from .log_columns import LogColumn, parse_columns
 from .ros2_topics import Ros2Topics, parse_ros2
@@ -154,6 +154,9 @@ class RobotConfig:
     # `dynid fit --consistent`'s default for this robot ("off", "on" or "pseudo-inertia"): the `fit: {consistent}`
     # field, decided per robot by held-out blocks and runs (docs/consistency.md#default); "off" where it gives none.
     fit_consistent: str = "off"
+    # Known change points of the F/T sensors' offsets (s, the data's own seconds): `dynid gaps` takes a step at each
+    # as known (dynid.gaps.steps); `--steps` replaces them.
+    ft_steps: tuple[float, ...] = ()
 
     @property
     def motor_names(self) -> tuple[str, ...]:
@@ -291,7 +294,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     name = root.string("name")
     f = Fields(name, "", data).only(
         "name", "urdf", "base_link", "gravity", "joints", "ft_sensors", "motors", "actuation", "noise", "can", "bus",
-        "derivatives", "columns", "payload_frame", "yarp", "ros2", "limits", "fit",
+        "derivatives", "columns", "payload_frame", "yarp", "ros2", "limits", "fit", "ft_steps",
     )
 
     joints = f.strings("joints")
@@ -430,6 +433,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         ros2=parse_ros2(name, f.raw("ros2", None), joints, tuple(s.name for s in sensors), _motor_of(groups)),
         limits=_limits(f, joints),
         fit_consistent=_fit_consistent(f),
+        ft_steps=_ft_steps(f, bool(sensors)),
     )
 
 
@@ -446,6 +450,19 @@ def _fit_consistent(f: Fields) -> str:
     if value not in CONSISTENT_MODES:
         raise section.fail("consistent", f"must be one of {', '.join(CONSISTENT_MODES)}, got {value!r}")
     return str(value)
+
+
+def _ft_steps(f: Fields, has_sensor: bool) -> tuple[float, ...]:
+    """`ft_steps`: a list of finite seconds, strictly increasing, on a robot with an F/T sensor."""
+    value = f.raw("ft_steps", [])
+    if not isinstance(value, list) or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(as_float(v)) for v in value):
+        raise f.fail("ft_steps", f"must be a list of change points in seconds, got {shown(value)}")
+    if any(b <= a for a, b in zip(value, value[1:])):
+        raise f.fail("ft_steps", f"must increase, got {shown(value)}")
+    if value and not has_sensor:
+        raise f.fail("ft_steps", "names change points of F/T offsets, but the robot has no F/T sensor")
+    return tuple(float(v) for v in value)
 
 
 def _motor_of(groups: list[ActuationGroup]) -> dict[str, dict[str, str] | None]:

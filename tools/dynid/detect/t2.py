@@ -123,7 +123,7 @@ def calibration_residuals(model: RobotModel, datasets: Sequence, settings,
                           tracking: SupplyTracking | None = None, phi: np.ndarray | None = None,
                           segments: Sequence[Segments | None] | None = None) -> tuple[np.ndarray, ...]:
     """(e, q̇, e with constant gains, e in-sample) on every `calibration_stride`-th sample of the contact-free runs,
-    a chunk at a time (bounded memory), with offline derivatives; residual_of(signals, t since the run's start, Φ)
+    a chunk at a time (bounded memory), with offline derivatives; residual_of(signals, t in the data's own seconds, Φ)
     gives e of a chunk. With each run's `segments` (dynid.identify.model_sections.FoldsSection.segments), e is
     cross-validated: each block's through the Φ fitted without it; the in-sample e (through `phi`) comes beside.
     With `tracking`, the input channels are those of the offline, two-sided supply estimate
@@ -147,15 +147,14 @@ def run_calibration_residuals(model: RobotModel, ds, settings,  # noqa: ANN001 -
     source = SignalSource(model, ds, settings, instruments=False)
     keep = slice(None, None, stride)
     chunk = stride * (CALIBRATION_CHUNK // stride)  # about CALIBRATION_CHUNK samples, a multiple of the stride
-    t0 = float(ds.times(0, 1)[0])
     run_e, run_in, run_dq, run_t, run_inputs = [], [], [], [], []
     for lo in range(0, ds.n_samples, chunk):
         hi = min(lo + chunk, ds.n_samples)
         sig = source(lo, hi)[0].slice(keep)
         t = ds.times(lo, hi)[keep].copy()
-        e_in = residual_of(sig, t - t0, phi)
+        e_in = residual_of(sig, t, phi)
         run_in.append(e_in)
-        run_e.append(e_in if segments is None else _segment_residuals(sig, t - t0, lo, stride, segments, residual_of))
+        run_e.append(e_in if segments is None else _segment_residuals(sig, t, lo, stride, segments, residual_of))
         # Copies: a strided view would keep its whole chunk alive, and every chunk of the run with it
         run_dq.append(sig.dq.copy())
         run_t.append(t)

@@ -72,12 +72,14 @@ def refit(current: Design, V: np.ndarray, accepted: list[Candidate], ctx: Contex
 
 def augmented_model(model: RobotModel, ds: Dataset, data_path: str, result: dict, phi: np.ndarray,
                     effects: list[Effect], given: IdentifiedModel | None, alpha: float = ALPHA,
-                    min_speed: float = DEFAULT_MIN_SPEED, folded: Sequence[Effect] = ()) -> IdentifiedModel:
+                    min_speed: float = DEFAULT_MIN_SPEED, folded: Sequence[Effect] = (),
+                    cad_ft_offsets: np.ndarray | None = None) -> IdentifiedModel:
     """The model file of the refit: the given model's sections (or fresh ones), the refitted Φ, the effects,
     Λ and the T² detector recalibrated on the run with the effects (so detect and export see the augmented
     residuals), through dynid.pipeline.build_model as `dynid fit` does. Sections that describe the given model's
     own fit (base, estimators, cv) are dropped: they no longer describe these parameters. `folded`: payloads
-    named and already added to Φ, recorded for the reader."""
+    named and already added to Φ, recorded for the reader. `cad_ft_offsets`: the CAD inertia's offsets fitted on the
+    run beside the named F/T steps (dynid.gaps.steps), which then replace the given model's."""
     if given is not None and given.calibrated is not None:
         alpha, min_speed = given.calibrated.alpha, given.calibrated.min_speed
     start = given if given is not None else IdentifiedModel(robot_record(model.config), {})
@@ -85,6 +87,7 @@ def augmented_model(model: RobotModel, ds: Dataset, data_path: str, result: dict
         start, base=None, estimators={}, cv=None, n_components=None, fit_time_s=None, estimator="gaps",
         settings=replace(start.settings, estimator="gaps", alpha=alpha, min_speed=min_speed),
         named_effects=tuple(effects),
+        cad_ft_offsets=start.cad_ft_offsets if cad_ft_offsets is None else cad_ft_offsets,
         gaps=GapsSection(result.get("given_model"), result["gap"], result["thresholds"], result["rank"],
                          result["blocks"], [e.as_dict() for e in folded]))  # payloads, added to their links' Φ
     tracking = given.supply_tracking if given is not None else None  # kept: detect will track too

@@ -134,6 +134,14 @@ class Design:
         self._crossed = (E, out)
         return out
 
+    def columns_of(self, E: np.ndarray, keep: list[int]) -> np.ndarray:
+        """E[:, :, keep], with its `cross` statistics sliced from E's rather than computed again (each column is
+        scaled on its own, so the slice is exact): a candidate judged again on fewer of its columns."""
+        DE, EE, Ey, e = self.cross(E)
+        sub = E[:, :, keep]
+        self._crossed = (sub, (DE[..., keep], EE[:, :, keep][:, :, :, keep], Ey[..., keep], e[keep]))
+        return sub
+
     def augmented(self, E: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         """(G, g) per (block, channel) of [D, E]."""
         if E is None:

@@ -33,6 +33,8 @@ from .episodes import format_episode, residual_episodes
 from .profile import profile
 from .refit import reference_phi, refit
 from .selection import WORSE_TOLERANCE, Design, Trial, evaluate, robust_p_value, weighted_columns, worse_channels
+from .steps import (FT_STEP, cad_offsets_with_steps, declared_candidates, describe, format_levels, format_step,
+                    found_candidates, limit_events, offset_levels, prune)
 
 MAX_SAMPLES = 6000  # decimated samples kept: the filtered signals are smooth, and selection stays seconds
 N_BLOCKS = 5
@@ -63,6 +65,9 @@ class Settings:
     max_effects: int = MAX_EFFECTS
     supply: SupplyTracking | None = SupplyTracking()  # None: constant gains (one pass)
     keep_tentative: bool = False  # write tentative effects into the augmented model too (named ones always are)
+    # Declared change points of the F/T offsets (the data's own seconds): steps taken as known, not searched
+    # (`--steps`, the configuration's `ft_steps`; dynid.gaps.steps)
+    steps: tuple[float, ...] = ()
 
 
 MIN_SAMPLES = 2000
@@ -91,7 +96,8 @@ def _collect(model: RobotModel, ds: Dataset, stride: int) -> tuple[Context, np.n
     full = {k: np.concatenate([d[k] for d in dus]) for k in dus[0]}
     index = np.arange(0, ds.n_samples, stride)
     rate = (ds.n_samples - 1) / max(float(ds.t[-1] - ds.t[0]), 1e-12)
-    return Context(model, sig, t - ds.t[0], inputs_full=full, index_full=index, rate=rate), np.concatenate(As), np.concatenate(bs), np.concatenate(ws)
+    ctx = Context(model, sig, t - ds.t[0], inputs_full=full, index_full=index, rate=rate, t0=float(ds.t[0]))
+    return ctx, np.concatenate(As), np.concatenate(bs), np.concatenate(ws)
 
 
 def _rms_per_channel(sse: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -165,6 +171,11 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
     log(f"gaps: {ds.n_samples} samples ({ds.duration:.0f} s), {kept} kept, {settings.n_blocks} held-out time blocks"
         + (", inertias held at the given model's" if reference is not None else "")
         + (", two passes (supply tracking)" if settings.supply is not None else ""))
+    if settings.steps:  # a declared point outside the window changes nothing here: say so
+        outside = [p for p in settings.steps if not ds.t[0] < p < ds.t[-1]]
+        log(f"gaps: declared F/T change points {', '.join(f'{p:g}' for p in settings.steps)} s"
+            + (f"; outside the data ({ds.t[0]:.6g}–{ds.t[-1]:.6g} s): {', '.join(f'{p:g}' for p in outside)} s"
+               if outside else ""))
     result = _analyse(model, ctx, A, b, w, settings, reference)
     if settings.supply is not None:
         first = result
@@ -185,6 +196,7 @@ def run(model: RobotModel, ds: Dataset, settings: Settings = Settings(), referen
         ep["from_s"] += float(ds.t[0])
         ep["to_s"] += float(ds.t[0])
     result["t0_s"] = float(ds.t[0])  # the profile's time edges start from it
+    result["declared_steps"] = list(settings.steps)
     result["seconds"] = time.perf_counter() - started
     return result
 
@@ -224,6 +236,9 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
     phi0 = held + V @ x0
     ctx = replace(ctx, phi=phi0, rigid=A[:, :, inertial] @ phi0[inertial])
     candidates: list[Candidate] = [c for make in LIBRARY.values() for c in make(ctx)]
+    # F/T offset steps: at the declared change points (taken as known, below), else between those ruptures finds
+    declared = declared_candidates(ctx, settings.steps) if settings.steps else []
+    candidates += [] if settings.steps else found_candidates(ctx, resid0)[0]
     named: list[dict] = []
     tried: list[Trial] = []
     on_edge: list[dict] = []  # decisions whose statistic sat on its threshold's band (dynid.margins)
@@ -235,8 +250,19 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
     taken: set[str] = set()
     duration = float(ctx.t[-1] - ctx.t[0]) if ctx.n > 1 else 0.0
     batch = max(1, min(int(round(BATCH_S * n / max(duration, 1e-9))), n // MIN_BATCHES))  # samples per batch (target)
+    for c in declared:  # known steps: in the fix whatever their held-out gain (it is reported)
+        Ew = weighted_columns(c.values, w)
+        tr = replace(evaluate(current, c, w, cur_cv), p_value=robust_p_value(current, Ew, batch))
+        accepted_E.append(Ew)
+        accepted.append(c)
+        taken.add(_key(c))
+        named.append({"trial": tr})
+        current = Design(np.concatenate([design.D] + accepted_E, axis=2), y, bounds)
+        cur_cv = current.cv_sse(None)
+    declared_cv = cur_cv  # what a found effect is judged against when it makes a channel worse
     for _ in range(settings.max_effects):
-        trials = [evaluate(current, c, w, cur_cv) for c in candidates if c.key not in taken]
+        trials = [prune(current, c, w, cur_cv) if c.kind == FT_STEP else evaluate(current, c, w, cur_cv)
+                  for c in candidates if _key(c) not in taken]
         if not trials:
             break
         best = max(trials, key=lambda tr: tr.gain)
@@ -261,7 +287,7 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
             break
         accepted_E.append(Ew)
         accepted.append(c)
-        taken.add(c.key)
+        taken.add(_key(c))
         current = Design(np.concatenate([design.D] + accepted_E, axis=2), y, bounds)
         cur_cv = current.cv_sse(None)
         named.append({"trial": best})
@@ -270,8 +296,8 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
     # dropped until no channel is (a greedy round may hurt a channel that a later effect repairs, so this is
     # judged on the whole fix, not per round).
     refused: list[dict] = []
-    while accepted:
-        worse = worse_channels(base_cv, cur_cv, current.rows)
+    while len(accepted) > len(declared):  # declared steps are kept: the user knows them
+        worse = worse_channels(declared_cv, cur_cv, current.rows)
         if not worse:
             break
         c, item = accepted.pop(), named.pop()
@@ -290,7 +316,7 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
     explained_floor = FLOOR if settings.supply is not None else FLOOR_CONSTANT_GAINS
     effects: list[dict] = []
     removed: list[tuple[set[int], float, str]] = []  # (channels, held-out SSE removed, name) of each effect so far
-    for f, c, item in zip(fitted, accepted, named):
+    for i, (f, c, item) in enumerate(zip(fitted, accepted, named)):
         tr: Trial = item["trial"]
         took = tr.cv_before - tr.cv_after
         primary = None
@@ -312,7 +338,7 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
         effects.append({"name": f.kind, "where": f.where, "parameters": f.parameters,
                         "standard_errors": f.standard_errors, "search": dict(c.nonlinear), "cv_gain": tr.gain,
                         "p_value": tr.p_value, "explained": explained, "secondary_to": primary,
-                        "confident": enough and primary is None})
+                        "confident": i < len(declared) or (enough and primary is None), "declared": i < len(declared)})
     after = _rms_per_channel(cur_cv.sum(axis=0), current.rows.sum(axis=0))
     # The augmented model holds what was named: a tentative effect is reported, but it enters the model file only
     # when asked (--keep-tentative), refitted without it otherwise (its columns would have taken part of the fit).
@@ -326,6 +352,13 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
             effects[i].update(parameters=f.parameters, standard_errors=f.standard_errors)
     for i, e in enumerate(effects):
         e["in_model"] = i in kept
+    events = limit_events(ctx) if any(e["name"] == FT_STEP for e in effects) else []
+    for e, item in zip(effects, named):  # a step: its change points with the limit events there, its channels' gaps
+        if e["name"] == FT_STEP:
+            chans = item["trial"].channels
+            held = _rms_per_channel(base_cv[:, chans].sum(axis=0), current.rows[:, chans].sum(axis=0))
+            now = _rms_per_channel(cur_cv[:, chans].sum(axis=0), current.rows[:, chans].sum(axis=0))
+            e.update(describe(e, events, {channels[k].name: (float(b), float(a)) for k, b, a in zip(chans, held, now)}))
 
     best_by_key: dict[str, Trial] = {}
     for tr in tried:
@@ -346,6 +379,7 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
                 for ch, bf, af, gv in zip(channels, before, after, given if given is not None else before)],
         "given_model": reference[0] if reference is not None else None,
         "where": _where(model, ctx, resid0, w),
+        "ft_steps": offset_levels(effects),  # the named F/T steps of each sensor, summed into one offset per segment
         # when and where the residual left after the fix steps (what the library could not name)
         "episodes": residual_episodes(model, ctx.t, ctx.sig.q, resid_after, np.asarray(after)),
         "profile": profile(model, ctx, resid0, resid_after, w),  # binned, before/after: what the figures plot
@@ -356,8 +390,14 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
         "not_tried": [] if reference is not None else list(NEEDS_GIVEN_MODEL),  # effects that need a given model
         "_residual": resid_after,  # weighted rows after the named effects: the supply estimate of a second pass
         # the augmented model (`dynid gaps --out`): not part of the --json result (see cli_gaps)
-        "_augmented": {"phi": phi, "effects": fitted},
+        "_augmented": {"phi": phi, "effects": fitted,
+                       "cad_ft_offsets": cad_offsets_with_steps(ctx, A, b, w, fitted)},
     }
+
+
+def _key(c: Candidate) -> str:
+    """What selection takes once: an effect at a place (a step: at its times too, a sensor may step twice)."""
+    return c.key + (f" {c.nonlinear['from_s']}-{c.nonlinear['to_s']}" if c.kind == FT_STEP else "")
 
 
 def _edge(decision: str, subject: str, value: float, threshold: float, taken: str) -> dict:
@@ -371,9 +411,12 @@ def format_report(result: dict) -> str:
         for e in result["effects"]:
             params = ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in e["parameters"].items()
                                if not isinstance(v, list))  # matrices go to --json only
-            lead = "named" if e["confident"] else "tentative"
+            lead = "declared" if e.get("declared") else "named" if e["confident"] else "tentative"
             lines.append(f"{lead}: {e['name']} on {e['where']}: {params} "
-                         f"(held-out error on its channels −{100 * e['cv_gain']:.1f} %, robust p={e['p_value']:.1e})")
+                         f"(held-out error on its channels {'−' if e['cv_gain'] >= 0 else '+'}{abs(100 * e['cv_gain']):.1f} %, "
+                         f"robust p={e['p_value']:.1e})")
+            if e["name"] == FT_STEP:
+                lines.append(format_step(e))
             if e.get("secondary_to"):
                 lines.append(f"  it removes under {100 * SECONDARY:.0f} % of what {e['secondary_to']} removed on the same "
                              "channels: likely that effect's shape not fitting exactly, not an effect of its own")
@@ -396,6 +439,7 @@ def format_report(result: dict) -> str:
         if not e.get("in_model", True):
             lines.append(f"left out of the augmented model: {e['name']} on {e['where']} (tentative; "
                          "--keep-tentative writes it)")
+    lines += format_levels(result.get("ft_steps", {}))
     for edge in result.get("borderline", []):
         lines.append(f"borderline: {edge['decision']} of {edge['subject']}: {edge['value']:.6g} against "
                      f"{edge['threshold']:.6g}, taken as {edge['taken_as']} (on the threshold: another CPU's rounding "
@@ -412,6 +456,14 @@ def format_report(result: dict) -> str:
     for ep in result.get("episodes", []):
         lines.append("  " + format_episode(ep))
     given = result.get("given_model")
+    outside = result.get("outside_given_fit")
+    if outside:
+        lines.append("the given model's inertias were fitted on other postures; this run takes "
+                     + "; ".join(f"{o['joint']} to {o['here_from_deg']:.1f}…{o['here_to_deg']:.1f}° against "
+                                 f"{o['fit_from_deg']:.1f}…{o['fit_to_deg']:.1f}° in its fit "
+                                 f"({100 * o['outside_share']:.0f} % of samples outside)" for o in outside[:4])
+                     + (f"; {len(outside) - 4} more joints (--json)" if len(outside) > 4 else "")
+                     + ": its gap there includes its extrapolation")
     head = f"{'given':>10s} " if given else ""
     lines.append(f"{'channel':24s} {head}{'before':>10s} {'after':>10s}  {'(× noise)':>18s}")
     for g in result["gap"]:

@@ -380,10 +380,10 @@ def data_digest(path: str | Path) -> str | None:
 
 def data_record(path: str | Path, samples: int, duration_s: float,
                 payload: dict[str, Any] | None = None, window: list[float | None] | None = None,
-                bad_rows: dict[str, Any] | None = None) -> DataRun:
+                bad_rows: dict[str, Any] | None = None, joint_range_deg: dict[str, list[float]] | None = None) -> DataRun:
     """What a model file says of the data it was fitted on (export checks the sha256 before reusing them), with the
     known payload the run carried, its --from/--to window and the bad rows `--bad-rows skip` dropped (so a reload
-    takes the same samples). Data that never was a file (a `Dataset` built in Python) has no path to resolve and
+    takes the same samples), and each joint's range over it (degrees). Data that never was a file (a `Dataset` built in Python) has no path to resolve and
     no sha256."""
     digest = data_digest(path)
     has_window = window is not None and any(w is not None for w in window)
@@ -391,7 +391,7 @@ def data_record(path: str | Path, samples: int, duration_s: float,
                    Payload(float(payload["mass"]), None if payload.get("com") is None else
                            tuple(float(c) for c in payload["com"])) if payload else None,  # type: ignore[arg-type]
                    tuple(None if w is None else float(w) for w in window) if has_window else None,  # type: ignore[union-attr,arg-type]
-                   bad_rows or None)
+                   bad_rows or None, joint_range_deg)
 
 
 def file_digest(path: str | Path) -> str:

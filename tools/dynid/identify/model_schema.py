@@ -69,7 +69,7 @@ SECTIONS: dict[str, Any] = {
     "estimators": MapOf(_ESTIMATOR),
     "data": ListOf({"path": TEXT, "sha256": Opt(TEXT), "samples": Opt(INTEGER), "duration_s": Opt(NUMBER),
                     "payload": Opt({"mass": NUMBER, "com": Opt(ListOf(NUMBER))}), "window": Opt(ListOf(ANY)),
-                    "bad_rows": Opt(MapOf(ANY))}),
+                    "bad_rows": Opt(MapOf(ANY)), "joint_range_deg": Opt(MapOf(ListOf(NUMBER)))}),
     "cad_ft_offsets": ListOf(NUMBER),
     "n_components": INTEGER,
     "estimator": TEXT,

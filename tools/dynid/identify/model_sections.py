@@ -358,8 +358,11 @@ class DataRun:
     payload: Payload | None = None
     window: Window | None = None  # the run's --from/--to
     bad_rows: Json | None = None  # what `--bad-rows skip` dropped
+    # {joint: [min, max]} in degrees over the run's samples: the postures the fit saw (validate names the joints a
+    # validation run takes beyond them, dynid.identify.transfer); None when not recorded (a streamed run, older files)
+    joint_range_deg: dict[str, list[float]] | None = None
 
-    KEYS = ("path", "sha256", "samples", "duration_s", "payload", "window", "bad_rows")
+    KEYS = ("path", "sha256", "samples", "duration_s", "payload", "window", "bad_rows", "joint_range_deg")
 
     @classmethod
     def from_json(cls, d: Json) -> DataRun:
@@ -370,8 +373,12 @@ class DataRun:
                 raise ValueError("a run's window is [from, to], each a number or null")
             window = tuple(None if w is None else float(w) for w in window)
         payload = d.get("payload")
+        ranges = d.get("joint_range_deg")
+        if ranges is not None and not all(len(v) == 2 and v[0] <= v[1] for v in ranges.values()):
+            raise ValueError("a run's joint_range_deg is {joint: [min, max]}")
         return cls(d["path"], d.get("sha256"), d.get("samples"), d.get("duration_s"),
-                   None if payload is None else Payload.from_json(payload), window, d.get("bad_rows"))
+                   None if payload is None else Payload.from_json(payload), window, d.get("bad_rows"),
+                   None if ranges is None else {str(k): [float(v[0]), float(v[1])] for k, v in ranges.items()})
 
     def to_json(self) -> Json:
         out: Json = {"path": self.path, "sha256": self.sha256, "samples": self.samples, "duration_s": self.duration_s}
@@ -381,6 +388,8 @@ class DataRun:
             out["window"] = list(self.window)
         if self.bad_rows:
             out["bad_rows"] = self.bad_rows
+        if self.joint_range_deg is not None:
+            out["joint_range_deg"] = self.joint_range_deg
         return out
 
     @property

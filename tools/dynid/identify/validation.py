@@ -20,12 +20,13 @@ from ..errors import DataError
 from ..io.bad_rows import DEFAULT_POLICY
 from ..io.dataset import Dataset
 from ..io.load import apply_window, load_data
-from ..robot.effects import augmented_residuals
+from ..robot.effects import FT_STEP, augmented_residuals
 from ..robot.model import RobotModel
 from ..robot.outputs import OutputChannel, measured_outputs, output_channels, residuals
 from ..robot.regressors.stack import Signals, rows_at_rest, signals_from_dataset
 from .model_file import IdentifiedModel, load_model
 from .supply import smoothed_residuals
+from .transfer import why_worse
 
 
 Window = tuple[float | None, float | None]
@@ -91,7 +92,7 @@ def evaluate(model_path: str, data_path: str, identified: IdentifiedModel | None
     sig = signals_from_dataset(model, ds, filter_outputs=True)
     effects = identified.effects  # an augmented model (`dynid gaps --out`) predicts with its named effects
     if effects:
-        e = augmented_residuals(model, identified.phi, effects, sig, ds.t - ds.t[0])
+        e = augmented_residuals(model, identified.phi, effects, sig, ds.t)
     else:
         e = residuals(model, identified.phi, sig)
     tracked = smoothed_residuals(model, identified.supply_tracking, identified.min_speed, e, sig, ds.t)
@@ -104,7 +105,8 @@ def _norm_stats(x: np.ndarray) -> dict[str, float]:
 
 
 def cad_ft_residuals(ev: Evaluated) -> np.ndarray | None:
-    """(N, 6 per sensor) F/T residuals of the CAD parameters, or None without an F/T sensor."""
+    """(N, 6 per sensor) F/T residuals of the CAD parameters, or None without an F/T sensor. The model's F/T offset
+    steps (`ft_step`, what the sensor did, not the bodies) apply to CAD too, with its offsets fitted beside them."""
     outs = ev.outputs
     ft = [o.row for o in outs if o.kind == "ft"]
     if not ft:
@@ -112,6 +114,9 @@ def cad_ft_residuals(ev: Evaluated) -> np.ndarray | None:
     cad = cad_phi(ev.model, ev.identified)
     gains = [o.gain_index for o in outs if o.gain_index is not None]
     cad[gains] = 1.0  # the CAD model has no gains: its input predictions are undefined, not used
+    steps = [e for e in ev.identified.effects if e.kind == FT_STEP]
+    if steps:
+        return augmented_residuals(ev.model, cad, steps, ev.signals, ev.dataset.t)[:, ft]
     return residuals(ev.model, cad, ev.signals)[:, ft]
 
 
@@ -137,6 +142,9 @@ def validation(ev: Evaluated, model_label: str, data_label: str,
         first = ev.config.ft_sensors[0].name
         result["table_ii"] = {**per_sensor[first], "sensor": first}
         result["table_ii_sensors"] = per_sensor
+        # where identified is above CAD: the postures the fit never saw, the model's F/T steps (identify/transfer.py)
+        result["why_worse_than_cad"] = why_worse(ev.identified, per_sensor, ev.dataset.joints, ev.dataset.q,
+                                                 ev.dataset.t, ev.model.joint_limits)
     rest = rows_at_rest(ev.model, ev.signals.dq, ev.identified.min_speed)
     for o in outs:
         rms = float(np.sqrt(np.mean(e[:, o.row] ** 2)))

@@ -43,6 +43,7 @@ class Context:
     # (N, r, n_inertial) the rigid-body columns of every link's inertial parameters, when the gap is measured
     # against a given model whose inertias are held (`dynid gaps --model`): only then can a payload be named
     inertial_columns: np.ndarray | None = None
+    t0: float = 0.0  # the data's own seconds at t = 0 (an F/T step is at times of the data, dynid.gaps.steps)
 
     @property
     def n(self) -> int:

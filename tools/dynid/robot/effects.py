@@ -12,19 +12,22 @@ An effect record of the model file (``effects``, format_version 2):
     search             the searched nonlinear value(s)
 
 Stribeck and spring torques are joint torques added to τ + τ_f of their joint, exactly as the monitor adds them
-(rt_monitor/src/core.cpp): Stribeck s·sign(q̇)·exp(−(q̇/v_s)²), spring k·(q − rest). Other kinds are evaluated
-through their candidate columns in dynid.robot.effect_library (the fit's own definition); only Stribeck and spring
-export to the monitor.
+(rt_monitor/src/core.cpp): Stribeck s·sign(q̇)·exp(−(q̇/v_s)²), spring k·(q − rest). An F/T offset step
+(`ft_step`) adds d_a to axis a of its sensor while from_s ≤ t < to_s (the data's own seconds; no to_s: to the
+end), one parameter d<axis> per axis it acts on. Other kinds are evaluated through their candidate columns in
+dynid.robot.effect_library (the fit's own definition); only Stribeck and spring export to the monitor.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from ..errors import DataError
+from ..io.dataset import Dataset
 from .effect_library import LIBRARY, Context
 from .model import RobotModel
 from .outputs import divisors, residuals
@@ -32,9 +35,13 @@ from .regressors.friction import stribeck_shape
 from .regressors.stack import Signals, joint_row_shares, row_channels
 
 EXPORTABLE = {"stribeck": 1, "spring": 2}  # kind -> the coefficient file's effect_kind
-REQUIRED = {"stribeck": ("static_torque", "velocity"), "spring": ("stiffness", "rest")}
+JOINT_EFFECTS = {"stribeck": ("static_torque", "velocity"), "spring": ("stiffness", "rest")}  # closed form, on a joint
+FT_STEP = "ft_step"
+FT_AXES = ("fx", "fy", "fz", "tx", "ty", "tz")
+REQUIRED = {**JOINT_EFFECTS, FT_STEP: ("from_s",)}
 UNITS = {"static_torque": "Nm", "velocity": "rad/s", "stiffness": "Nm/rad", "rest": "rad", "amplitude": "Nm",
-         "period_deg": "deg", "width": "duty", "tau": "s", "force": "N", "torque": "Nm"}
+         "period_deg": "deg", "width": "duty", "tau": "s", "force": "N", "torque": "Nm", "from_s": "s", "to_s": "s",
+         **{f"d{a}": "N" if a[0] == "f" else "Nm" for a in FT_AXES}}
 
 
 @dataclass(frozen=True)
@@ -89,12 +96,37 @@ def parse_effects(raw: Any, where: str = "model file") -> list[Effect]:
 
 def check_effect_targets(effects: list[Effect], model: RobotModel, where: str = "model file") -> list[Effect]:
     """`effects`, each of a kind with a closed form acting on a joint of `model` (else a DataError naming it)."""
+    sensors = [s.name for s in model.config.ft_sensors]
     for i, effect in enumerate(effects):
         kind, name = effect.target
-        if effect.kind in REQUIRED and (kind != "joint" or name not in model.config.joints):
+        if effect.kind in JOINT_EFFECTS and (kind != "joint" or name not in model.config.joints):
             raise DataError(f"{where}: effect {i} ({effect.kind}) acts on '{effect.where}', not a joint of "
                             f"{model.config.name}")
+        if effect.kind == FT_STEP:
+            if kind != "sensor" or name not in sensors:
+                raise DataError(f"{where}: effect {i} (ft_step) acts on '{effect.where}', not an F/T sensor of "
+                                f"{model.config.name}")
+            if not step_axes(effect) or effect.parameters.get("to_s", np.inf) <= effect.parameters["from_s"]:
+                raise DataError(f"{where}: effect {i} (ft_step) needs d<axis> sizes and to_s after from_s")
     return effects
+
+
+def step_axes(effect: Effect) -> tuple[str, ...]:
+    """The axes an `ft_step` acts on: those with a size d<axis>."""
+    return tuple(a for a in FT_AXES if f"d{a}" in effect.parameters)
+
+
+def ft_step_columns(model: RobotModel, sensor: str, t: np.ndarray, from_s: float, to_s: float | None,
+                    axes: Sequence[str] = FT_AXES) -> np.ndarray:
+    """(N, r, len(axes)): 1 on the row of each axis of `sensor` while from_s ≤ t < to_s (t: the data's own seconds;
+    to_s None: to the end), 0 elsewhere: the columns of an F/T offset that steps there."""
+    t = np.asarray(t, float)
+    index = [s.name for s in model.config.ft_sensors].index(sensor)
+    inside = (t >= from_s) & (t < (np.inf if to_s is None else to_s))
+    out = np.zeros((t.size, len(row_channels(model)), len(axes)))
+    for k, axis in enumerate(axes):
+        out[:, 6 * index + FT_AXES.index(axis), k] = inside
+    return out
 
 
 def finite_number(v: Any) -> bool:
@@ -111,7 +143,7 @@ def joint_torques(model: RobotModel, effects: list[Effect], q: np.ndarray, dq: n
     """(N, n_joints) extra joint torque of the Stribeck and spring effects (others contribute nothing here)."""
     tau = np.zeros_like(np.asarray(q, float))
     for e in effects:
-        if e.kind not in REQUIRED:
+        if e.kind not in JOINT_EFFECTS:
             continue
         j = model.config.joints.index(e.target[1])
         p = e.parameters
@@ -123,11 +155,17 @@ def joint_torques(model: RobotModel, effects: list[Effect], q: np.ndarray, dq: n
 
 
 def effect_rows(model: RobotModel, effects: list[Effect], sig: Signals, t: np.ndarray | None = None) -> np.ndarray:
-    """(N, r) what the effects add to a·Φ of every row channel (row units); t: s since the run's start (only
-    time-dependent effects, an F/T drift, need it)."""
+    """(N, r) what the effects add to a·Φ of every row channel (row units); t: the samples' time in the data's own
+    seconds (only time-dependent effects need it: an F/T step at its times, an F/T drift from the first sample)."""
     tau = joint_torques(model, effects, sig.q, sig.dq)
     out = sum((np.outer(tau[:, c], share) for c, share in joint_row_shares(model).values()),
               np.zeros((sig.q.shape[0], len(row_channels(model)))))
+    for e in (e for e in effects if e.kind == FT_STEP):
+        if t is None:
+            raise DataError("this model's F/T step is at given times; evaluate it on a run with time stamps")
+        axes = step_axes(e)
+        cols = ft_step_columns(model, e.target[1], t, e.parameters["from_s"], e.parameters.get("to_s"), axes)
+        out += cols @ np.array([e.parameters[f"d{a}"] for a in axes])
     others = [e for e in effects if e.kind not in REQUIRED]
     if others:
         out += _library_rows(model, others, sig, t)
@@ -155,8 +193,29 @@ def _library_rows(model: RobotModel, effects: list[Effect], sig: Signals, t: np.
 
 def augmented_residuals(model: RobotModel, phi: np.ndarray, effects: list[Effect], sig: Signals,
                         t: np.ndarray | None = None) -> np.ndarray:
-    """e = y − ŷ (N, n_out) of the standard model plus the effects."""
+    """e = y − ŷ (N, n_out) of the standard model plus the effects (t: the data's own seconds, as `effect_rows`)."""
     e = residuals(model, phi, sig)
     if not effects:
         return e
     return e - effect_rows(model, effects, sig, t) / divisors(model, phi)
+
+
+def without_ft_steps(model: RobotModel, ds: Dataset, steps: Sequence[Effect]) -> Dataset:
+    """A copy of `ds` whose F/T measurements have the `ft_step` effects taken out: a fit on it is the fit with those
+    steps known (their times and sizes), whose model then carries them (`dynid fit --steps-from`)."""
+    ft = {name: values.copy() for name, values in ds.ft.items()}
+    for e in steps:
+        sensor = e.target[1]
+        if sensor not in ft:
+            raise DataError(f"the run has no F/T sensor {sensor} for the step {e.where} ({e.parameters['from_s']:g} s)")
+        i = [s.name for s in model.config.ft_sensors].index(sensor)
+        ft[sensor] -= effect_rows(model, [e], _no_motion(ds), ds.t)[:, 6 * i : 6 * i + 6]
+    out = Dataset(ds.t, ds.joints, ds.q, ds.dq, ds.ddq, ds.pwm, ds.current, ds.tau, ft, ds.contact, ds.extra,
+                  dict(ds.meta))
+    return out
+
+
+def _no_motion(ds: Dataset) -> Signals:
+    """Signals of `ds` holding only what an F/T step reads (its time): q for the shape, nothing else."""
+    zero = np.zeros_like(ds.q)
+    return Signals(ds.q, zero, zero, {}, {}, {})

@@ -63,6 +63,11 @@ CATALOG: dict[str, EffectKind] = {
                    {"amplitude": 0.15, "period_deg": 5.0}, {"amplitude": "Nm", "period_deg": "degrees of motor coordinate"}),
         EffectKind("base_tilt", "none", "body", "a base tilt: gravity not where the URDF says",
                    {"degrees": 2.0, "axis": "x"}, {"degrees": "deg", "axis": "x|y|z of the URDF root frame"}),
+        EffectKind("ft_step", "sensor", "sensor",
+                   "F/T offset step: the offset moves by d at from_s and back at to_s (a cable pulled taut in a posture)",
+                   {"force": 3.0, "torque": 0.15, "from_s": 10.0, "to_s": 20.0},
+                   {"force": "N (per force axis, random signs)", "torque": "Nm", "from_s": "s from the run's start",
+                    "to_s": "s (after from_s; past the run's end: the offset stays)"}),
         EffectKind("ft_gain", "sensor", "sensor", "F/T gain and cross-talk errors: measured = (I + E) w",
                    {"gain": 0.03, "crosstalk": 0.01}, {"gain": "std of the diagonal of E", "crosstalk": "std off the diagonal"}),
         # Outside the gap library on purpose: the test of an effect it cannot name.
@@ -146,6 +151,9 @@ def parse_effect(text: str, config: RobotConfig, bodies: tuple[str, ...]) -> Eff
             raise InputError(f"effect '{name}': {key} must be finite, got '{value}'")
         params[key] = number
     _check_target(name, spec.target, target, config, bodies)
+    if name == "ft_step" and not 0 <= float(params["from_s"]) < float(params["to_s"]):
+        raise InputError(f"effect 'ft_step': needs 0 <= from_s < to_s, got from_s={params['from_s']:g}, "
+                         f"to_s={params['to_s']:g}")
     if name == "coupling_error" and params["joint"] != "all":
         joints = next(g.joints for g in config.actuation if g.name == target)
         if params["joint"] not in joints:

@@ -283,6 +283,10 @@ def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
     ft_measured, ft_offsets, ft_saturated = {}, {}, {}
     for s in config.ft_sensors:
         offset = sensors.ft_offset_track(effects, s.name, t, truth.ft_offsets[s.name], rng_effects)
+        steps = sensors.ft_step_sizes(effects, s.name, np.random.default_rng([settings.robot_seed, 0x57E9]))
+        offset = offset + sensors.ft_step_track(steps, t)
+        for e, size in steps:  # the truth of each step: its size per axis (its times are its parameters)
+            effect_truth[effects.index(e)].update({f"d{a}": float(v) for a, v in zip(("fx", "fy", "fz", "tx", "ty", "tz"), size)})
         gain = sensors.ft_gain_matrix(effects, s.name, np.random.default_rng([settings.robot_seed, 0xF7]))
         std = np.array([s.noise_of(k) for k in range(6)])
         ft_measured[s.name], ft_saturated[s.name] = sensors.measure_ft(

@@ -81,6 +81,25 @@ def ft_offset_track(effects: list[Effect], sensor: str, t: np.ndarray, base: np.
     return offset
 
 
+def ft_step_sizes(effects: list[Effect], sensor: str, rng: np.random.Generator) -> list[tuple[Effect, np.ndarray]]:
+    """Each hidden F/T offset step of one sensor with its (6,) size: force / torque per axis, random signs."""
+    out = []
+    for e in effects:
+        if e.kind == "ft_step" and e.target == sensor:
+            size = np.array([e.params["force"]] * 3 + [e.params["torque"]] * 3, float) * rng.choice([-1.0, 1.0], 6)
+            out.append((e, size))
+    return out
+
+
+def ft_step_track(steps: list[tuple[Effect, np.ndarray]], t: np.ndarray) -> np.ndarray:
+    """(N, 6) what the steps add to the offset: their size while from_s <= t - t[0] < to_s."""
+    out = np.zeros((t.shape[0], 6))
+    for e, size in steps:
+        elapsed = t - t[0]
+        out += ((elapsed >= float(e.params["from_s"])) & (elapsed < float(e.params["to_s"])))[:, None] * size
+    return out
+
+
 def ft_gain_matrix(effects: list[Effect], sensor: str, rng: np.random.Generator) -> np.ndarray:
     """I + E for one sensor (identity without the hidden gain/cross-talk effect)."""
     G = np.eye(6)
