@@ -203,6 +203,22 @@ def test_an_ft_sensor_effect_changes_the_ft_channels_only(effect: str) -> None:
         assert np.abs(drift[-1]).max() > 0.5 * (0.1 if "linear" in effect else 0.2)
 
 
+def test_an_ft_step_is_its_size_between_its_times_and_nothing_else() -> None:
+    """The hidden offset step: the F/T residual is minus the step's size while from_s <= t < to_s and zero outside,
+    the size the truth reports; the other streams are untouched."""
+    base, hidden, _, r = compare("ft_step:force=2,torque=0.1,from_s=3,to_s=5")
+    assert same(base, hidden, "pwm") and same(base, hidden, "q") and not same(base, hidden, "ft")
+    assert_consistent(r, SHOULDER_ROWS + ELBOW_ROWS)
+    truth = hidden.truth["effects"][0]
+    size = np.array([truth[f"d{a}"] for a in ("fx", "fy", "fz", "tx", "ty", "tz")])
+    assert np.array_equal(np.abs(size), [2, 2, 2, 0.1, 0.1, 0.1])
+    elapsed = hidden.dataset.t - hidden.dataset.t[0]
+    inside = (elapsed >= 3) & (elapsed < 5)
+    rows = residuals(hidden)
+    ft_rows = np.column_stack([rows[n] for n in FT_ROWS])
+    assert np.allclose(ft_rows[inside], -size, atol=1e-9) and np.allclose(ft_rows[~inside], 0, atol=1e-9)
+
+
 def test_pwm_delay_shifts_the_pwm_stream_only() -> None:
     base, hidden, _, r = compare("pwm_delay:ms=4")
     assert same(base, hidden, "q") and same(base, hidden, "ft")
