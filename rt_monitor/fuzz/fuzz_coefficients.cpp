@@ -45,7 +45,7 @@ void run(const Coefficients& c) {
 }
 
 void check_refusal(const LoadResult& r) {
-    CHECK(r.error != LoadError::kOk && int(r.error) >= 2 && int(r.error) <= int(LoadError::kImplausible));
+    CHECK(r.error != LoadError::kOk && int(r.error) >= 2 && int(r.error) <= int(LoadError::kKnownAnswers));
     CHECK(!r.message.empty());
     for (const char ch : r.message) CHECK(static_cast<unsigned char>(ch) >= 0x20 && ch != 0x7F);  // one whole line
 }

@@ -3,7 +3,8 @@
     .venv/bin/python rt_monitor/fuzz/make_seeds.py     (after the CMake build: it runs build/firmware_like/boards)
 
 Sources: the committed CAD coefficient file (rt_monitor/tests/data/icub_cad.dcoef), as a file and as a payload,
-and a variant with both effects and supply tracking on; the bundled configuration (rt_monitor/config) in its order
+a variant with both effects and supply tracking on, and one with known answers
+(wrong ones: they reach the loader's check); the bundled configuration (rt_monitor/config) in its order
 and with buses last; the candump lines of rt_monitor/tests/test_frame_source.cpp; a short deterministic run (a
 synthetic data.csv of the bundled arm, one with a saturated strain channel) played by `boards` into a candump log,
 that log as frames for the assembler, and one frame of every message class of the arm's bus table (and of what is
@@ -62,6 +63,13 @@ def coefficient_seeds() -> None:
     m.joint_band = [[0.05, 0.04] for _ in m.joint_band]
     put(d, "momentum.payload", m.encode())
     put(d, "momentum.dcoef", wrap(m.encode()))
+    k = coefficients_t.decode(payload)  # known answers to reach the loader's check (not the core's: it refuses them)
+    k.estimator = "iv"
+    k.n_known = k.window + 9
+    k.known_input = [[0.01 * math.sin(0.1 * i + j) for j in range(k.known_width)] for i in range(k.n_known)]
+    k.known_answer = [[math.nan if i < k.window - 1 else 1.0] * k.known_columns for i in range(k.n_known)]
+    put(d, "known_answers.payload", k.encode())
+    put(d, "known_answers.dcoef", wrap(k.encode()))
 
 
 # Another protocol's table (rt_monitor/tests/test_assembler.cpp's robot): what the iCub arm's does not exercise.

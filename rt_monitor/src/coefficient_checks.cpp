@@ -120,6 +120,12 @@ LoadResult check_shape(const uint8_t* p, size_t n) {
     w.array(ns, 8);                                 // observer_ft_threshold
     w.array(int64_t(nj) * no + nj + 1, 8);          // tau_map, tau_variance, isolation_sigmas
     w.array(1, 8);                                  // combined_scale
+    int32_t nk = 0, kw = 0, kc = 0;
+    if (!w.count(nk, "known-answer samples", kMaxKnown, r)) return r ? not_this : r;
+    if (!w.count(kw, "known-answer channels", kMaxJoints + kMaxOutputs, r)) return r ? not_this : r;
+    w.array(int64_t(nk) * kw, 8);                   // known_input
+    if (!w.count(kc, "known-answer columns", 3 + 2 * kMaxSensors, r)) return r ? not_this : r;
+    w.array(int64_t(nk) * kc, 8);                   // known_answer
     if (!w.ok() || w.at() != n) return not_this;
     return LoadResult{};
 }

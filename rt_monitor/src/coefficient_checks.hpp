@@ -29,5 +29,8 @@ LoadResult check_shape(const uint8_t* p, size_t n);
 LoadResult check_observer(const dynid::coefficients_t& c);
 // Every value within what physics and the sensors allow (plausibility.hpp): kImplausible, naming the first that is not.
 LoadResult check_plausible(const dynid::coefficients_t& c);
+// The known answers (src/known_answers.cpp): the core, built on the loaded `out`, run over the file's samples, gives
+// the file's answers; kKnownAnswers naming the first sample and column that differ.
+LoadResult check_known_answers(const dynid::coefficients_t& c, const Coefficients& out);
 
 }  // namespace dynid::rt

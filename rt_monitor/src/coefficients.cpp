@@ -17,7 +17,7 @@ namespace dynid::rt {
 namespace {
 
 constexpr size_t kHeader = 16;  // magic (8) + version (4) + payload length (4)
-constexpr size_t kMaxFileBytes = size_t(1) << 24;  // 16 MB: a full-capacity coefficient file is under 100 kB
+constexpr size_t kMaxFileBytes = size_t(1) << 24;  // 16 MB: a full-capacity file with its known answers is ~1.2 MB
 
 uint32_t read_le32(const uint8_t* p) {
     return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24;
@@ -325,7 +325,7 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
         out.effect_joint[k] = c.effect_joint[k];
         for (int m = 0; m < 3; ++m) out.effect_param[k][m] = c.effect_param[k][m];
     }
-    return LoadResult{};
+    return check_known_answers(c, out);
 }
 
 }  // namespace dynid::rt

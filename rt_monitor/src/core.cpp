@@ -252,10 +252,12 @@ const Output& Core::step(const double* q, const double* y) noexcept {
     out_.ready = true;
     if (residual_ == Residual::kAcceleration) {
         accelerate(out_);
+        out_.t2_alpha = c_.threshold;
         detect(c_.threshold, c_.ft_threshold);
         track_supply(out_);  // after this sample's residual: the sample never explains itself
     } else if (residual_ == Residual::kMomentum) {
-        detect(observe(q, y), c_.observer_ft_threshold);
+        out_.t2_alpha = observe(q, y);
+        detect(out_.t2_alpha, c_.observer_ft_threshold);
     }
     return out_;
 }
@@ -275,6 +277,7 @@ void Core::combine(const double* q, const double* y) noexcept {
     out_.observer_ratio = out_.p.t2 / observer_threshold;
     out_.acceleration_ratio = acc_.p.t2 / c_.threshold;
     out_.p.t2 = (out_.observer_ratio + out_.acceleration_ratio) / c_.combined_scale;
+    out_.t2_alpha = 1.0;
     detect(1.0, c_.observer_ft_threshold);
 }
 

@@ -19,7 +19,7 @@ double real_us() noexcept {
 
 MonitorLoop::MonitorLoop(const MonitorConfig& cfg, const Coefficients& coef, Core& core, Assembler& assembler,
                          Publisher& publisher, Watchdog& watchdog, const LoopOptions& options)
-    : cfg_(cfg), coef_(coef), core_(core), asm_(assembler), pub_(publisher), dog_(watchdog), opt_(options),
+    : cfg_(cfg), core_(core), asm_(assembler), pub_(publisher), dog_(watchdog), opt_(options),
       clock_(coef.sample_period * 1e6), period_us_(coef.sample_period * 1e6) {
     if (opt_.stats) {
         processing_.init(period_us_);

@@ -111,7 +111,7 @@ TEST(Loader, RefusesDamagedBytes) {
         const char* what;
         std::vector<uint8_t> bytes;
         LoadError error;
-        const char* message;
+        std::string message;
     };
     std::vector<Case> cases;
     cases.push_back({"truncated", {good.begin(), good.end() - 1}, LoadError::kTruncated, "truncated"});
@@ -120,10 +120,11 @@ TEST(Loader, RefusesDamagedBytes) {
     crc[200] ^= 0x40;
     cases.push_back({"flipped bit", crc, LoadError::kCrc, "CRC mismatch"});
     auto version = good;
-    put_le32(version, 8, 5);  // a file of the format before the combined detector: refused, not misread
+    put_le32(version, 8, kFileVersion - 1);  // a file of the format before this one: refused, not misread
     reseal(version);
-    cases.push_back({"version 5", version, LoadError::kVersion,
-                     "format version 5, this monitor reads 6: export the model again"});
+    cases.push_back({"previous version", version, LoadError::kVersion,
+                     "format version " + std::to_string(kFileVersion - 1) + ", this monitor reads " +
+                         std::to_string(kFileVersion) + ": export the model again"});
     auto magic = good;
     magic[0] = 'X';
     cases.push_back({"magic", magic, LoadError::kMagic, "bad magic"});

@@ -96,7 +96,8 @@ real time (applied once before the loop; a refusal has its own exit code):
 exit codes: 0 done (end of input, or SIGINT/SIGTERM); 1 a source or LCM failure; 2 bad arguments or
 configuration; 3 mlockall refused; 4 SCHED_FIFO refused; 5 CPU affinity refused; 6 the run evaluated no sample,
 or ended blind (the watchdog's reason on stderr); 10 + the reason a coefficient file was refused (11 unreadable ...
-20 another robot, 21 a value no robot has).
+20 another robot, 21 a value no robot has,
+22 the core does not reproduce the file's known answers).
 
 the watchdog: frames arriving with no sample evaluated for 5 sample periods, a frame of the bus silent for a
 second, T2 not finite, the stream's sample period not the file's, a joint position out of its range, a live source

@@ -12,7 +12,7 @@ its first contact, as a candump log.
 - coefficient file (CRC valid: the wrapper is rebuilt around the mutated payload): every numeric field, all its
   elements at once, set to 0, negated, 1e-300, 1e300 and NaN (the integers: 0, −1, 2³¹−1).
 Each mutation is replayed (`rt_monitor --replay`) and classified against the unmutated replay:
-- refused: exit 2 or 10-21 at load, with one line on stderr;
+- refused: exit 2 or 10-22 at load, with one line on stderr;
 - flagged: the watchdog raised a status fault (`faults_seen`), or the run exited 6 (evaluated nothing, ended blind);
 - harmless: exit 0, no fault, the same samples evaluated and the same events (kind, time, side);
 - SILENT: anything else that exited normally (changed events, or fewer samples, and no word): the defect class;
@@ -92,7 +92,7 @@ def replay(coef: Path, conf_text: str, log: Path, work: Path, tag: str) -> Repla
 
 def classify(r: Replay, base: Replay) -> str:
     lines = [line for line in r.stderr.splitlines() if line.strip()]
-    if r.code == 2 or 10 <= r.code <= 21:  # one error line (a usage error: that line, then the synopsis)
+    if r.code == 2 or 10 <= r.code <= 22:  # one error line (a usage error: that line, then the synopsis)
         one_line = bool(lines) and lines[0].startswith("rt_monitor: error: ")
         return "refused" if one_line and (len(lines) == 1 or r.code == 2) else "broken"
     if r.code == 6 or (r.code == 0 and r.faults):

@@ -15,7 +15,7 @@ from scipy.signal import savgol_coeffs
 from dynid.config.robot_config import load_config
 from dynid.detect.online import FixedLagSavitzkyGolay, online_signals, online_times, raw_signals
 from dynid.detect.t2 import Detector
-from dynid.export.capacity import capacity
+from dynid.export.capacity import capacity, file_version
 from dynid.export.coefficients import read_coefficients, unwrap, wrap
 from dynid.export.lcm_coefficients import coefficients_t
 from dynid.export.rt_eval_io import detector_columns, raw_samples, read_matrix, run_stream, write_matrix  # noqa: F401 (the other rt tests import them from here)
@@ -219,18 +219,18 @@ def test_cad_fixture_is_current(tmp_path: Path) -> None:
     assert_same_coefficients(read_coefficients(out), read_coefficients(FIXTURE))
 
 
-PREVIOUS_VERSION = ROOT / "tools" / "tests" / "data" / "icub_cad_version5.dcoef"  # `dynid export --cad` of aa5aba4
+PREVIOUS_VERSION = ROOT / "tools" / "tests" / "data" / "icub_cad_version6.dcoef"  # `dynid export --cad` of 8092ff7
 
 
 @pytest.mark.parametrize("exe", BUILDS, ids=lambda p: p.name)
 def test_a_previous_version_file_is_refused_saying_what_to_do(exe: Path, tmp_path: Path) -> None:
-    """A genuine version-5 file (before the combined detector): the monitor and dynid refuse it in one line that says
-    to export again; it is never misread."""
+    """A genuine version-6 file (before the known answers): the monitor and dynid refuse it in one line that says to
+    export again; it is never misread."""
     done = rt_eval("--coef", str(PREVIOUS_VERSION), "--check", exe=exe / "rt_monitor" / "rt_eval")
     assert done.returncode == EXIT_BASE + 4, done.stderr
-    assert done.stderr.count("\n") == 1 and "format version 5, this monitor reads 6: export the model again" in done.stderr
+    assert done.stderr.count("\n") == 1 and f"format version 6, this monitor reads {file_version()}: export the model again" in done.stderr
     done = dynid("export", "--print", str(PREVIOUS_VERSION))
-    assert done.returncode == 2 and "format version 5, this dynid reads 6: export the model again" in done.stderr
+    assert done.returncode == 2 and f"format version 6, this dynid reads {file_version()}: export the model again" in done.stderr
     done = subprocess.run([str(exe / "rt_monitor" / "rt_monitor"), "--model", str(PREVIOUS_VERSION), "--config",
                            str(ROOT / "rt_monitor" / "config" / "icub_right_arm.conf"), "--replay", "/dev/null",
                            "--lcm-url", "memq://"], capture_output=True, text=True, timeout=60)
@@ -280,7 +280,7 @@ def _bad_files(good: bytes) -> dict[str, tuple[bytes, int, str]]:
     flipped = bytearray(good)
     flipped[len(good) // 2] ^= 0x01
     bad["wrong CRC"] = (bytes(flipped), EXIT_BASE + 5, "CRC mismatch")
-    bad["wrong version"] = (wrap(payload, version=3), EXIT_BASE + 4, "format version 3, this monitor reads 6")
+    bad["wrong version"] = (wrap(payload, version=3), EXIT_BASE + 4, f"format version 3, this monitor reads {file_version()}")
 
     c = coefficients_t.decode(payload)
     nj = capacity().joints + 1  # one above the capacity

@@ -14,6 +14,7 @@ from dynid.config.robot_config import load_config
 from dynid.detect.momentum import causal_velocity_weights, friction_band, momentum_residuals
 from dynid.detect.momentum_t2 import BAND_SIGMAS, MomentumDetector
 from dynid.detect.online import raw_signals
+from dynid.export.capacity import file_version
 from dynid.export.coefficients import read_coefficients, unwrap, wrap
 from dynid.export.lcm_coefficients import coefficients_t
 from dynid.identify.model_file import load_model
@@ -134,8 +135,8 @@ def test_observer_section_is_checked(exported: Path, tmp_path: Path) -> None:
     old.write_bytes(wrap(unwrap(good), version=3))
     done = rt_eval("--coef", str(old), "--check")
     assert done.returncode == EXIT_BASE + 4
-    assert "format version 3, this monitor reads 6: export the model again" in done.stderr
-    with pytest.raises(Exception, match="format version 3, this dynid reads 6"):
+    assert f"format version 3, this monitor reads {file_version()}: export the model again" in done.stderr
+    with pytest.raises(Exception, match=f"format version 3, this dynid reads {file_version()}"):
         read_coefficients(old)
     # the observer's q̇ weights are the causal quadratic slope dynid uses
     np.testing.assert_allclose(c.velocity_filter, causal_velocity_weights(c.velocity_window, c.sample_period),

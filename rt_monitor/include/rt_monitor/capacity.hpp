@@ -23,10 +23,12 @@ constexpr int kMaxBuses = 8;                // CAN interfaces the monitor reads
 constexpr int kMaxFrames = 256;             // CAN frames of the robot's bus description
 constexpr int kMaxSignals = 1024;           // signals in those frames
 constexpr int kMaxSkins = 16;               // skin patches (bits of a sample's contact mask)
+constexpr int kMaxKnown = 2048;             // samples of the coefficient file's known answers (windows + 1000)
 
 // The coefficient file's format version: 2 effects (Stribeck, spring) of an augmented model; 3 supply tracking; 4 the
 // momentum observer; 5 any number of F/T sensors, the acceleration residuals' external-torque variance, the joints'
-// ranges; 6 the combined detector (residual 2, combined_scale). A file of another version is refused, named.
-constexpr int kFileVersion = 6;
+// ranges; 6 the combined detector (residual 2, combined_scale); 7 the known answers the loader checks the core against.
+// A file of another version is refused, named.
+constexpr int kFileVersion = 7;
 
 }  // namespace dynid::rt

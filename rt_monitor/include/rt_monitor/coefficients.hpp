@@ -120,6 +120,7 @@ enum class LoadError : int {
     kNotFinite = 9,
     kRobot = 10,
     kImplausible = 11,  // well formed, but a value no robot has (rt_monitor/plausibility.hpp)
+    kKnownAnswers = 12,  // the core does not reproduce the file's known answers (src/known_answers.cpp)
 };
 constexpr int kExitBase = 10;
 

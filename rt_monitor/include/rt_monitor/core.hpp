@@ -31,6 +31,8 @@ struct Output {
     VecJ q = VecJ::Zero(), dq = VecJ::Zero(), ddq = VecJ::Zero();  // filtered, at sample k − lag
     VecO y = VecO::Zero();       // filtered measured outputs, at sample k − lag
     Prediction p;
+    double t2_alpha = 0;         // the T²_α in force at this sample (the observer's rest one where every row rests;
+                                 // 1 in the combined detector, whose p.t2 is s)
     bool above = false;          // T² > T²_α at this sample
     bool in_contact = false;     // the debounced detector's state
     Event event = Event::kNone;

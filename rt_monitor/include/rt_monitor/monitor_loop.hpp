@@ -51,7 +51,6 @@ private:
     void fill_status(int64_t t_us) noexcept;
 
     const MonitorConfig& cfg_;
-    const Coefficients& coef_;
     Core& core_;
     Assembler& asm_;
     Publisher& pub_;

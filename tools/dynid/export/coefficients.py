@@ -319,6 +319,9 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDete
     c.tau_map, c.isolation_sigmas = external_torque_map(model).tolist(), float(ISOLATION_SIGMAS)
     _observer_section(c, model, est, observer, residual)
     c.combined_scale = float(combined_scale)
+    # Known answers (format version 7): none until dynid.export.known_answers.attach takes them on calibration data.
+    c.n_known, c.known_width, c.known_input = 0, c.n_joints + c.n_outputs, []
+    c.known_columns, c.known_answer = (3 + 2 * c.n_sensors) if c.residual == 2 else 1 + c.n_sensors, []
     return c
 
 

@@ -14,11 +14,11 @@ import struct
 
 class coefficients_t(object):
 
-    __slots__ = ["robot_name", "config_digest", "dynid_version", "model_sha256", "data_sha256", "estimator", "n_joints", "joint_names", "joint_limits", "n_bodies", "body_names", "parent", "joint_type", "joint_index", "axis", "rotation", "translation", "inertial", "gravity", "n_sensors", "sensor_names", "sensor_body", "n_motors", "motor_names", "motor_velocity", "motor_friction_on", "motor_friction", "joint_friction", "n_outputs", "channel_names", "channel_kind", "ft_offset", "row_map", "channel_motor", "divisor", "residual_variance", "gate_joints", "gate_motors", "min_speed", "alpha", "threshold", "ft_threshold", "accel_tau_variance", "calibration_samples", "debounce_on", "debounce_off", "hysteresis", "sample_period", "window", "order", "lag", "filter", "n_effects", "effect_kind", "effect_joint", "effect_param", "supply_time_constant", "supply_prior", "supply_gate", "residual", "observer_bandwidth", "velocity_window", "velocity_filter", "joint_band", "motor_band", "observer_variance", "observer_threshold", "observer_rest_threshold", "observer_ft_threshold", "tau_map", "tau_variance", "isolation_sigmas", "combined_scale"]
+    __slots__ = ["robot_name", "config_digest", "dynid_version", "model_sha256", "data_sha256", "estimator", "n_joints", "joint_names", "joint_limits", "n_bodies", "body_names", "parent", "joint_type", "joint_index", "axis", "rotation", "translation", "inertial", "gravity", "n_sensors", "sensor_names", "sensor_body", "n_motors", "motor_names", "motor_velocity", "motor_friction_on", "motor_friction", "joint_friction", "n_outputs", "channel_names", "channel_kind", "ft_offset", "row_map", "channel_motor", "divisor", "residual_variance", "gate_joints", "gate_motors", "min_speed", "alpha", "threshold", "ft_threshold", "accel_tau_variance", "calibration_samples", "debounce_on", "debounce_off", "hysteresis", "sample_period", "window", "order", "lag", "filter", "n_effects", "effect_kind", "effect_joint", "effect_param", "supply_time_constant", "supply_prior", "supply_gate", "residual", "observer_bandwidth", "velocity_window", "velocity_filter", "joint_band", "motor_band", "observer_variance", "observer_threshold", "observer_rest_threshold", "observer_ft_threshold", "tau_map", "tau_variance", "isolation_sigmas", "combined_scale", "n_known", "known_width", "known_input", "known_columns", "known_answer"]
 
-    __typenames__ = ["string", "string", "string", "string", "string", "string", "int32_t", "string", "double", "int32_t", "string", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "double", "int32_t", "string", "int32_t", "int32_t", "string", "double", "int8_t", "double", "double", "int32_t", "string", "int8_t", "double", "double", "int32_t", "double", "double", "int64_t", "int64_t", "double", "double", "double", "double", "double", "int32_t", "int32_t", "int32_t", "double", "double", "int32_t", "int32_t", "int32_t", "double", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "int8_t", "double", "int32_t", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double"]
+    __typenames__ = ["string", "string", "string", "string", "string", "string", "int32_t", "string", "double", "int32_t", "string", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "double", "int32_t", "string", "int32_t", "int32_t", "string", "double", "int8_t", "double", "double", "int32_t", "string", "int8_t", "double", "double", "int32_t", "double", "double", "int64_t", "int64_t", "double", "double", "double", "double", "double", "int32_t", "int32_t", "int32_t", "double", "double", "int32_t", "int32_t", "int32_t", "double", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "int8_t", "double", "int32_t", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "int32_t", "int32_t", "double", "int32_t", "double"]
 
-    __dimensions__ = [None, None, None, None, None, None, None, ["n_joints"], ["n_joints", 2], None, ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies", 3], ["n_bodies", 9], ["n_bodies", 3], ["n_bodies", 10], [3], None, ["n_sensors"], ["n_sensors"], None, ["n_motors"], ["n_motors", "n_joints"], ["n_motors"], ["n_motors", 4], ["n_joints", 4], None, ["n_outputs"], ["n_outputs"], ["n_sensors", 6], ["n_outputs", "n_joints"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], None, None, None, ["n_sensors"], ["n_joints"], None, None, None, None, None, None, None, None, [3, "window"], None, ["n_effects"], ["n_effects"], ["n_effects", 3], None, None, ["n_outputs"], None, None, None, ["velocity_window"], ["n_joints", 2], ["n_motors", 2], ["n_outputs"], None, None, ["n_sensors"], ["n_joints", "n_outputs"], ["n_joints"], None, None]
+    __dimensions__ = [None, None, None, None, None, None, None, ["n_joints"], ["n_joints", 2], None, ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies", 3], ["n_bodies", 9], ["n_bodies", 3], ["n_bodies", 10], [3], None, ["n_sensors"], ["n_sensors"], None, ["n_motors"], ["n_motors", "n_joints"], ["n_motors"], ["n_motors", 4], ["n_joints", 4], None, ["n_outputs"], ["n_outputs"], ["n_sensors", 6], ["n_outputs", "n_joints"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], None, None, None, ["n_sensors"], ["n_joints"], None, None, None, None, None, None, None, None, [3, "window"], None, ["n_effects"], ["n_effects"], ["n_effects", 3], None, None, ["n_outputs"], None, None, None, ["velocity_window"], ["n_joints", 2], ["n_motors", 2], ["n_outputs"], None, None, ["n_sensors"], ["n_joints", "n_outputs"], ["n_joints"], None, None, None, None, ["n_known", "known_width"], None, ["n_known", "known_columns"]]
 
     def __init__(self):
         self.robot_name = ""
@@ -394,6 +394,26 @@ class coefficients_t(object):
         LCM Type: double
         """
 
+        self.n_known = 0
+        """
+        known answers (format version 7, dynid.export.known_answers): n_known raw samples of the calibration data as
+        the monitor receives them (q, then y in channel order) and, per sample, what dynid computed on them offline
+        from the model file through this file's filter and detector: the statistic over the T²_α in force (the combined
+        detector: s, then the observer's and the acceleration residuals' ratios), then each sensor's share of T² over
+        its side threshold (the combined detector: the observer's, then the acceleration residuals'); NaN before the
+        core's windows are full. The monitor runs its core over the samples at load and refuses a file that does not
+        reproduce them. 0 samples: a CAD export (no data to take them on).
+        LCM Type: int32_t
+        """
+
+        self.known_width = 0
+        """ LCM Type: int32_t """
+        self.known_input = []
+        """ LCM Type: double[n_known][known_width] """
+        self.known_columns = 0
+        """ LCM Type: int32_t """
+        self.known_answer = []
+        """ LCM Type: double[n_known][known_columns] """
 
     def encode(self):
         buf = BytesIO()
@@ -513,7 +533,12 @@ class coefficients_t(object):
         for i0 in range(self.n_joints):
             buf.write(struct.pack('>%dd' % self.n_outputs, *self.tau_map[i0][:self.n_outputs]))
         buf.write(struct.pack('>%dd' % self.n_joints, *self.tau_variance[:self.n_joints]))
-        buf.write(struct.pack(">dd", self.isolation_sigmas, self.combined_scale))
+        buf.write(struct.pack(">ddii", self.isolation_sigmas, self.combined_scale, self.n_known, self.known_width))
+        for i0 in range(self.n_known):
+            buf.write(struct.pack('>%dd' % self.known_width, *self.known_input[i0][:self.known_width]))
+        buf.write(struct.pack(">i", self.known_columns))
+        for i0 in range(self.n_known):
+            buf.write(struct.pack('>%dd' % self.known_columns, *self.known_answer[i0][:self.known_columns]))
 
     @staticmethod
     def decode(data: bytes):
@@ -637,13 +662,20 @@ class coefficients_t(object):
         for i0 in range(self.n_joints):
             self.tau_map.append(struct.unpack('>%dd' % self.n_outputs, buf.read(self.n_outputs * 8)))
         self.tau_variance = struct.unpack('>%dd' % self.n_joints, buf.read(self.n_joints * 8))
-        self.isolation_sigmas, self.combined_scale = struct.unpack(">dd", buf.read(16))
+        self.isolation_sigmas, self.combined_scale, self.n_known, self.known_width = struct.unpack(">ddii", buf.read(24))
+        self.known_input = []
+        for i0 in range(self.n_known):
+            self.known_input.append(struct.unpack('>%dd' % self.known_width, buf.read(self.known_width * 8)))
+        self.known_columns = struct.unpack(">i", buf.read(4))[0]
+        self.known_answer = []
+        for i0 in range(self.n_known):
+            self.known_answer.append(struct.unpack('>%dd' % self.known_columns, buf.read(self.known_columns * 8)))
         return self
 
     @staticmethod
     def _get_hash_recursive(parents):
         if coefficients_t in parents: return 0
-        tmphash = (0x630321ea63ece114) & 0xffffffffffffffff
+        tmphash = (0xf31eff87e9603075) & 0xffffffffffffffff
         tmphash  = (((tmphash<<1)&0xffffffffffffffff) + (tmphash>>63)) & 0xffffffffffffffff
         return tmphash
     _packed_fingerprint = None

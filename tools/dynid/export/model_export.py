@@ -25,6 +25,7 @@ from ..identify.supply import SupplyTracking
 from ..identify.validation import load_run
 from ..io.bad_rows import DEFAULT_POLICY
 from ..io.dataset import Dataset
+from . import known_answers
 from ..robot.effects import Effect
 from ..robot.model import RobotModel
 from ..robot.outputs import divisors, output_channels
@@ -201,6 +202,7 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
             check_plausible(without)
             c, observer, note = without, None, f"its calibration is implausible ({e})"
             scale, combined_note = 0.0, note
+    known_answers.attach(c, identified, datasets, effects)  # what the monitor checks its core against at load
     size = write_coefficients(c, out)
     return Exported(str(out), size, alpha, est, cal, list(c.channel_names), effects, tracking, residual, observer,
                     events, note, scale, combined_note)
