@@ -32,6 +32,11 @@ bool Assembler::init(const MonitorConfig& cfg, const Coefficients& coef, std::st
                     "configuration (target q." + shown_name(name) + ")";
             return false;
         }
+        if (coef.measured_velocity && coef.residual != Residual::kAcceleration && dq_slot_[size_t(j)] < 0) {
+            error = "the coefficient file's observer takes the robot's measured q̇, and no signal of the configuration "
+                    "carries joint " + shown_name(name) + "'s (target dq." + shown_name(name) + ")";
+            return false;
+        }
     }
     for (int o = 0; o < n_outputs_; ++o) {
         const std::string& name = coef.channel_names[size_t(o)];

@@ -114,6 +114,7 @@ LoadResult check_shape(const uint8_t* p, size_t n) {
     w.array(1, 1 + 8);                              // residual, observer_bandwidth
     if (!w.count(vw, "velocity filter samples", kMaxWindow, r)) return r ? not_this : r;
     w.array(vw, 8);                                 // velocity_filter
+    w.array(1, 1);                                  // observer_velocity
     w.array(int64_t(nj + nm) * 2, 8);               // joint_band, motor_band
     w.array(no, 8);                                 // observer_variance
     w.array(2, 8);                                  // observer_threshold, observer_rest_threshold
@@ -138,7 +139,10 @@ LoadResult check_observer(const dynid::coefficients_t& c) {
     if (!std::isfinite(c.combined_scale)) return fail(LoadError::kNotFinite, "non-finite combined_scale");
     if (c.combined_scale < 0) return dim("combined_scale must be ≥ 0 (0: no combined detector)");
     if (c.residual == 2 && !(c.combined_scale > 0)) return dim("the file selects the combined detector but carries no combined_scale");
+    if (c.observer_velocity != 0 && c.observer_velocity != 1)
+        return dim("unknown observer velocity " + str(c.observer_velocity) + " (0 estimated from q, 1 measured)");
     if (c.velocity_window == 0) {
+        if (c.observer_velocity != 0) return dim("a measured q̇ for the observer without an observer");
         if (c.residual == 1 || c.residual == 2)
             return dim(std::string("the file selects the ") + (c.residual == 1 ? "momentum residual" : "combined detector") +
                        " but carries no observer");

@@ -302,6 +302,7 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     out.residual = Residual(c.residual);
     out.observer_bandwidth = c.observer_bandwidth;
     out.velocity_window = c.velocity_window;
+    out.measured_velocity = c.observer_velocity == 1;
     for (int i = 0; i < c.velocity_window; ++i) out.velocity_filter[i] = c.velocity_filter[i];
     for (int j = 0; j < c.n_joints; ++j) {
         out.joint_band(j, 0) = c.joint_band[j][0];

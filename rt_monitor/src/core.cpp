@@ -234,7 +234,7 @@ void Core::predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y
     }
 }
 
-const Output& Core::step(const double* q, const double* y) noexcept {
+const Output& Core::step(const double* q, const double* dq, const double* y) noexcept {
     const int W = window_, nj = c_.n_joints, no = c_.n_outputs;
     for (int k = 0; k < nj; ++k) ring_(slot_, k) = ring_(slot_ + W, k) = q[k];
     for (int k = 0; k < no; ++k) ring_(slot_, nj + k) = ring_(slot_ + W, nj + k) = y[k];
@@ -242,7 +242,7 @@ const Output& Core::step(const double* q, const double* y) noexcept {
     ++count_;
     out_.event = Event::kNone;
     if (residual_ == Residual::kCombined) {
-        combine(q, y);
+        combine(q, dq, y);
         return out_;
     }
     if (count_ < W) {
@@ -256,18 +256,18 @@ const Output& Core::step(const double* q, const double* y) noexcept {
         detect(c_.threshold, c_.ft_threshold);
         track_supply(out_);  // after this sample's residual: the sample never explains itself
     } else if (residual_ == Residual::kMomentum) {
-        out_.t2_alpha = observe(q, y);
+        out_.t2_alpha = observe(q, dq, y);
         detect(out_.t2_alpha, c_.observer_ft_threshold);
     }
     return out_;
 }
 
-void Core::combine(const double* q, const double* y) noexcept {
+void Core::combine(const double* q, const double* dq, const double* y) noexcept {
     // Both residuals, each from its own window's start (as each alone would run: the observer from the sample its q̇
     // window fills, the filter from the sample its window fills), then s = (T²_o/T²_o,α + T²/T²_α)/κ on the
     // samples where both have run (dynid.detect.combined, its monitor pairing).
     double observer_threshold = 0;
-    if (count_ >= c_.velocity_window) observer_threshold = observe(q, y);
+    if (count_ >= c_.velocity_window) observer_threshold = observe(q, dq, y);
     if (count_ >= c_.window) {
         accelerate(acc_);
         track_supply(acc_);
@@ -301,13 +301,17 @@ void Core::accelerate(Output& o) noexcept {
     isolate(o, rows, c_.accel_tau_variance);
 }
 
-double Core::observe(const double* q, const double* y) noexcept {
+double Core::observe(const double* q, const double* measured_dq, const double* y) noexcept {
     // dynid.detect.momentum term for term: r = low-pass of τ_meas − τ_model with τ_model = ṗ − β (no q̈), on the raw
-    // q and the causal q̇ estimate; ṗ is the difference of p over the step (0 on the observer's first sample).
+    // q and the robot's measured q̇ or the causal estimate; ṗ is the difference of p over the step (0 on the
+    // observer's first sample).
     const int W = c_.velocity_window, nj = c_.n_joints, no = c_.n_outputs, nft = c_.n_ft();
     const double T = c_.sample_period, ms = c_.min_speed;
-    filter_window(newest(W), int(ring_.outerStride()), nj, W, c_.velocity_filter.data(), nullptr, nullptr,
-                  out_.dq.data(), nullptr, nullptr);
+    if (measured_dq != nullptr && c_.measured_velocity)
+        for (int k = 0; k < nj; ++k) out_.dq[k] = measured_dq[k];
+    else
+        filter_window(newest(W), int(ring_.outerStride()), nj, W, c_.velocity_filter.data(), nullptr, nullptr,
+                      out_.dq.data(), nullptr, nullptr);
     for (int k = 0; k < nj; ++k) out_.q[k] = q[k];
     for (int k = 0; k < no; ++k) out_.y[k] = y[k];
     out_.ddq.setZero();

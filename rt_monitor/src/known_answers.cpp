@@ -53,7 +53,8 @@ std::string column_name(int i, const Coefficients& c, bool combined) {
 LoadResult check_known_answers(const dynid::coefficients_t& f, const Coefficients& c) {
     auto refuse = [](const std::string& m) { return fail(LoadError::kKnownAnswers, m); };
     const bool combined = c.residual == Residual::kCombined;
-    const int width = c.n_joints + c.n_outputs, columns = (combined ? 3 + 2 * c.n_sensors : 1 + c.n_sensors);
+    const int nv = c.measured_velocity ? c.n_joints : 0;  // the robot's q̇, where the observer takes it
+    const int width = c.n_joints + nv + c.n_outputs, columns = (combined ? 3 + 2 * c.n_sensors : 1 + c.n_sensors);
     if (f.known_width != width || f.known_columns != columns)
         return fail(LoadError::kDimension, "known answers of " + str(f.known_width) + " channels and " +
                                                str(f.known_columns) + " columns; the file's robot and detector need " +
@@ -68,7 +69,7 @@ LoadResult check_known_answers(const dynid::coefficients_t& f, const Coefficient
     for (int k = 0; k < f.n_known; ++k) {
         const auto& in = f.known_input[k];
         if (!finite_all(in)) return fail(LoadError::kNotFinite, "non-finite value in the known answers' samples");
-        const Output& o = core->step(in.data(), in.data() + c.n_joints);
+        const Output& o = core->step(in.data(), nv ? in.data() + c.n_joints : nullptr, in.data() + c.n_joints + nv);
         const auto& want = f.known_answer[k];
         const bool expected = std::isfinite(want[0]);
         if (o.ready != expected) {

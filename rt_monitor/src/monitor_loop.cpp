@@ -30,7 +30,7 @@ MonitorLoop::MonitorLoop(const MonitorConfig& cfg, const Coefficients& coef, Cor
 
 void MonitorLoop::step(const Sample& x) noexcept {
     const double t0 = mono_us();
-    const Output& o = core_.step(x.q.data(), x.y.data());
+    const Output& o = core_.step(x.q.data(), x.has_dq ? x.dq.data() : nullptr, x.y.data());
     const double dt = mono_us() - t0;
     loop_sum_ += dt;
     loop_max_ = dt > loop_max_ ? dt : loop_max_;

@@ -53,6 +53,7 @@ void SampleClock::commit(const Sample& s, int64_t idx) noexcept {
             o.sample.t_us = base_t_ + std::llround(offset_ + double(good_idx_ + m) * period_);
             for (size_t j = 0; j < o.sample.q.size(); ++j) o.sample.q[j] += w * (s.q[j] - good_.q[j]);
             for (size_t i = 0; i < o.sample.y.size(); ++i) o.sample.y[i] += w * (s.y[i] - good_.y[i]);
+            for (size_t j = 0; j < o.sample.dq.size(); ++j) o.sample.dq[j] += w * (s.dq[j] - good_.dq[j]);
             o.sample.held = false;
             o.interpolated = true;
             o.restart = false;

@@ -3,7 +3,7 @@
 //   rt_eval --coef FILE [--robot NAME] --check
 //   rt_eval --coef FILE [--robot NAME] --predict IN OUT   IN rows: q, q̇, q̈, y   OUT: ŷ, e, active, T², T²_s (per sensor)
 //   rt_eval --coef FILE [--robot NAME] [--residual acceleration|momentum|combined] --stream IN OUT
-//       IN rows: raw q, y    OUT: ready, q, q̇, q̈, y, ŷ, e, T², T²_s (per sensor), above, in_contact, event,
+//       IN rows: raw q, [the measured q̇, where the file's observer takes it,] y    OUT: ready, q, q̇, q̈, y, ŷ, e, T², T²_s (per sensor), above, in_contact, event,
 //       side (per sensor), r, τ_ext, joint (the residual the file selects, or the one named; r is the observer's;
 //       combined: T² is s, the outputs the observer's)
 // Matrices: "DYMX", int64 rows, int64 cols, then float64 row-major (little-endian). Exit 2 on bad usage or
@@ -121,12 +121,15 @@ int main(int argc, char** argv) {
             for (int k = 0; k < ns; ++k) o[3 * no + 1 + k] = p.t2_sensor[k];
         }
     } else {
-        if (x.cols != nj + no) return usage("--stream input needs n_joints + n_outputs columns");
+        const int nv = c->measured_velocity ? nj : 0;  // the robot's q̇, where the file's observer takes it
+        if (x.cols != nj + nv + no)
+            return usage(nv ? "--stream input needs 2·n_joints + n_outputs columns (q, the measured q̇, y)"
+                            : "--stream input needs n_joints + n_outputs columns");
         y.cols = 1 + 3 * nj + 3 * no + 4 + 2 * ns + no + nj + 1;
         y.v.resize(size_t(y.rows * y.cols));
         for (int64_t k = 0; k < x.rows; ++k) {
             const double* row = &x.v[size_t(k * x.cols)];
-            const Output& s = core->step(row, row + nj);
+            const Output& s = core->step(row, nv ? row + nj : nullptr, row + nj + nv);
             double* o = &y.v[size_t(k * y.cols)];
             o[0] = s.ready;
             for (int j = 0; j < nj; ++j) o[1 + j] = s.q[j], o[1 + nj + j] = s.dq[j], o[1 + 2 * nj + j] = s.ddq[j];

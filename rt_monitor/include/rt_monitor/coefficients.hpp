@@ -85,6 +85,9 @@ struct Coefficients {
     Residual residual = Residual::kAcceleration;
     double observer_bandwidth = 0;  // Hz
     int velocity_window = 0;
+    // The observer's q̇ (format version 7): the robot's own, from the bus (a dq.J for every joint), or estimated from
+    // q with velocity_filter. The acceleration residuals always take the fixed-lag filter's.
+    bool measured_velocity = false;
     Eigen::Matrix<double, 1, kMaxWindow> velocity_filter = decltype(velocity_filter)::Zero();  // 1/s, oldest first
     Eigen::Matrix<double, kMaxJoints, 2> joint_band = decltype(joint_band)::Zero();  // static friction fc⁺, fc⁻ (Nm)
     Eigen::Matrix<double, kMaxMotors, 2> motor_band = decltype(motor_band)::Zero();

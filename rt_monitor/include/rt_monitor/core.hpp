@@ -62,8 +62,11 @@ class Core {
 public:
     explicit Core(const Coefficients& c) noexcept;  // keeps a reference: `c` must outlive the core
 
-    // One raw sample: q (n_joints) and the measured outputs y (n_outputs, the file's channel order).
-    const Output& step(const double* q, const double* y) noexcept;
+    // One raw sample: q (n_joints) and the measured outputs y (n_outputs, the file's channel order); with a file whose
+    // observer takes the robot's measured q̇ (measured_velocity), that q̇ (n_joints): the caller must give it (null:
+    // the observer estimates q̇ from q, which the file's thresholds were not calibrated for).
+    const Output& step(const double* q, const double* y) noexcept { return step(q, nullptr, y); }
+    const Output& step(const double* q, const double* dq, const double* y) noexcept;
     // The model alone, on given states and (filtered) outputs: what the cross-language vectors check.
     void predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y, Prediction& out) const noexcept;
 
@@ -99,9 +102,10 @@ private:
     // The newest n samples of the ring, oldest first (rows of n contiguous samples, one column a channel).
     const double* newest(int n) const noexcept { return &ring_(slot_ + window_ - n, 0); }
     void accelerate(Output& o) noexcept;
-    void combine(const double* q, const double* y) noexcept;
-    // The observer into out_; returns its T²_α at this sample (the rest threshold where every row rests).
-    double observe(const double* q, const double* y) noexcept;
+    void combine(const double* q, const double* dq, const double* y) noexcept;
+    // The observer into out_ (q̇ the measured `dq`, or estimated where it is null); returns its T²_α at this sample
+    // (the rest threshold where every row rests).
+    double observe(const double* q, const double* dq, const double* y) noexcept;
     void isolate(Output& o, const VecO& rows, const std::array<double, kMaxJoints>& variance) noexcept;
     void detect(double threshold, const std::array<double, kMaxSensors>& ft_threshold) noexcept;
     void track_supply(const Output& o) noexcept;

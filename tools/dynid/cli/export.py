@@ -185,7 +185,9 @@ def _export_coefficients(args: argparse.Namespace) -> dict[str, Any]:
     obs = done.observer
     if obs is not None:
         d = obs.detector
-        print(f"  momentum observer: bandwidth {d.bandwidth_hz:g} Hz, causal q̇ over {obs.velocity_window} samples; "
+        velocity = ("the robot's measured q̇ (dq.J on its bus)" if obs.measured
+                    else f"causal q̇ over {obs.velocity_window} samples")
+        print(f"  momentum observer: bandwidth {d.bandwidth_hz:g} Hz, {velocity}; "
               f"T²_α {d.threshold:.4g}, F/T-side thresholds {_sides(d.ft_thresholds)}; {d.samples} "
               "calibration samples")
     else:

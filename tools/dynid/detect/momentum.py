@@ -40,7 +40,7 @@ hold shows as a residual outside the band.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -112,7 +112,12 @@ def measured_velocity(model: RobotModel, dataset) -> np.ndarray | None:
     has one, else their recorded `dq` columns (not an estimate dynid made from q); None when the data carry neither.
     A log whose positions stall for a few samples while its stamps advance (the Panda's) would otherwise stall a
     q̇ estimated from q, and the observer would read the stall as a momentum jump."""
-    cols = [dataset.extra.get(f"velocity.{j}") for j in model.config.joints]
+    return robot_velocity(model.config.joints, dataset)
+
+
+def robot_velocity(joints: Sequence[str], dataset) -> np.ndarray | None:
+    """`measured_velocity` for the joints named (a coefficient file's, where no model is at hand)."""
+    cols = [dataset.extra.get(f"velocity.{j}") for j in joints]
     if any(c is None for c in cols):
         recorded = dataset.meta.get("derivatives", {}).get("dq", "recorded") == "recorded"
         return None if dataset.dq is None or not recorded else np.asarray(dataset.dq, float)

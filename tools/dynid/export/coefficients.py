@@ -157,11 +157,12 @@ class MonitorDetector:
 
 @dataclass(frozen=True)
 class MonitorObserver:
-    """The monitor's momentum observer (dynid.detect.momentum), calibrated on the q̇ the monitor estimates."""
+    """The monitor's momentum observer (dynid.detect.momentum), calibrated on the q̇ the monitor will have."""
 
     detector: MomentumDetector
     velocity_window: int  # samples of the causal q̇ estimator
     band: dict  # {(kind, owner): (fc_pos, fc_neg)}: the static-friction band, widened (friction_band)
+    measured: bool = False  # q̇ the robot's own, from its bus (dq.J), else estimated from q
 
 
 @dataclass(frozen=True)
@@ -320,7 +321,7 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDete
     _observer_section(c, model, est, observer, residual)
     c.combined_scale = float(combined_scale)
     # Known answers (format version 7): none until dynid.export.known_answers.attach takes them on calibration data.
-    c.n_known, c.known_width, c.known_input = 0, c.n_joints + c.n_outputs, []
+    c.n_known, c.known_width, c.known_input = 0, c.n_joints * (1 + c.observer_velocity) + c.n_outputs, []
     c.known_columns, c.known_answer = (3 + 2 * c.n_sensors) if c.residual == 2 else 1 + c.n_sensors, []
     return c
 
@@ -343,7 +344,7 @@ def _observer_section(c: coefficients_t, model: RobotModel, est: FixedLagSavitzk
     nj, no, motors = c.n_joints, c.n_outputs, c.motor_names
     c.residual = RESIDUAL[residual]
     if observer is None:
-        c.observer_bandwidth, c.velocity_window, c.velocity_filter = 0.0, 0, []
+        c.observer_bandwidth, c.velocity_window, c.velocity_filter, c.observer_velocity = 0.0, 0, [], 0
         c.joint_band, c.motor_band = [[0.0, 0.0] for _ in range(nj)], [[0.0, 0.0] for _ in motors]
         c.observer_variance = [0.0] * no
         c.observer_threshold = c.observer_rest_threshold = 0.0
@@ -356,6 +357,7 @@ def _observer_section(c: coefficients_t, model: RobotModel, est: FixedLagSavitzk
     c.observer_bandwidth = float(d.bandwidth_hz)
     c.velocity_window = int(observer.velocity_window)
     c.velocity_filter = causal_velocity_weights(observer.velocity_window, est.sample_period).tolist()
+    c.observer_velocity = 1 if observer.measured else 0
     c.joint_band = [list(observer.band.get(("joint_friction", j), (0.0, 0.0))) for j in cfg.joints]
     c.motor_band = [list(observer.band.get(("motor_friction", m), (0.0, 0.0))) for m in motors]
     c.observer_variance = np.asarray(d.variance, float).tolist()

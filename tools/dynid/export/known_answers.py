@@ -20,7 +20,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..detect.momentum import causal_velocity, momentum_residuals
+from ..detect.momentum import causal_velocity, momentum_residuals, robot_velocity
 from ..detect.online import FixedLagSavitzkyGolay, online_signals, online_times, raw_signals
 from ..errors import DataError
 from ..identify.supply import tracked_residuals
@@ -112,14 +112,23 @@ def answers(identified, c: coefficients_t, ds: Dataset, effects: Sequence = ()) 
     if c.residual in (1, 2):
         band = {("joint_friction", j): tuple(c.joint_band[i]) for i, j in enumerate(c.joint_names)}
         band.update({("motor_friction", m): tuple(c.motor_band[i]) for i, m in enumerate(c.motor_names)})
-        res = momentum_residuals(model, phi, t, q, inputs, tau, ft, gravity, bandwidth_hz=c.observer_bandwidth,
-                                 min_speed=c.min_speed, band=band, tracking=identified.supply_tracking,
-                                 velocity_window_s=(c.velocity_window - 1) * c.sample_period)
-        z = res.e**2 / np.asarray(c.observer_variance, float)
-        at_rest = res.at_rest.all(axis=1)
-        ratio_o = z.sum(axis=1) / np.where(at_rest, c.observer_rest_threshold, c.observer_threshold)
+        options = dict(bandwidth_hz=c.observer_bandwidth, min_speed=c.min_speed, band=band,
+                       tracking=identified.supply_tracking)
+        start = c.velocity_window - 1  # the core's observer starts, at rest, once its q̇ window is full
+        if c.observer_velocity == 1:  # the robot's q̇: from the same sample on
+            later = ds.slice(start, None)
+            res = momentum_residuals(model, phi, *raw_signals(model, later), gravity_per_sample(model, later),
+                                     dq=robot_velocity(c.joint_names, later), **options)
+            e, at_rest, dq = (np.concatenate([np.full((start,) + x.shape[1:], np.nan), x])
+                              for x in (res.e, res.at_rest.all(axis=1), res.dq))
+        else:
+            res = momentum_residuals(model, phi, t, q, inputs, tau, ft, gravity,
+                                     velocity_window_s=start * c.sample_period, **options)
+            e, at_rest, dq = res.e, res.at_rest.all(axis=1), res.dq
+        z = e**2 / np.asarray(c.observer_variance, float)
+        ratio_o = z.sum(axis=1) / np.where(at_rest == 1, c.observer_rest_threshold, c.observer_threshold)
         shares_o = _shares(c, z, c.observer_ft_threshold)
-        edge |= _near_edge(c, res.dq)
+        edge[start:] |= _near_edge(c, dq[start:])
     first = first_evaluated(c)
     if c.residual == 0:
         out[first:] = np.column_stack([ratio_a, shares_a])[first:]
@@ -155,7 +164,9 @@ def _velocities(c: coefficients_t, ds: Dataset) -> list[tuple[int, np.ndarray]]:
     q, out = ds.q, []
     if c.residual in (0, 2):
         out.append((c.window - 1, FixedLagSavitzkyGolay(c.window, c.order, c.lag, c.sample_period).apply(q)[1]))
-    if c.residual in (1, 2):
+    if c.residual in (1, 2) and c.observer_velocity == 1:
+        out.append((0, robot_velocity(c.joint_names, ds)))
+    elif c.residual in (1, 2):
         t = c.sample_period * np.arange(ds.n_samples)
         out.append((0, causal_velocity(t, q, (c.velocity_window - 1) * c.sample_period)))
     return out

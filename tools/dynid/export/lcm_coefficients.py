@@ -14,11 +14,11 @@ import struct
 
 class coefficients_t(object):
 
-    __slots__ = ["robot_name", "config_digest", "dynid_version", "model_sha256", "data_sha256", "estimator", "n_joints", "joint_names", "joint_limits", "n_bodies", "body_names", "parent", "joint_type", "joint_index", "axis", "rotation", "translation", "inertial", "gravity", "n_sensors", "sensor_names", "sensor_body", "n_motors", "motor_names", "motor_velocity", "motor_friction_on", "motor_friction", "joint_friction", "n_outputs", "channel_names", "channel_kind", "ft_offset", "row_map", "channel_motor", "divisor", "residual_variance", "gate_joints", "gate_motors", "min_speed", "alpha", "threshold", "ft_threshold", "accel_tau_variance", "calibration_samples", "debounce_on", "debounce_off", "hysteresis", "sample_period", "window", "order", "lag", "filter", "n_effects", "effect_kind", "effect_joint", "effect_param", "supply_time_constant", "supply_prior", "supply_gate", "residual", "observer_bandwidth", "velocity_window", "velocity_filter", "joint_band", "motor_band", "observer_variance", "observer_threshold", "observer_rest_threshold", "observer_ft_threshold", "tau_map", "tau_variance", "isolation_sigmas", "combined_scale", "n_known", "known_width", "known_input", "known_columns", "known_answer"]
+    __slots__ = ["robot_name", "config_digest", "dynid_version", "model_sha256", "data_sha256", "estimator", "n_joints", "joint_names", "joint_limits", "n_bodies", "body_names", "parent", "joint_type", "joint_index", "axis", "rotation", "translation", "inertial", "gravity", "n_sensors", "sensor_names", "sensor_body", "n_motors", "motor_names", "motor_velocity", "motor_friction_on", "motor_friction", "joint_friction", "n_outputs", "channel_names", "channel_kind", "ft_offset", "row_map", "channel_motor", "divisor", "residual_variance", "gate_joints", "gate_motors", "min_speed", "alpha", "threshold", "ft_threshold", "accel_tau_variance", "calibration_samples", "debounce_on", "debounce_off", "hysteresis", "sample_period", "window", "order", "lag", "filter", "n_effects", "effect_kind", "effect_joint", "effect_param", "supply_time_constant", "supply_prior", "supply_gate", "residual", "observer_bandwidth", "velocity_window", "velocity_filter", "observer_velocity", "joint_band", "motor_band", "observer_variance", "observer_threshold", "observer_rest_threshold", "observer_ft_threshold", "tau_map", "tau_variance", "isolation_sigmas", "combined_scale", "n_known", "known_width", "known_input", "known_columns", "known_answer"]
 
-    __typenames__ = ["string", "string", "string", "string", "string", "string", "int32_t", "string", "double", "int32_t", "string", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "double", "int32_t", "string", "int32_t", "int32_t", "string", "double", "int8_t", "double", "double", "int32_t", "string", "int8_t", "double", "double", "int32_t", "double", "double", "int64_t", "int64_t", "double", "double", "double", "double", "double", "int32_t", "int32_t", "int32_t", "double", "double", "int32_t", "int32_t", "int32_t", "double", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "int8_t", "double", "int32_t", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "int32_t", "int32_t", "double", "int32_t", "double"]
+    __typenames__ = ["string", "string", "string", "string", "string", "string", "int32_t", "string", "double", "int32_t", "string", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "double", "int32_t", "string", "int32_t", "int32_t", "string", "double", "int8_t", "double", "double", "int32_t", "string", "int8_t", "double", "double", "int32_t", "double", "double", "int64_t", "int64_t", "double", "double", "double", "double", "double", "int32_t", "int32_t", "int32_t", "double", "double", "int32_t", "int32_t", "int32_t", "double", "int32_t", "int8_t", "int32_t", "double", "double", "double", "double", "int8_t", "double", "int32_t", "double", "int8_t", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "int32_t", "int32_t", "double", "int32_t", "double"]
 
-    __dimensions__ = [None, None, None, None, None, None, None, ["n_joints"], ["n_joints", 2], None, ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies", 3], ["n_bodies", 9], ["n_bodies", 3], ["n_bodies", 10], [3], None, ["n_sensors"], ["n_sensors"], None, ["n_motors"], ["n_motors", "n_joints"], ["n_motors"], ["n_motors", 4], ["n_joints", 4], None, ["n_outputs"], ["n_outputs"], ["n_sensors", 6], ["n_outputs", "n_joints"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], None, None, None, ["n_sensors"], ["n_joints"], None, None, None, None, None, None, None, None, [3, "window"], None, ["n_effects"], ["n_effects"], ["n_effects", 3], None, None, ["n_outputs"], None, None, None, ["velocity_window"], ["n_joints", 2], ["n_motors", 2], ["n_outputs"], None, None, ["n_sensors"], ["n_joints", "n_outputs"], ["n_joints"], None, None, None, None, ["n_known", "known_width"], None, ["n_known", "known_columns"]]
+    __dimensions__ = [None, None, None, None, None, None, None, ["n_joints"], ["n_joints", 2], None, ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies"], ["n_bodies", 3], ["n_bodies", 9], ["n_bodies", 3], ["n_bodies", 10], [3], None, ["n_sensors"], ["n_sensors"], None, ["n_motors"], ["n_motors", "n_joints"], ["n_motors"], ["n_motors", 4], ["n_joints", 4], None, ["n_outputs"], ["n_outputs"], ["n_sensors", 6], ["n_outputs", "n_joints"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], ["n_outputs"], None, None, None, ["n_sensors"], ["n_joints"], None, None, None, None, None, None, None, None, [3, "window"], None, ["n_effects"], ["n_effects"], ["n_effects", 3], None, None, ["n_outputs"], None, None, None, ["velocity_window"], None, ["n_joints", 2], ["n_motors", 2], ["n_outputs"], None, None, ["n_sensors"], ["n_joints", "n_outputs"], ["n_joints"], None, None, None, None, ["n_known", "known_width"], None, ["n_known", "known_columns"]]
 
     def __init__(self):
         self.robot_name = ""
@@ -352,6 +352,13 @@ class coefficients_t(object):
 
         self.velocity_filter = []
         """ LCM Type: double[velocity_window] """
+        self.observer_velocity = 0
+        """
+        the observer's q̇ (format version 7): 0 estimated from q with velocity_filter; 1 the robot's own measured q̇
+        from its bus (a dq.J signal for every joint), as `dynid detect` takes the data's velocity columns
+        LCM Type: int8_t
+        """
+
         self.joint_band = []
         """
         the static-friction band at rest: fc⁺, fc⁻ widened by their standard errors (Nm), per joint and per motor
@@ -523,6 +530,7 @@ class coefficients_t(object):
         buf.write(struct.pack('>%dd' % self.n_outputs, *self.supply_gate[:self.n_outputs]))
         buf.write(struct.pack(">bdi", self.residual, self.observer_bandwidth, self.velocity_window))
         buf.write(struct.pack('>%dd' % self.velocity_window, *self.velocity_filter[:self.velocity_window]))
+        buf.write(struct.pack(">b", self.observer_velocity))
         for i0 in range(self.n_joints):
             buf.write(struct.pack('>2d', *self.joint_band[i0][:2]))
         for i0 in range(self.n_motors):
@@ -649,6 +657,7 @@ class coefficients_t(object):
         self.supply_gate = struct.unpack('>%dd' % self.n_outputs, buf.read(self.n_outputs * 8))
         self.residual, self.observer_bandwidth, self.velocity_window = struct.unpack(">bdi", buf.read(13))
         self.velocity_filter = struct.unpack('>%dd' % self.velocity_window, buf.read(self.velocity_window * 8))
+        self.observer_velocity = struct.unpack(">b", buf.read(1))[0]
         self.joint_band = []
         for i0 in range(self.n_joints):
             self.joint_band.append(struct.unpack('>2d', buf.read(16)))
@@ -675,7 +684,7 @@ class coefficients_t(object):
     @staticmethod
     def _get_hash_recursive(parents):
         if coefficients_t in parents: return 0
-        tmphash = (0xf31eff87e9603075) & 0xffffffffffffffff
+        tmphash = (0xaa2189c7c8b84cd9) & 0xffffffffffffffff
         tmphash  = (((tmphash<<1)&0xffffffffffffffff) + (tmphash>>63)) & 0xffffffffffffffff
         return tmphash
     _packed_fingerprint = None

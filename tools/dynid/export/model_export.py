@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from ..config.robot_config import RobotConfig
-from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S, friction_band, velocity_window_samples
+from ..detect.momentum import (DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S, friction_band, measured_velocity,
+                               velocity_window_samples)
 from ..detect.momentum_t2 import MomentumDetector, calibrate_momentum, stored_detector
 from ..detect.online import FixedLagSavitzkyGolay, OnlineCalibration, calibrate_online, uniform_pieces, estimator_for
 from ..detect.combined import calibrate_combined
@@ -221,23 +222,32 @@ def monitor_combined_scale(identified: IdentifiedModel, originals: Sequence[Data
     det_c = Detector("calibrated", np.asarray(detector.variance, float), float(detector.threshold), detector.alpha,
                      detector.min_speed, len(detector.variance))
     folds = None if settings.data else identified.folds
-    return calibrate_combined(identified, observer.detector, det_c, originals, folds, measured=False, est=est).scale
+    return calibrate_combined(identified, observer.detector, det_c, originals, folds, measured=observer.measured,
+                              est=est).scale
 
 
 def monitor_observer(identified: IdentifiedModel, datasets: Sequence[Dataset], alpha: float, min_speed: float,
                      settings: ExportSettings) -> MonitorObserver:
-    """The momentum detector calibrated as the monitor will run it: q̇ from its causal estimator (the monitor reads
-    encoders, not the data's velocity columns), on the runs `dynid detect` would calibrate on."""
+    """The momentum detector calibrated as the monitor will run it, on the runs `dynid detect` would calibrate on: q̇
+    the robot's own where its bus carries every joint's (dq.J) and the runs hold it, as `dynid detect` takes it; else
+    estimated causally from q, as the monitor then does."""
     model, phi = identified.robot_model, identified.phi
+    measured = bus_carries_velocity(model) and all(measured_velocity(model, ds) is not None for ds in datasets)
     # the fit's own calibration where it matches (the model file's `observer` section), else calibrate now
-    det = None if settings.data else stored_detector(identified, "monitor", alpha, settings.bandwidth_hz,
-                                                     VELOCITY_WINDOW_S, min_speed=min_speed)
+    det = None if settings.data else stored_detector(identified, "detect" if measured else "monitor", alpha,
+                                                     settings.bandwidth_hz, VELOCITY_WINDOW_S, min_speed=min_speed)
     if det is None:
         det = calibrate_momentum(model, phi, identified.base, datasets, alpha, min_speed, settings.bandwidth_hz,
-                                 tracking=identified.supply_tracking, measured=False,
+                                 tracking=identified.supply_tracking, measured=measured,
                                  folds=None if settings.data else identified.folds)
     band = friction_band(model, phi, identified.base, det.band_sigmas)
-    return MonitorObserver(det, velocity_window_samples(datasets[0].t, det.velocity_window_s), band)
+    return MonitorObserver(det, velocity_window_samples(datasets[0].t, det.velocity_window_s), band, measured)
+
+
+def bus_carries_velocity(model: RobotModel) -> bool:
+    """The robot's bus description carries every joint's measured q̇ (a dq.J signal each)."""
+    bus = model.config.bus
+    return bus is not None and all(f"dq.{j}" in bus.targets() for j in model.config.joints)
 
 
 def export_cad(config: RobotConfig, out: str | Path, settings: ExportSettings = ExportSettings()) -> int:

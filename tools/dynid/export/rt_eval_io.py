@@ -32,13 +32,22 @@ def read_matrix(path: Path) -> np.ndarray:
 
 
 def raw_samples(ds, c: coefficients_t) -> np.ndarray:
-    """(N, joints + outputs): what the monitor receives per sample, in the coefficient file's joint and channel order
-    (channels by name: `ft.<sensor>.<fx…tz>`, `pwm.<motor>`, `current.<motor>`, `tau.<joint>`)."""
+    """(N, joints [+ joints] + outputs): what the monitor receives per sample, in the coefficient file's joint and
+    channel order (channels by name: `ft.<sensor>.<fx…tz>`, `pwm.<motor>`, `current.<motor>`, `tau.<joint>`); where
+    the file's observer takes the robot's measured q̇ (`observer_velocity` 1), that q̇ after q."""
+    from ..detect.momentum import robot_velocity
+
     columns = dict(ds.columns())
     missing = [n for n in c.channel_names if n not in columns]
     if missing:
         raise KeyError(f"the data have no column {missing[0]} for the coefficient file's channel")
-    return np.column_stack([ds.q] + [columns[n] for n in c.channel_names])
+    velocity = []
+    if c.observer_velocity == 1:
+        dq = robot_velocity(c.joint_names, ds)
+        if dq is None:
+            raise KeyError("the data carry no measured joint velocity, which the coefficient file's observer takes")
+        velocity = [dq]
+    return np.column_stack([ds.q] + velocity + [columns[n] for n in c.channel_names])
 
 
 def detector_columns(c: coefficients_t) -> dict[str, int | slice]:

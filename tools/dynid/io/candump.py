@@ -206,14 +206,17 @@ def read_candump(path: str | Path, config: RobotConfig) -> Dataset:
 
 def target_values(data: Dataset, target: str) -> np.ndarray | None:
     """The data's (N,) values of a value target (q.J, dq.J, pwm.M, current.M, tau.J, ft.S.C), None if absent.
-    dq.J is the run's dq, else its `velocity.J` column (the controller's measured velocity)."""
+    dq.J is the run's `velocity.J` column (the controller's measured velocity, what the observer takes offline:
+    dynid.detect.momentum.measured_velocity), else its dq."""
     family, _, name = target.partition(".")
     if family in ("q", "dq"):
         if name not in data.joints:
             return None
+        if family == "dq" and f"velocity.{name}" in data.extra:
+            return data.extra[f"velocity.{name}"]
         values = data.q if family == "q" else data.dq
         if values is None:
-            return data.extra.get(f"velocity.{name}")
+            return None
         return values[:, data.joints.index(name)]
     if family == "ft":
         sensor, _, comp = name.rpartition(".")
