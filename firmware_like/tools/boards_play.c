@@ -163,6 +163,8 @@ static int icub_setup(boards_player_t *p, const boards_conf_t *c, char err[BOARD
             e->kind = 10 + half;
             if (p->strain[k].address != address) NOT_ICUB("its node's other frame is another board address's");
             if (f->dlc != ICUB_CAN_STRAIN_DLC && f->dlc != ICUB_CAN_STRAIN_DLC_SAT) NOT_ICUB("length");
+            /* the board's saturated form is 7 bytes: a long form of another length is not this board's (fuzzer) */
+            if (f->long_dlc && f->long_dlc != ICUB_CAN_STRAIN_DLC_SAT) NOT_ICUB("long length");
             for (ch = 0; ch < 3; ++ch) { /* offset binary: (raw - 0x8000) * FS / 32768 */
                 const boards_signal_t *s = signal_at(c, f, 16 * ch);
                 if (!s || s->kind != BOARDS_T_VALUE || s->layout.length != 16 || s->layout.type != BUS_UNSIGNED ||

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import exit_counter
-from test_rt_core import detector_columns, python_mirror, raw_samples, stream
+from test_rt_core import detector_columns, python_mirror, raw_samples, stream, without_known_answers
 
 from dynid.config.robot_config import load_config
 from dynid.detect.visibility import monitor_visibility
@@ -331,11 +331,15 @@ def test_status_supply_ratios_are_the_python_trackers(setup: dict, clean: dict, 
     # Every status carries them; the first, before the filter window fills, has the prior r = 1.
     assert list(clean["msgs"]["DYNID_STATUS"][0].supply_ratio) == [1.0] * 4
 
-    # Tracking off in the coefficient file (τ = 0): constant gains, every ratio exactly 1.
+    # Tracking off in the coefficient file (τ = 0): an edit of a fitted file, which its known answers refuse; marked as
+    # uncalibrated (no answers), it runs with constant gains, every ratio exactly 1.
     off = coefficients_t.decode(unwrap(Path(setup["coef"]).read_bytes()))
     off.supply_time_constant = 0.0
     coef_off = setup["root"] / "supply_off.dcoef"
     coef_off.write_bytes(wrap(off.encode()))
+    done, msgs = run_monitor({**setup, "coef": coef_off}, setup["root"] / "clean.log", "supply_off")
+    assert done.returncode == 22 and "known answers" in done.stderr, done.stderr
+    coef_off.write_bytes(wrap(without_known_answers(off).encode()))
     done, msgs = run_monitor({**setup, "coef": coef_off}, setup["root"] / "clean.log", "supply_off")
     assert done.returncode == 0, done.stderr
     assert msgs["DYNID_STATUS"] and all(list(m.supply_ratio) == [1.0] * 4 for m in msgs["DYNID_STATUS"])

@@ -36,6 +36,13 @@ def dynid(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True, timeout=900)
 
 
+def without_known_answers(c: coefficients_t) -> coefficients_t:
+    """A deliberately edited file, for a test of what the monitor does with it: marked as a CAD export, which carries
+    no known answers, so that the loader's known-answer check (which refuses any edit of a fitted file) lets it run."""
+    c.estimator, c.n_known, c.known_input, c.known_answer = "cad", 0, [], []
+    return c
+
+
 def rt_eval(*args: str, exe: Path = RT_EVAL) -> subprocess.CompletedProcess:
     assert exe.is_file(), f"{exe} is not built (scripts/setup)"
     return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=600)

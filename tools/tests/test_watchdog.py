@@ -110,14 +110,19 @@ def test_a_pwm_offset_is_a_duty_fault(bench: dict) -> None:
 
 
 def test_a_model_that_is_not_the_robots_is_a_start_fit_fault(bench: dict, tmp_path: Path) -> None:
-    """A CRC-valid file whose gravity points up: every value plausible, T² above T²_α from the start."""
+    """A CRC-valid file whose gravity points up: every value plausible, T² above T²_α from the start. A fitted file's
+    known answers refuse it at load; one without them (a CAD export's kind) runs into the start-fit fault."""
     from dynid.export.coefficients import unwrap, wrap
     from dynid.export.lcm_coefficients import coefficients_t
+    from test_rt_core import without_known_answers
 
     c = coefficients_t.decode(unwrap(Path(bench["coef"]).read_bytes()))
     c.gravity = [-g for g in c.gravity]
     coef = tmp_path / "up.dcoef"
     coef.write_bytes(wrap(c.encode()))
+    code, err, msgs = replay(bench, "gravity-up", coef=coef)
+    assert code == 22 and "does not reproduce the file's known answers" in err, err
+    coef.write_bytes(wrap(without_known_answers(c).encode()))
     code, err, msgs = replay(bench, "gravity-up", coef=coef)
     assert "fault: model does not fit at start: T² above T²_α on" in err and "of the first 4000 samples" in err, err
     assert faults(msgs) & START_FIT
