@@ -26,11 +26,11 @@ from ..identify.supply import SupplyTracking
 from ..identify.validation import load_run
 from ..io.bad_rows import DEFAULT_POLICY
 from ..io.dataset import Dataset
-from . import known_answers
 from ..robot.effects import Effect
 from ..robot.model import RobotModel
 from ..robot.outputs import divisors, output_channels
 from ..robot.regressors.stack import DEFAULT_MIN_SPEED, group_row_maps, group_rows
+from . import known_answers
 from .plausible import Implausible, check_plausible
 from .coefficients import (
     EventSettings,
