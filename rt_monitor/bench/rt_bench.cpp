@@ -136,37 +136,30 @@ int main(int argc, char** argv) {
     std::vector<double> t_obs(static_cast<size_t>(n)), t_comb(static_cast<size_t>(n));
     volatile double sink = 0;
     long long core_allocations = 0;  // counted outside the timed spans
-    for (long k = 0; k < n; ++k) {  // interleaved, so both see the same machine state
-        const long long a0 = allocations();
+    const auto ns = [](Clock::time_point from, Clock::time_point to) {
+        return std::chrono::duration<double, std::nano>(to - from).count();
+    };
+    // One core's step on sample k, timed into times[k]; its allocations counted apart from the timing.
+    const auto timed_step = [&](Core& which, long k, std::vector<double>& times) {
+        const long long before = allocations();
         const auto t0 = Clock::now();
-        const Output& o = core->step(&Q[k * nj], &Y[k * no]);
+        const Output& o = which.step(&Q[k * nj], &Y[k * no]);
         const auto t1 = Clock::now();
-        core_allocations += allocations() - a0;
+        core_allocations += allocations() - before;
         sink = sink + o.p.t2;
+        times[size_t(k)] = ns(t0, t1);
+    };
+    for (long k = 0; k < n; ++k) {  // interleaved, so every one sees the same machine state
+        timed_step(*core, k, t_core);
         for (int j = 0; j < nj; ++j) q[at[j]] = Q[k * nj + j], v[at[j]] = V[k * nj + j], a[at[j]] = A[k * nj + j];
-        const auto t2 = Clock::now();
+        const auto t0 = Clock::now();
         pinocchio::rnea(pm, pd, q, v, a);
-        const auto t3 = Clock::now();
+        const auto t1 = Clock::now();
         sink = sink + pd.tau[0];
-        const long long a1 = allocations();
-        const auto t4 = Clock::now();
-        const Output& ob = observer->step(&Q[k * nj], &Y[k * no]);
-        const auto t5 = Clock::now();
-        core_allocations += allocations() - a1;
-        sink = sink + ob.p.t2;
-        t_obs[k] = std::chrono::duration<double, std::nano>(t5 - t4).count();
-        if (combines) {
-            const long long a2 = allocations();
-            const auto t6 = Clock::now();
-            const Output& oc = combined->step(&Q[k * nj], &Y[k * no]);
-            const auto t7 = Clock::now();
-            core_allocations += allocations() - a2;
-            sink = sink + oc.p.t2;
-            t_comb[k] = std::chrono::duration<double, std::nano>(t7 - t6).count();
-        }
-        t_core[k] = std::chrono::duration<double, std::nano>(t1 - t0).count();
-        t_rnea[k] = std::chrono::duration<double, std::nano>(t3 - t2).count();
-        t_clock[k] = std::chrono::duration<double, std::nano>(t4 - t3).count();
+        t_rnea[size_t(k)] = ns(t0, t1);
+        t_clock[size_t(k)] = ns(t1, Clock::now());  // two reads back to back: the timer's own cost, in every span
+        timed_step(*observer, k, t_obs);
+        if (combines) timed_step(*combined, k, t_comb);
     }
     // Same chain, same answer: the core's joint torques against Pinocchio's on every 1000th state.
     double worst = 0, worst_p = 0, worst_beta = 0;
@@ -193,11 +186,7 @@ int main(int argc, char** argv) {
         }
     }
     const long warm = std::min<long>(n / 10, 1000);  // first calls: cold caches, filter warm-up
-    t_core.erase(t_core.begin(), t_core.begin() + warm);
-    t_rnea.erase(t_rnea.begin(), t_rnea.begin() + warm);
-    t_clock.erase(t_clock.begin(), t_clock.begin() + warm);
-    t_obs.erase(t_obs.begin(), t_obs.begin() + warm);
-    t_comb.erase(t_comb.begin(), t_comb.begin() + warm);
+    for (std::vector<double>* t : {&t_core, &t_rnea, &t_clock, &t_obs, &t_comb}) t->erase(t->begin(), t->begin() + warm);
     const Stats sc = stats(t_core), sr = stats(t_rnea), sk = stats(t_clock), so = stats(t_obs), sb = stats(t_comb);
     std::printf("rt_bench: %s, %d joints, %d outputs, filter window %d; %ld samples timed one by one\n",
                 c->robot_name.c_str(), nj, no, c->window, n - warm);
