@@ -31,13 +31,12 @@ from .lcm_coefficients import coefficients_t
 from .rt_eval_io import raw_samples
 
 EVALUATED = 1000  # samples the monitor evaluates in the test, after its windows have filled
-CANDIDATE_STEP = 250  # where the stretch may start, in samples
+CANDIDATE_STEP = 50  # where the stretch may start, in samples
 # A decision the core makes on a velocity (the gates at min_speed): stretches where one falls this close to its edge
 # are passed over, so that rounding (another CPU, another order of sums) cannot take a sample the other way.
 VELOCITY_MARGIN = 1e-9  # rad/s (m/s)
-# The monitor's tolerance (rt_monitor/src/known_answers.cpp): |a − b| ≤ RTOL·max(|a|, |b|) + ATOL. The two sides agree
-# to about 1e-12; an edit that matters moves the numbers by far more.
-RTOL, ATOL = 1e-6, 1e-9
+# The monitor compares with |a − b| ≤ 1e-6·max(|a|, |b|) + 1e-9 (rt_monitor/src/known_answers.cpp): the two sides
+# agree to about 1e-12; an edit that matters moves the numbers by far more.
 
 
 def first_evaluated(c: coefficients_t) -> int:
@@ -186,7 +185,7 @@ def _stretch(c: coefficients_t, datasets: Sequence[Dataset]) -> tuple[int, int, 
             edge[at : at + dq.shape[0]] |= _near_edge(c, dq)
             resting[at : at + dq.shape[0]] |= _speeds(c, dq) < c.min_speed
         bad = np.concatenate([[0], np.cumsum(edge)])  # edges in [a, b): bad[b] - bad[a]
-        for lo in range(0, max(n - first - 1, 1), CANDIDATE_STEP // 5):
+        for lo in range(0, max(n - first - 1, 1), CANDIDATE_STEP):
             hi = min(lo + first + 1 + EVALUATED, n)
             start = lo + first_decision(c)
             edges = np.flatnonzero(edge[start:hi])
