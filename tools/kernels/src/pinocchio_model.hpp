@@ -6,21 +6,13 @@
 #include <pinocchio/algorithm/crba.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
-#include <pinocchio/serialization.hpp>
 
-#include <stdexcept>
 #include <string>
 
 namespace dynid {
 
-inline pinocchio::Model load_model(const std::string& serialized) {
-    pinocchio::Model m;
-    try {
-        m.loadFromString(serialized);
-    } catch (const std::exception& e) {
-        throw std::invalid_argument(std::string("not a serialised Pinocchio model: ") + e.what());
-    }
-    return m;
-}
+// The model in `serialized`; std::invalid_argument if it is not one. Defined in its own translation unit: Boost's
+// serialisation of a whole Model is the heaviest template instantiation of the module, made once, not per user.
+pinocchio::Model load_model(const std::string& serialized);
 
 }  // namespace dynid
