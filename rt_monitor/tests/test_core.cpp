@@ -14,6 +14,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <initializer_list>
 #include <iterator>
 #include <memory>
 #include <new>
@@ -301,13 +302,22 @@ TEST(Core, NoHeapAllocationOver100000SamplesWithTheObserver) { no_allocation_ove
 TEST(Core, NoHeapAllocationOver100000SamplesCombined) { no_allocation_over_100000_samples(Residual::kCombined); }
 
 namespace {
+// A joint vector of the monitor's capacity: the given leading values, zeros beyond. (A comma initializer with fewer
+// values than kMaxJoints leaves the rest uninitialised; Eigen asserts on it where NDEBUG is off: build-asan.)
+VecJ joint_vector(std::initializer_list<double> values) {
+    VecJ x = VecJ::Zero();
+    int i = 0;
+    for (double value : values) x[i++] = value;
+    return x;
+}
+
 // A smooth motion (q linear in time: the filter reproduces it exactly) with its exact model outputs, plus a
 // disturbance on chosen channels.
 struct Scenario {
     std::unique_ptr<Coefficients> c = load_fixture();
     std::unique_ptr<Core> core = std::make_unique<Core>(*c);
-    VecJ q0 = (VecJ() << 0.1, 0.4, 0.2, 0.8, 0.0, 0.1, -0.1, 0).finished();
-    VecJ v = (VecJ() << 0.2, -0.15, 0.25, 0.3, -0.2, 0.1, 0.15, 0).finished();
+    VecJ q0 = joint_vector({0.1, 0.4, 0.2, 0.8, 0.0, 0.1, -0.1});
+    VecJ v = joint_vector({0.2, -0.15, 0.25, 0.3, -0.2, 0.1, 0.15});
     const Output& step(int k, const VecO& disturbance) {
         VecJ q = q0 + v * (1e-3 * k);
         Prediction p;
@@ -380,8 +390,8 @@ TEST(Core, SupplyTrackingFollowsASagAndIgnoresAPush) {
     c->supply_prior = 1e-10;  // a weak prior: the estimate is the data's (the CAD fixture's inputs are small)
     for (int i = 6; i < c->n_outputs; ++i) c->supply_gate[i] = 0.01;
     auto core = std::make_unique<Core>(*c);
-    const VecJ q0 = (VecJ() << 0.1, 0.4, 0.2, 0.8, 0.0, 0.1, -0.1, 0).finished();
-    const VecJ v = (VecJ() << 0.2, -0.15, 0.25, 0.3, -0.2, 0.1, 0.15, 0).finished();
+    const VecJ q0 = joint_vector({0.1, 0.4, 0.2, 0.8, 0.0, 0.1, -0.1});
+    const VecJ v = joint_vector({0.2, -0.15, 0.25, 0.3, -0.2, 0.1, 0.15});
     const double lambda = std::exp(-c->sample_period / c->supply_time_constant);
     auto step = [&](int k, double push) -> const Output& {
         const VecJ q = q0 + v * (1e-3 * k);
@@ -458,7 +468,8 @@ TEST(Observer, ExactDataThenAFirstOrderStepOnAPush) {
     }
     const Output& o = s.core->output();
     const int nj = c.n_joints;
-    const VecJ expected = c.tau_map.topLeftCorner(nj, no) * o.r.head(no);
+    VecJ expected = VecJ::Zero();
+    expected.head(nj) = c.tau_map.topLeftCorner(nj, no) * o.r.head(no);
     for (int j = 0; j < nj; ++j) EXPECT_NEAR(o.tau_ext[j], expected[j], 1e-12) << j;
     EXPECT_GT(std::abs(o.tau_ext[3]), 0.5 * gain * d);
     EXPECT_EQ(o.joint, 3) << "the elbow: the most distal joint with a significant external torque";
