@@ -18,7 +18,8 @@ from dynid.detect.momentum_t2 import calibration_runs, stored_detector
 from dynid.detect.momentum import VELOCITY_WINDOW_S
 from dynid.errors import DataError
 from dynid.identify.model_file import load_model
-from dynid.identify.model_sections import ALPHA, CombinedCalibration
+from dynid.identify.model_sections import ALPHA
+from dynid.identify.observer_sections import CombinedCalibration
 
 
 def detect(model: Path, data: Path, *args: str) -> dict:

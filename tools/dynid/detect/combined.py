@@ -23,7 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import DataError
-from ..identify.model_sections import CombinedCalibration, Quantiles
+from ..identify.model_sections import Quantiles
+from ..identify.observer_sections import CombinedCalibration
 from ..identify.supply import SupplyTracker, smoothed_residuals
 from ..robot.outputs import residuals
 from ..robot.regressors.stack import signals_from_dataset

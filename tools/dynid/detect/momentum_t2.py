@@ -22,9 +22,8 @@ import numpy as np
 
 from ..errors import DataError
 from ..io.bad_rows import DEFAULT_POLICY
-from ..identify.model_sections import (ALPHA, CROSS_VALIDATED, IN_SAMPLE, BaseSection, CombinedCalibration, FoldsSection,
-                                      MomentumCalibration, ObserverEntry,
-                                      ObserverSection, Quantiles)
+from ..identify.model_sections import ALPHA, CROSS_VALIDATED, IN_SAMPLE, BaseSection, FoldsSection, Quantiles
+from ..identify.observer_sections import CombinedCalibration, MomentumCalibration, ObserverEntry, ObserverSection
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from ..robot.regressors.stack import gravity_per_sample

@@ -48,7 +48,8 @@ from ..robot.effects import Effect, check_effect_targets, finite_number, parse_e
 from ..robot.model import RobotModel
 from .model_schema import check_sections
 from .model_sections import (BaseSection, ConsistentFit, DataRun, DetectorSection, EstimatorSection, FoldsSection,
-                             GapsSection, ObserverSection, OutputsSection, Payload, RobotSection, Settings, T2Calibration, section)
+                             GapsSection, OutputsSection, Payload, RobotSection, Settings, T2Calibration, section)
+from .observer_sections import ObserverSection
 from .supply import SupplyTracking
 
 FORMAT_NAME = "dynid-model"
