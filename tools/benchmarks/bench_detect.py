@@ -36,8 +36,10 @@ def run(model: Path, data: Path, out: Path, reference: bool) -> tuple[float, str
     return wall, done.stdout
 
 
-def differences(a, b, path: str = "") -> list[str]:  # noqa: ANN001 - JSON values
-    """Where two JSON results differ beyond 1e-9 relative (1e-12 absolute)."""
+def differences(a, b, path: str = "", scale: float = 0.0) -> list[str]:  # noqa: ANN001 - JSON values
+    """Where two JSON results differ beyond 1e-9 relative (1e-12 absolute). A number inside a list of numbers (a
+    wrench, a joint vector) is relative to the list's largest magnitude: its components near zero are rounding of the
+    vector, not values of their own."""
     if isinstance(a, dict) and isinstance(b, dict):
         if a.keys() != b.keys():
             return [f"{path}: keys differ"]
@@ -45,9 +47,11 @@ def differences(a, b, path: str = "") -> list[str]:  # noqa: ANN001 - JSON value
     if isinstance(a, list) and isinstance(b, list):
         if len(a) != len(b):
             return [f"{path}: lengths differ"]
-        return [d for i, (x, y) in enumerate(zip(a, b)) for d in differences(x, y, f"{path}[{i}]")]
+        numbers = all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in a)
+        vector = max((abs(x) for x in a), default=0.0) if numbers else 0.0
+        return [d for i, (x, y) in enumerate(zip(a, b)) for d in differences(x, y, f"{path}[{i}]", vector)]
     if isinstance(a, float) and isinstance(b, (int, float)):
-        return [] if abs(a - b) <= max(1e-9 * abs(a), 1e-12) else [f"{path}: {a} vs {b}"]
+        return [] if abs(a - b) <= max(1e-9 * max(abs(a), scale), 1e-12) else [f"{path}: {a} vs {b}"]
     return [] if a == b else [f"{path}: {a!r} vs {b!r}"]
 
 

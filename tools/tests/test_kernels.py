@@ -162,14 +162,17 @@ def test_momentum_products(tilting: bool) -> None:
     close(got.beta_rb, ref.beta_rb, per_sample_scale(ref.beta_rb)[:, None])
 
 
-def test_first_order_filter_on_uneven_steps(monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("steps", ["uneven", "uniform"])  # the Python reference: a loop, or scipy's lfilter
+def test_first_order_filter(monkeypatch: pytest.MonkeyPatch, steps: str) -> None:
     rng = np.random.default_rng(6)
-    t = np.cumsum(rng.uniform(0.5e-3, 1.5e-3, 2000))
+    t = np.cumsum(rng.uniform(0.5e-3, 1.5e-3, 2000)) if steps == "uneven" else 2.0 + np.arange(2000) * 1e-3
     x = rng.normal(0, 1, (2000, 4))
-    got = momentum.first_order(t, x, 15.0)
+    got, got_one = momentum.first_order(t, x, 15.0), momentum.first_order(t, x[:, 1], 15.0)
     monkeypatch.setenv("DYNID_KERNELS", "0")
     ref = momentum.first_order(t, x, 15.0)
     close(got, ref, np.abs(ref).max())
+    assert got_one.shape == (2000,)
+    close(got_one, ref[:, 1], np.abs(ref).max())
 
 
 def test_supply_tracker(monkeypatch: pytest.MonkeyPatch) -> None:

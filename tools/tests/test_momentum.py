@@ -136,6 +136,18 @@ def test_a_resting_joint_shows_only_what_lies_outside_its_static_friction_band()
         assert np.allclose(res.e[late, row], outside, atol=1e-3)  # and only its part outside ±0.3 Nm is a residual
 
 
+@pytest.mark.parametrize("start", [0.0, 1234.567])  # stamps far from zero round their steps unevenly
+def test_causal_velocity_on_uniform_steps_is_the_local_fit(start: float) -> None:
+    """The uniform path (one set of weights, the monitor's) gives what the per-window fit in local time gives."""
+    t = start + np.arange(3000) * 1e-3
+    q = np.column_stack([np.sin(2 * t), np.cos(3 * t) + 0.01 * np.random.default_rng(0).normal(size=t.size)])
+    fast = mo.causal_velocity(t, q)
+    w = mo.velocity_window_samples(t)
+    reference = np.zeros_like(q)
+    mo._local_quadratic_slopes(t, q, w, reference)
+    np.testing.assert_allclose(fast[w - 1:], reference[w - 1:], rtol=0, atol=1e-9 * np.abs(reference).max())
+
+
 def test_causal_velocity_is_causal_and_exact_on_a_quadratic() -> None:
     rng = np.random.default_rng(1)
     t = np.cumsum(rng.uniform(0.008, 0.012, 300))  # jittered stamps

@@ -422,9 +422,9 @@ MIN_EXCITED_SHARE = 0.5  # a run that excites fewer than this share of the struc
 
 
 def check_excitation(model: RobotModel, base: BaseParameters) -> None:
-    """Refuse a run that excites far fewer directions than the robot's structure allows (a still arm: rank 7 of 87),
-    naming what is missing: the joints that never move and the inputs that never change. A short run that misses a
-    few directions fits, with those combinations undetermined."""
+    """Refuse a run that excites far fewer directions than the robot's structure allows (a still arm: rank 10 or
+    less of 87, one posture's outputs), naming what is missing: the joints that never move and the inputs that never
+    change. A short run that misses a few directions fits, with those combinations undetermined."""
     structural = structural_base_parameters(model).rank
     if base.rank >= MIN_EXCITED_SHARE * structural:
         return

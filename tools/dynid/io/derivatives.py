@@ -6,8 +6,8 @@ can look at samples on both sides of each instant, so the estimators here are no
 Two methods:
 
 - ``"savgol"`` (`SavitzkyGolay`, the default): a polynomial fitted by least squares to a sliding window of
-  samples, differentiated analytically. When the time stamps are uniform it is scipy's `savgol_filter`; when
-  they are jittered (real logs), the polynomial is fitted in the *actual* time offsets of the window's samples,
+  samples, differentiated analytically. When the time stamps are uniform it is scipy's `savgol_filter` (the same
+  weights, without importing scipy.signal); when they are jittered (real logs), the polynomial is fitted in the *actual* time offsets of the window's samples,
   because assuming a uniform step turns the jitter into position noise (v·δt, far above encoder resolution).
 - ``"adaptive"`` (`AdaptiveWindow`): the end-fit first-order adaptive window of Janabi-Sharifi, Hayward and Chen
   (1995), which the reference paper used: per sample, the longest window in which a straight line stays within
@@ -149,8 +149,9 @@ class SavitzkyGolay:
 
     Notes
     -----
-    Uniform time stamps (see `UNIFORM_RTOL`) use `scipy.signal.savgol_filter`. Otherwise the polynomial of each
-    window is fitted in the actual offsets ``t_j - t_i`` of its samples. At both ends, the samples of the first
+    Uniform time stamps (see `UNIFORM_RTOL`) use one set of weights for every interior sample (what
+    `scipy.signal.savgol_filter` computes, to 1e-12 of scale). Otherwise the polynomial of each window is fitted in
+    the actual offsets ``t_j - t_i`` of its samples. At both ends, the samples of the first
     (last) half window take the polynomial of the first (last) full window, evaluated at their own time: the
     same as ``savgol_filter(mode="interp")``, so edge values are fits, not extrapolated padding.
     """
@@ -212,12 +213,7 @@ class SavitzkyGolay:
                 f"the median step of {dt:.6g} s)."
             )
         if _is_uniform(t, dt):
-            from scipy.signal import savgol_filter  # scipy.signal takes ~0.5 s to import: only where used
-
-            # Fast path: scipy's convolution; delta scales the derivatives to per second.
-            out = [
-                savgol_filter(q2, w, self.polyorder, deriv=k, delta=dt, axis=0, mode="interp") for k in range(3)
-            ]
+            out = list(_uniform_poly_fit(q2, w, self.polyorder, dt))
         else:
             try:
                 out = list(_local_poly_fit(t, q2, w, self.polyorder))
@@ -230,6 +226,43 @@ class SavitzkyGolay:
                     "steps): the derivative filter cannot bridge the gap; cut the run there (--from/--to)"
                 ) from None
         return _shaped(squeeze, *out)
+
+
+def _legendre_derivatives(p: int) -> tuple[np.ndarray, np.ndarray]:
+    """Coefficient maps of the Legendre basis' derivatives: P_k'(u) = Σ_l D1[k, l] P_l(u), the same for P_k''."""
+    eye = np.eye(p + 1)
+    d1 = np.stack([np.pad(legendre.legder(row, 1), (0, 1)) for row in eye])
+    d2 = np.stack([np.pad(legendre.legder(row, 2), (0, 2)) for row in eye])
+    return d1, d2
+
+
+def _uniform_poly_fit(q: np.ndarray, w: int, p: int, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Savitzky-Golay on uniform steps: `scipy.signal.savgol_filter(q, w, p, deriv=k, delta=dt, axis=0,
+    mode="interp")` for k = 0, 1, 2 (test_derivatives compares the two), one set of weights for the interior and one
+    per edge sample, in the Legendre basis of `_local_poly_fit`. scipy.signal is not imported: its 0.35 s import was
+    an eighth of `dynid detect` (docs/benchmarks.md#compiled-kernels).
+
+    Returns q, dq, ddq, each (N, n).
+    """
+    from scipy.ndimage import correlate1d
+
+    n_samples = q.shape[0]
+    h = w // 2
+    scale = h * dt  # the window's half-span in seconds: u = (t - t_centre) / scale ∈ [-1, 1]
+    u = (np.arange(w) - h) / h
+    V = legendre.legvander(u, p)  # (w, p+1)
+    d1, d2 = _legendre_derivatives(p)
+    # Value, d/dt and d²/dt² of each basis polynomial at every position e of the window: (p+1, w, 3).
+    ev = np.stack([V.T, d1 @ V.T / scale, d2 @ V.T / scale**2], axis=2)
+    # weights[j, e, k]: sample j's weight in the k-th derivative of the window's fit at position e.
+    weights = (V @ np.linalg.solve(V.T @ V, ev.reshape(p + 1, -1))).reshape(w, w, 3)
+    out = np.empty((3, *q.shape))
+    for k in range(3):
+        out[k] = correlate1d(q, weights[:, h, k], axis=0, mode="constant")  # the interior: centred windows
+    # The first and last h samples take the first and last full window's fit, at their own positions.
+    out[:, :h] = np.einsum("jn,jek->ken", q[:w], weights[:, :h])
+    out[:, n_samples - h:] = np.einsum("jn,jek->ken", q[n_samples - w:], weights[:, w - h:])
+    return out[0], out[1], out[2]
 
 
 def _local_poly_fit(
@@ -245,10 +278,7 @@ def _local_poly_fit(
     starts = np.clip(np.arange(n_samples) - h, 0, n_samples - w)
     t_win = sliding_window_view(t, w)  # (N-w+1, w) views, no copy
     q_win = sliding_window_view(q, w, axis=0)  # (N-w+1, n, w)
-    # Basis derivatives as Legendre coefficient maps: P_k'(u) = Σ_l D1[k, l] P_l(u), same for P_k''.
-    eye = np.eye(p + 1)
-    d1 = np.stack([np.pad(legendre.legder(row, 1), (0, 1)) for row in eye])
-    d2 = np.stack([np.pad(legendre.legder(row, 2), (0, 2)) for row in eye])
+    d1, d2 = _legendre_derivatives(p)
     out = np.empty((3, n_samples, n_joints))
     for a in range(0, n_samples, chunk):
         idx = np.arange(a, min(a + chunk, n_samples))
