@@ -30,7 +30,7 @@ from ..robot.regressors.stack import gravity_per_sample
 from .momentum import (DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S, MomentumResiduals, friction_band, measured_velocity,
                        momentum_residuals)
 from .online import raw_signals
-from .t2 import QUANTILE_LEVELS, score_with_delays
+from .t2 import QUANTILE_LEVELS, chi2_quantile, score_with_delays
 
 ISOLATION_SIGMAS = 3.0
 BAND_SIGMAS = 1.0  # the static-friction band is widened by this many standard errors of the Coulomb terms
@@ -60,9 +60,7 @@ class MomentumDetector:
     @property
     def rest_threshold(self) -> float:
         """T²_α where every row rests: χ²(n_out) at α (on contact-free runs T² is 0 there by construction)."""
-        from scipy import stats
-
-        return float(stats.chi2.ppf(self.alpha, self.variance.size))
+        return chi2_quantile(self.alpha, self.variance.size)
 
     def statistic(self, e: np.ndarray, at_rest: np.ndarray) -> np.ndarray:
         """T² / T²_α per sample, T²_α the calibrated threshold, or `rest_threshold` where every row rests:
@@ -210,10 +208,14 @@ def observer_record(identified, datasets: Sequence, monitor_alpha: float,
     builds on this module: the caller hands it in)."""
     model, phi = identified.robot_model, identified.phi
     folds = identified.folds
-    entries = {}
+    # Runs that carry no q̇ of the robot's own give the detect entry the monitor's causal q̇: one observer pass
+    # serves both (a third of the section's time on the simulated arm).
+    causal_only = all(measured_velocity(model, ds) is None for ds in datasets)
+    entries, samples = {}, None
     for key, measured, alpha in (("detect", True, ALPHA), ("monitor", False, monitor_alpha)):
-        samples = momentum_calibration_samples(model, phi, identified.base, datasets, identified.min_speed,
-                                               tracking=identified.supply_tracking, measured=measured, folds=folds)
+        if samples is None or not causal_only:
+            samples = momentum_calibration_samples(model, phi, identified.base, datasets, identified.min_speed,
+                                                   tracking=identified.supply_tracking, measured=measured, folds=folds)
         det = momentum_detector(model, *samples[:3], alpha, identified.min_speed)
         in_sample = combined = None
         if folds is not None and key == "detect":

@@ -18,7 +18,7 @@ from ..detect.momentum import (DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S, friction
 from ..detect.momentum_t2 import MomentumDetector, calibrate_momentum, stored_detector
 from ..detect.online import FixedLagSavitzkyGolay, OnlineCalibration, calibrate_online, uniform_pieces, estimator_for
 from ..detect.combined import calibrate_combined
-from ..detect.t2 import Detector, f_threshold
+from ..detect.t2 import Detector, chi2_quantile, f_threshold
 from ..errors import DataError
 from ..identify.model_file import IdentifiedModel, data_digest, file_digest
 from ..identify.model_sections import ALPHA
@@ -285,11 +285,9 @@ def cad_observer(model: RobotModel, phi: np.ndarray, variance: np.ndarray, alpha
                  bandwidth_hz: float) -> MonitorObserver:
     """An uncalibrated observer for the CAD export: Λ the channels' noise in row units (σ·gain on a motor row),
     χ² thresholds, no friction band."""
-    from scipy import stats
-
     row_variance = variance * divisors(model, phi) ** 2
     tau_variance = cad_tau_variance(model, row_variance)
     det = MomentumDetector(bandwidth_hz, row_variance, tau_variance,
-                           float(stats.chi2.ppf(alpha, row_variance.size)), alpha, DEFAULT_MIN_SPEED, 0.0,
-                           {s.name: float(stats.chi2.ppf(alpha, 6)) for s in model.config.ft_sensors}, CAD_SAMPLES)
+                           chi2_quantile(alpha, row_variance.size), alpha, DEFAULT_MIN_SPEED, 0.0,
+                           {s.name: chi2_quantile(alpha, 6) for s in model.config.ft_sensors}, CAD_SAMPLES)
     return MonitorObserver(det, velocity_window_samples(t), friction_band(model, phi, None, 0.0))

@@ -17,7 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats as sps
+from scipy.special import fdtrc
 
 from ..margins import borderline
 from ..robot.effect_library import Candidate
@@ -265,7 +265,8 @@ def robust_p_value(design: Design, E: np.ndarray, batch: int) -> float:
         return 1.0
     V = Minv @ (S.T @ S) @ Minv
     W = float(theta @ np.linalg.pinv(V) @ theta)
-    return float(sps.f.sf((m - k) / (k * (m - 1)) * W, k, m - k))
+    # F(k, m − k)'s survival function (scipy.stats.f.sf's formula, from scipy.special; a W rounded below 0 is 0).
+    return float(fdtrc(k, m - k, max((m - k) / (k * (m - 1)) * W, 0.0)))
 
 
 def weighted_columns(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
