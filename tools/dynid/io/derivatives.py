@@ -6,9 +6,10 @@ can look at samples on both sides of each instant, so the estimators here are no
 Two methods:
 
 - ``"savgol"`` (`SavitzkyGolay`, the default): a polynomial fitted by least squares to a sliding window of
-  samples, differentiated analytically. When the time stamps are uniform it is scipy's `savgol_filter` (the same
-  weights, without importing scipy.signal); when they are jittered (real logs), the polynomial is fitted in the *actual* time offsets of the window's samples,
-  because assuming a uniform step turns the jitter into position noise (v·δt, far above encoder resolution).
+  samples, differentiated analytically. When the time stamps are uniform it is scipy's `savgol_filter` (its
+  weights, computed here without importing scipy.signal); when they are jittered (real logs), the polynomial is
+  fitted in the *actual* time offsets of the window's samples, because assuming a uniform step turns the jitter into
+  position noise (v·δt, far above encoder resolution).
 - ``"adaptive"`` (`AdaptiveWindow`): the end-fit first-order adaptive window of Janabi-Sharifi, Hayward and Chen
   (1995), which the reference paper used: per sample, the longest window in which a straight line stays within
   ±d of every sample, so it averages over long windows where motion is slow and short ones where it is fast.
@@ -149,9 +150,10 @@ class SavitzkyGolay:
 
     Notes
     -----
-    Uniform time stamps (see `UNIFORM_RTOL`) use one set of weights for every interior sample (what
-    `scipy.signal.savgol_filter` computes, to 1e-12 of scale). Otherwise the polynomial of each window is fitted in
-    the actual offsets ``t_j - t_i`` of its samples. At both ends, the samples of the first
+    Uniform time stamps (see `UNIFORM_RTOL`) use one set of weights for every interior sample: what
+    `scipy.signal.savgol_filter` computes, to 1e-12 of scale at the default window and degree and 1e-9 at high degree,
+    where scipy's own weights lose digits and these do not. Otherwise the polynomial of each window is fitted in the
+    actual offsets ``t_j - t_i`` of its samples. At both ends, the samples of the first
     (last) half window take the polynomial of the first (last) full window, evaluated at their own time: the
     same as ``savgol_filter(mode="interp")``, so edge values are fits, not extrapolated padding.
     """
