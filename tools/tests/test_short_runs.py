@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import csv
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -21,14 +20,10 @@ import pytest
 pytestmark = pytest.mark.numerics
 
 DYNID = Path(sys.executable).parent / "dynid"
-# One BLAS thread: the fit's many small (119×119) products spin OpenBLAS's threads against the other jobs of a
-# loaded 2-core machine (measured at load 7: this file 118 s wall, 42 s CPU; with one thread 68 s, 22 s). Nothing
-# asserted here depends on the thread count.
-ENV = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
 
 
 def dynid(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([str(DYNID), *args], capture_output=True, text=True, timeout=600, env=ENV)
+    return subprocess.run([str(DYNID), *args], capture_output=True, text=True, timeout=600)
 
 
 def strict_json(path: Path) -> dict:
