@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -111,6 +112,23 @@ def test_noise_none_is_deterministic_physics(tmp_path: Path) -> None:
     b = simulate(ICUB, SimulationSettings(duration=0.5, noise=False, seed=1, disturbance=True))
     assert not a.truth["disturbance"] and not b.truth["disturbance"]  # noise none turns the disturbance off too
     assert np.array_equal(a.dataset.q, b.dataset.q)
+
+
+def test_the_same_seed_gives_the_same_files(tmp_path: Path) -> None:
+    """Two `dynid simulate` processes of one seed write the same bytes, whatever BLAS thread count each has (on one
+    CPU: another CPU's BLAS kernels round differently, docs/consistency.md)."""
+    args = ["simulate", "--kind", "contact", "--duration", "20", "--seed", "3", "--effect", "cogging"]
+    for threads in ("1", "2"):
+        env = {**os.environ, "OPENBLAS_NUM_THREADS": threads}
+        done = subprocess.run([sys.executable, "-m", "dynid.cli", *args, "--out", str(tmp_path / threads)],
+                              capture_output=True, text=True, timeout=600, env=env)
+        assert done.returncode == 0, done.stderr
+    for name in ("data.csv", "truth.json"):
+        assert (tmp_path / "1" / name).read_bytes() == (tmp_path / "2" / name).read_bytes(), name
+    one, two = np.load(tmp_path / "1" / "dataset.npz"), np.load(tmp_path / "2" / "dataset.npz")
+    assert sorted(one.files) == sorted(two.files)
+    for key in one.files:
+        assert np.array_equal(one[key], two[key]), key
 
 
 @pytest.mark.parametrize(

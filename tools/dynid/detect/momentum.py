@@ -213,13 +213,13 @@ def first_order(t: np.ndarray, x: np.ndarray, bandwidth_hz: float) -> np.ndarray
     x = np.asarray(x, float)
     k_o = 2.0 * np.pi * bandwidth_hz
     dt = np.diff(t, prepend=t[0] - (t[1] - t[0]) if t.size > 1 else t[0] - 1e-3)
-    a = np.exp(-k_o * dt)
     native = kernels.native()
     if native is not None and x.ndim in (1, 2):  # the loop below, compiled (same operations in the same order)
         columns = x.reshape(x.shape[0], -1)
         y = np.empty(columns.shape)
         native.first_order(np.ascontiguousarray(dt, dtype=float), np.ascontiguousarray(columns), k_o, y)
         return y.reshape(x.shape)
+    a = np.exp(-k_o * dt)
     if np.allclose(dt, dt[0], rtol=1e-9, atol=0):
         from scipy.signal import lfilter  # uniform steps: one IIR pass (scipy.signal's import is 0.35 s)
 
