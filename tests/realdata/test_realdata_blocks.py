@@ -68,10 +68,11 @@ def test_every_block_of_the_ur10e_point_to_point_run(tmp_path: Path) -> None:
     whole = cli.dynid("validate", "--model", str(model), "--data", ptp, "--blocks", "5", keep_urdf_path=False)
     rows, overall = whole["blocks"]["blocks"], whole["blocks"]["summary"]["figures"]["relative_error.overall"]
     assert [b["in_fit"] for b in rows] == [False] * 5  # another run than the fit's
-    # measured: 32.7 % on the first block (mostly rest), 4.78 % at best (block 4), median 12.9 %
-    assert overall["worst_block"] == 0 and overall["max"] == pytest.approx(0.327, rel=0.1)
+    # measured: 25.8 % on the first block (mostly rest), 4.78 % at best (block 4), median 12.8 % (32.7 % and 12.9 %
+    # while the filtered q̇ at rest was rounding noise, not 0, and the Coulomb columns took its sign)
+    assert overall["worst_block"] == 0 and overall["max"] == pytest.approx(0.258, rel=0.1)
     assert overall["best_block"] == 3 and overall["min"] == pytest.approx(0.0478, rel=0.1)
-    assert overall["median"] == pytest.approx(0.129, rel=0.1)
+    assert overall["median"] == pytest.approx(0.128, rel=0.1)
     # validated on the run it was fitted on, every block is in the fit
     fitted = cli.dynid("validate", "--model", str(model), "--data", str(identification), "--blocks", "3",
                        keep_urdf_path=False)

@@ -77,7 +77,7 @@ def test_point_to_point_validation_against_the_repositorys_figures(tmp_path: Pat
                         for c, v in window["relative_error"]["channels"].items())
         print(f"UR10e ptp_10_points, {name}: {100 * figures[name][0]:.2f} % on samples 700-4200 ({per}); "
               f"{100 * figures[name][1]:.2f} % on the whole run")
-    assert figures["plain"][0] < 0.07  # measured 6.50 % (the repository's parameters: 6.61 %)
+    assert figures["plain"][0] < 0.07  # measured 6.45 % (the repository's parameters: 6.61 %)
     assert figures["augmented"][0] <= 0.055  # measured: docs/robots/ur10e.md
 
 

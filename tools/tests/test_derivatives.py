@@ -124,6 +124,26 @@ def test_cubic_is_differentiated_exactly_on_jittered_stamps_including_edges():
     np.testing.assert_allclose(out.ddq, ddq, atol=1e-5)
 
 
+@pytest.mark.parametrize("jitter", [0.0, 3e-4])
+def test_a_window_of_one_constant_reading_has_exactly_zero_derivatives(jitter):
+    """A quantised encoder at rest: q̇ and q̈ are 0, not ±1e-13 (friction takes sign(q̇)). The run starts and ends at
+    rest (the edge windows) and rests twice between moves; a large offset (5 rad) makes rounding visible."""
+    rng = np.random.default_rng(2)
+    t = 3.0 + np.arange(1500) * DT + rng.uniform(-jitter, jitter, 1500)
+    move = np.clip(np.sin(np.linspace(-0.5, 3 * np.pi + 0.5, 1500)), 0, None) ** 2  # flat where the sine is below 0
+    q = 5.0 + np.round(np.column_stack([move, -2 * move]) / 1e-3) * 1e-3
+    out = SavitzkyGolay(window_s=0.031, polyorder=3)(t, q)
+    win = np.lib.stride_tricks.sliding_window_view(q, 31, axis=0)
+    rest = np.all(win == win[:, :, :1], axis=2)  # (N − 30, n): the window centred on sample i + 15 is constant
+    rows, cols = np.nonzero(rest)
+    assert len(rows) > 400 and set(cols) == {0, 1}
+    assert np.all(out.dq[rows + 15, cols] == 0.0) and np.all(out.ddq[rows + 15, cols] == 0.0)
+    for edge in (slice(0, 15), slice(-15, None)):  # the first and last windows are constant too
+        assert np.all(out.dq[edge] == 0.0) and np.all(out.ddq[edge] == 0.0)
+    moving = np.abs(np.diff(q[:, 0])) > 0
+    assert np.count_nonzero(out.dq[1:][moving, 0]) == np.count_nonzero(moving)
+
+
 def test_chunking_does_not_change_the_jitter_aware_fit(jittered):
     t, q, _, _ = jittered
     one = deriv._local_poly_fit(t[:3000], q[:3000], 31, 3, chunk=10**6)

@@ -258,12 +258,22 @@ def _uniform_poly_fit(q: np.ndarray, w: int, p: int, dt: float) -> tuple[np.ndar
     ev = np.stack([V.T, d1 @ V.T / scale, d2 @ V.T / scale**2], axis=2)
     # weights[j, e, k]: sample j's weight in the k-th derivative of the window's fit at position e.
     weights = (V @ np.linalg.solve(V.T @ V, ev.reshape(p + 1, -1))).reshape(w, w, 3)
+    # The derivatives are taken from the steps of q, d_i = q_{i+1} − q_i, with weights b_i = Σ_{j>i} a_j (Σ_j a_j = 0
+    # exactly in theory): y = Σ a_j q_j = Σ b_i d_i. A window of one constant reading (a quantised encoder at rest)
+    # then gives exactly 0, where Σ a_j q_j gave q·(the rounding of Σ a_j), ±1e-13 rad/s, and friction's sign(q̇)
+    # followed it; and no large terms cancel.
+    steps = np.diff(q, axis=0)
+    on_steps = np.cumsum(weights[::-1, :, 1:], axis=0)[::-1][1:]  # (w − 1, w, 2): b for q̇ and q̈
     out = np.empty((3, *q.shape))
-    for k in range(3):
-        out[k] = correlate1d(q, weights[:, h, k], axis=0, mode="constant")  # the interior: centred windows
+    out[0] = correlate1d(q, weights[:, h, 0], axis=0, mode="constant")  # the interior: centred windows
+    for k in (1, 2):
+        # even length 2h, origin 0: output n is Σ_i b_i d_{n−h+i}, the window centred on sample n
+        out[k, :n_samples - 1] = correlate1d(steps, on_steps[:, h, k - 1], axis=0, mode="constant")
     # The first and last h samples take the first and last full window's fit, at their own positions.
-    out[:, :h] = np.einsum("jn,jek->ken", q[:w], weights[:, :h])
-    out[:, n_samples - h:] = np.einsum("jn,jek->ken", q[n_samples - w:], weights[:, w - h:])
+    out[0, :h] = np.einsum("jn,je->en", q[:w], weights[:, :h, 0])
+    out[0, n_samples - h:] = np.einsum("jn,je->en", q[n_samples - w:], weights[:, w - h:, 0])
+    out[1:, :h] = np.einsum("in,iek->ken", steps[:w - 1], on_steps[:, :h])
+    out[1:, n_samples - h:] = np.einsum("in,iek->ken", steps[n_samples - w:], on_steps[:, w - h:])
     return out[0], out[1], out[2]
 
 
@@ -302,7 +312,11 @@ def _local_poly_fit(
         # Per-sample filter weights (m, w, 3) = V (VᵀV)⁻¹ E, shared by all joints: solving for 3 right-hand sides
         # instead of forming (VᵀV)⁻¹Vᵀ keeps the batched solve cheap.
         filt = V @ np.linalg.solve(gram, ev)
-        out[:, idx] = (q_win[s] @ filt).transpose(2, 0, 1)  # (m, n, w) @ (m, w, 3)
+        qw = q_win[s]  # (m, n, w)
+        out[0, idx] = (qw @ filt[:, :, :1])[..., 0]
+        # q̇ and q̈ about the window's middle reading (their weights sum to 0): exactly 0 on a constant window, as on
+        # uniform steps (`_uniform_poly_fit`)
+        out[1:, idx] = ((qw - qw[:, :, h:h + 1]) @ filt[:, :, 1:]).transpose(2, 0, 1)
     return out[0], out[1], out[2]
 
 
