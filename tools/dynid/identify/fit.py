@@ -24,7 +24,7 @@ every base combination they involve is reported as not determined, the fold name
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -401,6 +401,16 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
     settled, _ = iv_settled(chosen.detail)
     identified &= settled  # an iterate that still moves: neither it nor its jackknife spread means anything
     if not identified.any():
+        if chosen.se_runs is not None and chosen.se_blocks is not None:
+            # Determined over time blocks, but not across the runs: say that, not "a longer run"
+            within = _determined(replace(chosen, se=chosen.se_blocks), cad) & ~unseen.any(axis=0) & settled
+            if within.any():
+                raise DataError(
+                    f"no base combination is determined to 10 % across the runs (the time blocks alone determine "
+                    f"{int(within.sum())} of {base.rank}): leaving out one of the {n_units} units (a run, or a loaded "
+                    "run with the unloaded one before it) moves every estimate by more; the runs disagree, or one "
+                    "unit alone sees what the others cannot (a single loaded run fixes the gains' scale): fit it "
+                    "alone, or add runs that see the same")
         hint = f"; the {chosen.name} iteration did not settle (try --estimator ols)" if not settled else ""
         raise DataError(f"the run determines no base combination to 10 % ({samples} samples, rank {base.rank}{hint}): "
                         "a longer run, or one that moves every joint both ways, is needed")
