@@ -136,6 +136,21 @@ bool writable_file(const std::string& path) {
     return true;
 }
 
+// LCM opens a file:// URL for reading unless its query says mode=w or mode=a; the monitor only publishes, so such
+// a URL can only fail (or, on an existing log, be read from). Returns the URL it should have been, or "" if fine.
+std::string file_url_for_writing(const std::string& url) {
+    if (url.rfind("file://", 0) != 0) return "";
+    const size_t query = url.find('?');
+    if (query == std::string::npos) return url + "?mode=w";
+    for (size_t at = query; at != std::string::npos; at = url.find('&', at + 1)) {  // each key=value of the query
+        if (url.compare(at + 1, 5, "mode=") != 0) continue;
+        const size_t from = at + 6, to = std::min(url.find('&', from), url.size());
+        const std::string mode = url.substr(from, to - from);
+        return mode == "w" || mode == "a" ? "" : url.substr(0, from) + "w" + url.substr(to);
+    }
+    return url + "&mode=w";
+}
+
 // lcm::LCM(url), with what liblcm writes to fd 2 meanwhile returned in `said` (whitespace folded to one line).
 std::unique_ptr<lcm::LCM> open_lcm(const std::string& url, std::string& said) {
     std::fflush(stderr);
@@ -352,6 +367,12 @@ int main(int argc, char** argv) {
         return replay.empty() ? 1 : 2;
     }
     if (!have_url) url = cfg.lcm_url;
+    if (const std::string fixed = file_url_for_writing(url); !fixed.empty()) {
+        std::fprintf(stderr,
+                     "rt_monitor: error: LCM URL '%s' opens its file for reading (LCM's default without mode=w or "
+                     "mode=a), and the monitor writes: %s\n", url.c_str(), fixed.c_str());
+        return 2;
+    }
     // liblcm writes its own reason to fd 2 ("Error: LCM provider ... not found"): caught and put on the one line.
     std::string lcm_said;
     std::unique_ptr<lcm::LCM> lcm = open_lcm(url, lcm_said);

@@ -140,6 +140,31 @@ def test_the_icub_short_form_refuses_a_motor_that_takes_no_pwm(tmp_path: Path) -
     assert "\n" not in str(e.value)
 
 
+@pytest.mark.parametrize(("url", "fixed"), [
+    ("file://{d}/e.lcmlog", "file://{d}/e.lcmlog?mode=w"),
+    ("file://{d}/e.lcmlog?mode=r", "file://{d}/e.lcmlog?mode=w"),
+    ("file://{d}/e.lcmlog?speedup=2", "file://{d}/e.lcmlog?speedup=2&mode=w"),
+])
+def test_an_lcm_log_the_monitor_would_open_for_reading_is_refused(url: str, fixed: str, tmp_path: Path) -> None:
+    """LCM opens a file:// URL for reading unless it says mode=w (or a): `export` and `rt_monitor` both refuse it,
+    one line naming the URL it should be, before anything is written or run (found by a user's first try)."""
+    url, fixed, conf = url.format(d=tmp_path), fixed.format(d=tmp_path), tmp_path / "arm.conf"
+    done = run(DYNID, "export", "--robot", "icub_right_arm", "--monitor-config", conf, "--lcm-url", url)
+    assert done.returncode == 2 and done.stderr.strip().splitlines() == [
+        f"dynid export: error: --lcm-url {url} opens its file for reading (LCM's default without mode=w or mode=a), "
+        f"and the monitor writes: {fixed}"], done.stderr
+    assert not conf.exists()
+    assert run(DYNID, "export", "--robot", "icub_right_arm", "--monitor-config", conf).returncode == 0
+    coef = tmp_path / "cad.dcoef"
+    assert run(DYNID, "export", "--cad", "--out", coef).returncode == 0
+    done = run(ROOT / "build/rt_monitor/rt_monitor", "--model", coef, "--config", conf, "--replay", "/dev/null",
+               "--lcm-url", url)
+    assert done.returncode == 2 and done.stderr.strip().splitlines() == [
+        f"rt_monitor: error: LCM URL '{url}' opens its file for reading (LCM's default without mode=w or mode=a), "
+        f"and the monitor writes: {fixed}"], done.stderr
+    assert not (tmp_path / "e.lcmlog").exists()
+
+
 # ---- a robot that is no iCub, end to end -----------------------------------------------------------------
 
 

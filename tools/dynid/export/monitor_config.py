@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from ..config.bus import BusDescription
 from ..config.robot_config import RobotConfig
-from ..errors import ConfigError
+from ..errors import ConfigError, InputError
 from .capacity import capacity
 
 HEADER = "# rt_monitor configuration for {name} (written by dynid from its robot configuration: dynid export " \
@@ -45,8 +45,26 @@ def check_capacity(config: RobotConfig) -> BusDescription:
     return bus
 
 
+def url_for_writing(url: str) -> str | None:
+    """The LCM URL `url` should be for the monitor to write to it, or None if it is fine: LCM opens a file:// URL for
+    reading unless its query says mode=w or mode=a, and the monitor only publishes (rt_monitor refuses the same)."""
+    if not url.startswith("file://"):
+        return None
+    path, _, query = url.partition("?")
+    pairs = [p.partition("=") for p in query.split("&")] if query else []
+    mode = next((v for k, _, v in pairs if k == "mode"), None)
+    if mode in ("w", "a"):
+        return None
+    if mode is None:
+        return url + ("&" if query else "?") + "mode=w"
+    return path + "?" + "&".join(f"{k}={'w' if k == 'mode' else v}" if eq else k for k, eq, v in pairs)
+
+
 def monitor_config_text(config: RobotConfig, lcm_url: str | None = None) -> str:
     """The rt_monitor configuration (docs/formats.md, "rt_monitor configuration") for a robot configuration."""
+    if lcm_url and (fixed := url_for_writing(lcm_url)):
+        raise InputError(f"--lcm-url {lcm_url} opens its file for reading (LCM's default without mode=w or mode=a), "
+                         f"and the monitor writes: {fixed}")
     bus = check_capacity(config)
     lines = [HEADER.format(name=config.name), f"robot {config.name}", "buses " + " ".join(bus.buses)]
     if lcm_url:
