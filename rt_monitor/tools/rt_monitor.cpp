@@ -136,19 +136,19 @@ bool writable_file(const std::string& path) {
     return true;
 }
 
-// LCM opens a file:// URL for reading unless its query says mode=w or mode=a; the monitor only publishes, so such
-// a URL can only fail (or, on an existing log, be read from). Returns the URL it should have been, or "" if fine.
+// LCM opens a file:// URL for reading unless its query says mode=w or mode=a (the last mode= wins, as in liblcm);
+// the monitor only publishes, so such a URL can only fail (or, on an existing log, be read from). Returns the URL it
+// should have been, or "" if fine. dynid.export.monitor_config.url_for_writing is the same rule (tested together).
 std::string file_url_for_writing(const std::string& url) {
     if (url.rfind("file://", 0) != 0) return "";
     const size_t query = url.find('?');
     if (query == std::string::npos) return url + "?mode=w";
-    for (size_t at = query; at != std::string::npos; at = url.find('&', at + 1)) {  // each key=value of the query
-        if (url.compare(at + 1, 5, "mode=") != 0) continue;
-        const size_t from = at + 6, to = std::min(url.find('&', from), url.size());
-        const std::string mode = url.substr(from, to - from);
-        return mode == "w" || mode == "a" ? "" : url.substr(0, from) + "w" + url.substr(to);
-    }
-    return url + "&mode=w";
+    size_t value = std::string::npos, end = std::string::npos;  // the last mode='s value [value, end)
+    for (size_t at = query; at != std::string::npos; at = url.find('&', at + 1))
+        if (url.compare(at + 1, 5, "mode=") == 0) value = at + 6, end = std::min(url.find('&', at + 1), url.size());
+    if (value == std::string::npos) return url + (query + 1 == url.size() ? "" : "&") + "mode=w";
+    const std::string mode = url.substr(value, end - value);
+    return mode == "w" || mode == "a" ? "" : url.substr(0, value) + "w" + url.substr(end);
 }
 
 // lcm::LCM(url), with what liblcm writes to fd 2 meanwhile returned in `said` (whitespace folded to one line).
@@ -354,6 +354,13 @@ int main(int argc, char** argv) {
     Assembler asm_;
     if (!asm_.init(cfg, *coef, err)) return bad_config(config + ": " + err);
 
+    if (!have_url) url = cfg.lcm_url;
+    if (const std::string fixed = file_url_for_writing(url); !fixed.empty()) {
+        std::fprintf(stderr,
+                     "rt_monitor: error: LCM URL '%s' opens its file for reading (LCM's default without mode=w or "
+                     "mode=a), and the monitor writes: %s\n", url.c_str(), fixed.c_str());
+        return 2;
+    }
     // Before the source and LCM are opened: a refused --priority or --cpu left an empty file:// LCM log (and the
     // loopback's sockets) behind (issue 22's sweep). mlockall's MCL_FUTURE still locks what they allocate.
     const int refused = apply_rt_settings(rts, err);
@@ -365,13 +372,6 @@ int main(int argc, char** argv) {
     if (!src) {
         std::fprintf(stderr, "rt_monitor: error: %s\n", err.c_str());
         return replay.empty() ? 1 : 2;
-    }
-    if (!have_url) url = cfg.lcm_url;
-    if (const std::string fixed = file_url_for_writing(url); !fixed.empty()) {
-        std::fprintf(stderr,
-                     "rt_monitor: error: LCM URL '%s' opens its file for reading (LCM's default without mode=w or "
-                     "mode=a), and the monitor writes: %s\n", url.c_str(), fixed.c_str());
-        return 2;
     }
     // liblcm writes its own reason to fd 2 ("Error: LCM provider ... not found"): caught and put on the one line.
     std::string lcm_said;

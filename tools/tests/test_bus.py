@@ -25,6 +25,7 @@ from test_rt_core import detector_columns, raw_samples, stream
 from dynid.config.robot_config import load_config
 from dynid.errors import ConfigError, DataError
 from dynid.export.coefficients import read_coefficients
+from dynid.export.monitor_config import url_for_writing
 from dynid.export.monitor_log import read_lcm_log
 from dynid.export.player import play_run
 from dynid.io.dataset import Dataset
@@ -140,29 +141,55 @@ def test_the_icub_short_form_refuses_a_motor_that_takes_no_pwm(tmp_path: Path) -
     assert "\n" not in str(e.value)
 
 
-@pytest.mark.parametrize(("url", "fixed"), [
+# LCM opens a file:// URL for reading unless it says mode=w or mode=a, the last mode= winning (liblcm 1.5.3); the
+# monitor only publishes. (URL, the URL it should be; None: fine as it is.)
+LCM_URLS = [
     ("file://{d}/e.lcmlog", "file://{d}/e.lcmlog?mode=w"),
+    ("file://{d}/e.lcmlog?", "file://{d}/e.lcmlog?mode=w"),
+    ("file://{d}/e.lcmlog?mode", "file://{d}/e.lcmlog?mode&mode=w"),
+    ("file://{d}/e.lcmlog?mode=", "file://{d}/e.lcmlog?mode=w"),
     ("file://{d}/e.lcmlog?mode=r", "file://{d}/e.lcmlog?mode=w"),
-    ("file://{d}/e.lcmlog?speedup=2", "file://{d}/e.lcmlog?speedup=2&mode=w"),
-])
-def test_an_lcm_log_the_monitor_would_open_for_reading_is_refused(url: str, fixed: str, tmp_path: Path) -> None:
-    """LCM opens a file:// URL for reading unless it says mode=w (or a): `export` and `rt_monitor` both refuse it,
-    one line naming the URL it should be, before anything is written or run (found by a user's first try)."""
-    url, fixed, conf = url.format(d=tmp_path), fixed.format(d=tmp_path), tmp_path / "arm.conf"
-    done = run(DYNID, "export", "--robot", "icub_right_arm", "--monitor-config", conf, "--lcm-url", url)
-    assert done.returncode == 2 and done.stderr.strip().splitlines() == [
-        f"dynid export: error: --lcm-url {url} opens its file for reading (LCM's default without mode=w or mode=a), "
-        f"and the monitor writes: {fixed}"], done.stderr
-    assert not conf.exists()
-    assert run(DYNID, "export", "--robot", "icub_right_arm", "--monitor-config", conf).returncode == 0
-    coef = tmp_path / "cad.dcoef"
+    ("file://{d}/e.lcmlog?speed=2", "file://{d}/e.lcmlog?speed=2&mode=w"),
+    ("file://{d}/e.lcmlog?xmode=w", "file://{d}/e.lcmlog?xmode=w&mode=w"),
+    ("file://{d}/e.lcmlog?mode=w&mode=r", "file://{d}/e.lcmlog?mode=w&mode=w"),
+    ("file://{d}/e.lcmlog?mode=r&mode=w", None),
+    ("file://{d}/e.lcmlog?speed=2&mode=a", None),
+    ("memq://", None),
+]
+
+
+@pytest.fixture(scope="module")
+def arm_monitor(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """(coefficient file, monitor configuration) of the default arm's CAD model."""
+    root = tmp_path_factory.mktemp("lcm_url")
+    coef, conf = root / "cad.dcoef", root / "arm.conf"
     assert run(DYNID, "export", "--cad", "--out", coef).returncode == 0
+    assert run(DYNID, "export", "--robot", "icub_right_arm", "--monitor-config", conf).returncode == 0
+    return coef, conf
+
+
+@pytest.mark.parametrize(("url", "fixed"), LCM_URLS)
+def test_an_lcm_log_the_monitor_would_open_for_reading_is_refused(url: str, fixed: str | None, tmp_path: Path,
+                                                                  arm_monitor: tuple[Path, Path]) -> None:
+    """`dynid export --lcm-url` and `rt_monitor` refuse such a URL by one rule, in one line that gives the URL it
+    should be, before anything is written or run (found by a user's first try: 'No such file or directory')."""
+    url, fixed = url.format(d=tmp_path), fixed and fixed.format(d=tmp_path)
+    assert url_for_writing(url) == fixed
+    coef, conf = arm_monitor
     done = run(ROOT / "build/rt_monitor/rt_monitor", "--model", coef, "--config", conf, "--replay", "/dev/null",
                "--lcm-url", url)
+    if fixed is None:  # LCM opened, the run started (and, on an empty replay, ends evaluating no sample: exit 6)
+        assert "rt_monitor: running: replay of /dev/null" in done.stderr and "reading" not in done.stderr, done.stderr
+        return
     assert done.returncode == 2 and done.stderr.strip().splitlines() == [
         f"rt_monitor: error: LCM URL '{url}' opens its file for reading (LCM's default without mode=w or mode=a), "
         f"and the monitor writes: {fixed}"], done.stderr
-    assert not (tmp_path / "e.lcmlog").exists()
+    out = tmp_path / "arm.conf"
+    done = run(DYNID, "export", "--robot", "icub_right_arm", "--monitor-config", out, "--lcm-url", url)
+    assert done.returncode == 2 and done.stderr.strip().splitlines() == [
+        f"dynid export: error: --lcm-url {url} opens its file for reading (LCM's default without mode=w or mode=a), "
+        f"and the monitor writes: {fixed}"], done.stderr
+    assert not out.exists() and not (tmp_path / "e.lcmlog").exists()
 
 
 # ---- a robot that is no iCub, end to end -----------------------------------------------------------------

@@ -47,17 +47,21 @@ def check_capacity(config: RobotConfig) -> BusDescription:
 
 def url_for_writing(url: str) -> str | None:
     """The LCM URL `url` should be for the monitor to write to it, or None if it is fine: LCM opens a file:// URL for
-    reading unless its query says mode=w or mode=a, and the monitor only publishes (rt_monitor refuses the same)."""
+    reading unless its query says mode=w or mode=a (the last mode= wins, as in liblcm), and the monitor only
+    publishes. rt_monitor refuses by the same rule (its file_url_for_writing; tools/tests/test_bus.py runs both)."""
     if not url.startswith("file://"):
         return None
-    path, _, query = url.partition("?")
-    pairs = [p.partition("=") for p in query.split("&")] if query else []
-    mode = next((v for k, _, v in pairs if k == "mode"), None)
-    if mode in ("w", "a"):
+    if "?" not in url:
+        return url + "?mode=w"
+    head, query = url.split("?", 1)
+    pairs = query.split("&")
+    last = max((i for i, pair in enumerate(pairs) if pair.startswith("mode=")), default=None)
+    if last is None:
+        return url + ("&" if query else "") + "mode=w"
+    if pairs[last] in ("mode=w", "mode=a"):
         return None
-    if mode is None:
-        return url + ("&" if query else "?") + "mode=w"
-    return path + "?" + "&".join(f"{k}={'w' if k == 'mode' else v}" if eq else k for k, eq, v in pairs)
+    pairs[last] = "mode=w"
+    return head + "?" + "&".join(pairs)
 
 
 def monitor_config_text(config: RobotConfig, lcm_url: str | None = None) -> str:
