@@ -391,26 +391,30 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
                         "not move)")
     chosen = estimates[chosen_name]
     cad = np.abs(base.base(np.nan_to_num(model.cad_parameters(), nan=0.0)))
-    identified = _determined(chosen, cad)
-    if chosen_name == CONSISTENT:
-        # The constraints narrow the folds' spread, but they do not make the run determine a combination: it must be
-        # determined without them too, and not rest on a bound (a gain at its floor is the same in every fold)
-        identified &= _determined(estimates[settings.estimator], cad) & ~_at_bound(base, model, consistent)
-    identified &= ~unseen.any(axis=0)  # a fold cannot see them: the jackknife has no error to give
-    identified &= ~unit_unseen.any(axis=0)  # the same for a run (or pair) left out
     settled, _ = iv_settled(chosen.detail)
-    identified &= settled  # an iterate that still moves: neither it nor its jackknife spread means anything
+
+    def determined(errors: str) -> np.ndarray:
+        """Combinations determined with the estimates' `errors` ("se": the larger jackknife's; "se_blocks": the time
+        blocks' alone), by every other condition."""
+        of = (lambda e: e) if errors == "se" else (lambda e: replace(e, se=getattr(e, errors)))
+        ok = _determined(of(chosen), cad)
+        if chosen_name == CONSISTENT:
+            # The constraints narrow the folds' spread, but they do not make the run determine a combination: it must
+            # be determined without them too, and not rest on a bound (a gain at its floor is the same in every fold)
+            ok &= _determined(of(estimates[settings.estimator]), cad) & ~_at_bound(base, model, consistent)
+        ok &= ~unseen.any(axis=0)  # a fold cannot see them: the jackknife has no error to give
+        return ok & settled  # an iterate that still moves: neither it nor its jackknife spread means anything
+
+    identified = determined("se") & ~unit_unseen.any(axis=0)  # (unit_unseen: the same for a run or pair left out)
     if not identified.any():
-        if chosen.se_runs is not None and chosen.se_blocks is not None:
+        if chosen.se_runs is not None and chosen.se_blocks is not None and (within := determined("se_blocks")).any():
             # Determined over time blocks, but not across the runs: say that, not "a longer run"
-            within = _determined(replace(chosen, se=chosen.se_blocks), cad) & ~unseen.any(axis=0) & settled
-            if within.any():
-                raise DataError(
-                    f"no base combination is determined to 10 % across the runs (the time blocks alone determine "
-                    f"{int(within.sum())} of {base.rank}): leaving out one of the {n_units} units (a run, or a loaded "
-                    "run with the unloaded one before it) moves every estimate by more; the runs disagree, or one "
-                    "unit alone sees what the others cannot (a single loaded run fixes the gains' scale): fit it "
-                    "alone, or add runs that see the same")
+            raise DataError(
+                f"no base combination is determined to 10 % across the runs (the time blocks alone determine "
+                f"{int(within.sum())} of {base.rank}): leaving out one of the {n_units} units (a run, or a loaded "
+                "run with the unloaded one before it) moves every estimate by more; the runs disagree, or one "
+                "unit alone sees what the others cannot (a single loaded run fixes the gains' scale): fit it "
+                "alone, or add runs that see the same")
         hint = f"; the {chosen.name} iteration did not settle (try --estimator ols)" if not settled else ""
         raise DataError(f"the run determines no base combination to 10 % ({samples} samples, rank {base.rank}{hint}): "
                         "a longer run, or one that moves every joint both ways, is needed")

@@ -267,7 +267,8 @@ def _uniform_poly_fit(q: np.ndarray, w: int, p: int, dt: float) -> tuple[np.ndar
     out = np.empty((3, *q.shape))
     out[0] = correlate1d(q, weights[:, h, 0], axis=0, mode="constant")  # the interior: centred windows
     for k in (1, 2):
-        # even length 2h, origin 0: output n is Σ_i b_i d_{n−h+i}, the window centred on sample n
+        # even length 2h, origin 0: output n is Σ_i b_i d_{n−h+i}, the window centred on sample n (the last sample,
+        # which the N − 1 steps leave out, is an edge sample: the block below fills it)
         out[k, :n_samples - 1] = correlate1d(steps, on_steps[:, h, k - 1], axis=0, mode="constant")
     # The first and last h samples take the first and last full window's fit, at their own positions.
     out[0, :h] = np.einsum("jn,je->en", q[:w], weights[:, :h, 0])
