@@ -195,7 +195,7 @@ def make_inputs(work: Path, model: Path | None, data: Path | None) -> tuple[Path
     start = max(int(np.flatnonzero(contact > 0)[0]) - 1000, 0) if contact.any() else 0
     log = work / "sweep.log"
     write_candump(run.slice(start, min(start + WINDOW, run.n_samples)), config, log)
-    return model, monitor_config_text(config, "file:///dev/null"), log
+    return model, monitor_config_text(config, "file:///dev/null?mode=w"), log
 
 
 def sweep(work: Path, model: Path | None = None, data: Path | None = None, every: int = 1,

@@ -13,7 +13,6 @@ import pytest
 from filelock import FileLock
 from hypothesis import HealthCheck, Phase
 from hypothesis import settings as hypothesis_settings
-from threadpoolctl import threadpool_limits
 
 # The reader property tests (test_reader_properties*.py): CI runs the same examples every time (derandomized, no
 # example database), without a deadline (a loaded 2-core machine varies tenfold). DYNID_HYPOTHESIS_EXAMPLES=N
@@ -27,15 +26,6 @@ hypothesis_settings.register_profile("dynid-search", parent=hypothesis_settings.
 hypothesis_settings.register_profile("dynid-regressions", parent=hypothesis_settings.get_profile("dynid"),
                                      phases=[Phase.explicit])
 hypothesis_settings.load_profile("dynid-search" if os.environ.get("DYNID_HYPOTHESIS_EXAMPLES") else "dynid")
-
-# One BLAS and OpenMP thread per test process, unless the caller chose otherwise. The suite already runs a process
-# per core (two pytest-xdist workers, and tests that run two `dynid` processes at once); OpenBLAS's threads on top
-# spin-wait against each other: four `dynid gaps` at once on this 2-core machine took 25-33 s with OpenBLAS's default
-# two threads each, 8.6-9.0 s with one (docs/benchmarks.md#the-suites-time). The `dynid`
-# processes the tests start inherit the variables; this process's libraries, loaded already, are limited here.
-if "OPENBLAS_NUM_THREADS" not in os.environ and "OMP_NUM_THREADS" not in os.environ:
-    os.environ["OPENBLAS_NUM_THREADS"] = os.environ["OMP_NUM_THREADS"] = "1"
-    threadpool_limits(limits=1)
 
 KINDS = ("identification", "validation", "contact")
 
