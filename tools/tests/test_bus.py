@@ -184,6 +184,8 @@ def test_an_lcm_log_the_monitor_would_open_for_reading_is_refused(url: str, fixe
     assert done.returncode == 2 and done.stderr.strip().splitlines() == [
         f"rt_monitor: error: LCM URL '{url}' opens its file for reading (LCM's default without mode=w or mode=a), "
         f"and the monitor writes: {fixed}"], done.stderr
+    if url != LCM_URLS[0][0].format(d=tmp_path):
+        return  # the command line's refusal once (url_for_writing gave the rest above): a process costs a second
     out = tmp_path / "arm.conf"
     done = run(DYNID, "export", "--robot", "icub_right_arm", "--monitor-config", out, "--lcm-url", url)
     assert done.returncode == 2 and done.stderr.strip().splitlines() == [
