@@ -393,10 +393,10 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
     cad = np.abs(base.base(np.nan_to_num(model.cad_parameters(), nan=0.0)))
     settled, _ = iv_settled(chosen.detail)
 
-    def determined(errors: str) -> np.ndarray:
-        """Combinations determined with the estimates' `errors` ("se": the larger jackknife's; "se_blocks": the time
-        blocks' alone), by every other condition."""
-        of = (lambda e: e) if errors == "se" else (lambda e: replace(e, se=getattr(e, errors)))
+    def determined(blocks_only: bool = False) -> np.ndarray:
+        """Combinations determined by every condition, with the estimates' errors (the larger jackknife's) or, with
+        `blocks_only`, the time blocks' jackknife alone."""
+        of = (lambda e: replace(e, se=e.se_blocks)) if blocks_only else (lambda e: e)
         ok = _determined(of(chosen), cad)
         if chosen_name == CONSISTENT:
             # The constraints narrow the folds' spread, but they do not make the run determine a combination: it must
@@ -405,9 +405,10 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
         ok &= ~unseen.any(axis=0)  # a fold cannot see them: the jackknife has no error to give
         return ok & settled  # an iterate that still moves: neither it nor its jackknife spread means anything
 
-    identified = determined("se") & ~unit_unseen.any(axis=0)  # (unit_unseen: the same for a run or pair left out)
+    identified = determined() & ~unit_unseen.any(axis=0)  # (unit_unseen: the same for a run or pair left out)
     if not identified.any():
-        if chosen.se_runs is not None and chosen.se_blocks is not None and (within := determined("se_blocks")).any():
+        within = determined(blocks_only=True) if chosen.se_runs is not None and chosen.se_blocks is not None else None
+        if within is not None and within.any():
             # Determined over time blocks, but not across the runs: say that, not "a longer run"
             raise DataError(
                 f"no base combination is determined to 10 % across the runs (the time blocks alone determine "
