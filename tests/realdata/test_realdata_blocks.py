@@ -87,8 +87,7 @@ TIAGO = convert.REALDATA / "tiago_wrist_ft"
 def test_every_block_of_the_panda_run(tmp_path: Path) -> None:
     """docs/robots/panda.md: fitted on the first 2/3 (t ≤ 13.9189 s), the two held-out blocks inside the fitted
     blocks' spread; the worst block is a fitted one."""
-    data = tmp_path / "panda.csv"
-    convert.convert_panda().write(data)
+    data = PANDA / "rbt_log"  # the logger's folder of files, as panda.yaml's `files:` describes it
     model = tmp_path / "panda.json"
     cli.dynid("fit", "--robot", "panda", "--data", str(data), "--to", "13.9189", "--out", str(model))
     blocks = cli.dynid("validate", "--model", str(model), "--data", str(data), "--blocks", "6")["blocks"]
@@ -104,11 +103,10 @@ def test_every_block_of_the_panda_run(tmp_path: Path) -> None:
 @pytest.mark.skipif(not TIAGO.is_dir(), reason=f"no real TIAGo data at {TIAGO}")
 def test_every_block_of_the_tiago_run(tmp_path: Path) -> None:
     """docs/robots/tiago_wrist.md: fitted on protocol.yaml's rows 921–6790, identified below CAD on every block."""
-    data = tmp_path / "tiago.csv"
-    convert.convert_tiago().write(data)
+    data = TIAGO / "dynamic"  # PAL's four CSVs, as tiago_wrist.yaml's `files:` describes them
     model = tmp_path / "tiago.json"
     cli.dynid("fit", "--robot", "tiago_wrist", "--urdf", str(convert.TIAGO_URDF), "--data", str(data),
-              "--from", "9.210663557", "--to", "67.900500059", "--out", str(model), keep_urdf_path=False)
+              "--from", "9.2106", "--to", "67.9006", "--out", str(model), keep_urdf_path=False)
     blocks = cli.dynid("validate", "--model", str(model), "--data", str(data), "--blocks", "8",
                        keep_urdf_path=False)["blocks"]
     rows, figures = blocks["blocks"], blocks["summary"]["figures"]

@@ -29,8 +29,8 @@ DYNID = Path(sys.executable).with_name("dynid")
 RUNS = {
     "icub_right_leg_standing": ("icub_leg_insitu/dumperLeftLegNoIMU", "icub_leg_insitu/iCubGenova02.urdf", 100, (14, 44)),
     "ur10e": ("ur10e_mamedov/contact/collision_3link.csv", "ur10e_mamedov/ur10e.urdf", 100, (1690, 1720)),
-    "panda": ("panda", None, 1000, (2, 6)),
-    "tiago_wrist": ("tiago", "tiago_wrist_ft/urdf/tiago_48_hey5.urdf", 100, (0, 30)),
+    "panda": ("panda_gaz2019/rbt_log", None, 1000, (2, 6)),  # the loggers' folders of files (`files:`)
+    "tiago_wrist": ("tiago_wrist_ft/dynamic", "tiago_wrist_ft/urdf/tiago_48_hey5.urdf", 100, (0, 30)),
 }
 
 
@@ -44,11 +44,7 @@ def test_a_real_run_onto_the_bus_and_back(robot: str, tmp_path: Path) -> None:
     source, urdf, rate, (t_from, t_to) = RUNS[robot]
     if not REALDATA.is_dir():
         pytest.skip(f"real robot data not found at {REALDATA} (clone shared/ beside the repository)")
-    if source in ("panda", "tiago"):  # raw files: the project's converter makes their CSV
-        data_path = tmp_path / f"{source}.csv"
-        (convert.convert_panda() if source == "panda" else convert.convert_tiago()).write(data_path)
-    else:
-        data_path = REALDATA / source
+    data_path = REALDATA / source
     urdf_args = ("--urdf", REALDATA / urdf) if urdf else ()
     config = load_config(robot, REALDATA / urdf if urdf else None)
     window = f"{data_path}@{t_from}:{t_to}"

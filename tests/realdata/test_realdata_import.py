@@ -130,3 +130,31 @@ def test_command_line(tmp_path: Path, robot: str) -> None:
     )
     assert run.returncode == 0, run.stderr
     assert "0 dropped" in run.stdout and "nothing dropped" in run.stdout and out.is_file()
+
+
+@needs_data
+@pytest.mark.parametrize("robot", ["panda", "tiago_wrist"])
+def test_the_loggers_folder_imports_as_its_converted_csv(tmp_path: Path, robot: str) -> None:
+    """`dynid import --data FOLDER` reads the lab's own files through the configuration's `files:` field alone, and
+    gives the samples this folder's independent converter gives: every value bit for bit, t to the converter's
+    nanosecond rounding (TIAGo; the Panda's t is not rounded)."""
+    from dynid.io.dataset import Dataset
+
+    from . import cli
+
+    folder, conversion, urdf = ((REALDATA / "panda_gaz2019" / "rbt_log", convert.convert_panda(), ())
+                                if robot == "panda" else
+                                (REALDATA / "tiago_wrist_ft" / "dynamic", convert.convert_tiago(),
+                                 ("--urdf", str(convert.TIAGO_URDF))))
+    out = tmp_path / "run.npz"
+    result = cli.dynid("import", "--robot", robot, *urdf, "--data", str(folder), "--out", str(out))
+    ref, ds = conversion.dataset, Dataset.load(out)
+    assert result["samples"] == ref.n_samples == ds.n_samples
+    assert ds.meta["source_format"] == "file set"
+    assert np.max(np.abs(ds.t - ref.t)) <= (0.0 if robot == "panda" else 0.51e-9)  # half a ns, and the sum's rounding
+    for kind in ("q", "dq"):
+        a, b = getattr(ds, kind), getattr(ref, kind)
+        assert (a is None and b is None) or np.array_equal(a, b), kind
+    for family in ("tau", "ft", "extra"):
+        a, b = getattr(ds, family), getattr(ref, family)
+        assert sorted(a) == sorted(b) and all(np.array_equal(a[k], b[k]) for k in b), family

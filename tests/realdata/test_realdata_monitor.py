@@ -47,12 +47,14 @@ RUNS = {
     "ur10e_known_gains/push": ("ur10e_mamedov/identification/ur-20_02_19_14harm50sec.csv", None,
                                "ur10e_mamedov/contact/ur-20_01_22-push_pose_1.csv", None, "ur10e_mamedov/ur10e.urdf",
                                ("--residual", "momentum")),
-    # The converted runs are played on the window the file is calibrated on: the file's period is its median step, and
+    # The Panda's and TIAGo's runs are their loggers' folders of files (the configurations' `files:`), played on the
+    # window the file is calibrated on: the file's period is its median step, and
     # a window of another median drifts against it by a sample in a few thousand (the sample clock then bridges one).
     # The Panda's log misses a sample 54 times in 21 s; the monitor's filter takes one per period, so the file is
     # calibrated (export --data) on the longest stretch without one, 7.78-9.55 s.
-    "panda": ("panda", None, "panda", (7.78, 9.55), None, ("--data", "EVAL")),
-    "tiago_wrist": ("tiago", None, "tiago", None, "tiago_wrist_ft/urdf/tiago_48_hey5.urdf", ()),
+    "panda": ("panda_gaz2019/rbt_log", None, "panda_gaz2019/rbt_log", (7.78, 9.55), None, ("--data", "EVAL")),
+    "tiago_wrist": ("tiago_wrist_ft/dynamic", None, "tiago_wrist_ft/dynamic", None,
+                    "tiago_wrist_ft/urdf/tiago_48_hey5.urdf", ()),
 }
 
 
@@ -77,13 +79,7 @@ def test_a_real_run_through_the_monitor_is_the_core_on_the_decoded_samples(robot
         pytest.skip(f"real robot data not found at {REALDATA} (clone shared/ beside the repository)")
     urdf_args = ("--urdf", REALDATA / urdf) if urdf else ()
     config = load_config(robot, REALDATA / urdf if urdf else None)
-    paths = {}
-    for source in {fit_source, eval_source}:
-        if source in ("panda", "tiago"):  # raw files: the project's converter makes their CSV
-            paths[source] = tmp_path / f"{source}.csv"
-            (convert.convert_panda() if source == "panda" else convert.convert_tiago()).write(paths[source])
-        else:
-            paths[source] = REALDATA / source
+    paths = {source: REALDATA / source for source in {fit_source, eval_source}}
     fit_data = _window(paths[fit_source], fit_span)
     eval_data = _window(paths[eval_source], eval_span)
     export_options = tuple(eval_data if o == "EVAL" else o for o in export_options)
@@ -171,8 +167,7 @@ def test_the_whole_panda_log_exports_though_it_misses_samples(tmp_path: Path) ->
     would (short gaps bridged, the run cut at the long one); it used to refuse the run at its first missing sample."""
     if not REALDATA.is_dir():
         pytest.skip(f"real robot data not found at {REALDATA} (clone shared/ beside the repository)")
-    data = tmp_path / "panda.csv"
-    convert.convert_panda().write(data)
+    data = REALDATA / "panda_gaz2019" / "rbt_log"  # the logger's folder of files (panda.yaml's `files:`)
     model, coef = tmp_path / "model.json", tmp_path / "model.dcoef"
     for step in (("fit", "--robot", "panda", "--data", data, "--out", model), ("export", "--model", model, "--out", coef)):
         done = run(DYNID, *step)

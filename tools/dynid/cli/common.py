@@ -16,7 +16,7 @@ from typing import Any, NoReturn
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ..config.robot_config import DEFAULT_ROBOT
+from ..config.robot_config import DEFAULT_ROBOT, RobotConfig
 from ..errors import EXIT_BAD_INPUT, InputError
 from ..io.bad_rows import DEFAULT_POLICY, KINDS
 from ..io.bad_rows import POLICIES as BAD_ROW_POLICIES
@@ -259,15 +259,19 @@ def window(args: argparse.Namespace, run: int = 0) -> Window:
     return (getattr(args, "t_from", None), getattr(args, "t_to", None))
 
 
-def expand_data(args: argparse.Namespace) -> tuple[list[str], list[Window]]:
+def expand_data(args: argparse.Namespace, config: RobotConfig | None = None) -> tuple[list[str], list[Window]]:
     """Every --data expanded (a glob, a folder, @LIST: dynid.io.run_paths) with its window: a spec's own
     (RUN@FROM:TO) for each run it names, else --from/--to. A run named twice with the same window is refused (it
-    would count twice); two windows of one run are two runs."""
+    would count twice); two windows of one run are two runs. With `config`, a folder of files its `files:` field
+    describes is one run (dynid.io.file_set)."""
+    from ..io.file_set import holds_file_set
+
+    run_folder = None if config is None or not config.files else (lambda p: holds_file_set(p, config))
     paths: list[str] = []
     windows: list[Window] = []
     seen: set[tuple[str, Window]] = set()
     for i, spec in enumerate(args.data):
-        for p in expand(spec):
+        for p in expand(spec, run_folder=run_folder):
             key = (os.path.realpath(p), window(args, i))
             if key in seen:
                 raise InputError(f"--data: the run {p} is named twice" + (" with the same window" if any(key[1]) else ""))

@@ -251,7 +251,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     robot_arg(sp)
     sp.add_argument("--data", required=True, metavar="DATA",
                     help="the experiment: a .csv (with a header, or one the configuration's 'columns' describe), a "
-                    "candump log, a ROS 2 bag (MCAP or SQLite), a YARP dumper folder or a .npz dataset; RUN@FROM:TO "
+                    "candump log, a ROS 2 bag (MCAP or SQLite), a YARP dumper folder, a folder of files the "
+                    "configuration's 'files' describes, or a .npz dataset; RUN@FROM:TO "
                     "for a window")
     window_args(sp)
     sp.add_argument("--out", required=True, metavar="DATASET", help="the dataset file to write (.npz, atomically)")

@@ -14,6 +14,7 @@ from ..errors import InputError
 from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, FitSettings
 from ..identify.runs import RunRef, stream_run
 from ..io.dataset import atomic_write
+from ..io.file_set import holds_file_set
 from ..io.run_paths import expand_named
 from ..pipeline import IdentifySettings, identify
 from ..report.fleet import compare, page
@@ -33,7 +34,7 @@ def _file_name(robot: str) -> str:
 def cmd_fleet(args: argparse.Namespace) -> dict[str, Any]:
     config = load_config(args.robot, args.urdf)
     model = RobotModel(config)
-    named = expand_named(args.data)
+    named = expand_named(args.data, (lambda p: holds_file_set(p, config)) if config.files else None)
     fleet: OrderedDict[str, list[str]] = OrderedDict()
     for run in named:
         fleet.setdefault(run.name, []).append(run.path)

@@ -67,7 +67,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         print(f"--consistent {args.consistent}: {config.name}'s default (its configuration's fit.consistent; "
               "--consistent off for the unconstrained fit)")
     model = RobotModel(config)
-    paths, windows = expand_data(args)
+    paths, windows = expand_data(args, config)
     refs = [RunRef(p, w, payload, bad_rows(args))
             for p, w, payload in zip(paths, windows, payloads(args, len(paths)))]
     settings = FitSettings(estimator=args.estimator, n_components=args.n_components, min_speed=args.min_speed,
@@ -495,7 +495,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         "then calibrate the T² contact detector on the same data. Writes MODEL (JSON).")
     robot_arg(sp)
     sp.add_argument("--data", action="append", required=True, metavar="DATA",
-                    help="an experiment (dataset, CSV, candump log, ROS 2 bag, YARP folder or a `dynid simulate` "
+                    help="an experiment (dataset, CSV, candump log, ROS 2 bag, YARP folder, a folder of files the "
+                    "configuration's 'files' describes, or a `dynid simulate` "
                     "directory), RUN@FROM:TO for a window of its own, a glob of runs ('runs/*.csv', quoted), a "
                     "folder (every run beneath it) or @LIST (a file naming runs, one a line); repeatable. A dataset "
                     "file is read a window at a time, never whole")
@@ -570,7 +571,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         "sensor; without either, the false positives of a contact-free run.")
     sp.add_argument("--model", required=True, metavar="MODEL", help="a model file of `dynid fit`")
     sp.add_argument("--data", required=True, metavar="DATA",
-                    help="the run to examine: a CSV, candump log, dataset file, simulate directory or YARP folder")
+                    help="the run to examine: a CSV, candump log, dataset file, simulate directory, YARP folder, ROS 2 "
+                    "bag or a folder of files the configuration's 'files' describes")
     window_args(sp)
     payload_arg(sp, repeatable=False)
     sp.add_argument("--alpha", type=alpha, default=ALPHA, help=f"confidence level (default {ALPHA})")

@@ -40,7 +40,7 @@ def cmd_play(args: argparse.Namespace) -> dict[str, Any]:
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
     sp = sub.add_parser("play", help=COMMANDS["play"].help,
-                        description="Play a recorded run (any form dynid reads: CSV, headerless log, YARP folder, "
+                        description="Play a recorded run (any form dynid reads: CSV, headerless log, folder of files, YARP folder, "
                         "ROS 2 bag, simulated run, dataset, candump log) onto the robot's CAN bus as its bus "
                         "description says (the configuration's 'bus', or the iCub protocol's 'can'), through "
                         "firmware_like's boards: a candump log, the loopback transport rt_monitor --loopback reads, "

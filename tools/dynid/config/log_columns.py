@@ -50,16 +50,18 @@ def _kind(name: str) -> str | None:
     return prefix
 
 
-def parse_columns(robot: str, value: object) -> tuple[LogColumn, ...]:
-    """Validate the `columns:` list; every problem is a `ConfigError` naming the entry."""
+def parse_columns(robot: str, value: object, field: str = "columns", need_time: bool = True
+                  ) -> tuple[LogColumn, ...]:
+    """Validate a `columns:` list (`field` names it in messages; `need_time` False: it may leave out t, as one file
+    of a `files:` run may); every problem is a `ConfigError` naming the entry."""
     if value is None:
         return ()
     if not isinstance(value, list) or not value:
-        raise ConfigError(f"{robot}: field 'columns' must be a list of \"NAME UNIT\" entries, got {value!r}")
+        raise ConfigError(f"{robot}: field '{field}' must be a list of \"NAME UNIT\" entries, got {value!r}")
     out: list[LogColumn] = []
     seen: set[str] = set()
     for i, entry in enumerate(value):
-        where = f"{robot}: field 'columns[{i}]'"
+        where = f"{robot}: field '{field}[{i}]'"
         if not isinstance(entry, str) or not entry.split():
             raise ConfigError(f"{where} must be a string \"NAME UNIT\" (e.g. \"q.elbow rad\"), got {entry!r}")
         parts = entry.split()
@@ -79,6 +81,6 @@ def parse_columns(robot: str, value: object) -> tuple[LogColumn, ...]:
         if unit not in units:
             raise ConfigError(f"{where}: '{name}' must give its unit, one of {', '.join(units)}; got '{unit or 'none'}'")
         out.append(LogColumn(name, unit, units[unit]))
-    if "t" not in seen:
-        raise ConfigError(f"{robot}: field 'columns' must name the time column 't' (with its unit, e.g. \"t s\")")
+    if need_time and "t" not in seen:
+        raise ConfigError(f"{robot}: field '{field}' must name the time column 't' (with its unit, e.g. \"t s\")")
     return tuple(out)

@@ -24,6 +24,7 @@ from .bus import BusDescription, parse_bus
 from .fields import Fields, as_float, shown
 from .icub_bus import icub_bus
 from .log_columns import LogColumn, parse_columns
+from .run_files import RunFile, parse_files
 from .ros2_topics import Ros2Topics, parse_ros2
 from .yarp_ports import YarpLayout, parse_yarp
 
@@ -139,6 +140,8 @@ class RobotConfig:
     derivatives: dict[str, Any] = field(default_factory=dict)
     # A headerless log as the controller writes it: one entry per column, with its unit (config/log_columns.py).
     columns: tuple[LogColumn, ...] = ()
+    # A run written as a folder of files, one per signal group: each file's columns (config/run_files.py).
+    files: tuple[RunFile, ...] = ()
     # The URDF frame a payload's centre of mass is given in (`--payload MASS@x,y,z`); "" = the last moving link.
     payload_frame: str = ""
     # A yarpdatadumper folder: which port holds which joints and sensors (config/yarp_ports.py).
@@ -294,7 +297,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     name = root.string("name")
     f = Fields(name, "", data).only(
         "name", "urdf", "base_link", "gravity", "joints", "ft_sensors", "motors", "actuation", "noise", "can", "bus",
-        "derivatives", "columns", "payload_frame", "yarp", "ros2", "limits", "fit", "ft_steps",
+        "derivatives", "columns", "files", "payload_frame", "yarp", "ros2", "limits", "fit", "ft_steps",
     )
 
     joints = f.strings("joints")
@@ -428,6 +431,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         bus=bus,
         derivatives=_derivatives(f),
         columns=parse_columns(name, f.raw("columns", None)),
+        files=parse_files(name, f.raw("files", None)),
         payload_frame=f.string("payload_frame") if f.has("payload_frame") else "",
         yarp=parse_yarp(name, f.raw("yarp", None), joints, tuple(s.name for s in sensors)),
         ros2=parse_ros2(name, f.raw("ros2", None), joints, tuple(s.name for s in sensors), _motor_of(groups)),

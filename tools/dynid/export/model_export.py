@@ -104,8 +104,8 @@ def calibration_data(identified: IdentifiedModel, model: RobotModel, data: Seque
         digests = [data_digest(p) for p in paths]
         missing = next((p for p, d in zip(paths, digests) if d is None), None)
         if missing is not None:
-            raise DataError(f"{missing}: no such data (a file, a `dynid simulate` directory, a yarpdatadumper folder "
-                            "or a ROS 2 bag)")
+            raise DataError(f"{missing}: no such data (a file, a `dynid simulate` directory, a yarpdatadumper folder, "
+                            "a ROS 2 bag or a folder of files)")
         own = list(windows) + [None] * (len(paths) - len(windows))
         options = [(w or (None, None), DEFAULT_POLICY) for w in own]
     else:

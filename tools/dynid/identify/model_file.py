@@ -359,8 +359,9 @@ def _check_sections(data: dict[str, Any], path: Path) -> None:
 
 def data_digest(path: str | Path) -> str | None:
     """sha256 of the data behind a DATA argument: a file's bytes, a `dynid simulate` directory's dataset, a ROS 2
-    bag folder's files (dynid.io.rosbag.bag_digest), or a yarpdatadumper folder's `data.log` files (each with its
-    path in the folder, in sorted order); None where there are no such data."""
+    bag folder's files (dynid.io.rosbag.bag_digest), a yarpdatadumper folder's `data.log` files (each with its
+    path in the folder, in sorted order), or any other folder's own files (by name, sorted: a logger's folder of
+    files); None where there are no such data."""
     from ..io.rosbag import bag_digest, is_bag
     from ..io.yarp import is_dumper_folder
 
@@ -375,6 +376,12 @@ def data_digest(path: str | Path) -> str | None:
         h = hashlib.sha256()
         for log in sorted(p.glob("**/data.log")):
             h.update(log.relative_to(p).as_posix().encode() + b"\0" + file_digest(log).encode())
+        return h.hexdigest()
+    files = sorted(f for f in p.iterdir() if f.is_file()) if p.is_dir() else []
+    if files:  # a logger's folder of files (the configuration's `files:`, dynid.io.file_set): each, by name
+        h = hashlib.sha256()
+        for f in files:
+            h.update(f.name.encode() + b"\0" + file_digest(f).encode())
         return h.hexdigest()
     return None
 

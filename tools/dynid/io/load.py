@@ -17,6 +17,7 @@ from ..errors import DataError
 from .candump import read_candump
 from .bad_rows import DEFAULT_POLICY, MAX_ABS_VALUE, POLICIES
 from .csv_format import check_columns, read_csv
+from .file_set import read_file_set
 from .headerless import looks_headerless, read_headerless
 from .rosbag import is_bag, looks_like_bag_file, read_bag
 from .yarp import is_dumper_folder, read_yarp
@@ -61,7 +62,8 @@ def load_data(
     """Load experiment data in any supported form, checked against the robot configuration.
 
     A directory written by `dynid simulate` stands for its dataset file; a folder with metadata.yaml, or a ``.mcap``
-    or ``.db3`` file, is a ROS 2 bag (dynid.io.rosbag); a folder of YARP ports a yarpdatadumper log. Otherwise the
+    or ``.db3`` file, is a ROS 2 bag (dynid.io.rosbag); a folder of YARP ports a yarpdatadumper log; any other folder
+    a logger's folder of files, where the configuration has a `files:` field (dynid.io.file_set). Otherwise the
     form is told by content first, then by extension: a zip archive (or ``.npz``) is a dataset file, a
     ``.log`` or a file whose first line is a ``candump -L`` frame is a CAN log, a ``.csv`` is a CSV
     (`dynid.io.csv_format.read_csv`). Anything else raises `DataError`.
@@ -89,8 +91,11 @@ def _load(
         return read_bag(path, config, joint_limits=joint_limits, require_all=require_all, bad_rows=bad_rows)
     elif is_dumper_folder(path):  # a YARP robot's log: one folder per port
         return read_yarp(path, config, joint_limits=joint_limits, require_all=require_all, bad_rows=bad_rows)
+    elif path.is_dir() and config.files:  # a logger's folder of files, one per signal group
+        return read_file_set(path, config, joint_limits=joint_limits, require_all=require_all, bad_rows=bad_rows)
     if not path.is_file():
-        raise DataError(f"data path is not a file: {path}")
+        raise DataError(f"data path is not a file: {path} (a folder is a run when it is a `dynid simulate` directory, a "
+                        "ROS 2 bag, a YARP dumper folder, or holds the files the configuration's 'files' field names)")
     try:
         with open(path, "rb") as f:
             head = f.read(4096)
@@ -119,7 +124,8 @@ def _load(
         return read_csv(path, config, joint_limits=joint_limits, require_all=require_all, bad_rows=bad_rows)
     raise DataError(
         f"{path}: unknown data format: expected a .csv (docs/design.md §4), a candump log (.log), a ROS 2 bag "
-        "(a folder with metadata.yaml, .mcap or .db3), a YARP dumper folder or a dynid dataset (.npz)"
+        "(a folder with metadata.yaml, .mcap or .db3), a YARP dumper folder, a folder of files the configuration's "
+        "'files' field describes (docs/formats.md#a-folder-of-files) or a dynid dataset (.npz)"
     )
 
 

@@ -1,0 +1,158 @@
+"""A run written as a folder of files (the configuration's `files:` field, config/run_files.py), read as one table.
+
+Each file is told its layout by its content, and must hold one of two:
+- **a line per sample**, as many comma-separated values as the file's columns;
+- **one value a line**, a sample's values on consecutive lines (the Panda's logs: seven lines a sample).
+
+A first line that is not a number is a header and is skipped; its field count must still be the file's column
+count, so a file with more or fewer columns than described is refused rather than read shifted. Row k of every file
+is sample k: the files must hold as many samples each, and a t that several files carry must be the same time in
+each (to 1 µs: the logger's one clock). A line that does not parse makes its sample a bad row, named by its file and
+line, and the merged table then passes every rule of a CSV (dynid.io.csv_format, dynid.io.bad_rows): refused by
+default, dropped and counted with ``bad_rows="skip"``. Samples in messages are 1-based.
+"""
+
+from __future__ import annotations
+
+import glob
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..config.log_columns import SKIP
+from ..config.robot_config import RobotConfig
+from ..config.run_files import RunFile
+from ..errors import DataError
+from .bad_rows import DEFAULT_POLICY, Malformed
+from .csv_format import Table, _read_bytes, check_columns, parse_table, table_dataset
+from .dataset import Dataset
+from .headerless import _width, looks_headerless
+
+SAME_CLOCK_S = 1e-6  # two files' t of one sample may differ by their printing, not by more
+
+
+def matched_files(folder: Path, files: tuple[RunFile, ...]) -> list[Path] | str:
+    """The file each entry of `files` names in `folder`, or why they cannot be read as one run."""
+    out: list[Path] = []
+    for spec in files:
+        found = sorted(p for p in folder.glob(glob.escape(spec.pattern) if not _is_glob(spec.pattern)
+                                              else spec.pattern) if p.is_file())
+        if len(found) != 1:
+            held = ", ".join(sorted(p.name for p in folder.iterdir() if p.is_file())[:8]) or "no file"
+            many = f"matches {len(found)} files ({', '.join(p.name for p in found[:4])})" if found else "matches no file"
+            return f"'{spec.pattern}' of the configuration's files: field {many}; the folder holds {held}"
+        out.append(found[0])
+    return out
+
+
+def holds_file_set(path: Path, config: RobotConfig) -> bool:
+    """True for a folder that holds every file of the configuration's `files:` field (one each)."""
+    return bool(config.files) and path.is_dir() and not isinstance(matched_files(path, config.files), str)
+
+
+def _is_glob(pattern: str) -> bool:
+    return any(c in pattern for c in "*?[")
+
+
+@dataclass(frozen=True)
+class _FileTable:
+    path: Path
+    spec: RunFile
+    data: np.ndarray  # (samples, columns of the file), NaN where a line did not parse
+    malformed: dict[int, Malformed]  # sample -> the first line of it that did not parse
+    raw: bytes
+
+
+def _read_one(path: Path, spec: RunFile) -> _FileTable:
+    raw = _read_bytes(path)
+    if not raw.strip():
+        raise DataError(f"{path}: the file is empty")
+    n = len(spec.columns)
+    skip = 0 if looks_headerless(raw[:4096]) else 1
+    if skip:
+        header = raw.split(b"\n", 1)[0]
+        fields = header.count(b",") + 1
+        if fields != n:
+            raise DataError(f"{path}: the header line has {fields} fields, but the configuration's "
+                            f"files.'{spec.pattern}' describes {n} columns")
+    body = raw.split(b"\n", skip)[skip] if skip else raw
+    if not body.strip():
+        raise DataError(f"{path}: the file has a header but no data lines")
+    width = _width(body)
+
+    def line(k: int) -> str:
+        return f"{path.name} line {k + skip + 1}"
+
+    if width == n:  # a line per sample
+        table = parse_table(path, raw, skip, n, [c.name for c in spec.columns], line,
+                            f"the configuration describes {n} columns for it")
+        data = np.full((table.total, n), np.nan)
+        data[table.rows] = table.data
+        return _FileTable(path, spec, data, {m.row: m for m in reversed(table.malformed)}, raw)
+    if width == 1:  # one value a line, a sample's values on consecutive lines
+        table = parse_table(path, raw, skip, 1, None, line, "the file holds one value a line")
+        if table.total % n:
+            raise DataError(f"{path}: {table.total} lines of one value each are not whole samples of the {n} "
+                            f"columns the configuration describes for it (a sample's values on {n} lines)")
+        flat = np.full(table.total, np.nan)
+        flat[table.rows] = table.data[:, 0]
+        bad = {m.row // n: Malformed(m.row // n, m.kind, m.detail.replace(
+            ", column 1:", f", column {spec.columns[m.row % n].name}:", 1)) for m in reversed(table.malformed)}
+        return _FileTable(path, spec, flat.reshape(-1, n), bad, raw)
+    raise DataError(f"{path}: its lines hold {width} values, but the configuration describes {n} columns for it "
+                    f"(a line per sample of {n} values, or one value a line)")
+
+
+def read_file_set(
+    folder: str | Path,
+    config: RobotConfig,
+    joint_limits: Mapping[str, tuple[float, float]] | None = None,
+    require_all: bool = True,
+    bad_rows: str = DEFAULT_POLICY,
+) -> Dataset:
+    """Import a folder described by `config.files` as a `Dataset` (module docstring)."""
+    folder = Path(folder)
+    paths = matched_files(folder, config.files)
+    if isinstance(paths, str):
+        raise DataError(f"{folder}: {paths}")
+    tables = [_read_one(p, spec) for p, spec in zip(paths, config.files)]
+    first = tables[0]
+    for tab in tables[1:]:
+        if tab.data.shape[0] != first.data.shape[0]:
+            raise DataError(f"{folder}: {tab.path.name} holds {tab.data.shape[0]} samples, {first.path.name} "
+                            f"{first.data.shape[0]}: the files of one run hold one row of each sample")
+    n = first.data.shape[0]
+    names: list[str] = []
+    parts: list[np.ndarray] = []
+    t_from: _FileTable | None = None
+    for tab in tables:
+        for j, col in enumerate(tab.spec.columns):
+            if col.name == SKIP:
+                continue
+            values = tab.data[:, j] * col.scale
+            if col.name == "t" and t_from is not None:
+                t = parts[names.index("t")]
+                differ = np.flatnonzero(np.abs(values - t) > SAME_CLOCK_S)  # NaN (a bad line) compares False
+                if differ.size:
+                    k = int(differ[0])
+                    raise DataError(f"{folder}: sample {k + 1}'s t is {float(t[k])!r} s in {t_from.path.name} and "
+                                    f"{float(values[k])!r} s in {tab.path.name} (they differ on {differ.size} "
+                                    "samples): the files must share one clock, a row of each sample")
+                continue
+            if col.name == "t":
+                t_from = tab
+            names.append(col.name)
+            parts.append(values)
+    merged: dict[int, Malformed] = {}
+    for tab in tables:
+        for k, m in tab.malformed.items():
+            merged.setdefault(k, m)
+    good = np.array([k for k in range(n) if k not in merged], dtype=np.int64)
+    data = np.column_stack(parts)[good]
+    table = Table(data, good, [merged[k] for k in sorted(merged)], n)
+    columns = check_columns(names, config, require_all=require_all, source=str(folder))
+    raw = b"".join(tab.raw for tab in tables)  # the run's digest covers every file, in the configuration's order
+    return table_dataset(folder, raw, names, columns, data, config, joint_limits, "file set",
+                         lambda k: f"sample {k + 1}", table=table, bad_rows=bad_rows)
