@@ -2,15 +2,13 @@
 // (dynid.detect.momentum.first_order) over whole runs, on Pinocchio's C++ API: p = M q̇ (RNEA at rest with q̇ as the
 // acceleration, minus g) and Cᵀq̇ − g (computeCoriolisMatrix, computeGeneralizedGravity), as the reference computes
 // them through Pinocchio's Python bindings one sample at a time.
+#include "algorithms.hpp"
 #include "bindings.hpp"
 #include "pinocchio_model.hpp"
 
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/tuple.h>
-
-#include <pinocchio/algorithm/jacobian.hpp>
-#include <pinocchio/algorithm/rnea.hpp>
 
 #include <cmath>
 #include <optional>
@@ -43,12 +41,12 @@ public:
             const Eigen::Map<const Eigen::VectorXd> q(Q.data() + k * m.nq, m.nq), v(V.data() + k * m.nv, m.nv);
             // O(n), not computeCoriolisMatrix's O(n²): with H_j the world-frame momentum of joint j's subtree,
             // p_j = S_jᵀ H_j and (Cᵀq̇)_j = Ṡ_jᵀ H_j, Ṡ_j = v_j × S_j (Ṁq̇ − Cq̇: the bodies' momentum rates cancel)
-            pinocchio::computeJointJacobiansTimeVariation(m, data, q, v);
+            algo::jacobians_time_variation(m, data, q, v);
             for (pinocchio::JointIndex i = 1; i < static_cast<pinocchio::JointIndex>(m.njoints); ++i)
                 H[i] = data.oMi[i].act(m.inertias[i] * data.v[i]);
             for (pinocchio::JointIndex i = m.njoints - 1; i > 0; --i)
                 if (m.parents[i] > 0) H[m.parents[i]] += H[i];
-            const Eigen::VectorXd& g = pinocchio::computeGeneralizedGravity(m, data, q);
+            const Eigen::VectorXd& g = algo::gravity(m, data, q);
             double* p = P.data() + k * m.nv;
             double* b = B.data() + k * m.nv;
             for (pinocchio::JointIndex i = 1; i < static_cast<pinocchio::JointIndex>(m.njoints); ++i) {

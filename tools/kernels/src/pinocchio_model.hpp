@@ -3,8 +3,6 @@
 // doubles with 17 significant digits).
 #pragma once
 
-#include <pinocchio/algorithm/crba.hpp>
-#include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
 
 #include <string>

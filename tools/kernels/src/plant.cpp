@@ -3,6 +3,7 @@
 // semi-implicit Euler with implicit friction, an active set with an exact line search), and the F/T sensors'
 // measurement afterwards (plant.RigidBodyPlant.sensor_wrenches), on Pinocchio's C++ API. The Python code stays the
 // reference; the plan (gains, friction laws, hidden effects) comes from it as arrays (dynid.simulation.kernel).
+#include "algorithms.hpp"
 #include "bindings.hpp"
 #include "pinocchio_model.hpp"
 
@@ -78,17 +79,17 @@ public:
     // plant.RigidBodyPlant.step: v⁺ of M (v⁺ − v)/h + b(q, v) = τ_0 − Sᵀ f(S v⁺); `mode` (+1/−1/0) updated.
     void step(const VectorXd& q, const VectorXd& v, const VectorXd& tau0, const Law& law, double h, int fext_joint,
               const pinocchio::Force& fext, Eigen::Matrix<int8_t, Eigen::Dynamic, 1>& mode, VectorXd& x) {
-        MatrixXd M = pinocchio::crba(model_, data_, q);
+        MatrixXd M = algo::crba(model_, data_, q);
         M.triangularView<Eigen::StrictlyLower>() = M.transpose().triangularView<Eigen::StrictlyLower>();
         if (armature_.size()) M += armature_;
         const VectorXd zero = VectorXd::Zero(model_.nv);
         VectorXd bias;
         if (fext_joint >= 0) {
             fext_[fext_joint] = fext;
-            bias = pinocchio::rnea(model_, rnea_data_, q, v, zero, fext_);
+            bias = algo::rnea(model_, rnea_data_, q, v, zero, fext_);
             fext_[fext_joint] = pinocchio::Force::Zero();
         } else {
-            bias = pinocchio::rnea(model_, rnea_data_, q, v, zero);
+            bias = algo::rnea(model_, rnea_data_, q, v, zero);
         }
         const VectorXd base = M * v + h * (tau0 - bias);
         x = v;
@@ -236,7 +237,7 @@ public:
             q_prev = qm;
             const Eigen::Map<const VectorXd> qd(ref_q.data() + k * nj, nj), vd(ref_dq.data() + k * nj, nj);
             const VectorXd tau_cmd = (K_.array() * (qd - qm).array() + D_.array() * (vd - vf).array()).matrix() +
-                                     pinocchio::computeGeneralizedGravity(cad_, cad_data_, qm);
+                                     algo::gravity(cad_, cad_data_, qm);
             VectorXd u = to_inputs_ * tau_cmd;
             Eigen::Map<VectorXd>(UNSAT.data() + k * nm, nm) = u;
             u = u.cwiseMax(lo_).cwiseMin(hi_);  // sensors.InputQuantiser
@@ -369,12 +370,12 @@ void sensor_wrenches(const std::string& serialized, const std::vector<std::tuple
         pinocchio::Force f_link = pinocchio::Force::Zero();
         if (c >= 0) {
             f_link = pinocchio::Force(Eigen::Map<const Vec6>(wrench.data() + 6 * k));
-            const VectorXd tau_free = pinocchio::rnea(m, data, q, v, a);
+            const VectorXd tau_free = algo::rnea(m, data, q, v, a);
             fext[S[c].joint] = S[c].placement.act(f_link);
-            tc = tau_free - pinocchio::rnea(m, data, q, v, a, fext);
+            tc = tau_free - algo::rnea(m, data, q, v, a, fext);
             fext[S[c].joint] = pinocchio::Force::Zero();
         } else {
-            pinocchio::rnea(m, data, q, v, a);
+            algo::rnea(m, data, q, v, a);
             tc.setZero();
         }
         for (size_t i = 0; i < ns; ++i) {
