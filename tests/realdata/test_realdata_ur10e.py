@@ -51,6 +51,15 @@ def test_the_pair_identifies_the_drive_gains(tmp_path: Path) -> None:
     for m, v in gains.items():  # measured 12.14 ± 0.43 and 9.83 ± 0.33: 13.5 % and 16.1 % above drvGains
         assert abs(v["value"] / DRV_GAINS[m] - 1) < 0.2
     assert {f"{m}.phi_m" for m in ("shoulder_pan", "wrist_3")} <= set(fit["undetermined"])
+    # The monitor's Λ is calibrated on the pair's runs with the loaded run's payload as the fit had it. Without it
+    # the loaded run's residuals carried the load's torques: shoulder_lift's and elbow's variance 19× and 17× those
+    # of the unloaded run alone, and the monitor found 6 of the 11 collisions of collision_3link (11 with it).
+    both = dynid("export", "--model", str(tmp_path / "pair.json"), "--out", str(tmp_path / "pair.dcoef"))
+    alone = dynid("export", "--model", str(tmp_path / "pair.json"), "--data", str(PAIR[0]),
+                  "--out", str(tmp_path / "unloaded.dcoef"))
+    for m in ("shoulder_lift", "elbow"):  # measured 1.7× and 1.8×
+        ratio = both["residual_variance"][f"current.{m}"] / alone["residual_variance"][f"current.{m}"]
+        assert ratio < 3.0, (m, ratio)
 
 
 def test_four_unloaded_runs_and_one_loaded_name_the_runs_jackknife(tmp_path: Path) -> None:

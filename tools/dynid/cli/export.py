@@ -26,7 +26,7 @@ from ..identify.model_file import load_model
 from .commands import COMMANDS
 from .common import check_outputs
 from .common import confidence as alpha
-from .common import int_in, json_arg, positive_float, split_data_window
+from .common import int_in, json_arg, payload_arg, payloads, positive_float, split_data_window
 from .common import non_negative_int as lag
 
 
@@ -45,7 +45,7 @@ def _settings(args: argparse.Namespace) -> ExportSettings:
     split = [split_data_window(text) for text in args.data or ()]  # --data RUN@FROM:TO, as every command takes it
     return ExportSettings(tuple(p for p, _ in split), tuple(w for _, w in split), args.lag, args.window, args.alpha,
                           events(EventSettings()), args.residual, args.bandwidth, events(MOMENTUM_EVENTS),
-                          args.rate or 1000.0)
+                          args.rate or 1000.0, tuple(payloads(args, len(split))))
 
 
 def _export_bus(args: argparse.Namespace) -> dict[str, Any]:
@@ -257,7 +257,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     "full set reproduces the identified base parameters, write the nearest one and state its residual "
                     "(default: exit 2 and say so)")
     sp.add_argument("--data", action="append", metavar="DATA",
-                    help="contact-free data for Λ and T²_α (default: the model's identification data); repeatable")
+                    help="contact-free data for Λ and T²_α (default: the model's identification data, each run with "
+                    "the payload the fit was told of); repeatable")
+    payload_arg(sp, repeatable=True)
     sp.add_argument("--lag", type=lag, metavar="N", help="filter lag in samples, 0 = causal (default: window // 4)")
     sp.add_argument("--window", type=int_in(3, MAX_WINDOW), metavar="N", help="filter window in samples, 3 to "
                     f"{MAX_WINDOW} (the monitor's capacity; default: the configuration's offline window)")

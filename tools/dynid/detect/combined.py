@@ -18,7 +18,7 @@ finds the most proximal contacts at the lowest false-positive rate (tools/benchm
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -27,7 +27,7 @@ from ..identify.model_sections import Quantiles
 from ..identify.observer_sections import CombinedCalibration
 from ..identify.supply import SupplyTracker, smoothed_residuals
 from ..robot.outputs import residuals
-from ..robot.regressors.stack import signals_from_dataset
+from ..robot.regressors.stack import payload_of, signals_from_dataset
 from .momentum_t2 import CALIBRATION_MAX_S, MomentumDetector, momentum_calibration_samples
 from .online import FixedLagSavitzkyGolay, online_signals, online_times, raw_signals
 from .t2 import QUANTILE_LEVELS, Detector
@@ -105,7 +105,7 @@ def monitor_acceleration(identified, ds, segments, est: FixedLagSavitzkyGolay, m
     estimate of sample k − lag), NaN before the filter's window is full."""
     model = identified.robot_model
     t, q, inputs, tau, ft = raw_signals(model, ds)
-    sig = online_signals(model, est, t, q, inputs, tau, ft)
+    sig = replace(online_signals(model, est, t, q, inputs, tau, ft), payload=payload_of(model, ds))
     sample = est.window - 1 - est.lag + np.arange(sig.q.shape[0])  # the sample each estimate is of
     parts = []
     for a, b, phi_k in segments:

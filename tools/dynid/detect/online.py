@@ -14,7 +14,7 @@ then meets the false-positive rate its threshold promises.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -25,7 +25,7 @@ from ..io.derivatives import SavitzkyGolay
 from ..robot.effects import augmented_residuals
 from ..robot.model import RobotModel
 from ..robot.outputs import divisors, output_channels
-from ..robot.regressors.stack import Signals, gravity_per_sample
+from ..robot.regressors.stack import Signals, gravity_per_sample, payload_of
 from .t2 import calibrate
 
 # The monitor's filter takes one sample per period, whatever its stamp: a logged run whose stamps jitter around the
@@ -213,7 +213,8 @@ def calibrate_online(model: RobotModel, phi: np.ndarray, datasets: list, est: Fi
     for i, ds in enumerate(datasets):
         raw = raw_signals(model, ds)
         keep = slice(None, None, stride)
-        sig = online_signals(model, est, *raw, gravity=gravity_per_sample(model, ds)).slice(keep)
+        sig = online_signals(model, est, *raw, gravity=gravity_per_sample(model, ds))
+        sig = replace(sig, payload=payload_of(model, ds)).slice(keep)  # a loaded run's known payload, as the fit had it
         if folds is None:
             e = augmented_residuals(model, phi, effects or [], sig)
         else:  # the filter's k-th estimate is of sample window − 1 − lag + k of the run

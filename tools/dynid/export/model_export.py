@@ -69,6 +69,7 @@ class ExportSettings:
     bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ  # the observer's
     observer_events: EventSettings = field(default_factory=lambda: MOMENTUM_EVENTS)
     cad_rate_hz: float = 1000.0  # the boards' sample rate of a CAD export (a calibrated one takes its data's)
+    data_payloads: Sequence[dict | None] = ()  # each --data run's known payload (--payload), None: none
 
     def events_for(self, residual: str) -> EventSettings:
         """The event settings the file carries: those of the residual the monitor runs (the combined detector's are
@@ -95,10 +96,12 @@ class Exported:
 
 
 def calibration_data(identified: IdentifiedModel, model: RobotModel, data: Sequence[str],
-                     windows: Sequence[tuple[float | None, float | None] | None] = ()) -> tuple[list[Dataset], str]:
-    """The contact-free data Λ and T²_α come from: `data` (each in its window, if given), else what the model was
-    fitted on (checked by sha256)."""
+                     windows: Sequence[tuple[float | None, float | None] | None] = (),
+                     data_payloads: Sequence[dict | None] = ()) -> tuple[list[Dataset], str]:
+    """The contact-free data Λ and T²_α come from: `data` (each in its window and with its known payload, if given),
+    else what the model was fitted on (checked by sha256), each run with the payload the fit was told it carried."""
     options: list[tuple[tuple[float | None, float | None], str]] = []
+    payloads: list[dict | None] = []  # the known payload each fitted run carried (a loaded run of a pair)
     if data:
         paths = list(data)
         digests = [data_digest(p) for p in paths]
@@ -108,6 +111,7 @@ def calibration_data(identified: IdentifiedModel, model: RobotModel, data: Seque
                             "a ROS 2 bag or a folder of files)")
         own = list(windows) + [None] * (len(paths) - len(windows))
         options = [(w or (None, None), DEFAULT_POLICY) for w in own]
+        payloads = list(data_payloads) + [None] * (len(paths) - len(data_payloads))
     else:
         if not identified.data:
             raise DataError(f"{identified.path} names no identification data; pass --data")
@@ -125,7 +129,9 @@ def calibration_data(identified: IdentifiedModel, model: RobotModel, data: Seque
             digests.append(digest)
             # the fit's --from/--to and --bad-rows skip, if it had them
             options.append((entry.reload_window, entry.bad_rows_policy))
-    runs = [load_run(p, model, window, bad_rows=policy) for p, (window, policy) in zip(paths, options)]
+            payloads.append(entry.payload_dict)
+    runs = [load_run(p, model, window, payload, bad_rows=policy)
+            for p, (window, policy), payload in zip(paths, options, payloads)]
     return runs, ",".join(str(d) for d in digests)
 
 
@@ -140,7 +146,8 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
     effects = identified.effects
     check_monitor_supports(model, effects)  # before any data is read: a robot the core cannot run is refused at once
     exportable_effects(effects)  # before the (slow) calibration: an effect the monitor lacks is refused at once
-    originals, calibration_digest = calibration_data(identified, model, settings.data, settings.data_windows)
+    originals, calibration_digest = calibration_data(identified, model, settings.data, settings.data_windows,
+                                                     settings.data_payloads)
     # A log that misses samples (the Panda's: 54 times in 21 s) as the monitor takes it: short gaps bridged, the run
     # cut at longer ones (its filter restarts there)
     pieces = [(piece, origin, run) for run, ds in enumerate(originals)

@@ -68,6 +68,13 @@ class StackedSystem:
         return self.A * w[:, None], self.b * w
 
 
+def payload_of(model: RobotModel, dataset) -> np.ndarray | None:  # dataset: Dataset
+    """The inertial parameters of the known payload the run carries (`dataset.meta["payload"]`, --payload), in the
+    layout's inertial span (`Signals.payload`); None without one."""
+    payload = dataset.meta.get("payload")
+    return None if not payload else model.payload_parameters(float(payload["mass"]), payload.get("com"))
+
+
 def signals_from_dataset(model: RobotModel, dataset, filter_outputs: bool = False) -> Signals:  # dataset: Dataset
     """Pick the channels the configuration's sensor set-up needs; estimate q̇, q̈ when the data lack them.
 
@@ -109,8 +116,7 @@ def signals_from_dataset(model: RobotModel, dataset, filter_outputs: bool = Fals
         if s.name not in dataset.ft:
             raise DataError(f"the data have no ft.{s.name}.* columns, which the configuration's F/T sensor needs")
     ft = {s.name: dataset.ft[s.name] for s in cfg.ft_sensors}
-    payload = dataset.meta.get("payload")
-    phi_payload = None if not payload else model.payload_parameters(float(payload["mass"]), payload.get("com"))
+    phi_payload = payload_of(model, dataset)
     gravity = gravity_per_sample(model, dataset)
     if smoother is None:
         return Signals(dataset.q, dataset.dq, dataset.ddq, inputs, tau, ft, phi_payload, gravity)
