@@ -26,7 +26,7 @@ from ..identify.model_file import load_model
 from .commands import COMMANDS
 from .common import check_outputs
 from .common import confidence as alpha
-from .common import int_in, json_arg, payload_arg, payloads, positive_float, split_data_window
+from .common import int_in, json_arg, payload_arg, payloads, plural, positive_float, split_data_window
 from .common import non_negative_int as lag
 
 
@@ -199,8 +199,12 @@ def _export_coefficients(args: argparse.Namespace) -> dict[str, Any]:
         print(f"  combined detector: not carried ({done.combined_note})")
     ev = done.events
     level = "1 (s)" if done.residual == "combined" else "T²_α"
-    print(f"  the monitor runs the {done.residual} residuals; events: onset after {ev.debounce_on} samples above "
-          f"{level}, end after {ev.debounce_off} below {ev.hysteresis:g}·{level}")
+    print(f"  the monitor runs the {done.residual} residuals; events: onset after {plural(ev.debounce_on, 'sample')} "
+          f"above {level}, end after {ev.debounce_off} below {ev.hysteresis:g}·{level}")
+    if done.residual == "acceleration" and obs is not None and args.residual is None:
+        # the default fell back from the combined detector: the observer is in the file all the same
+        print("  the file carries the momentum observer too: `rt_monitor --residual momentum` (or export "
+              "--residual momentum) runs it instead, on q and q̇ with no q̈ to filter")
     momentum = None if obs is None else {
         "bandwidth_hz": obs.detector.bandwidth_hz, "velocity_window": obs.velocity_window,
         "threshold": obs.detector.threshold, "ft_thresholds": obs.detector.ft_thresholds,

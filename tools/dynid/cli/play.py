@@ -28,12 +28,13 @@ def cmd_play(args: argparse.Namespace) -> dict[str, Any]:
     lo, hi = played.step_range_s
     out = sys.stderr if args.sink == "candump:-" else sys.stdout  # the log itself is on standard output
     print(played.summary, file=out)
-    stamps = "their recorded stamps" if args.stamps == "recorded" else "stamps every median step"
-    print(f"played {args.data} ({config.name}) -> {args.sink}: {played.samples} samples at {stamps} (mean step "
-          f"{1e3 * played.period_s:.4g} ms, recorded {1e3 * lo:.4g} to {1e3 * hi:.4g} ms), {played.frames} frames",
+    stamps = ("their recorded stamps" if played.nominal_s is None
+              else f"stamps every {1e3 * played.nominal_s:.6g} ms (the nominal period)")
+    print(f"played {args.data} ({config.name}) -> {args.sink}: {played.samples} samples at {stamps} (recorded: mean "
+          f"step {1e3 * played.period_s:.4g} ms, {1e3 * lo:.4g} to {1e3 * hi:.4g} ms), {played.frames} frames",
           file=out)
     return {"robot": config.name, "data": args.data, "sink": args.sink, "samples": played.samples,
-            "frames": played.frames, "load": played.load, "period_s": played.period_s,
+            "frames": played.frames, "load": played.load, "period_s": played.period_s, "sent_period_s": played.nominal_s,
             "step_min_s": lo, "step_max_s": hi, "stamps": args.stamps, "realtime": args.realtime, "encoder": args.encoder,
             "bad_rows": dropped}
 
@@ -45,7 +46,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         "description says (the configuration's 'bus', or the iCub protocol's 'can'), through "
                         "firmware_like's boards: a candump log, the loopback transport rt_monitor --loopback reads, "
                         "or SocketCAN. Samples are never resampled: they go out at their recorded stamps (a jittered log "
-                        "stays jittered) or, with --stamps nominal, on the grid of the mean step; paced in real time or "
+                        "stays jittered) or, with --stamps nominal, on the grid of the nominal period; paced in real time or "
                         "as fast as possible; each bus's load is printed.")
     robot_arg(sp)
     sp.add_argument("--data", required=True, metavar="RUN", help="the run to play (RUN@FROM:TO: a window of it)")
@@ -60,8 +61,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     "run (auto), always, never")
     sp.add_argument("--stamps", choices=STAMPS, default="recorded", help="recorded (default: each sample at its own "
                     "stamp; a jittered log stays jittered and the monitor bridges its gaps) or nominal (sample k at "
-                    "t0 + k times the median step: the run's samples one for one, none bridged, as the offline "
-                    "analysis takes them)")
+                    "t0 + k times the nominal period: the bus's where its rate agrees with the run's median step to "
+                    "5 %%, else that median step; the run's samples one for one, none bridged, as the offline "
+                    "analysis and `dynid export` take them)")
     sp.add_argument("--t0", type=float, default=None, metavar="S", help="the first sample's stamp, s (default "
                     "1700000000)")
     window_args(sp)

@@ -128,6 +128,9 @@ class Patch:
     sides: tuple[tuple[str, str], ...]  # (sensor, distal|proximal) for each F/T sensor
 
 
+NOMINAL_TOLERANCE = 0.05  # a run's median step within 5 % of the bus's period is taken as that period
+
+
 @dataclass(frozen=True)
 class BusDescription:
     buses: tuple[str, ...]
@@ -155,6 +158,13 @@ class BusDescription:
 
     def pair_of(self, frame: str) -> tuple[str, str] | None:
         return next((p for p in self.pairs if frame in p), None)
+
+    def nominal_period(self, median_step: float) -> float:
+        """The period samples come at on this bus: its `rate`'s where a recorded run's median step agrees with it to
+        NOMINAL_TOLERANCE (a jittered log's median is off by its stamps' rounding: the Panda's 0.97-1.00 ms by window
+        for its 1 kHz), else the run's median step."""
+        period = 1.0 / self.rate
+        return period if abs(median_step / period - 1.0) <= NOMINAL_TOLERANCE else median_step
 
     def send_order(self) -> list[BusFrame]:
         """The frames of one sample in the order they are sent: by time, then as listed."""

@@ -150,10 +150,12 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
                                                      settings.data_payloads)
     # A log that misses samples (the Panda's: 54 times in 21 s) as the monitor takes it: short gaps bridged, the run
     # cut at longer ones (its filter restarts there)
+    # The period is the bus's where the runs' median step agrees with its rate: the monitor's samples come at it
     pieces = [(piece, origin, run) for run, ds in enumerate(originals)
-              for piece, origin in uniform_pieces(ds, ds.median_step())]
+              for piece, origin in uniform_pieces(ds, sample_period(model, ds))]
     longest = max(pieces, key=lambda p: p[0].n_samples)
-    est = estimator_for(model, longest[0].t, settings.lag, settings.window, originals[longest[2]].median_step())
+    est = estimator_for(model, longest[0].t, settings.lag, settings.window,
+                        sample_period(model, originals[longest[2]]))
     kept = [p for p in pieces if p[0].n_samples >= est.window + 1]
     if not kept:
         raise DataError(f"no stretch of the calibration data without a gap is longer than the filter's window "
@@ -214,6 +216,13 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
     size = write_coefficients(c, out)
     return Exported(str(out), size, alpha, est, cal, list(c.channel_names), effects, tracking, residual, observer,
                     events, note, scale, combined_note)
+
+
+def sample_period(model: RobotModel, ds: Dataset) -> float:
+    """The monitor's sample period for a run: the robot's bus's nominal one where its rate agrees with the run's
+    median step (dynid.config.bus.BusDescription.nominal_period), else that median."""
+    bus = model.config.bus
+    return ds.median_step() if bus is None else bus.nominal_period(ds.median_step())
 
 
 def monitor_combined_scale(identified: IdentifiedModel, originals: Sequence[Dataset], pieces: Sequence,

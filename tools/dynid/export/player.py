@@ -8,7 +8,8 @@ Unevenly sampled runs (the UR10e's, the Panda's and TIAGo's logs jitter) are nev
 the run's own, one for one (an interpolated F/T or current sample is one no robot sent). By default they are sent at
 their recorded stamps (`stamps="recorded"`): the log's time is kept, `dynid import` of the candump gives the run back,
 and the monitor's sample clock meets the jitter as recorded (a gap of more than 1.5 periods is a lost sample it
-bridges). `stamps="nominal"` sends sample k at t0 + k · the run's median step (its nominal period, to the µs)
+bridges). `stamps="nominal"` sends sample k at t0 + k · the run's nominal period (the bus's where its rate agrees
+with the run's median step to 5 %, else that median, to the µs)
 instead: the monitor then evaluates
 exactly the run's samples in order, none bridged, as the offline analysis does (the way to compare the two sample for
 sample); a controller's log jitter is its logger's, not its bus's. Samples closer together than the bus table spreads
@@ -45,6 +46,7 @@ class Played:
     summary: str  # boards' own lines
     period_s: float  # the run's mean sample period, as recorded
     step_range_s: tuple[float, float]  # its smallest and largest step (the jitter sent as recorded)
+    nominal_s: float | None = None  # stamps="nominal": the grid's step the samples went out on
 
 
 def player_csv(data: Dataset, bus: BusDescription, robot: str) -> str:
@@ -81,8 +83,10 @@ def play_run(config: RobotConfig, data: Dataset, sink: str, realtime: bool = Fal
     if not BOARDS.is_file():
         raise InputError(f"{BOARDS} is not built: run scripts/setup")
     steps = np.diff(data.t)
-    if stamps == "nominal":  # the run's own samples, on the grid of its nominal period (the median step, to the µs)
-        nominal = round(float(np.median(steps)) * 1e6) * 1e-6
+    nominal = None
+    if stamps == "nominal":  # the run's own samples on the grid of its nominal period: the bus's where its rate
+        # agrees with the median step, else the median step (to the µs), as `dynid export` takes the file's period
+        nominal = round(bus.nominal_period(float(np.median(steps))) * 1e6) * 1e-6
         data = replace(data, t=data.t[0] + np.arange(data.n_samples) * nominal)
     with tempfile.TemporaryDirectory(prefix="dynid-play-") as tmp:
         conf, csv = Path(tmp) / "monitor.conf", Path(tmp) / "data.csv"
@@ -111,4 +115,5 @@ def play_run(config: RobotConfig, data: Dataset, sink: str, realtime: bool = Fal
             samples, frames = int(words[1]), int(words[3])
         elif words[1:2] == ["bus"]:
             load[words[2]] = float(words[4]) / 100
-    return Played(samples, frames, load, text.strip(), float(steps.mean()), (float(steps.min()), float(steps.max())))
+    return Played(samples, frames, load, text.strip(), float(steps.mean()), (float(steps.min()), float(steps.max())),
+                  nominal)
