@@ -114,6 +114,13 @@ def test_calibrated_threshold_keeps_its_promise(default_model: Path, default_exp
     # (paper: TPR 67 %, FPR 6 %; measured 80.9 % / 4.55 %), though not its promise on contact-free data (above).
     paper = contact["variants"]["paper"]
     assert paper["tpr"] >= 0.67 and paper["fpr"] <= 0.06
+    # A window of the contact run takes the plant truth's rows of its own samples (it ended in a broadcast
+    # traceback: the whole run's truth against the window's samples)
+    part = run_json(tmp_path, "detect", "--model", str(default_model), "--data",
+                    f"{default_experiments['contact']}@2:18", "--residual", "acceleration")
+    start = {round(e["start_s"], 6) for e in part["visibility"]["episodes"]}
+    whole = {round(e["start_s"] - 2.0, 6) for e in vis["episodes"] if 2.0 <= e["start_s"] <= 18.0}
+    assert start and start <= whole | {0.0}
 
 
 def test_alpha_moves_the_calibrated_threshold(default_model: Path, default_experiments, tmp_path: Path) -> None:

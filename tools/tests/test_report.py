@@ -331,3 +331,36 @@ def test_representative_window_is_the_median_one() -> None:
     e = np.column_stack([scale, 2 * scale])
     w = representative_window(t, e, np.array([1.0, 2.0]), 1.0)
     assert math.isclose(scale[w].mean(), 5.0) and w.stop - w.start == 1000
+
+
+def test_windows_and_episodes_as_every_command_takes_them(default_experiments, default_model, tmp_path: Path) -> None:
+    """RUN@FROM:TO and --from/--to cut the runs as `dynid validate` and `detect` cut them; --episodes labels the
+    contact run as `dynid detect --episodes` does (here the run's own contact column, written as labels: the same
+    rates)."""
+    from dynid.io.dataset import Dataset, contact_episodes
+
+    v, c = default_experiments["validation"], default_experiments["contact"]
+    ds = Dataset.load(c / "dataset.npz")
+    labels = tmp_path / "labels.csv"
+    labels.write_text("t_start,t_end\n" + "".join(f"{float(ds.t[a])!r},{float(ds.t[b - 1])!r}\n"
+                                                  for a, b in contact_episodes(ds.contact)))
+    t0 = float(ds.t[0])
+    window = f"@{t0 + 2.0!r}:{t0 + 18.0!r}"
+    out = tmp_path / "r.json"
+    done = dynid("report", "--model", str(default_model), "--validation", f"{v}@5:25", "--contact", f"{c}{window}",
+                 "--episodes", str(labels), "--out", str(tmp_path / "r.html"), "--json", str(out))
+    assert done.returncode == 0, done.stderr
+    validated = dynid("validate", "--model", str(default_model), "--data", f"{v}@5:25", "--json", "-")
+    detected = dynid("detect", "--model", str(default_model), "--data", f"{c}{window}", "--residual", "acceleration",
+                     "--json", "-")
+    r = load(out)
+    table, expected_table = r["validation"]["table_ii"], json.loads(validated.stdout)["table_ii"]
+    for model in ("identified", "cad"):
+        for what in ("force", "torque"):
+            assert table[model][what]["mean"] == pytest.approx(expected_table[model][what]["mean"], rel=1e-9)
+    rates, expected = r["detection"]["contact"]["variants"], json.loads(detected.stdout)["variants"]
+    for variant in ("calibrated", "paper"):
+        assert rates[variant]["tpr"] == pytest.approx(expected[variant]["tpr"], rel=1e-9)
+        assert rates[variant]["fpr"] == pytest.approx(expected[variant]["fpr"], rel=1e-9)
+    one_line_exit_2(dynid("report", "--model", str(default_model), "--validation", str(v), "--episodes", str(labels),
+                          "--out", str(tmp_path / "x.html")), "--episodes labels the contact run")

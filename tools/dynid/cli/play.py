@@ -34,15 +34,16 @@ def cmd_play(args: argparse.Namespace) -> dict[str, Any]:
           f"step {1e3 * played.period_s:.4g} ms, {1e3 * lo:.4g} to {1e3 * hi:.4g} ms), {played.frames} frames",
           file=out)
     return {"robot": config.name, "data": args.data, "sink": args.sink, "samples": played.samples,
-            "frames": played.frames, "load": played.load, "period_s": played.period_s, "sent_period_s": played.nominal_s,
-            "step_min_s": lo, "step_max_s": hi, "stamps": args.stamps, "realtime": args.realtime, "encoder": args.encoder,
+            "frames": played.frames, "load": played.load, "period_s": played.period_s,
+            "sent_period_s": played.nominal_s, "step_min_s": lo, "step_max_s": hi, "stamps": args.stamps,
+            "realtime": args.realtime, "encoder": args.encoder,
             "bad_rows": dropped}
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
     sp = sub.add_parser("play", help=COMMANDS["play"].help,
-                        description="Play a recorded run (any form dynid reads: CSV, headerless log, folder of files, YARP folder, "
-                        "ROS 2 bag, simulated run, dataset, candump log) onto the robot's CAN bus as its bus "
+                        description="Play a recorded run (any form dynid reads: CSV, headerless log, folder of "
+                        "files, YARP folder, ROS 2 bag, simulated run, dataset, candump log) onto the robot's CAN bus as its bus "
                         "description says (the configuration's 'bus', or the iCub protocol's 'can'), through "
                         "firmware_like's boards: a candump log, the loopback transport rt_monitor --loopback reads, "
                         "or SocketCAN. Samples are never resampled: they go out at their recorded stamps (a jittered log "

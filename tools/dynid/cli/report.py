@@ -11,13 +11,17 @@ from ..paper import PAPER
 from ..report.page import DEFAULT_WINDOW_S, ReportSettings, rates_text, write_report
 from .commands import COMMANDS
 from .common import confidence as alpha
-from .common import json_arg, one_blas_thread, positive_float
+from .common import json_arg, one_blas_thread, positive_float, split_data_window, window_args
 
 
 @one_blas_thread
 def cmd_report(args: argparse.Namespace) -> dict[str, Any]:
-    result = write_report(ReportSettings(args.model, args.validation, args.contact, args.out, args.truth, args.alpha,
-                                         args.n_mode, args.window, args.gaps))
+    validation, validation_own = split_data_window(args.validation)  # RUN@FROM:TO, as every command takes it
+    contact, contact_own = split_data_window(args.contact) if args.contact else (None, None)
+    shared = (args.t_from, args.t_to)
+    result = write_report(ReportSettings(args.model, validation, contact, args.out, args.truth, args.alpha, args.n_mode,
+                                         args.window, args.gaps, validation_own or shared, contact_own or shared,
+                                         args.bad_rows, args.episodes))
     v, params = result["validation"], result["parameters"]
     dv, dc = result["detection"]["validation"], result["detection"]["contact"]
 
@@ -43,9 +47,13 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         "and the contact runs, the ROC, predicted against measured outputs, and every base parameter "
                         "identified against CAD against true, as one self-contained HTML file.")
     sp.add_argument("--model", required=True, metavar="MODEL", help="a model file of `dynid fit`")
-    sp.add_argument("--validation", required=True, metavar="DATA", help="a contact-free validation run")
-    sp.add_argument("--contact", metavar="DATA", help="a run with 'contact' ground truth (the skin's, or a labelled "
-                    "column): TPR, ROC and delays; without it, the detection section shows false positives only")
+    sp.add_argument("--validation", required=True, metavar="DATA", help="a contact-free validation run (RUN@FROM:TO: "
+                    "a window of it; --from/--to apply to both runs that give none)")
+    sp.add_argument("--contact", metavar="DATA", help="a run with 'contact' ground truth (the skin's, a labelled "
+                    "column, or --episodes): TPR, ROC and delays; without it, the detection section shows false "
+                    "positives only")
+    sp.add_argument("--episodes", metavar="LABELS.csv", help="contact labels for --contact (t_start,t_end a row, in "
+                    "the data's own seconds, as `dynid detect --episodes` reads them), replacing its contact column")
     sp.add_argument("--out", required=True, metavar="REPORT.html", help="the page to write (atomically)")
     sp.add_argument("--truth", metavar="TRUTH.json", help="true parameters (default: the truth.json of `dynid "
                     "simulate` beside the identification data, else beside --validation or --contact)")
@@ -55,5 +63,6 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     help=f"length of the predicted-against-measured window (default {DEFAULT_WINDOW_S:g} s)")
     sp.add_argument("--gaps", metavar="DIR", help="add the model-gap section: the figures and numbers of "
                     "`dynid gaps --figures DIR`")
+    window_args(sp)
     json_arg(sp)
     sp.set_defaults(func=cmd_report)

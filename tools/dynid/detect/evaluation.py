@@ -74,14 +74,29 @@ def detection(ev: Evaluated, model_label: str, data_label: str, alpha: float, n_
         result["variants"]["calibrated"]["in_sample_fpr"] = float(alarm[free].mean()) if free.any() else None
     truth = beside_run(data_label, "truth.npz")
     if ev.dataset.contact is not None and ev.dataset.contact.any() and truth.is_file():
-        result["visibility"] = visibility(ev, dets["calibrated"], t2s["calibrated"], np.load(truth))
+        rows = truth_rows(np.load(truth), ev.dataset.t)  # the run's samples: a window of it, or all of them
+        if rows is not None:
+            result["visibility"] = visibility(ev, dets["calibrated"], t2s["calibrated"], np.load(truth), rows)
     return Detection(result, dets, t2s, side)
 
 
-def visibility(ev: Evaluated, det: Detector, t2: np.ndarray, truth) -> dict[str, Any]:
+def truth_rows(truth, t: np.ndarray) -> np.ndarray | None:
+    """The rows of the truth beside a simulated run that are the run's samples at times `t` (a --from/--to window
+    of it takes some); None where they are not all there (the run is not the truth's)."""
+    t_truth = np.asarray(truth["t"], float)
+    rows = np.searchsorted(t_truth, t)
+    if rows.size and (rows[-1] >= t_truth.size or not np.array_equal(t_truth[rows], t)):
+        return None
+    return rows
+
+
+def visibility(ev: Evaluated, det: Detector, t2: np.ndarray, truth, rows: np.ndarray | None = None) -> dict[str, Any]:
     """For a simulated run: which contact episodes the calibrated detector can see at all (the contact's own
-    residual, from the plant's truth: dynid.detect.visibility; no debounce offline) and how many of those it found."""
+    residual, from the plant's truth: dynid.detect.visibility; no debounce offline) and how many of those it found.
+    `rows`: the truth's rows that are the run's samples (default: all)."""
     signal = contact_residuals(ev.model, divisors(ev.model, ev.identified.phi), truth)
+    if rows is not None:
+        signal = signal[rows]
     episodes = episode_visibility(ev.dataset.contact, signal, det.active(ev.model, ev.signals.dq), det.variance,
                                   det.threshold, debounce=1)
     found = [bool(np.any(t2[v.start : v.end] > det.threshold)) for v in episodes]

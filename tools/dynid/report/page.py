@@ -13,7 +13,7 @@ come from the same functions as `dynid validate` and `dynid detect` (dynid.ident
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +23,9 @@ from ..detect.evaluation import detection
 from ..errors import DataError
 from ..identify.model_file import IdentifiedModel, load_model
 from ..identify.validation import Evaluated, cad_ft_residuals, evaluate, load_run, validation
+from ..io.bad_rows import DEFAULT_POLICY
 from ..io.dataset import atomic_write
+from ..io.episodes import episodes_in_data, episodes_mask, read_episodes
 from ..paper import PAPER, PAPER_ROBOT
 from ..progress import track
 from ..robot.outputs import measured_outputs
@@ -81,6 +83,10 @@ class ReportSettings:
     n_mode: str = "dim"
     window: float = DEFAULT_WINDOW_S  # s, the predicted-against-measured window
     gaps: str | None = None  # a `dynid gaps --figures DIR` directory to add as a section
+    validation_window: tuple[float | None, float | None] = (None, None)  # the data's own seconds (--from/--to)
+    contact_window: tuple[float | None, float | None] = (None, None)
+    bad_rows: str = DEFAULT_POLICY  # a log's bad rows: refused or skipped (dynid.io.bad_rows)
+    episodes: str | None = None  # contact labels for the contact run (`dynid detect --episodes`'s form)
 
 
 def write_report(args: ReportSettings) -> dict[str, Any]:
@@ -97,14 +103,20 @@ def write_report(args: ReportSettings) -> dict[str, Any]:
         gaps_section = report_section(args.gaps)
     identified = load_model(args.model)
     model = identified.robot_model
-    ds_val = load_run(args.validation, model)
+    labels = read_episodes(args.episodes) if args.episodes else None  # a bad file: refused before any work
+    if labels is not None and args.contact is None:
+        raise DataError("--episodes labels the contact run: give it with --contact")
+    ds_val = load_run(args.validation, model, args.validation_window, bad_rows=args.bad_rows)
     ds_con = None
     if args.contact is not None:
-        ds_con = load_run(args.contact, model)
+        ds_con = load_run(args.contact, model, args.contact_window, bad_rows=args.bad_rows)
+        if labels is not None:  # the labels replace the run's own contact column, as in `dynid detect`
+            episodes_in_data(ds_con.t, labels, args.episodes)
+            ds_con = replace(ds_con, contact=episodes_mask(ds_con.t, labels))
         if ds_con.contact is None:
             raise DataError(f"{args.contact} has no 'contact' column: the contact figure and TPR need the skin's "
-                            "ground truth (a `dynid simulate --kind contact` run has one); leave --contact out to "
-                            "report without them")
+                            "ground truth (a `dynid simulate --kind contact` run has one) or labels (--episodes "
+                            "LABELS.csv); leave --contact out to report without them")
     truth = find_truth(identified, [args.validation] + ([args.contact] if args.contact else []), args.truth)
     params = parameter_table(identified, truth)
     state: dict[str, Any] = {}
@@ -232,8 +244,9 @@ def _page(r: dict[str, Any], identified: IdentifiedModel, units: dict[str, str],
         "<h2>Contact detection</h2>",
         H.detection(r["detection"]["validation"], r["detection"]["contact"], r["paper"], alpha)
         if r["detection"]["contact"] else H.false_positives(r["detection"]["validation"], alpha),
-        f"<p class=\"note\">α = {alpha:g}. <i>calibrated</i> (dynid's default): motor channels at rest left out, "
-        "threshold the α-quantile of T² on the contact-free identification data. <i>paper</i>: diagonal Λ and the F "
+        f"<p class=\"note\">α = {alpha:g}. <i>calibrated</i>: the acceleration residuals' T², motor channels at "
+        "rest left out, Λ and the threshold from cross-validated residuals of the identification data (`dynid "
+        "detect` reports the combined detector, its default, and the momentum observer beside it). <i>paper</i>: diagonal Λ and the F "
         f"threshold with n = {'dim(e)' if r['n_mode'] == 'dim' else 'ν'}."
         + (f" Distal contacts show in the F/T, proximal ones only in the {words}." if "table_ii" in v else "") + "</p>",
         shown["fig-t2-validation"], shown.get("fig-t2-contact", ""), shown.get("fig-roc", ""),
