@@ -100,7 +100,12 @@ def test_point_to_point_validation_against_the_repositorys_figures(tmp_path: Pat
         print(f"UR10e ptp_10_points, {name}: {100 * figures[name][0]:.2f} % on samples 700-4200 ({per}); "
               f"{100 * figures[name][1]:.2f} % on the whole run")
     assert figures["plain"][0] < 0.07  # measured 6.45 % (the repository's parameters: 6.61 %)
-    assert figures["augmented"][0] <= 0.055  # measured: docs/robots/ur10e.md
+    # measured 6.01 % (docs/robots/ur10e.md); 5.41 % when the load friction's column was the measured current itself
+    assert figures["augmented"][0] < figures["plain"][0] - 0.002
+    named = json.loads((augmented).read_text())["effects"]
+    for effect in named:  # physical: load friction a fraction of the transmitted torque (it took 1.00 on wrist_3)
+        if effect["kind"] == "load_friction":
+            assert 0.0 < effect["parameters"]["coefficient"] < 0.3, effect
 
 
 def test_every_command_over_every_file_without_a_traceback(tmp_path: Path) -> None:

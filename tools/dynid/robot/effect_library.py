@@ -190,18 +190,27 @@ def armature(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
 
 
 def load_friction(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
-    """Coulomb friction growing with the transmitted torque: c·|gain·u|·sign(q̇_m), one column sign(q̇_m)|u| with
-    θ = c·gain (it differs from a gain error only where the drive opposes the motion: braking, lowering)."""
+    """Coulomb friction growing with the transmitted torque: c·|τ_m|·sign(q̇_m), one column sign(q̇_m)|τ̂_m| with
+    θ = c, where τ̂_m = gain·û_m is the drive torque the standard model refitted on the run predicts (it differs
+    from a gain error only where the drive opposes the motion: braking, lowering). The model's prediction, not the
+    measured input: the input is the row's own output, and a column of it lets the fit explain the row by itself (a
+    UR10e wrist's measured current, mostly noise and friction, took c ≈ 1: every row where the current and the
+    motion share a sign then holds for any current, its noise included)."""
+    if ctx.phi is None:
+        return
+    from .outputs import output_channels, residuals
+
+    outputs = output_channels(ctx.model)
+    e = residuals(ctx.model, ctx.phi, ctx.sig)  # y − ŷ, each channel in its own unit
     dq = _motor_rows(ctx, "dq")
     for m, (_, share, kind) in _motor_rows(ctx).items():
         if kind == "torque":
             continue
-        f = np.sign(dq[m][0]) * np.abs(ctx.sig.inputs[m])
-
-        def interpret(th: np.ndarray, phi: np.ndarray, m=m) -> dict[str, float]:
-            return {"coefficient": float(th[0]) / _gain(ctx, phi, m)}
-
-        yield Candidate("load_friction", f"motor {m}", {}, _on_rows(f, share), ("gain_x_coefficient",), interpret)
+        i = next(k for k, o in enumerate(outputs) if o.kind == "input" and o.motor == m)
+        predicted = _gain(ctx, ctx.phi, m) * (ctx.sig.inputs[m] - e[:, i])  # gain·û_m
+        f = np.sign(dq[m][0]) * np.abs(predicted)
+        yield Candidate("load_friction", f"motor {m}", {}, _on_rows(f, share), ("coefficient",),
+                        lambda th, phi: {"coefficient": float(th[0])})
 
 
 def pwm_delay(ctx: Context, grid: Sequence[float] = DELAYS_MS) -> Iterable[Candidate]:

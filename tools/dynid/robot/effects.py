@@ -154,9 +154,11 @@ def joint_torques(model: RobotModel, effects: list[Effect], q: np.ndarray, dq: n
     return tau
 
 
-def effect_rows(model: RobotModel, effects: list[Effect], sig: Signals, t: np.ndarray | None = None) -> np.ndarray:
+def effect_rows(model: RobotModel, effects: list[Effect], sig: Signals, t: np.ndarray | None = None,
+                phi: np.ndarray | None = None) -> np.ndarray:
     """(N, r) what the effects add to a·Φ of every row channel (row units); t: the samples' time in the data's own
-    seconds (only time-dependent effects need it: an F/T step at its times, an F/T drift from the first sample)."""
+    seconds (only time-dependent effects need it: an F/T step at its times, an F/T drift from the first sample);
+    phi: the model's Φ, for the effects whose column is the standard model's own prediction (load friction)."""
     tau = joint_torques(model, effects, sig.q, sig.dq)
     out = sum((np.outer(tau[:, c], share) for c, share in joint_row_shares(model).values()),
               np.zeros((sig.q.shape[0], len(row_channels(model)))))
@@ -168,15 +170,16 @@ def effect_rows(model: RobotModel, effects: list[Effect], sig: Signals, t: np.nd
         out += cols @ np.array([e.parameters[f"d{a}"] for a in axes])
     others = [e for e in effects if e.kind not in REQUIRED]
     if others:
-        out += _library_rows(model, others, sig, t)
+        out += _library_rows(model, others, sig, t, phi)
     return out
 
 
-def _library_rows(model: RobotModel, effects: list[Effect], sig: Signals, t: np.ndarray | None) -> np.ndarray:
+def _library_rows(model: RobotModel, effects: list[Effect], sig: Signals, t: np.ndarray | None,
+                  phi: np.ndarray | None) -> np.ndarray:
     """Effects without a closed form here: their candidate columns (the searched value fixed) times θ."""
     if t is None:
         raise DataError("this model's effects depend on time; evaluate them on a run with time stamps")
-    ctx = Context(model, sig, np.asarray(t, float))
+    ctx = Context(model, sig, np.asarray(t, float), phi)
     out = np.zeros((sig.q.shape[0], len(row_channels(model))))
     for e in effects:
         if e.kind not in LIBRARY:
@@ -197,7 +200,7 @@ def augmented_residuals(model: RobotModel, phi: np.ndarray, effects: list[Effect
     e = residuals(model, phi, sig)
     if not effects:
         return e
-    return e - effect_rows(model, effects, sig, t) / divisors(model, phi)
+    return e - effect_rows(model, effects, sig, t, phi) / divisors(model, phi)
 
 
 def without_ft_steps(model: RobotModel, ds: Dataset, steps: Sequence[Effect]) -> Dataset:
