@@ -252,3 +252,14 @@ def test_report_shows_the_gaps_figures(augmented: dict, tmp_path: Path) -> None:
                  str(tmp_path / "r.html"), "--gaps", str(tmp_path))
     assert done.returncode == 2 and "not a `dynid gaps --figures` directory" in done.stderr, done.stderr
     assert len(done.stderr.strip().splitlines()) == 1
+
+
+def test_report_takes_the_augmented_model(augmented: dict, tmp_path: Path) -> None:
+    """`dynid gaps --help` says report accepts the augmented model: it did not ("lacks its 'base' section"). Its
+    page now has every section but the base-parameter table, which it says it lacks and why."""
+    out = tmp_path / "r.html"
+    done = dynid("report", "--model", str(augmented["model"]), "--validation", str(augmented["runs"]["replay"]),
+                 "--out", str(out), "--json", str(tmp_path / "r.json"))
+    assert done.returncode == 0, done.stderr
+    assert json.loads((tmp_path / "r.json").read_text())["parameters"] == []
+    assert "holds no base-parameter statistics" in out.read_text()

@@ -259,7 +259,10 @@ def _page(r: dict[str, Any], identified: IdentifiedModel, units: dict[str, str],
         "jackknife standard error over time blocks; determined: the fit's flag (standard error small against the "
         "value). CAD is undefined (—) for combinations with friction, gains or no CAD value.</p>",
         _truth_note(r["truth_check"]),
-        H.parameters(r["parameters"], r["truth"] is not None),
+        H.parameters(r["parameters"], r["truth"] is not None) if r["parameters"] else
+        "<p class=\"note\">This model file holds no base-parameter statistics: an augmented model of <code>dynid "
+        "gaps</code> (its named effects refitted with the standard model) carries its Φ only; the report of the "
+        "<code>dynid fit</code> model it started from has them.</p>",
     ]
     return H.page(f"dynid identification report: {r['robot']}", sections)
 
