@@ -227,8 +227,11 @@ def test_spy_view_shows_events_status_and_rates(run: dict) -> None:
     assert all(abs(s - 1000) <= 20 for s in samples), samples
     last = msgs["DYNID_STATUS"][-1]
     kinds = [m.kind for m in msgs["DYNID_CONTACT"]]
-    head = (f"dynid spy: stopped (end of the log): {len(kinds)} contact events ({kinds.count(1)} onsets, "
-            f"{kinds.count(2)} ends), {len(msgs['DYNID_STATUS'])} status, {len(msgs['DYNID_RESIDUAL'])} residual "
+    def n(count: int, noun: str) -> str:
+        return f"{count} {noun}{'' if count == 1 else 's'}"
+
+    head = (f"dynid spy: stopped (end of the log): {n(len(kinds), 'contact event')} ({n(kinds.count(1), 'onset')}, "
+            f"{n(kinds.count(2), 'end')}), {len(msgs['DYNID_STATUS'])} status, {len(msgs['DYNID_RESIDUAL'])} residual "
             f"messages; last status: frames {last.frames}, samples {last.samples}, evaluated {last.samples_evaluated}, ")
     assert out[-1].startswith(head), out[-1]
     # The counters that are not zero are named (the replay restarts the filter once, at its start).

@@ -22,7 +22,7 @@ from typing import Any, Callable
 from ..errors import InputError
 from ..export.monitor_log import ratios_text
 from .commands import COMMANDS
-from .common import positive_float, positive_int
+from .common import plural, positive_float, positive_int
 
 CHANNELS = ("DYNID_CONTACT", "DYNID_STATUS", "DYNID_RESIDUAL")
 KIND = {1: "onset", 2: "end"}
@@ -243,7 +243,8 @@ def cmd_spy(args: argparse.Namespace) -> dict[str, Any]:
     if view is not None:
         view.close()
         problems = [f"{k.replace('_', ' ')} {status[k]}" for k in PROBLEMS if status and status[k]]
-        print(f"dynid spy: stopped ({why}): {counts['DYNID_CONTACT']} contact events ({onsets} onsets, {ends} ends), "
+        print(f"dynid spy: stopped ({why}): {plural(counts['DYNID_CONTACT'], 'contact event')} "
+              f"({plural(onsets, 'onset')}, {plural(ends, 'end')}), "
               f"{counts['DYNID_STATUS']} status, {counts['DYNID_RESIDUAL']} residual messages"
               + (f", {skipped[0]} that do not decode skipped" if skipped[0] else "")
               + (f"; last status: frames {status['frames']}, samples {status['samples']}, evaluated "

@@ -431,7 +431,7 @@ def format_report(result: dict) -> str:
             extra = "; what the selection found made a channel worse on held-out blocks (refused, below)"
         elif weak is not None:
             extra = (f"; best candidate {weak['effect']} lowers the held-out error {100 * weak['cv_gain']:.1f} %, but not "
-                     f"consistently over the run (robust p={weak['p_value']:.1e} > {weak['level']:.1e})")
+                     f"consistently over the run (robust p={weak['p_value']:.3g} > {weak['level']:.3g})")
         else:
             extra = f"; best candidate {best['effect']} lowers the held-out error only {100 * best['cv_gain']:.1f} %" if best else ""
         lines.append("named: nothing — no effect in the library explains a significant part of the residual" + extra)
