@@ -42,6 +42,8 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
     fresh = dataset.meta.get("source") == str(Path(args.data))  # not a dataset file's record of an earlier import
     channels = (
         [f"q.{j}" for j in dataset.joints]
+        + ([f"dq.{j}" for j in dataset.joints] if dataset.dq is not None else [])
+        + ([f"ddq.{j}" for j in dataset.joints] if dataset.ddq is not None else [])
         + [f"pwm.{m}" for m in dataset.pwm]
         + [f"current.{m}" for m in dataset.current]
         + [f"tau.{j}" for j in dataset.tau]
@@ -51,6 +53,8 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
         f"imported {dataset.n_samples} samples ({dataset.duration:.3f} s) of {config.name} from {args.data} -> {args.out}\n"
         f"  channels: {', '.join(channels)}"
         + ("" if dataset.dq is not None else "\n  no dq/ddq columns: derivatives will be estimated from q when needed")
+        + (f"\n  extra columns kept: {len(dataset.extra)} ({', '.join(sorted(dataset.extra)[:4])}"
+           f"{', ...' if len(dataset.extra) > 4 else ''})" if dataset.extra else "")
         + (f"\n  skipped {skipped} malformed line{'s' * (skipped != 1)} of the candump log" if skipped else "")
     )
     bad = skipped_rows(args.data, dataset.meta) if fresh else None

@@ -41,6 +41,9 @@ def matched_files(folder: Path, files: tuple[RunFile, ...]) -> list[Path] | str:
                                               else spec.pattern) if p.is_file())
         if len(found) != 1:
             held = ", ".join(sorted(p.name for p in folder.iterdir() if p.is_file())[:8]) or "no file"
+            folders = sorted(p.name for p in folder.iterdir() if p.is_dir())
+            if folders:  # the run may be one of them: the user named its parent
+                held += f"; and the folders {', '.join(folders[:8])}"
             many = (f"matches {len(found)} files ({', '.join(p.name for p in found[:4])})" if found
                     else "matches no file")
             return f"'{spec.pattern}' of the configuration's files: field {many}; the folder holds {held}"
