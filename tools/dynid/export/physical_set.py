@@ -116,8 +116,10 @@ def nearest_physical_set(
     base_map: np.ndarray,
     base_sigma: np.ndarray | None = None,
     allow_residual: bool = False,
+    own: bool = False,
 ) -> PhysicalSet:
-    """The nearest-CAD physical link set whose bodies reproduce `base_map @ body_phi`.
+    """The nearest-CAD physical link set whose bodies reproduce `base_map @ body_phi`; with `own`, no search: the
+    model's own bodies, each one's difference to CAD on the link that carries its frame (a consistent fit's set).
 
     body_phi: (10·n_bodies,) the model's full inertial set (it reproduces β̂); base_map: (rank, 10·n_bodies), the
     inertial columns of the base-parameter map (β̂ − its other columns' part = base_map @ body_phi); base_sigma: the
@@ -166,6 +168,11 @@ def nearest_physical_set(
             cons.append((J + J.T) / 2 >> margin * np.eye(4))
         return cons
 
+    if own:
+        u = np.zeros(n)
+        links = {p.link: link_phi(u, i) for i, p in enumerate(var)}
+        links.update({p.link: p.cad.copy() for p in fixed if p.link not in links})
+        return PhysicalSet(links, float(np.linalg.norm(d0)), M @ u, min_eig(u), "none", "the model's own set")
     N = scipy.linalg.null_space(M, rcond=1e-12) if M.shape[0] else np.eye(n)
     z = cp.Variable(N.shape[1])
     notes: list[str] = []

@@ -39,7 +39,8 @@ from ..io.dataset import atomic_write
 from ..robot.model import RobotModel
 from ..robot.parameters import FRICTION_FIELDS, WRENCH_FIELDS
 from ..version import __version__
-from .physical_set import LinkPart, NotReproducible, PhysicalSet, nearest_physical_set, transform_matrix
+from .physical_set import (PHYSICAL_TOL, LinkPart, NotReproducible, PhysicalSet, nearest_physical_set,
+                           transform_matrix)
 
 SIDE_FORMAT = "dynid-urdf-dynamics"
 SIDE_VERSION = 1
@@ -170,9 +171,26 @@ def export_urdf(identified: IdentifiedModel, out: str | Path, allow_residual: bo
                              "fit's base parameters exactly (its bodies sit on the boundary of the physical set); "
                              "export the nearest one, with its residual, by --nearest-physical") from None
         raise InputError(NOT_REPRODUCIBLE) from None
-    written = {p.link: physical.links.get(p.link, p.cad) for p in parts}
-    bodies = np.concatenate([sum((p.A @ written[p.link] for p in parts if p.body == k), np.zeros(10))
-                             for k in range(len(robot.bodies))])
+    def written_set(found: PhysicalSet) -> tuple[dict[str, np.ndarray], np.ndarray, list[str]]:
+        """Each link's φ, the bodies' full set and what is implausible about it (a link's mass out of its reach)."""
+        links = {p.link: found.links.get(p.link, p.cad) for p in parts}
+        bodies = np.concatenate([sum((p.A @ links[p.link] for p in parts if p.body == k), np.zeros(10))
+                                 for k in range(len(robot.bodies))])
+        full = np.array(phi, float)
+        full[inertial] = bodies
+        return links, bodies, [f"the written set: {p['text']}" for p in implausible(robot, full)]
+
+    written, bodies, odd = written_set(physical)
+    if odd and identified.consistent is not None:
+        # The solver's nearest-CAD set satisfies the cone but not the links' reach (an inaccurate solve put wrist_3's
+        # centre of mass 13 m out); the consistent fit's own set is physical by construction: written where plausible
+        own = nearest_physical_set(parts, phi[inertial], B_in[rows], sigma[rows], own=True)
+        own_written, own_bodies, own_odd = written_set(own)
+        if own.min_eigenvalue >= -PHYSICAL_TOL and not own_odd:
+            why = "; ".join(o.removeprefix("the written set: ") for o in odd)
+            own.notes.append(f"the nearest-CAD search gave an implausible set ({why}; solver status "
+                             f"{physical.status}): the consistent fit's own set is written instead")
+            physical, written, bodies, odd = own, own_written, own_bodies, []
     beta_hat = B_in[rows] @ phi[inertial]
     relative = float(np.abs(B_in[rows] @ bodies - beta_hat).max(initial=0.0) / max(np.abs(beta_hat).max(initial=0.0),
                                                                                   1e-300))
@@ -182,14 +200,11 @@ def export_urdf(identified: IdentifiedModel, out: str | Path, allow_residual: bo
 
     inertials = {name: _inertial_xml(written[name]) for name in identified_links}
     notes = list(physical.notes)
-    if physical.status != "optimal":
+    if physical.status not in ("optimal", "the model's own set"):
         notes.append(f"the solver's status: {physical.status}")
-    written_phi = np.array(phi, float)
-    written_phi[inertial] = bodies
-    odd = [f"the written set: {p['text']}" for p in implausible(robot, written_phi)]
     if odd:  # physical, but not what the link can be: the base parameters alone do not place its mass
-        notes += odd + ["`dynid fit --consistent on` identifies a set in which every link is physical and its mass "
-                        "within the link's reach"]
+        notes += odd + (["`dynid fit --consistent on` identifies a set in which every link is physical and its mass "
+                         "within the link's reach"] if identified.consistent is None else [])
     dynamics, joint_rows = _joint_dynamics(identified, notes)
     urdf_text = _splice(text, inertials, dynamics)
     side = side_file(out)
