@@ -32,3 +32,8 @@ class ConfigError(InputError):
 
 class DataError(InputError):
     """A data file (CSV, candump log, dataset) that cannot be used as it is."""
+
+
+class DataNote(UserWarning):
+    """Not an error: something the data did that the user should know (a window cut where the run ends). The CLI
+    prints it once on standard error as "dynid CMD: note: ..."; library callers see a warning."""

@@ -165,7 +165,7 @@ def test_a_window_per_run_cuts_that_run_alone_and_the_model_file_keeps_it(panda_
 
 @pytest.mark.parametrize(("suffix", "says"), [("@a:4", "'a': 'a' is not a number"),
                                               ("@:", "names neither FROM nor TO"),
-                                              ("@5:2", "--to 2 s must come after --from 5 s")])
+                                              ("@5:2", "the window's end, 2 s, must come after its start, 5 s")])
 def test_a_wrong_window_is_one_line(panda_run: Path, tmp_path: Path, suffix: str, says: str) -> None:
     code, _, err = run("import", "--robot", "panda", "--data", f"{panda_run}{suffix}", "--out", str(tmp_path / "x.npz"))
     assert code == 2 and len(err.splitlines()) == 1 and says in err, err

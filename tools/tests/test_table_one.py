@@ -5,6 +5,7 @@ scale check, supply tracking on PWM only, noise per channel, headerless logs des
 from __future__ import annotations
 
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -166,6 +167,15 @@ def test_windows_in_the_datas_own_seconds() -> None:
         apply_window(ds, 200.0, None)
     with pytest.raises(DataError, match="must come after"):
         apply_window(ds, 105.0, 104.0)
+    # A window that reaches past the run is cut where the run ends, and says so (it was silent)
+    from dynid.errors import DataNote
+
+    with pytest.warns(DataNote, match=r"the window from 105 s to 150 s reaches past the data, which run from 100 s to "
+                                      r"109.99 s: it takes 500 samples, 105 s to 109.99 s"):
+        assert apply_window(ds, 105.0, 150.0).n_samples == 500
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        apply_window(ds, 100.0, 109.99)  # the whole run, to the last stamp: nothing to say
 
 
 def test_the_papers_rows_only_on_the_papers_arm() -> None:

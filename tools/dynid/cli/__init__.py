@@ -13,10 +13,12 @@ import argparse
 import contextlib
 import importlib
 import sys
+import warnings
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 
 from ..config.robot_config import bundled_configs
-from ..errors import EXIT_BAD_INPUT, InputError
+from ..errors import EXIT_BAD_INPUT, DataNote, InputError
 from ..version import __version__
 from .commands import COMMANDS
 from .common import Parser, check_outputs, split_data_windows, write_json
@@ -51,6 +53,17 @@ def _command(argv: list[str]) -> str | None:
     return next((a for a in argv if not a.startswith("-")), None)
 
 
+def _notes(command: str, default: Callable[..., None]) -> Callable[..., None]:
+    """warnings.showwarning that prints a DataNote as one line, 'dynid CMD: note: ...', and leaves the rest."""
+    def show(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
+        if issubclass(category, DataNote):
+            sys.stderr.write(f"dynid {command}: note: {message}\n")
+        else:
+            default(message, category, filename, lineno, file, line)
+
+    return show
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser(_command(argv)).parse_args(argv)
@@ -60,7 +73,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         split_data_windows(args)
         check_outputs(args)
-        with human:
+        with human, warnings.catch_warnings():
+            warnings.simplefilter("always", DataNote)
+            warnings.showwarning = _notes(args.command, warnings.showwarning)
             result = args.func(args)
         write_json(result, json_target)
     except InputError as e:

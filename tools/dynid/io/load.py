@@ -7,13 +7,14 @@ folder, a candump log or a CSV, told apart by content first, then by extension.
 from __future__ import annotations
 
 import re
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
 from ..config.robot_config import RobotConfig
-from ..errors import DataError
+from ..errors import DataError, DataNote
 from .candump import read_candump
 from .bad_rows import DEFAULT_POLICY, MAX_ABS_VALUE, POLICIES
 from .csv_format import check_columns, read_csv
@@ -193,15 +194,23 @@ def apply_window(dataset: Dataset, start: float | None, stop: float | None, sour
     t = dataset.t
     span = f"the data run from {t[0]:.6g} s to {t[-1]:.6g} s"
     if start is not None and stop is not None and stop <= start:
-        raise DataError(f"{where}--to {stop:g} s must come after --from {start:g} s")
+        raise DataError(f"{where}the window's end, {stop:g} s, must come after its start, {start:g} s (--to after "
+                        "--from, or RUN@FROM:TO)")
     lo = 0 if start is None else int(np.searchsorted(t, start, side="left"))
     hi = t.size if stop is None else int(np.searchsorted(t, stop, side="right"))
     if hi - lo < MIN_WINDOW_SAMPLES:
         what = "no sample" if hi <= lo else f"only {hi - lo} samples"
         raise DataError(
-            f"{where}the window --from {'start' if start is None else f'{start:g} s'} --to "
-            f"{'end' if stop is None else f'{stop:g} s'} holds {what} (at least {MIN_WINDOW_SAMPLES} needed); {span}"
+            f"{where}the window from {'the start' if start is None else f'{start:g} s'} to "
+            f"{'the end' if stop is None else f'{stop:g} s'} holds {what} (at least {MIN_WINDOW_SAMPLES} needed); {span}"
         )
+    step = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    if (start is not None and start < t[0] - step) or (stop is not None and stop > t[-1] + step):
+        warnings.warn(DataNote(
+            f"{where}the window from {'the start' if start is None else f'{start:g} s'} to "
+            f"{'the end' if stop is None else f'{stop:g} s'} reaches past the data, which run from {t[0]:.6g} s to "
+            f"{t[-1]:.6g} s: it takes {hi - lo} samples, {float(t[lo]):.6g} s to {float(t[hi - 1]):.6g} s"),
+            stacklevel=2)
     window = dataset.slice(lo, hi)
     window.meta["window"] = [start, stop]  # what the model file records, so a reload cuts the same samples
     return window
