@@ -122,7 +122,8 @@ def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
     if args.model and args.urdf:
         return _export_urdf(args)
     if not args.model or not args.out:
-        raise InputError("export needs --model MODEL and --out COEF_FILE, or --urdf OUT.urdf (or --print COEF_FILE)")
+        raise InputError("export needs --model MODEL and --out COEF_FILE, or --urdf OUT.urdf, or --dbc OUT.dbc / "
+                         "--monitor-config OUT.conf (the robot's bus; --robot CFG or --model), or --print COEF_FILE")
     return _export_coefficients(args)
 
 
