@@ -135,7 +135,8 @@ def test_page_numbers_match_the_json(report) -> None:
                  "validation/channels/pwm.m0/rms", "detection/contact/variants/calibrated/tpr",
                  "detection/contact/variants/paper/fpr", "detection/validation/variants/calibrated/fpr",
                  "detection/contact/variants/calibrated/auc", "detection/contact/variants/calibrated/tpr_by_side/distal",
-                 "paper/tpr", "paper/force_error/0", "parameters/86/true", "truth_check/rms_error_in_se"):
+                 "paper/tpr", "paper/force_error/0", "parameters/86/true", "truth_check/rms_error_in_se",
+                 "validation/relative_error/overall", "validation/relative_error/channels/pwm.m3/relative"):
         assert must in keys, must
 
 

@@ -236,9 +236,11 @@ def _page(r: dict[str, Any], identified: IdentifiedModel, units: dict[str, str],
         + "</p>",
         "<h2>Prediction error (the paper's Table II)</h2>",
         _tables_ii(v, r["paper"]),
-        "<p class=\"note\">Norm of the F/T prediction error on the validation run. CAD: the URDF inertia with the F/T "
-        "offsets that fit it best on the identification data."
-        + (" Paper: the real iCub arm (Traversaro et al. 2013)." if r["paper"] else "") + "</p>",
+        ("<p class=\"note\">Norm of the F/T prediction error on the validation run. CAD: the URDF inertia with the "
+         "F/T offsets that fit it best on the identification data."
+         + (" Paper: the real iCub arm (Traversaro et al. 2013)." if r["paper"] else "") + "</p>")
+        if "table_ii" in v or v.get("table_ii_sensors") else "",
+        _relative_errors(v),
         "<h3>Per channel</h3>", H.channels(v, units),
         f"<p class=\"note\">The CAD model has no friction and no motor gains: its {words} prediction is undefined.</p>",
         "<h2>Contact detection</h2>",
@@ -281,6 +283,25 @@ def _truth_note(check: dict[str, Any] | None) -> str:
             f"{check['rms_error_in_se']:.2f}</span> standard errors RMS; "
             f"<span data-key=\"truth_check/within_2se\" data-value=\"{check['within_2se']!r}\" data-scale=\"100.0\">"
             f"{100 * check['within_2se']:.0f}</span> % lie within 2 se (honest errors: about 1 and 95 %).</p>")
+
+
+def _relative_errors(v: dict[str, Any]) -> str:
+    """`dynid validate`'s relative errors of the predicted inputs or torques, ‖K(y − ŷ)‖ / ‖K y‖: the figure of a
+    robot without an F/T sensor (the Panda's torques, the UR10e's currents), beside Table II where there is one."""
+    rel = v.get("relative_error")
+    if not rel:
+        return ""
+    key = "validation/relative_error"
+    rows = [H.text("overall") + H.num(rel["overall"], ".2f", f"{key}/overall", 100.0)]
+    rows += [H.text(c) + H.num(x["relative"], ".2f", f"{key}/channels/{c}/relative", 100.0)
+             for c, x in rel["channels"].items()]
+    filtered = v.get("relative_torque_error")
+    note = (f" Filtered (both sides through the derivative filter, as the fit sees them): "
+            f"{100 * filtered:.2f} %." if filtered is not None else "")
+    return ("<h3>Relative error of the predicted inputs and torques</h3>"
+            + H.table(["channel", "‖K(y − ŷ)‖ / ‖K y‖, %"], rows)
+            + f"<p class=\"note\">Against the {H.esc(rel.get('measured', 'raw'))} measurements, K "
+            f"{H.esc(rel.get('weights', ''))}.{note}</p>")
 
 
 def _tables_ii(v: dict[str, Any], paper: dict[str, Any] | None) -> str:
