@@ -393,7 +393,9 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
         print(f"  combined detector skipped: {skipped_combined}")
     if momentum is not None:
         print(f"  momentum: observer bandwidth {args.bandwidth:g} Hz, calibrated on {momentum.detector.samples} "
-              f"contact-free samples; {len(momentum.events)} contact events")
+              f"contact-free samples; {plural(len(momentum.events), 'contact event')}")
+    if combined is not None:  # the events of --json are the default detector's
+        print(f"  combined: {plural(len(combined.events), 'contact event')} (--json's events)")
     print_out_of_sample(found.result["out_of_sample"])
     for variant, s in found.result["variants"].items():
         tpr = "n/a" if s.get("tpr") is None else f"{100 * s['tpr']:.1f} %"
