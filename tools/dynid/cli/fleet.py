@@ -73,8 +73,9 @@ def cmd_fleet(args: argparse.Namespace) -> dict[str, Any]:
     result["runs"] = dict(fleet)
     result["report"] = str(out / "fleet.html")
     print(f"fleet of {len(fleet)} {config.name} robots, {plural(len(named), 'run')} -> {out} (fleet.html, models/)")
+    kinds = ", ".join(dict.fromkeys(g["kind"] for g in result["groups"])) or "none"
     print(f"  {len(result['parameters'])} shared base parameters compared; {len(result['groups'])} groups tested "
-          f"(friction, gains, F/T offsets), bound |S| > {result['bound']:.2f}")
+          f"({kinds}), bound |S| > {result['bound']:.2f}")
     if not result["outliers"]:
         print("  no robot stands out beyond the fleet's spread")
     for o in result["outliers"]:

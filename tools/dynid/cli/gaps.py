@@ -13,6 +13,7 @@ from ..gaps.find import find_gaps
 from ..gaps.workflow import format_report
 from ..identify.model_file import load_model
 from ..identify.validation import load_run
+from ..robot.effects import FT_STEP
 from ..robot.model import RobotModel
 from ..pipeline import check_scale
 from .commands import COMMANDS
@@ -52,7 +53,11 @@ def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
     if args.out:
         found.augmented_model().save(args.out)
         result["out"] = args.out
-        kinds = ", ".join([f"{e.kind} on {e.where}" for e in found.effects]
+        def named(e) -> str:  # several F/T steps on one sensor: each by its time
+            at = e.parameters.get("from_s") if e.kind == FT_STEP else None
+            return f"{e.kind} on {e.where}" + (f" from {at:.2f} s" if at is not None else "")
+
+        kinds = ", ".join([named(e) for e in found.effects]
                           + [f"payload on {e.where} (in its inertial parameters)" for e in found.folded])
         kinds = kinds or "no effect (the standard model refitted)"
         print(f"augmented model -> {args.out}: {kinds}")
