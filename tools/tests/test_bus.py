@@ -303,16 +303,23 @@ def test_samples_closer_than_one_samples_frames_are_refused(panda: dict, tmp_pat
     assert not (tmp_path / "x.log").exists()
 
 
-def test_nominal_stamps_put_the_runs_own_samples_on_its_median_step(panda: dict, tmp_path: Path) -> None:
+def test_nominal_stamps_put_the_runs_own_samples_on_the_nominal_period(panda: dict, tmp_path: Path) -> None:
+    """--stamps nominal: the bus's period (the Panda's 1 kHz) where the run's median step agrees with it to 5 %, as
+    the coefficient file's period is taken; a run recorded at another rate keeps its own median step."""
     data = panda["data"].slice(0, 200)
     jitter = np.random.default_rng(0).uniform(-0.3e-3, 0.3e-3, data.n_samples)
     data.t = data.t + jitter
     data.t[50:] += 0.0042  # a gap of about 5 ms
+    assert np.median(np.diff(data.t)) != 1e-3
     log = tmp_path / "nominal.log"
-    play_run(panda["config"], data, f"candump:{log}", stamps="nominal")
+    played = play_run(panda["config"], data, f"candump:{log}", stamps="nominal")
     got = load_data(log, panda["config"])
-    assert got.n_samples == 200 and np.allclose(np.diff(got.t), np.median(np.diff(data.t)).round(6), atol=1e-12)
+    assert played.nominal_s == 1e-3 and got.n_samples == 200 and np.allclose(np.diff(got.t), 1e-3, atol=1e-12)
     assert np.abs(got.q - data.q).max() <= 0.5e-6 * (1 + 1e-9)  # the same samples, in order
+    slow = data.slice(0, 200)
+    slow.t = data.t[0] + 2.0 * (data.t - data.t[0])  # recorded at about 500 Hz: not the bus's rate
+    played = play_run(panda["config"], slow, f"candump:{tmp_path / 'slow.log'}", stamps="nominal")
+    assert played.nominal_s == pytest.approx(np.median(np.diff(slow.t)).round(6), abs=1e-12)
 
 
 def test_buses_that_share_an_id_get_a_dbc_each(tmp_path: Path) -> None:
