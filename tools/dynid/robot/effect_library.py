@@ -186,7 +186,7 @@ def armature(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
     inertias cannot mimic because it loads only that motor's rows."""
     for m, (ddqm, share, _) in _motor_rows(ctx, "ddq").items():
         yield Candidate("armature", f"motor {m}", {}, _on_rows(ddqm, share), ("inertia",),
-                        lambda th, phi: {"inertia": float(th[0])})
+                        lambda th, phi: {"inertia": float(th[0])}, positive=(0,))  # a rotor inertia is > 0
 
 
 def load_friction(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidate]:
@@ -210,7 +210,7 @@ def load_friction(ctx: Context, grid: Sequence[float] = ()) -> Iterable[Candidat
         predicted = _gain(ctx, ctx.phi, m) * (ctx.sig.inputs[m] - e[:, i])  # gain·û_m
         f = np.sign(dq[m][0]) * np.abs(predicted)
         yield Candidate("load_friction", f"motor {m}", {}, _on_rows(f, share), ("coefficient",),
-                        lambda th, phi: {"coefficient": float(th[0])})
+                        lambda th, phi: {"coefficient": float(th[0])}, positive=(0,))  # friction opposes the motion
 
 
 def pwm_delay(ctx: Context, grid: Sequence[float] = DELAYS_MS) -> Iterable[Candidate]:
