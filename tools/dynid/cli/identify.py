@@ -19,7 +19,7 @@ from ..cluster import executor
 from ..identify.fit import (DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_INERTIA_ONLY, FitResult, FitSettings,
                             iv_settled)
 from ..identify.model_file import IdentifiedModel, load_model
-from ..identify.model_sections import CROSS_VALIDATED, DEFAULT_BLOCKS, DEFAULT_N_MODE, IN_SAMPLE, N_MODES, BaseSection
+from ..identify.model_sections import DEFAULT_BLOCKS, DEFAULT_N_MODE, N_MODES, BaseSection
 from ..identify.runs import RunRef, stream_run
 from ..identify.supply import SupplyTracking
 from ..identify.blocks import validate_blocks
@@ -33,6 +33,7 @@ from ..robot.effects import FT_STEP, Effect, check_effect_targets, without_ft_st
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
 from .commands import COMMANDS
+from .out_of_sample import out_of_sample, print_out_of_sample
 from .validate_blocks import block_count, print_blocks
 from .common import confidence as alpha
 from .common import one_blas_thread
@@ -440,53 +441,6 @@ def combine(ev, found, momentum, args: argparse.Namespace, stored: bool, calibra
         det = calibrate_combined(ev.identified, momentum.detector, det_c, runs, folds)
     return combined_detection(ev.identified, ev.dataset, momentum, found.t2["calibrated"], det_c, det, found.side,
                               args.label_widening)
-
-
-def _overlap(a: tuple, b: tuple) -> bool:
-    """Two windows [from, to] of a run's seconds (None: open) share some time."""
-    lo = max(-np.inf if a[0] is None else a[0], -np.inf if b[0] is None else b[0])
-    hi = min(np.inf if a[1] is None else a[1], np.inf if b[1] is None else b[1])
-    return lo < hi
-
-
-def out_of_sample(identified, data: str, data_window: tuple, calibration_paths: list[str], calibration_given: bool,
-                  calibration_window: tuple, variants: dict[str, dict[str, Any]]) -> dict[str, Any]:
-    """`detect --json`'s `out_of_sample`: whether DATA (in its --from/--to window) lies outside the runs, and their
-    windows, the model was fitted and calibrated on (sha256), what Λ and T²_α were calibrated on, and per variant the
-    FPR on DATA's contact-free samples (an out-of-sample figure where DATA is outside) beside the FPR the in-sample
-    calibration gives on them."""
-    from ..identify.model_file import data_digest
-
-    digest = data_digest(data)
-    seen = [(run.sha256, run.window or (None, None)) for run in identified.data if run.sha256 is not None]
-    if calibration_given:
-        seen += [(data_digest(p), calibration_window) for p in calibration_paths]
-    outside = digest is not None and not any(d == digest and _overlap(w, data_window) for d, w in seen)
-    det = identified.detector
-    calibration = {"calibrated": det.calibration if det is not None else IN_SAMPLE}
-    for name in ("combined", "momentum"):
-        if name in variants:
-            calibration[name] = "given runs" if calibration_given else (
-                CROSS_VALIDATED if identified.folds is not None else IN_SAMPLE)
-    per = {}
-    for name in ("combined", "momentum", "calibrated"):
-        if name in variants:
-            v = variants[name]
-            per[name] = {"calibration": calibration[name], "fpr": v.get("fpr"),
-                         "in_sample_calibration_fpr": v.get("in_sample_fpr")}
-    return {"data_outside_fit_and_calibration": outside, "variants": per}
-
-
-def print_out_of_sample(o: dict[str, Any]) -> None:
-    where = "outside the fit and calibration" if o["data_outside_fit_and_calibration"] else \
-        "among the runs fitted or calibrated on (an in-sample figure)"
-    for name, v in o["variants"].items():
-        if v["fpr"] is None:
-            continue
-        line = f"  {name}: FPR {100 * v['fpr']:.2f} % on data {where}, Λ and T²_α {v['calibration']}"
-        if v["in_sample_calibration_fpr"] is not None:
-            line += f"; calibrated in-sample: {100 * v['in_sample_calibration_fpr']:.2f} %"
-        print(line)
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
