@@ -9,9 +9,15 @@ namespace dynid::rt {
 namespace {
 
 // Spatial vectors are (linear, angular), as Pinocchio's, split into two 3-vectors.
+
+// A velocity this close to zero is zero for the sign of Coulomb friction: the filter's estimate at rest is ±1e-15 or
+// 0 by the order of its sum (dynid.robot.regressors.friction.VELOCITY_FLOOR).
+constexpr double kVelocityFloor = 1e-9;
+
 inline double friction(double v, const double* c) noexcept {
     // τ_f = fc⁺·[v>0] − fc⁻·[v<0] + fv⁺·max(v,0) + fv⁻·min(v,0)  (dynid.robot.regressors.friction)
-    return (v > 0 ? c[0] + c[2] * v : 0.0) + (v < 0 ? -c[1] + c[3] * v : 0.0);
+    return (v > 0 ? (v > kVelocityFloor ? c[0] : 0.0) + c[2] * v : 0.0) +
+           (v < 0 ? (v < -kVelocityFloor ? -c[1] : 0.0) + c[3] * v : 0.0);
 }
 
 // The observer's friction: the law where the coordinate moves; at rest (|v| < min_speed) its viscous part only,
@@ -192,7 +198,7 @@ void Core::predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y
         const auto& p = c_.effect_param[k];
         if (c_.effect_kind[k] == EffectKind::kStribeck) {
             const double x = dq[j] / p[1];
-            const double s = dq[j] > 0 ? 1.0 : (dq[j] < 0 ? -1.0 : 0.0);
+            const double s = dq[j] > kVelocityFloor ? 1.0 : (dq[j] < -kVelocityFloor ? -1.0 : 0.0);
             load[j] += p[0] * s * std::exp(-x * x);
         } else {
             load[j] += p[0] * (q[j] - p[1]);

@@ -81,7 +81,13 @@ def test_no_blind_side_on_the_default_runs(default_model: Path, default_experime
     assert side["combined"]["proximal"] > 0.52 and side["combined"]["distal"] > 0.99  # the figures, small margins
     assert side["momentum"]["proximal"] < 0.3  # the blind side it closes is there
     assert v["combined"]["fpr"] <= 0.0135
-    assert v["combined"]["episodes_detected"] == v["combined"]["episodes"]
+    # Every episode whose contact shows in the measured signals at all, and never fewer than either part finds. (A
+    # contact on an arm that static friction holds changes nothing the robot measures: the plant truth's peak T² 0.
+    # Whether the arm sticks there is a knife-edge of the simulated stick-slip, and moves with the CPU's rounding.)
+    effective = sum(e["peak_t2"] > 0 for e in contact["visibility"]["episodes"])
+    assert effective >= v["combined"]["episodes"] - 1
+    assert v["combined"]["episodes_detected"] >= max(effective, v["momentum"]["episodes_detected"],
+                                                     v["calibrated"]["episodes_detected"])
     assert [e["peak_ratio"] > 1 for e in contact["events"]] == [True] * len(contact["events"])
     validation = detect(default_model, default_experiments["validation"])
     assert validation["out_of_sample"]["data_outside_fit_and_calibration"]

@@ -222,6 +222,7 @@ def test_a_physical_model_on_the_cone_s_boundary_still_reproduces_exactly(
     """A consistent fit may leave a body on the boundary of J ⪰ 0 (a point mass: the hand's ten parameters all
     identified). Its own full set is physical, so the export must take it and reproduce it to round-off, though the
     solver finds no strict interior there."""
+    from dynid.export.physical_set import PHYSICAL_TOL
     from dynid.export.urdf import base_map, export_urdf
 
     identified = physical_model(load_model(default_model))
@@ -236,7 +237,9 @@ def test_a_physical_model_on_the_cone_s_boundary_still_reproduces_exactly(
     B = base_map(identified)[0]
     identified.base = replace(identified.base, values=B @ identified.phi)
     done = export_urdf(identified, tmp_path / "point.urdf")
-    assert done.base_relative_error < 1e-12 and done.physical.min_eigenvalue > -1e-12
+    # Physical as the exporter defines it (PHYSICAL_TOL, the solver's round-off): on the boundary the solver's last
+    # iterate falls on either side by its last bits (−6e-12 on one CPU's kernels, an "optimal_inaccurate" solve).
+    assert done.base_relative_error < 1e-12 and done.physical.min_eigenvalue > -PHYSICAL_TOL
     _, q, dq, ddq = signals(exportable[0], default_experiments["validation"])
     errors = round_trip(identified, tmp_path / "point.urdf", q[::10], dq[::10], ddq[::10])
     assert max(errors.values()) < TOLERANCE, errors

@@ -75,8 +75,13 @@ def test_all_frames_arrive_and_every_sample_is_assembled(live: dict) -> None:
     last = live["msgs"]["DYNID_STATUS"][-1]
     assert (last.frames, last.samples) == (frames, n)
     assert last.unknown_id == last.bad_length == last.error_frames == last.unpaired_strain == 0
-    # A clean run raises no watchdog fault while it runs (rt_monitor/README.md#watchdog): every status message says 0.
-    assert [m.faults for m in live["msgs"]["DYNID_STATUS"]] == [0] * len(live["msgs"]["DYNID_STATUS"])
+    # A clean run raises no watchdog fault while it runs (rt_monitor/README.md#watchdog): every status message says 0
+    # until the last frame is in. After it the bus is silent until the monitor is stopped; a stop that comes more than
+    # the watchdog's 1 s later (a slower or busier machine) is rightly reported as "stopped" (32), and nothing else.
+    statuses = live["msgs"]["DYNID_STATUS"]
+    running = next(i for i, m in enumerate(statuses) if m.frames == frames) + 1
+    assert [m.faults for m in statuses[:running]] == [0] * running
+    assert all(m.faults in (0, 32) for m in statuses[running:])
     # The sample clock's late samples (this machine's scheduling jitter): the last status says what the exit line says.
     assert last.late == exit_counter(live["r"]["monitor"], "late")
     # A late wake-up of the paced sender can still bunch samples; they are counted, and must stay rare.

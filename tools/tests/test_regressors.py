@@ -112,6 +112,18 @@ def test_friction_regressor_convention() -> None:
     assert friction_regressor(v).shape == (5, 4)
 
 
+def test_coulomb_sign_ignores_a_rounding_at_rest() -> None:
+    """A resting joint's filtered velocity is ±1e-15 or 0 by the order of the filter's sum: no Coulomb term inside the
+    velocity floor, the full one just outside it; Stribeck's sign alike."""
+    from dynid.robot.regressors.friction import VELOCITY_FLOOR, stribeck_shape
+
+    v = np.array([-7e-15, -VELOCITY_FLOOR, 0.0, 1e-16, VELOCITY_FLOOR, 2 * VELOCITY_FLOOR, -2 * VELOCITY_FLOOR])
+    F = friction_regressor(v)
+    assert np.array_equal(F[:, 0], [0, 0, 0, 0, 0, 1, 0]) and np.array_equal(F[:, 1], [0, 0, 0, 0, 0, 0, -1])
+    assert np.array_equal(F[:, 2:], np.column_stack([np.maximum(v, 0), np.minimum(v, 0)]))
+    assert np.array_equal(np.sign(stribeck_shape(v, 0.1)), [0, 0, 0, 0, 0, 1, -1])
+
+
 def test_motor_and_coupling_rows_hold_for_a_constructed_plant(icub: RobotModel) -> None:
     """PWMs made from known gains, friction and the shoulder coupling satisfy A·Φ = b to 1e-9.
 

@@ -110,6 +110,8 @@ def vector_states(model, n: int = 600, seed: int = 3) -> tuple[np.ndarray, np.nd
     # at rest by cancellation, q̇_0 = q̇_1 ≠ 0: dynid's q̇ @ Tᵀ may round that to ±1e-17 and take a Coulomb sign.)
     dq[n // 2 : n // 2 + 50, :3] = 0.0
     dq[n // 2 + 50 : n // 2 + 100] *= 0.004  # below min_speed: motor channels gated
+    # At rest as a derivative filter gives it: ±1e-15, not 0. Inside the velocity floor, no Coulomb sign on either side.
+    dq[n // 2 + 100 : n // 2 + 150, :3] = rng.choice([-1.0, 1.0], (50, 3)) * rng.uniform(1e-16, 1e-10, (50, 3))
     ddq = rng.normal(0, 3.0, (n, nj))
     return q, dq, ddq
 

@@ -30,6 +30,7 @@ from ..identify.supply import SupplyTracking, smoothed_residuals
 from ..io.dataset import contact_episodes
 from ..robot.model import RobotModel
 from ..robot.outputs import divisors, output_channels
+from ..robot.regressors.friction import friction_regressor
 from ..robot.regressors.stack import DEFAULT_MIN_SPEED, Signals, friction_coordinates, rows_at_rest
 
 VARIANTS: tuple[str, ...] = ("calibrated", "paper")
@@ -106,7 +107,7 @@ def static_band_residuals(model: RobotModel, phi: np.ndarray, dq: np.ndarray, e:
         for c in coordinates:
             fc_pos, fc_neg = phi[model.layout.block(*c.block).slice][:2]
             slow = (np.abs(c.velocity) < min_speed)[:, None]
-            coulomb = fc_pos * (c.velocity > 0) - fc_neg * (c.velocity < 0)
+            coulomb = friction_regressor(c.velocity)[:, :2] @ np.array([fc_pos, fc_neg])  # the law's sign, as fitted
             applied += np.where(slow, coulomb[:, None] * c.share, 0.0)
             ends = np.stack([c.share * fc_pos, -c.share * fc_neg])
             lo += np.where(slow, ends.min(axis=0), 0.0)

@@ -5,6 +5,10 @@
 #include <thread>
 
 namespace dynid {
+namespace {
+// A velocity this close to zero is zero for the sign of Coulomb friction (dynid.robot.regressors.friction).
+constexpr double kVelocityFloor = 1e-9;
+}  // namespace
 
 Stack::Stack(Chain chain, StackPlan plan) : chain_(std::move(chain)), plan_(std::move(plan)) {
     const StackPlan& P = plan_;
@@ -79,7 +83,8 @@ void Stack::fill_range(const StackInputs& in, const StackOutput& out, long begin
             }
             // a coupled motor's velocity that cancels is exactly 0 (dynid.robot.regressors.stack.motor_velocities)
             if (c.velocity.size() > 1 && std::abs(v) <= 1e-12 * scale) v = 0.0;
-            const double f[4] = {v > 0.0 ? 1.0 : 0.0, v < 0.0 ? -1.0 : 0.0, std::max(v, 0.0), std::min(v, 0.0)};
+            const double f[4] = {v > kVelocityFloor ? 1.0 : 0.0, v < -kVelocityFloor ? -1.0 : 0.0, std::max(v, 0.0),
+                                 std::min(v, 0.0)};
             for (const Term& t : c.shares) {
                 double* a = A.data() + static_cast<size_t>(t.index) * p + c.column;
                 for (int j = 0; j < 4; ++j) a[j] = t.coef * f[j];
