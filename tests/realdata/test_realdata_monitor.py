@@ -174,3 +174,6 @@ def test_the_whole_panda_log_exports_though_it_misses_samples(tmp_path: Path) ->
         assert done.returncode == 0, f"dynid {' '.join(map(str, step))}: {done.stderr}"
     c = read_coefficients(coef)
     assert c.sample_period == pytest.approx(1e-3, rel=1e-3) and c.calibration_samples > 9000
+    # The combined detector too, calibrated on the pieces the monitor takes (its pairing needs uniform samples): the
+    # export's default. Before, it was not carried and the export fell back to the acceleration residuals.
+    assert c.combined_scale > 0 and c.residual == 2

@@ -49,3 +49,24 @@ def test_a_run_without_gaps_is_itself() -> None:
     ds = run_with_gaps({})
     (piece, origin), = uniform_pieces(ds, DT)
     assert piece is ds and np.array_equal(origin, np.arange(ds.n_samples))
+
+
+def test_the_folds_follow_each_piece_to_its_original_samples() -> None:
+    """PieceFolds: a piece's rows take the Φ of the fold block their original sample is in (a bridged row, the block
+    of the row before it), as FoldsSection.segments gives them for the whole run."""
+    from dynid.detect.online import PieceFolds
+    from dynid.identify.model_sections import FoldsSection
+
+    ds = run_with_gaps({80: 1, 150: MAX_BRIDGE + 1, 300: 1})  # bridged, cut, bridged
+    pieces = uniform_pieces(ds, DT)
+    blocks = [(0, 120), (120, 260), (260, 400)]
+    folds = FoldsSection(np.zeros(3, int), np.array(blocks), np.array([[1.0], [2.0], [3.0]]))
+    mapped = PieceFolds(folds, [o for _, o in pieces], [0] * len(pieces))
+    phi = np.array([0.0])
+    for i, (piece, origin) in enumerate(pieces):
+        segments = mapped.segments(i, piece.n_samples, phi)
+        assert [lo for lo, _, _ in segments][0] == 0 and segments[-1][1] == piece.n_samples  # the whole piece
+        assert all(a[1] == b[0] for a, b in zip(segments, segments[1:]))  # contiguous
+        for lo, hi, phi_k in segments:  # every row's original sample is in the block whose Φ it takes
+            k = int(phi_k[0]) - 1
+            assert np.all((origin[lo:hi] >= blocks[k][0]) & (origin[lo:hi] < blocks[k][1]))

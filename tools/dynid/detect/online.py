@@ -14,6 +14,7 @@ then meets the false-positive rate its threshold promises.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -137,6 +138,28 @@ def uniform_pieces(ds, dt: float) -> list:  # Dataset, s -> [(Dataset, (N',) int
     return pieces
 
 
+@dataclass(frozen=True)
+class PieceFolds:
+    """The model's folds (time blocks and the Φ fitted without each) seen from runs cut by `uniform_pieces`: what
+    FoldsSection.segments gives for a run, for a piece of it. `origins[i]`: piece i's rows' original indices,
+    `runs[i]`: the run (the model's `data` order) it is of."""
+
+    folds: FoldsSection
+    origins: Sequence[np.ndarray]
+    runs: Sequence[int]
+
+    def segments(self, piece: int, n_samples: int, phi: np.ndarray) -> list[tuple[int, int, np.ndarray]]:
+        """[start, stop) of piece rows 0 … n_samples and the Φ that never saw their original samples (a bridged row
+        is of the sample before it: its origin)."""
+        origin = np.asarray(self.origins[piece])[:n_samples]
+        out = []
+        for a, b, phi_k in self.folds.segments(int(self.runs[piece]), int(origin[-1]) + 1, phi):
+            lo, hi = int(np.searchsorted(origin, a)), int(np.searchsorted(origin, b))
+            if hi > lo:
+                out.append((lo, hi, phi_k))
+        return out
+
+
 def online_signals(model: RobotModel, est: FixedLagSavitzkyGolay, t: np.ndarray, q: np.ndarray,
                    inputs: dict[str, np.ndarray], tau: dict[str, np.ndarray],
                    ft: dict[str, np.ndarray], gravity: np.ndarray | None = None) -> Signals:
@@ -209,6 +232,8 @@ def calibrate_online(model: RobotModel, phi: np.ndarray, datasets: list, est: Fi
     are those the model was fitted on, in its `data` order) each time block's residual is taken through the Φ
     fitted without it: cross-validated, what the monitor sees on a new run. Runs cut by uniform_pieces: `origins`,
     each piece's rows' original indices, and `runs`, the run each piece is of (the folds hold the original ones)."""
+    if folds is not None and origins is not None:
+        folds = PieceFolds(folds, origins, runs if runs is not None else range(len(datasets)))
     es, dqs = [], []
     for i, ds in enumerate(datasets):
         raw = raw_signals(model, ds)
@@ -217,13 +242,10 @@ def calibrate_online(model: RobotModel, phi: np.ndarray, datasets: list, est: Fi
         sig = replace(sig, payload=payload_of(model, ds)).slice(keep)  # a loaded run's known payload, as the fit had it
         if folds is None:
             e = augmented_residuals(model, phi, effects or [], sig)
-        else:  # the filter's k-th estimate is of sample window − 1 − lag + k of the run
+        else:  # the filter's k-th estimate is of sample window − 1 − lag + k of the run (or piece)
             index = est.window - 1 - est.lag + stride * np.arange(sig.q.shape[0])
-            n_original = ds.n_samples
-            if origins is not None:  # a piece: its original rows, of a run as long as its last one at most
-                index, n_original = origins[i][index], int(origins[i][-1]) + 1
             parts = []
-            for a, b, phi_k in folds.segments(i if runs is None else runs[i], n_original, phi):
+            for a, b, phi_k in folds.segments(i, ds.n_samples, phi):
                 lo, hi = np.searchsorted(index, a), np.searchsorted(index, b)
                 if hi > lo:
                     parts.append(augmented_residuals(model, phi_k, effects or [], sig.slice(slice(lo, hi))))

@@ -16,7 +16,8 @@ from ..config.robot_config import RobotConfig
 from ..detect.momentum import (DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S, friction_band, measured_velocity,
                                velocity_window_samples)
 from ..detect.momentum_t2 import MomentumDetector, calibrate_momentum, stored_detector
-from ..detect.online import FixedLagSavitzkyGolay, OnlineCalibration, calibrate_online, uniform_pieces, estimator_for
+from ..detect.online import (FixedLagSavitzkyGolay, OnlineCalibration, PieceFolds, calibrate_online, estimator_for,
+                             uniform_pieces)
 from ..detect.combined import calibrate_combined
 from ..detect.t2 import Detector, chi2_quantile, f_threshold
 from ..errors import DataError
@@ -190,7 +191,7 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
     scale, combined_note = 0.0, note or "no observer"
     if observer is not None:
         try:
-            scale = monitor_combined_scale(identified, originals, pieces, observer, detector, est, settings)
+            scale = monitor_combined_scale(identified, kept, observer, detector, est, settings)
             combined_note = ""
         except DataError as e:
             if settings.residual == "combined":
@@ -225,21 +226,20 @@ def sample_period(model: RobotModel, ds: Dataset) -> float:
     return ds.median_step() if bus is None else bus.nominal_period(ds.median_step())
 
 
-def monitor_combined_scale(identified: IdentifiedModel, originals: Sequence[Dataset], pieces: Sequence,
-                           observer: MonitorObserver, detector: MonitorDetector, est: FixedLagSavitzkyGolay,
-                           settings: ExportSettings) -> float:
+def monitor_combined_scale(identified: IdentifiedModel, pieces: Sequence, observer: MonitorObserver,
+                           detector: MonitorDetector, est: FixedLagSavitzkyGolay, settings: ExportSettings) -> float:
     """κ of the combined detector as the monitor runs it (dynid.detect.combined): both normalised statistics on the
     observer's calibration samples, the acceleration residuals' through the monitor's filter and causal supply
-    tracker at the same tick, cross-validated on the runs the model was fitted on."""
-    if len(pieces) != len(originals) or any(p[0].meta.get("bridged_samples") for p in pieces):
-        raise DataError("the calibration runs miss samples (the monitor's filter restarts or bridges there), and the "
-                        "combined detector's calibration pairs every sample of both residuals")
+    tracker at the same tick, cross-validated on the runs the model was fitted on. On the runs as the monitor takes
+    them (`pieces`: (piece, its rows' original indices, its run) of uniform_pieces, short gaps bridged, a run cut at
+    a long one, where both residuals start over), each piece's samples through the fold Φ of their original ones."""
     model = identified.robot_model
     det_c = Detector("calibrated", np.asarray(detector.variance, float), float(detector.threshold), detector.alpha,
                      detector.min_speed, len(detector.variance))
-    folds = None if settings.data else identified.folds
-    return calibrate_combined(identified, observer.detector, det_c, originals, folds, measured=observer.measured,
-                              est=est).scale
+    folds = None if settings.data or identified.folds is None else PieceFolds(
+        identified.folds, [p[1] for p in pieces], [p[2] for p in pieces])
+    return calibrate_combined(identified, observer.detector, det_c, [p[0] for p in pieces], folds,
+                              measured=observer.measured, est=est).scale
 
 
 def monitor_observer(identified: IdentifiedModel, datasets: Sequence[Dataset], alpha: float, min_speed: float,
