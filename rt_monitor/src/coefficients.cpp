@@ -245,6 +245,11 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
         out.translation[i] = Vec3(c.translation[i][0], c.translation[i][1], c.translation[i][2]);
         for (int r = 0; r < 3; ++r)
             for (int k = 0; k < 3; ++k) out.rotation[i](r, k) = c.rotation[i][3 * r + k];
+        const Vec3& ax = out.axis[i];
+        Mat3 cross;
+        cross << 0, -ax.z(), ax.y(), ax.z(), 0, -ax.x(), -ax.y(), ax.x(), 0;
+        out.rotation_cross[i] = out.rotation[i] * cross;
+        out.rotation_outer[i] = (out.rotation[i] * ax) * ax.transpose();
         const auto& p = c.inertial[i];  // m, mcx, mcy, mcz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz
         out.mass[i] = p[0];
         out.first_moment[i] = Vec3(p[1], p[2], p[3]);

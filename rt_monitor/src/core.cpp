@@ -1,9 +1,11 @@
 #include "rt_monitor/core.hpp"
 
 #include "rt_monitor/kinematics.hpp"
+#include "rt_monitor/multiversion.hpp"
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 namespace dynid::rt {
 namespace {
@@ -29,54 +31,77 @@ inline double observed_friction(double v, const Row& row, double min_speed) noex
     return (v > 0 ? c[2] * v : 0.0) + (v < 0 ? c[3] * v : 0.0);
 }
 
-// The fixed-lag filter over a window: for each of `channels` contiguous columns x (length W, `stride` apart),
-// o_r = Σ_s w_r[s]·x[s] for the weight columns w_r given (w1, w2 null: the value only), the three in one pass over
-// the column. The hot loop of a long window (151 samples at 500 Hz is 3 600 multiply-adds a sample). A plain running
-// sum may not be reordered, so the compiler cannot vectorise it: `omp simd` allows that without -ffast-math, and the
-// window's two halves are summed apart, two chains of additions side by side. Built twice, for x86-64-v3 (AVX2, FMA)
-// and the baseline, the loader picking the one this CPU runs (GCC's function multi-versioning); the two round
-// differently in the last bits (FMA), as two CPUs' BLAS do. Panda's 151-sample core: 1.03 → 0.85 µs (rt_bench).
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
-#define RT_MULTIVERSION __attribute__((target_clones("arch=x86-64-v3", "default")))
-#else
-#define RT_MULTIVERSION
-#endif
-#if defined(__GNUC__) && !defined(__clang__)  // GCC, with -fopenmp-simd (CMakeLists.txt); clang keeps plain loops
-#define RT_SIMD_SUMS(...) _Pragma(RT_STRINGIFY(omp simd reduction(+ : __VA_ARGS__)))
-#define RT_STRINGIFY(x) #x
-#else
-#define RT_SIMD_SUMS(...)
-#endif
+// The fixed-lag filter over a window: for each of `channels` channels, o_r[k] = Σ_s w_r[s]·x_s[k] for the weight
+// columns w_r given (w1, w2 null: the value only), x_s the window's sample s (a row, the channels contiguous). The hot
+// loop of a long window (151 samples of 13 channels, three weights, is 6 000 multiply-adds a sample). Four channels
+// at a time in one vector, so no sum needs a horizontal reduction; each sum in two chains side by side (the window's
+// halves, then added), and the value-only filter two blocks of channels at once, so the additions' latency overlaps.
+// The channels are taken in blocks of 4: a row is read up to `channels` rounded up to 4 (the ring's rows are padded
+// for it); only the first `channels` outputs are written.
+constexpr int kPad = 4;  // the filter's channel block: a row is read up to its channels rounded up to this
+constexpr int padded(int n) noexcept { return (n + kPad - 1) / kPad * kPad; }
+
+using V4 = double __attribute__((vector_size(4 * sizeof(double))));  // GCC's and clang's vector extension
+// Vectors go through references only: a vector passed or returned by value would have a different ABI in the AVX
+// build and the baseline one (-Wpsabi).
+inline void load(V4& v, const double* p) noexcept {
+    std::memcpy(&v, p, sizeof v);  // an unaligned load: the outputs' block starts after the joints'
+}
+inline void store(const V4& v, double* out, int n) noexcept {
+    for (int i = 0; i < n; ++i) out[i] = v[i];
+}
 
 RT_MULTIVERSION
 void filter_window(const double* x, int stride, int channels, int W, const double* w0, const double* w1,
                    const double* w2, double* o0, double* o1, double* o2) noexcept {
-    const int h = W / 2;  // the second half starts at h (one more sample when W is odd: the last, added alone)
-    for (int k = 0; k < channels; ++k) {
-        const double* c = x + size_t(k) * size_t(stride);
-        double a0 = 0, b0 = 0;
-        if (w1 == nullptr) {
-            RT_SIMD_SUMS(a0, b0)
-            for (int i = 0; i < h; ++i) {
-                a0 += c[i] * w0[i];
-                b0 += c[h + i] * w0[h + i];
+    const int h = W / 2, odd = W % 2;  // chain a: samples 0..h−1; chain b: h..2h−1, then the last when W is odd
+    const auto row = [&](int s) { return x + size_t(s) * size_t(stride); };
+    V4 u, v, u2, v2;
+    if (w1 == nullptr) {
+        int k = 0;
+        for (; k + kPad < channels; k += 2 * kPad) {  // two blocks: channels k..k+3 in a, b; k+4..k+7 in c, d
+            V4 a = {}, b = {}, c = {}, d = {};
+            for (int s = 0; s < h; ++s) {
+                load(u, row(s) + k), load(v, row(h + s) + k);
+                load(u2, row(s) + k + kPad), load(v2, row(h + s) + k + kPad);
+                a += w0[s] * u, b += w0[h + s] * v;
+                c += w0[s] * u2, d += w0[h + s] * v2;
             }
-        } else {
-            double a1 = 0, b1 = 0, a2 = 0, b2 = 0;
-            RT_SIMD_SUMS(a0, b0, a1, b1, a2, b2)
-            for (int i = 0; i < h; ++i) {
-                a0 += c[i] * w0[i];
-                b0 += c[h + i] * w0[h + i];
-                a1 += c[i] * w1[i];
-                b1 += c[h + i] * w1[h + i];
-                a2 += c[i] * w2[i];
-                b2 += c[h + i] * w2[h + i];
+            if (odd) {
+                load(v, row(W - 1) + k), load(v2, row(W - 1) + k + kPad);
+                b += w0[W - 1] * v, d += w0[W - 1] * v2;
             }
-            if (W % 2 != 0) b1 += c[W - 1] * w1[W - 1], b2 += c[W - 1] * w2[W - 1];
-            o1[k] = a1 + b1, o2[k] = a2 + b2;
+            a += b, c += d;
+            store(a, o0 + k, kPad);
+            store(c, o0 + k + kPad, std::min(kPad, channels - k - kPad));
         }
-        if (W % 2 != 0) b0 += c[W - 1] * w0[W - 1];
-        o0[k] = a0 + b0;
+        if (k < channels) {  // the last block alone
+            V4 a = {}, b = {};
+            for (int s = 0; s < h; ++s) {
+                load(u, row(s) + k), load(v, row(h + s) + k);
+                a += w0[s] * u, b += w0[h + s] * v;
+            }
+            if (odd) load(v, row(W - 1) + k), b += w0[W - 1] * v;
+            a += b;
+            store(a, o0 + k, channels - k);
+        }
+        return;
+    }
+    for (int k = 0; k < channels; k += kPad) {
+        V4 a0 = {}, b0 = {}, a1 = {}, b1 = {}, a2 = {}, b2 = {};
+        for (int s = 0; s < h; ++s) {
+            load(u, row(s) + k), load(v, row(h + s) + k);
+            a0 += w0[s] * u, b0 += w0[h + s] * v;
+            a1 += w1[s] * u, b1 += w1[h + s] * v;
+            a2 += w2[s] * u, b2 += w2[h + s] * v;
+        }
+        if (odd) {
+            load(v, row(W - 1) + k);
+            b0 += w0[W - 1] * v, b1 += w1[W - 1] * v, b2 += w2[W - 1] * v;
+        }
+        const int n = std::min(kPad, channels - k);
+        a0 += b0, a1 += b1, a2 += b2;
+        store(a0, o0 + k, n), store(a1, o1 + k, n), store(a2, o2 + k, n);
     }
 }
 
@@ -87,8 +112,17 @@ Core::Core(const Coefficients& c) noexcept : c_(c) {
     det_.debounce_off = c.debounce_off;
     det_.hysteresis = c.hysteresis;
     width_ = c.n_joints + c.n_outputs;
+    stride_ = padded(width_ + kPad - 1);  // the filter reads the y block up to n_joints + padded(n_outputs)
     if (c.supply_time_constant > 0) lambda_ = std::exp(-c.sample_period / c.supply_time_constant);
     if (c.has_observer()) decay_ = std::exp(-2.0 * M_PI * c.observer_bandwidth * c.sample_period);
+    for (int i = 0; i < c.n_outputs; ++i) {  // a product per channel and sample, not a division
+        inverse_variance_[i] = 1.0 / c.variance[i];
+        inverse_observer_variance_[i] = 1.0 / c.observer_variance[i];
+    }
+    for (int j = 0; j < c.n_joints; ++j) {
+        accel_isolation_[j] = c.accel_tau_variance[j] > 0 ? c.isolation_sigmas * std::sqrt(c.accel_tau_variance[j]) : -1;
+        observer_isolation_[j] = c.tau_variance[j] > 0 ? c.isolation_sigmas * std::sqrt(c.tau_variance[j]) : -1;
+    }
     ratio_.fill(1.0);  // stays 1 on every channel but the tracked motor inputs
     obs_ratio_.fill(1.0);
     residual_ = c.residual;
@@ -98,7 +132,7 @@ Core::Core(const Coefficients& c) noexcept : c_(c) {
 }
 
 void Core::reset() noexcept {
-    ring_.setZero();
+    ring_.fill(0.0);
     slot_ = 0;
     count_ = 0;
     above_run_ = below_run_ = 0;
@@ -120,6 +154,7 @@ bool Core::set_residual(Residual r) noexcept {
     return true;
 }
 
+RT_MULTIVERSION
 void Core::rnea(const VecJ& q, const VecJ& dq, const VecJ& ddq, VecJ& tau,
                 std::array<Vec6, kMaxSensors>& sensor_force) const noexcept {
     // Forward pass: body velocities and accelerations in body frames; the base accelerates at −g.
@@ -181,12 +216,13 @@ void Core::rnea(const VecJ& q, const VecJ& dq, const VecJ& ddq, VecJ& tau,
 
 void Core::predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y, Prediction& out) const noexcept {
     std::array<Vec6, kMaxSensors> fs;
-    out.tau.setZero();
+    out.tau.head(c_.n_joints).setZero();
     rnea(q, dq, ddq, out.tau, fs);
     // A sensor reports the wrench its distal sub-body exerts on the proximal one: minus the force that receives.
     for (int k = 0; k < c_.n_sensors; ++k) out.y_hat.segment<6>(6 * k) = c_.ft_offset[k] - fs[k];
     const int nj = c_.n_joints, nft = c_.n_ft();
-    VecJ load = out.tau;  // τ + τ_f
+    VecJ load;  // τ + τ_f
+    load.head(nj) = out.tau.head(nj);
     for (int j = 0; j < nj; ++j) {
         const double jf[4] = {c_.joint_friction(j, 0), c_.joint_friction(j, 1), c_.joint_friction(j, 2),
                               c_.joint_friction(j, 3)};
@@ -204,6 +240,16 @@ void Core::predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y
             load[j] += p[0] * (q[j] - p[1]);
         }
     }
+    // The coordinates at rest, as bits: joints (|q̇| < min_speed) and motors (|q̇_m| < min_speed, q̇_m = T q̇).
+    uint64_t joints_resting = 0, motors_resting = 0;
+    for (int j = 0; j < nj; ++j)
+        if (std::abs(dq[j]) < c_.min_speed) joints_resting |= uint64_t(1) << j;
+    std::array<double, kMaxMotors> vm;
+    for (int k = 0; k < c_.n_motors; ++k) {
+        vm[k] = 0;
+        for (int j = 0; j < nj; ++j) vm[k] += c_.motor_velocity(k, j) * dq[j];
+        if (std::abs(vm[k]) < c_.min_speed) motors_resting |= uint64_t(1) << k;
+    }
     out.t2 = 0;
     out.t2_sensor.fill(0.0);
     for (int i = 0; i < c_.n_outputs; ++i) {
@@ -213,28 +259,19 @@ void Core::predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y
             for (int j = 0; j < nj; ++j) s += c_.row_map(i, j) * load[j];
             const int m = c_.channel_motor[i];
             if (m >= 0 && c_.motor_friction_on[m]) {
-                double vm = 0;
-                for (int j = 0; j < nj; ++j) vm += c_.motor_velocity(m, j) * dq[j];
                 const double mf[4] = {c_.motor_friction(m, 0), c_.motor_friction(m, 1), c_.motor_friction(m, 2),
                                       c_.motor_friction(m, 3)};
-                s += friction(vm, mf);
+                s += friction(vm[m], mf);
             }
             out.y_model[i] = s / c_.divisor[i];
             out.y_hat[i] = ratio_[i] * out.y_model[i];
             // Gate: a channel whose joints or motors rest carries static friction the model lacks.
-            for (int j = 0; j < nj; ++j)
-                if ((c_.gate_joints[i] >> j & 1u) && std::abs(dq[j]) < c_.min_speed) out.active[i] = false;
-            for (int k = 0; k < c_.n_motors; ++k) {
-                if (!(c_.gate_motors[i] >> k & 1u)) continue;
-                double vm = 0;
-                for (int j = 0; j < nj; ++j) vm += c_.motor_velocity(k, j) * dq[j];
-                if (std::abs(vm) < c_.min_speed) out.active[i] = false;
-            }
+            out.active[i] = !(c_.gate_joints[i] & joints_resting) && !(c_.gate_motors[i] & motors_resting);
         } else {
             out.y_model[i] = out.y_hat[i];  // the F/T wrench
         }
         out.e[i] = y[i] - out.y_hat[i];
-        const double z = out.e[i] * out.e[i] / c_.variance[i];
+        const double z = out.e[i] * out.e[i] * inverse_variance_[i];
         if (out.active[i]) out.t2 += z;
         if (i < nft) out.t2_sensor[i / 6] += z;
     }
@@ -242,8 +279,9 @@ void Core::predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y
 
 const Output& Core::step(const double* q, const double* dq, const double* y) noexcept {
     const int W = window_, nj = c_.n_joints, no = c_.n_outputs;
-    for (int k = 0; k < nj; ++k) ring_(slot_, k) = ring_(slot_ + W, k) = q[k];
-    for (int k = 0; k < no; ++k) ring_(slot_, nj + k) = ring_(slot_ + W, nj + k) = y[k];
+    double *a = row(slot_), *b = row(slot_ + W);
+    for (int k = 0; k < nj; ++k) a[k] = b[k] = q[k];
+    for (int k = 0; k < no; ++k) a[nj + k] = b[nj + k] = y[k];
     slot_ = slot_ + 1 == W ? 0 : slot_ + 1;
     ++count_;
     out_.event = Event::kNone;
@@ -289,22 +327,20 @@ void Core::combine(const double* q, const double* dq, const double* y) noexcept 
 
 void Core::accelerate(Output& o) noexcept {
     const int W = c_.window, nj = c_.n_joints, no = c_.n_outputs;
-    // The window, oldest first: each estimate is a dot product over a channel's contiguous column, the three weights
-    // of a joint in one pass over it.
+    // The window, oldest first: the joints' value, slope and curvature in one pass over its rows, then the outputs'.
     const double* window = newest(W);
-    const int stride = int(ring_.outerStride());
     const double* w = c_.filter.data();  // columns: value, slope, curvature
-    filter_window(window, stride, nj, W, w, w + kMaxWindow, w + 2 * kMaxWindow, o.q.data(), o.dq.data(),
+    filter_window(window, stride_, nj, W, w, w + kMaxWindow, w + 2 * kMaxWindow, o.q.data(), o.dq.data(),
                   o.ddq.data());
-    filter_window(window + size_t(nj) * size_t(stride), stride, no, W, w, nullptr, nullptr, o.y.data(), nullptr,
-                  nullptr);
+    filter_window(window + nj, stride_, no, W, w, nullptr, nullptr, o.y.data(), nullptr, nullptr);
     predict(o.q, o.dq, o.ddq, o.y, o.p);
+    if (&o != &out_) return;  // the combined detector's acceleration half: its wrench and τ_ext are the observer's
     for (int k = 0; k < c_.n_sensors; ++k) o.wrench[k] = o.p.e.segment<6>(6 * k);
     // Each row's residual as a torque on it, τ_ext = tau_map · (divisor ⊙ e), over the rows in T² (a row at rest
     // carries the static friction the model lacks)
-    VecO rows = VecO::Zero();
-    for (int i = c_.n_ft(); i < c_.n_outputs; ++i) rows[i] = o.p.active[i] ? c_.divisor[i] * o.p.e[i] : 0.0;
-    isolate(o, rows, c_.accel_tau_variance);
+    VecO rows;
+    for (int i = 0; i < c_.n_outputs; ++i) rows[i] = i >= c_.n_ft() && o.p.active[i] ? c_.divisor[i] * o.p.e[i] : 0.0;
+    isolate(o, rows, accel_isolation_);
 }
 
 double Core::observe(const double* q, const double* measured_dq, const double* y) noexcept {
@@ -316,29 +352,43 @@ double Core::observe(const double* q, const double* measured_dq, const double* y
     if (measured_dq != nullptr && c_.measured_velocity)
         for (int k = 0; k < nj; ++k) out_.dq[k] = measured_dq[k];
     else
-        filter_window(newest(W), int(ring_.outerStride()), nj, W, c_.velocity_filter.data(), nullptr, nullptr,
+        filter_window(newest(W), stride_, nj, W, c_.velocity_filter.data(), nullptr, nullptr,
                       out_.dq.data(), nullptr, nullptr);
     for (int k = 0; k < nj; ++k) out_.q[k] = q[k];
     for (int k = 0; k < no; ++k) out_.y[k] = y[k];
-    out_.ddq.setZero();
+    out_.ddq.head(nj).setZero();
     const VecJ& dq = out_.dq;
     momentum_terms(c_, q, dq.data(), terms_);
-    VecJ x_joint = terms_.beta;  // β − ṗ: minus the model's torque, per joint
-    std::array<Vec6, kMaxSensors> x_sensor = terms_.beta_sensor;
+    // Sized to the robot, not the capacity: a full-capacity copy or clear is most of a small robot's step.
+    const int ns = c_.n_sensors;
+    VecJ x_joint;  // β − ṗ: minus the model's torque, per joint
+    x_joint.head(nj) = terms_.beta.head(nj);
+    std::array<Vec6, kMaxSensors> x_sensor;
+    for (int k = 0; k < ns; ++k) x_sensor[k] = terms_.beta_sensor[k];
     if (observing_) {
-        x_joint -= (terms_.p - p_prev_) / T;
-        for (int k = 0; k < c_.n_sensors; ++k) x_sensor[k] -= (terms_.p_sensor[k] - ps_prev_[k]) / T;
+        x_joint.head(nj) -= (terms_.p.head(nj) - p_prev_.head(nj)) / T;
+        for (int k = 0; k < ns; ++k) x_sensor[k] -= (terms_.p_sensor[k] - ps_prev_[k]) / T;
     }
     observing_ = true;
-    p_prev_ = terms_.p;
-    ps_prev_ = terms_.p_sensor;
+    p_prev_.head(nj) = terms_.p.head(nj);
+    for (int k = 0; k < ns; ++k) ps_prev_[k] = terms_.p_sensor[k];
     for (int j = 0; j < nj; ++j) x_joint[j] -= observed_friction(dq[j], c_.joint_friction.row(j), ms);
-    std::array<double, kMaxMotors> vm{};  // q̇_m = T q̇, once per sample
-    for (int k = 0; k < c_.n_motors; ++k) vm[k] = c_.motor_velocity.row(k).head(nj).dot(dq.head(nj));
-    VecO x = VecO::Zero(), lo = VecO::Zero(), hi = VecO::Zero();
-    std::array<bool, kMaxOutputs> rest{};
+    // q̇_m = T q̇ once per sample, and the coordinates at rest as bits (not |v| ≥ min_speed: a NaN rests, as in
+    // dynid.detect.momentum)
+    std::array<double, kMaxMotors> vm;
+    uint64_t joints_resting = 0, motors_resting = 0;
+    for (int j = 0; j < nj; ++j)
+        if (!(std::abs(dq[j]) >= ms)) joints_resting |= uint64_t(1) << j;
+    for (int k = 0; k < c_.n_motors; ++k) {
+        vm[k] = c_.motor_velocity.row(k).head(nj).dot(dq.head(nj));
+        if (!(std::abs(vm[k]) >= ms)) motors_resting |= uint64_t(1) << k;
+    }
+    VecO x, lo, hi;
+    std::array<bool, kMaxOutputs> rest;
     bool all_rest = true;
     for (int i = 0; i < no; ++i) {
+        lo[i] = hi[i] = 0;
+        rest[i] = false;
         if (i < nft) {  // a sensor's coordinate: τ_meas = −(w − w_O), its row w − ŵ = −(τ_meas − τ_model)
             x[i] = (y[i] - c_.ft_offset[i / 6][i % 6]) - x_sensor[i / 6][i % 6];
             all_rest = false;
@@ -350,15 +400,15 @@ double Core::observe(const double* q, const double* measured_dq, const double* y
         if (m >= 0 && c_.motor_friction_on[m]) s -= observed_friction(vm[m], c_.motor_friction.row(m), ms);
         x[i] = s;
         // The static-friction band of every resting coordinate on this row.
-        for (int j = 0; j < nj; ++j) {
-            if (!(c_.gate_joints[i] >> j & 1u) || std::abs(dq[j]) >= ms) continue;
+        for (uint64_t bits = c_.gate_joints[i] & joints_resting; bits != 0; bits &= bits - 1) {
+            const int j = __builtin_ctzll(bits);
             rest[i] = true;
             const double a = c_.row_map(i, j) * c_.joint_band(j, 0), b = -c_.row_map(i, j) * c_.joint_band(j, 1);
             lo[i] += std::min(a, b);
             hi[i] += std::max(a, b);
         }
-        for (int k = 0; k < c_.n_motors; ++k) {
-            if (!(c_.gate_motors[i] >> k & 1u) || std::abs(vm[k]) >= ms) continue;
+        for (uint64_t bits = c_.gate_motors[i] & motors_resting; bits != 0; bits &= bits - 1) {
+            const int k = __builtin_ctzll(bits);
             rest[i] = true;
             lo[i] -= c_.motor_band(k, 1);
             hi[i] += c_.motor_band(k, 0);
@@ -367,7 +417,7 @@ double Core::observe(const double* q, const double* measured_dq, const double* y
     }
     const double a = decay_;
     r_.head(no) = a * r_.head(no) + (1.0 - a) * x.head(no);
-    out_.r = r_;
+    out_.r.head(no) = r_.head(no);
     if (c_.supply_time_constant > 0) {  // the supply tracker on the low-passed inputs (dynid.detect.momentum._tracked)
         for (int i = 0; i < no; ++i) {
             if (!(c_.supply_gate[i] > 0)) continue;
@@ -390,21 +440,25 @@ double Core::observe(const double* q, const double* measured_dq, const double* y
         p.e[i] = rest[i] ? ri - std::clamp(ri, lo[i], hi[i]) : ri;  // at rest: the distance outside the band
         p.active[i] = true;
         p.y_model[i] = p.y_hat[i] = 0;
-        const double z = p.e[i] * p.e[i] / c_.observer_variance[i];
+        const double z = p.e[i] * p.e[i] * inverse_observer_variance_[i];
         p.t2 += z;
         if (i < nft) p.t2_sensor[i / 6] += z;
     }
-    isolate(out_, out_.r, c_.tau_variance);
+    isolate(out_, out_.r, observer_isolation_);
     for (int k = 0; k < c_.n_sensors; ++k) out_.wrench[k] = out_.r.segment<6>(6 * k);
     return all_rest ? c_.observer_rest_threshold : c_.observer_threshold;
 }
 
-void Core::isolate(Output& o, const VecO& rows, const std::array<double, kMaxJoints>& variance) noexcept {
+void Core::isolate(Output& o, const VecO& rows, const std::array<double, kMaxJoints>& level) noexcept {
     const int nj = c_.n_joints, no = c_.n_outputs;
-    o.tau_ext.head(nj).noalias() = c_.tau_map.topLeftCorner(nj, no) * rows.head(no);
+    // A plain loop: Eigen's product of these run-time sizes goes through its general matrix-vector kernel, whose
+    // set-up costs more than the robot's few dozen multiply-adds.
+    o.tau_ext.head(nj).setZero();
+    for (int i = 0; i < no; ++i)
+        for (int j = 0; j < nj; ++j) o.tau_ext[j] += c_.tau_map(j, i) * rows[i];
     o.joint = -1;
     for (int j = nj - 1; j >= 0 && o.joint < 0; --j)
-        if (variance[j] > 0 && std::abs(o.tau_ext[j]) > c_.isolation_sigmas * std::sqrt(variance[j])) o.joint = j;
+        if (level[j] >= 0 && std::abs(o.tau_ext[j]) > level[j]) o.joint = j;
 }
 
 void Core::track_supply(const Output& o) noexcept {

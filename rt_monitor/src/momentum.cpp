@@ -1,9 +1,11 @@
 #include "rt_monitor/momentum.hpp"
 
 #include "rt_monitor/kinematics.hpp"
+#include "rt_monitor/multiversion.hpp"
 
 namespace dynid::rt {
 
+RT_MULTIVERSION
 void momentum_terms(const Coefficients& c, const double* q, const double* dq, MomentumTerms& out) noexcept {
     // Forward: each body's velocity (v linear, w angular) and the acceleration −g in its own frame, then its momentum
     // h = I·(v, w) and the wrench I·(−g, 0) that holds it against gravity. Spatial vectors are (linear, angular).

@@ -39,6 +39,9 @@ struct Coefficients {
     std::array<JointType, kMaxBodies> joint_type{};
     std::array<Vec3, kMaxBodies> axis{}, translation{};
     std::array<Mat3, kMaxBodies> rotation{};
+    // Derived at load, for the joint's rotation by q without a product of rotations (kinematics.hpp): rotation·[a]×
+    // and rotation·a·aᵀ, a the axis.
+    std::array<Mat3, kMaxBodies> rotation_cross{}, rotation_outer{};
     std::array<double, kMaxBodies> mass{};  // φ: m,
     std::array<Vec3, kMaxBodies> first_moment{};  //    m·c,
     std::array<Mat3, kMaxBodies> inertia{};       //    I about the body frame origin
@@ -50,14 +53,15 @@ struct Coefficients {
     std::array<int, kMaxBodies> sensor_of_body{};  // derived at load: the sensor whose distal sub-body it is, or -1
     int n_ft() const { return 6 * n_sensors; }
 
-    Eigen::Matrix<double, kMaxMotors, kMaxJoints> motor_velocity = decltype(motor_velocity)::Zero();
+    // The matrices the core reads a row at a time (a motor's, a joint's, an output's) are stored by rows.
+    Eigen::Matrix<double, kMaxMotors, kMaxJoints, Eigen::RowMajor> motor_velocity = decltype(motor_velocity)::Zero();
     std::array<bool, kMaxMotors> motor_friction_on{};
-    Eigen::Matrix<double, kMaxMotors, 4> motor_friction = decltype(motor_friction)::Zero();
-    Eigen::Matrix<double, kMaxJoints, 4> joint_friction = decltype(joint_friction)::Zero();
+    Eigen::Matrix<double, kMaxMotors, 4, Eigen::RowMajor> motor_friction = decltype(motor_friction)::Zero();
+    Eigen::Matrix<double, kMaxJoints, 4, Eigen::RowMajor> joint_friction = decltype(joint_friction)::Zero();
 
     std::array<ChannelKind, kMaxOutputs> channel_kind{};
     std::array<Vec6, kMaxSensors> ft_offset{};
-    Eigen::Matrix<double, kMaxOutputs, kMaxJoints> row_map = decltype(row_map)::Zero();
+    Eigen::Matrix<double, kMaxOutputs, kMaxJoints, Eigen::RowMajor> row_map = decltype(row_map)::Zero();
     std::array<int, kMaxOutputs> channel_motor{};
     std::array<double, kMaxOutputs> divisor{}, variance{};
     std::array<uint64_t, kMaxOutputs> gate_joints{}, gate_motors{};

@@ -12,6 +12,8 @@
 namespace dynid::rt {
 
 using VecO = Eigen::Matrix<double, kMaxOutputs, 1>;
+// A ring row's capacity (Core): every channel, rounded up to the filter's blocks of 4, plus one block.
+constexpr int kRingStride = kMaxJoints + kMaxOutputs + 4;
 
 enum class Event : int8_t { kNone = 0, kOnset = 1, kEnd = 2 };
 enum class Side : int8_t { kNone = 0, kDistal = 1, kProximal = -1 };  // of an F/T sensor
@@ -99,29 +101,34 @@ public:
 private:
     void rnea(const VecJ& q, const VecJ& dq, const VecJ& ddq, VecJ& tau,
               std::array<Vec6, kMaxSensors>& sensor_force) const noexcept;
-    // The newest n samples of the ring, oldest first (rows of n contiguous samples, one column a channel).
-    const double* newest(int n) const noexcept { return &ring_(slot_ + window_ - n, 0); }
+    // The newest n samples of the ring, oldest first (n contiguous rows, stride_ apart).
+    const double* newest(int n) const noexcept { return ring_.data() + size_t(slot_ + window_ - n) * size_t(stride_); }
     void accelerate(Output& o) noexcept;
     void combine(const double* q, const double* dq, const double* y) noexcept;
     // The observer into out_ (q̇ the measured `dq`, or estimated where it is null); returns its T²_α at this sample
     // (the rest threshold where every row rests).
     double observe(const double* q, const double* dq, const double* y) noexcept;
-    void isolate(Output& o, const VecO& rows, const std::array<double, kMaxJoints>& variance) noexcept;
+    // τ_ext from the rows' residuals, and the isolated joint: the most distal whose |τ_ext| exceeds its level (< 0:
+    // no variance calibrated, never).
+    void isolate(Output& o, const VecO& rows, const std::array<double, kMaxJoints>& level) noexcept;
     void detect(double threshold, const std::array<double, kMaxSensors>& ft_threshold) noexcept;
     void track_supply(const Output& o) noexcept;
 
     const Coefficients& c_;
     DetectorSettings det_;
     Residual residual_ = Residual::kAcceleration;
+    // Per sample constants the file implies: 1/Λ of each residual's channels, each joint's isolation level
+    // (isolation_sigmas·σ of its τ_ext, −1 where none was calibrated).
+    std::array<double, kMaxOutputs> inverse_variance_{}, inverse_observer_variance_{};
+    std::array<double, kMaxJoints> accel_isolation_{}, observer_isolation_{};
     int width_ = 0;  // channels per raw sample: n_joints + n_outputs
     int window_ = 0;  // samples in the ring: the derivative filter's window, the observer's velocity window, or both
-    // The last samples, one row a sample and one column a channel (q, then y): each sample is stored twice, at rows
-    // slot and slot + window, so the window is always a contiguous block, and each channel's window is a contiguous
-    // column the filter takes dot products with. Plain storage: a fixed-size Eigen matrix of the capacity is above
-    // Eigen's stack limit.
-    static constexpr int kRingCols = kMaxJoints + kMaxOutputs;
-    std::array<double, size_t(kRingCols) * 2 * kMaxWindow> ring_storage_{};
-    Eigen::Map<Eigen::Matrix<double, 2 * kMaxWindow, kRingCols>> ring_{ring_storage_.data()};
+    // The last samples, one row a sample: q, then y, then padding that the filter reads past its channels (it takes
+    // the channels in blocks of 4). Each sample is stored twice, at rows slot and slot + window, so the window is
+    // always a contiguous block of rows; a row is stride_ values, a multiple of 4, so every row is 32-byte aligned.
+    alignas(64) std::array<double, size_t(kRingStride) * 2 * kMaxWindow> ring_{};
+    int stride_ = 0;
+    double* row(int s) noexcept { return ring_.data() + size_t(s) * size_t(stride_); }
     int slot_ = 0;
     long count_ = 0;
     int above_run_ = 0, below_run_ = 0;

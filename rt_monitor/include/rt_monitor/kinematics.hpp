@@ -8,21 +8,18 @@
 
 namespace dynid::rt {
 
-inline Mat3 axis_rotation(const Vec3& a, double angle) noexcept {
-    const double s = std::sin(angle), co = std::cos(angle), t = 1.0 - co;
-    Mat3 R;
-    R << t * a.x() * a.x() + co, t * a.x() * a.y() - s * a.z(), t * a.x() * a.z() + s * a.y(),
-        t * a.x() * a.y() + s * a.z(), t * a.y() * a.y() + co, t * a.y() * a.z() - s * a.x(),
-        t * a.x() * a.z() - s * a.y(), t * a.y() * a.z() + s * a.x(), t * a.z() * a.z() + co;
-    return R;
-}
-
-// Body i's placement in its parent at joint positions q: rotation R (parent-from-child) and origin r.
+// Body i's placement in its parent at joint positions q: rotation R (parent-from-child) and origin r. A revolute
+// joint turns by θ about its axis a: R = R₀·(cos θ·I + sin θ·[a]× + (1 − cos θ)·a aᵀ) (Rodrigues), summed from the
+// two products the loader keeps rather than multiplied out each sample.
 inline void joint_placement(const Coefficients& c, int i, const double* q, Mat3& R, Vec3& r) noexcept {
     const int j = c.joint_index[i];
     r = c.translation[i];
     switch (c.joint_type[i]) {
-        case JointType::kRevolute: R.noalias() = c.rotation[i] * axis_rotation(c.axis[i], q[j]); break;
+        case JointType::kRevolute: {
+            const double s = std::sin(q[j]), co = std::cos(q[j]);
+            R = co * c.rotation[i] + s * c.rotation_cross[i] + (1.0 - co) * c.rotation_outer[i];
+            break;
+        }
         case JointType::kPrismatic: R = c.rotation[i]; r.noalias() += c.rotation[i] * (c.axis[i] * q[j]); break;
         default: R = c.rotation[i]; break;
     }
