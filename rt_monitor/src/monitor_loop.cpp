@@ -96,6 +96,10 @@ int MonitorLoop::run(FrameSource& source, const volatile std::sig_atomic_t& stop
     uint32_t faults_published = 0;
     int rc = 0;
     RxFrame f;
+    // The wall clock at each frame's arrival: what a live source's silence, the latency and the response times are
+    // measured from. An unpaced replay without them reads it only at the frames that complete a sample (one clock
+    // read a frame was a tenth of its time).
+    const bool every_frame = opt_.live || opt_.stats || opt_.latency_capacity > 0;
     const long long allocations_at_start = allocations();  // start-up is over: from here on, the loop
     while (!stop) {
         const ReadStatus r = src_->read(f, 100);
@@ -112,8 +116,7 @@ int MonitorLoop::run(FrameSource& source, const volatile std::sig_atomic_t& stop
             }
             continue;
         }
-        rx_mono_ = mono_us();
-        last_frame_wall = rx_mono_;
+        if (every_frame) rx_mono_ = mono_us(), last_frame_wall = rx_mono_;
         dog_.idle(0);
         if (r == ReadStatus::kError) {
             std::fprintf(stderr, "rt_monitor: error: %s\n", src_->error().c_str());
@@ -124,6 +127,7 @@ int MonitorLoop::run(FrameSource& source, const volatile std::sig_atomic_t& stop
         dog_.frame(f.t_us);
         const bool completed = asm_.push(f, sample_);
         if (completed) {
+            if (!every_frame) rx_mono_ = mono_us(), last_frame_wall = rx_mono_;
             dog_.sample(sample_);
             // The sample clock decides which tick each sample is (jitter or loss, from the stamps), bridges real gaps
             // and says when the filter restarts; stale samples are not evaluated (no contact from stale data).

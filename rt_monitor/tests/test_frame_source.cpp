@@ -169,6 +169,28 @@ TEST(Candump, ALineWithANulByteIsOneBadLine) {
     EXPECT_EQ(r->line_number(), 3u);
 }
 
+// The replay reads the log in 64 KiB blocks and finds lines in place: a line that spans blocks is whole, and one
+// longer than a block (a damaged log) is one bad line however many blocks it spans, the lines after it intact.
+TEST(Candump, LinesAcrossTheReadBufferAndLongerThanIt) {
+    const std::string path = temp_dir() + "/blocks.log";
+    std::string text;
+    int frames = 0;
+    while (text.size() < 65536 - 10) text += "(1.000000) can0 111#0011223344556677\n", ++frames;  // one spans the edge
+    text += "(1.000100) can1 112#" + std::string(200000, '0') + "\n";  // over three blocks
+    text += "(1.000200) can2 480#0100\n";
+    std::ofstream(path) << text;
+    std::string err;
+    auto r = CandumpReplay::open(path, kBuses, false, err);
+    ASSERT_TRUE(r) << err;
+    RxFrame f;
+    std::vector<canid_t> ids;
+    while (r->read(f, 0) == ReadStatus::kFrame) ids.push_back(f.frame.can_id);
+    ASSERT_EQ(ids.size(), size_t(frames) + 1);
+    EXPECT_EQ(ids.back(), 0x480u);
+    EXPECT_EQ(r->counters().bad_lines, 1u);
+    EXPECT_EQ(r->line_number(), uint64_t(frames) + 2);
+}
+
 TEST(Candump, RealTimeReplayKeepsTheLogsPace) {
     const std::string path = temp_dir() + "/rt.log";
     std::ofstream(path) << "(100.000000) can0 111#00\n(100.030000) can0 111#01\n(100.060000) can0 111#02\n";

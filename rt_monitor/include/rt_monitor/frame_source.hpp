@@ -11,7 +11,6 @@
 #include <sys/un.h>
 
 #include <cstdint>
-#include <cstdio>
 #include <array>
 #include <memory>
 #include <string>
@@ -77,9 +76,17 @@ public:
     uint64_t line_number() const noexcept { return line_; }
 
 private:
+    // A classic-CAN candump -L line is < 80 characters; a longer one than this is a bad line (as fgets' 160-byte
+    // buffer had it).
+    static constexpr size_t kMaxLine = 158, kBufferSize = size_t(1) << 16;
+    enum class Next { kLine, kOverlong, kEnd, kError };
     CandumpReplay() = default;
-    std::FILE* f_ = nullptr;
-    std::vector<char> buffer_;  // the stream's buffer (setvbuf), allocated at open
+    // The next line in the buffer (its newline excluded; the log's last may have none), reading more as needed.
+    Next next_line(char*& line, size_t& n) noexcept;
+    int fd_ = -1;
+    std::vector<char> buffer_;  // the log's bytes, [begin_, end_) not yet handed out; allocated at open
+    size_t begin_ = 0, end_ = 0;
+    bool eof_ = false, skipping_ = false;  // skipping_: inside an overlong line, until its newline
     std::vector<std::string> buses_;
     bool realtime_ = false;
     int64_t t0_log_ = -1, t0_wall_ = 0;
