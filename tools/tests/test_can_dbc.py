@@ -208,3 +208,21 @@ def test_example_monitor_config_is_current() -> None:
 
     text = (ROOT / "rt_monitor" / "config" / "icub_right_arm.conf").read_text()
     assert text == monitor_config_text(load_config("icub_right_arm"))
+
+
+def test_the_bus_exports_without_a_supplied_urdf(tmp_path: Path) -> None:
+    """The DBC and the monitor configuration come from the configuration alone: a robot whose URDF the user supplies
+    (the UR10e's) exports them with no DYNID_URDF_PATH; what needs the chain still refuses, in one line."""
+    import os
+
+    env = {**os.environ, "DYNID_URDF_PATH": ""}
+    dbc, conf = tmp_path / "ur.dbc", tmp_path / "ur.conf"
+    done = subprocess.run([str(DYNID), "export", "--robot", "ur10e", "--dbc", str(dbc), "--monitor-config", str(conf)],
+                          capture_output=True, text=True, env=env)
+    assert done.returncode == 0, done.stderr
+    assert _content(cantools.database.load_file(str(dbc), strict=True)) == _content(database(load_config(
+        "ur10e", need_urdf=False).bus))
+    assert conf.read_text().startswith("# rt_monitor configuration for ur10e")
+    done = subprocess.run([str(DYNID), "export", "--robot", "ur10e", "--cad", "--out", str(tmp_path / "ur.dcoef")],
+                          capture_output=True, text=True, env=env)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1 and "a URDF you supply" in done.stderr, done.stderr

@@ -56,7 +56,8 @@ def _export_bus(args: argparse.Namespace) -> dict[str, Any]:
     from ..io.can_database import dbc_files
     from ..io.dataset import atomic_write
 
-    config = load_model(args.model).config if args.model else load_config(args.robot, args.urdf)
+    # the bus alone: a robot whose URDF the user supplies exports its DBC and monitor configuration without it
+    config = load_model(args.model).config if args.model else load_config(args.robot, args.urdf, need_urdf=False)
     bus = check_capacity(config)
     dbcs = dbc_files(bus, config.name) if args.dbc else {}
     paths = {}

@@ -252,6 +252,13 @@ def _resolve_urdf(f: Fields, config_dir: Path, override: str | Path | None = Non
     return path
 
 
+def _urdf_if_found(f: Fields, config_dir: Path, override: str | Path | None) -> Path:
+    try:
+        return _resolve_urdf(f, config_dir, override)
+    except ConfigError:
+        return Path()
+
+
 def _noise(f: Fields, motors: tuple[str, ...], joints: tuple[str, ...]) -> NoiseConfig:
     """`noise`: each input kind one number, or a mapping with a value per motor (pwm, current) or joint (torque)."""
     n = f.sub("noise", {}).only("pwm", "current", "torque", "encoder_step")
@@ -279,8 +286,11 @@ def _noise(f: Fields, motors: tuple[str, ...], joints: tuple[str, ...]) -> Noise
     )
 
 
-def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = None) -> RobotConfig:
-    """Load and validate a robot configuration (a path or a bundled name); `urdf` replaces its URDF (--urdf)."""
+def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = None,
+                need_urdf: bool = True) -> RobotConfig:
+    """Load and validate a robot configuration (a path or a bundled name); `urdf` replaces its URDF (--urdf).
+    `need_urdf` False: a URDF that cannot be found is left unresolved (`urdf` an empty path), for what reads the
+    configuration alone (the bus: `export --dbc`, `--monitor-config`)."""
     path = resolve_config_path(robot)
     text = path.read_bytes()
     try:
@@ -417,7 +427,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         name=name,
         source=str(path),
         digest=hashlib.sha256(text).hexdigest(),
-        urdf=_resolve_urdf(f, path.parent, urdf),
+        urdf=_resolve_urdf(f, path.parent, urdf) if need_urdf else _urdf_if_found(f, path.parent, urdf),
         base_link=f.string("base_link"),
         gravity=g_arr,
         gravity_imu=imu_frame,
