@@ -26,6 +26,7 @@ from ..identify.supply import SupplyTracking, smoothed_ratios
 from ..margins import above, borderline, borderline_log
 from ..io.dataset import Dataset
 from ..robot.effect_library import LIBRARY, NEEDS_GIVEN_MODEL, Candidate, Context, refined
+from ..robot.effects import UNITS
 from ..robot.model import RobotModel
 from ..robot.outputs import divisors, output_channels
 from ..robot.regressors.stack import Signals, fill_rows, row_channels
@@ -336,6 +337,7 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
         if near:
             on_edge.append(_edge("confident", f"{f.kind} on {f.where}", explained, CONFIDENT, "tentative"))
         effects.append({"name": f.kind, "where": f.where, "parameters": f.parameters,
+                        "units": {k: UNITS.get(k, "") for k in f.parameters},
                         "standard_errors": f.standard_errors, "search": dict(c.nonlinear), "cv_gain": tr.gain,
                         "p_value": tr.p_value, "explained": explained, "secondary_to": primary,
                         "confident": i < len(declared) or (enough and primary is None), "declared": i < len(declared)})
@@ -409,8 +411,10 @@ def format_report(result: dict) -> str:
     lines = []
     if result["effects"]:
         for e in result["effects"]:
-            params = ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in e["parameters"].items()
-                               if not isinstance(v, list))  # matrices go to --json only
+            units = e.get("units", {})
+            params = ", ".join((f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}")
+                               + (f" {units[k]}" if units.get(k) else "")
+                               for k, v in e["parameters"].items() if not isinstance(v, list))  # matrices: --json only
             lead = "declared" if e.get("declared") else "named" if e["confident"] else "tentative"
             lines.append(f"{lead}: {e['name']} on {e['where']}: {params} "
                          f"(held-out error on its channels {'−' if e['cv_gain'] >= 0 else '+'}{abs(100 * e['cv_gain']):.1f} %, "
