@@ -122,6 +122,20 @@ TEST(Candump, StampsUpToTheInt64LimitAndNoFurther) {
         EXPECT_EQ(parse_candump_line(bad, kBuses, f), LineKind::kBad) << bad;
 }
 
+// Opens the log and reads it to its end (or its first non-frame status): the frames' IDs, and the replay for its
+// counters. Null if it does not open (the reason printed).
+std::unique_ptr<CandumpReplay> replay_all(const std::string& path, std::vector<canid_t>& ids) {
+    std::string err;
+    auto r = CandumpReplay::open(path, kBuses, false, err);
+    if (!r) {
+        ADD_FAILURE() << err;
+        return r;
+    }
+    RxFrame f;
+    while (r->read(f, 0) == ReadStatus::kFrame) ids.push_back(f.frame.can_id);
+    return r;
+}
+
 TEST(Candump, ReplayCountsBadLinesAndEnds) {
     const std::string path = temp_dir() + "/x.log";
     std::ofstream(path) << "(1.000000) can0 3DA#008000800080\n"
@@ -130,18 +144,17 @@ TEST(Candump, ReplayCountsBadLinesAndEnds) {
                            "(1.000200) can1 111#0000000000000000\n"
                         << "(1.0003) can1 112#" << std::string(400, '0') << "\n"  // overlong
                         << "(1.000400) can2 480#0100";  // no final newline
-    std::string err;
-    auto r = CandumpReplay::open(path, kBuses, false, err);
-    ASSERT_TRUE(r) << err;
-    RxFrame f;
     std::vector<canid_t> ids;
-    while (r->read(f, 0) == ReadStatus::kFrame) ids.push_back(f.frame.can_id);
+    auto r = replay_all(path, ids);
+    ASSERT_TRUE(r);
     EXPECT_EQ(ids, (std::vector<canid_t>{0x3DA, 0x111, 0x480}));
     EXPECT_EQ(r->counters().frames, 3u);
     EXPECT_EQ(r->counters().bad_lines, 2u);
     EXPECT_EQ(r->counters().unknown_bus, 1u);
+    RxFrame f;
     EXPECT_EQ(r->read(f, 0), ReadStatus::kEnd);
 
+    std::string err;
     EXPECT_FALSE(CandumpReplay::open("/nonexistent/x.log", kBuses, false, err));
     EXPECT_NE(err.find("/nonexistent/x.log: cannot open candump log"), std::string::npos) << err;
 }
@@ -158,12 +171,9 @@ TEST(Candump, ALineWithANulByteIsOneBadLine) {
     text += '\0';
     text += "80\n(1.000300) can2 480#0100\n";  // short, a NUL in it
     std::ofstream(path, std::ios::binary) << text;
-    std::string err;
-    auto r = CandumpReplay::open(path, kBuses, false, err);
-    ASSERT_TRUE(r) << err;
-    RxFrame f;
     std::vector<canid_t> ids;
-    while (r->read(f, 0) == ReadStatus::kFrame) ids.push_back(f.frame.can_id);
+    auto r = replay_all(path, ids);
+    ASSERT_TRUE(r);
     EXPECT_EQ(ids, (std::vector<canid_t>{0x480}));
     EXPECT_EQ(r->counters().bad_lines, 2u);
     EXPECT_EQ(r->line_number(), 3u);
@@ -179,12 +189,9 @@ TEST(Candump, LinesAcrossTheReadBufferAndLongerThanIt) {
     text += "(1.000100) can1 112#" + std::string(200000, '0') + "\n";  // over three blocks
     text += "(1.000200) can2 480#0100\n";
     std::ofstream(path) << text;
-    std::string err;
-    auto r = CandumpReplay::open(path, kBuses, false, err);
-    ASSERT_TRUE(r) << err;
-    RxFrame f;
     std::vector<canid_t> ids;
-    while (r->read(f, 0) == ReadStatus::kFrame) ids.push_back(f.frame.can_id);
+    auto r = replay_all(path, ids);
+    ASSERT_TRUE(r);
     ASSERT_EQ(ids.size(), size_t(frames) + 1);
     EXPECT_EQ(ids.back(), 0x480u);
     EXPECT_EQ(r->counters().bad_lines, 1u);

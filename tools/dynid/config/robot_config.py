@@ -8,9 +8,7 @@ with a `ConfigError` whose message names the field, e.g. ``icub_right_arm: actua
 from __future__ import annotations
 
 import hashlib
-import importlib.metadata
 import math
-import os
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -25,6 +23,7 @@ from .fields import Fields, as_float, shown
 from .icub_bus import icub_bus
 from .log_columns import LogColumn, parse_columns
 from .run_files import RunFile, parse_files
+from .urdf_source import URDF_PATH_ENV, resolve_urdf, urdf_if_found  # noqa: F401 - URDF_PATH_ENV: part of this API
 from .ros2_topics import Ros2Topics, parse_ros2
 from .yarp_ports import YarpLayout, parse_yarp
 
@@ -197,68 +196,6 @@ def bundled_configs() -> list[str]:
     return sorted(p.stem for p in BUNDLED_DIR.glob("*.yaml"))
 
 
-URDF_PATH_ENV = "DYNID_URDF_PATH"  # directories searched for a `urdf: {supplied: FILE}` (os.pathsep-separated)
-
-
-def _supplied_urdf(spec: Fields, name: str) -> Path:
-    """A URDF dynid does not ship (its licence, or the robot's owner, keeps it out): found in DYNID_URDF_PATH."""
-    for folder in os.environ.get(URDF_PATH_ENV, "").split(os.pathsep):
-        if folder and (Path(folder) / name).is_file():
-            return Path(folder) / name
-    raise spec.fail(
-        "supplied",
-        f"names '{name}', a URDF you supply: give it with --urdf PATH, or put its folder in {URDF_PATH_ENV}",
-    )
-
-
-def _resolve_urdf(f: Fields, config_dir: Path, override: str | Path | None = None) -> Path:
-    spec = f.sub("urdf").only("path", "icub_models", "package", "file", "supplied")
-    if override is not None:
-        path = Path(override)
-        if not path.is_file():
-            raise ConfigError(f"{f.robot}: the URDF given with --urdf is not a file: {path}")
-        return path
-    if spec.has("supplied"):
-        path = _supplied_urdf(spec, spec.string("supplied"))
-    elif spec.has("path"):
-        path = Path(spec.string("path"))
-        path = path if path.is_absolute() else config_dir / path
-    elif spec.has("icub_models"):
-        name = spec.string("icub_models")
-        try:
-            import icub_models
-        except ImportError:
-            raise spec.fail("icub_models", "needs the icub-models package, which is not installed") from None
-        try:
-            path = Path(icub_models.get_model_file(name))
-        except FileNotFoundError:
-            known = ", ".join(sorted(icub_models.get_robot_names()))
-            raise spec.fail("icub_models", f"names no model of icub-models: '{name}' (known: {known})") from None
-    elif spec.has("package"):
-        # A URDF shipped as data inside a pip distribution (e.g. example-robot-data).
-        dist, suffix = spec.string("package"), spec.string("file")
-        try:
-            files = importlib.metadata.files(dist) or []
-        except importlib.metadata.PackageNotFoundError:
-            raise spec.fail("package", f"names a distribution that is not installed: '{dist}'") from None
-        hits = [p for p in files if str(p).replace("\\", "/").endswith(suffix)]
-        if not hits:
-            raise spec.fail("file", f"matches no file of the distribution '{dist}': '{suffix}'")
-        path = Path(str(hits[0].locate()))
-    else:
-        raise f.fail("urdf", "must give one of 'path', 'icub_models', 'package' or 'supplied'")
-    if not path.is_file():
-        raise f.fail("urdf", f"points to a missing file: {path}")
-    return path
-
-
-def _urdf_if_found(f: Fields, config_dir: Path, override: str | Path | None) -> Path:
-    try:
-        return _resolve_urdf(f, config_dir, override)
-    except ConfigError:
-        return Path()
-
-
 def _noise(f: Fields, motors: tuple[str, ...], joints: tuple[str, ...]) -> NoiseConfig:
     """`noise`: each input kind one number, or a mapping with a value per motor (pwm, current) or joint (torque)."""
     n = f.sub("noise", {}).only("pwm", "current", "torque", "encoder_step")
@@ -427,7 +364,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         name=name,
         source=str(path),
         digest=hashlib.sha256(text).hexdigest(),
-        urdf=_resolve_urdf(f, path.parent, urdf) if need_urdf else _urdf_if_found(f, path.parent, urdf),
+        urdf=resolve_urdf(f, path.parent, urdf) if need_urdf else urdf_if_found(f, path.parent, urdf),
         base_link=f.string("base_link"),
         gravity=g_arr,
         gravity_imu=imu_frame,
