@@ -12,8 +12,9 @@
 namespace dynid::rt {
 
 using VecO = Eigen::Matrix<double, kMaxOutputs, 1>;
-// A ring row's capacity (Core): every channel, rounded up to the filter's blocks of 4, plus one block.
-constexpr int kRingStride = kMaxJoints + kMaxOutputs + 4;
+// A ring row's capacity (Core): the widest row it keeps, every channel plus the 3 the filter may read past them
+// (its blocks of 4), rounded up to a block.
+constexpr int kRingStride = (kMaxJoints + kMaxOutputs + 3 + 3) / 4 * 4;
 
 enum class Event : int8_t { kNone = 0, kOnset = 1, kEnd = 2 };
 enum class Side : int8_t { kNone = 0, kDistal = 1, kProximal = -1 };  // of an F/T sensor
