@@ -2,7 +2,8 @@
 
 The design is the standard model's weighted rows (every row in units of its own noise, rows at rest dropped),
 reduced to its identifiable subspace Z. Statistics are Gram matrices per (time block, row channel), so a
-candidate costs one cross product with Z, and every fold's fit and held-out error are small solves.
+candidate costs one cross product with Z (a round's candidates crossed together, `batched`: one read of Z for many),
+and every fold's fit and held-out error are small solves.
 
 A candidate is accepted when (1) it lowers the held-out weighted SSE of the channels it acts on by at least
 `min_gain` (relative), on every fold's average, and (2) its coefficients are significant by a Wald test whose
@@ -14,6 +15,7 @@ stiction: lag-1 autocorrelation 0.5–0.9 at the decimated rate), so a test that
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -56,17 +58,36 @@ def columns_on(E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.flatnonzero(touched), np.where(n > 0, n, 1.0)
 
 
-def _bordered_solve(Ginv: np.ndarray, G: np.ndarray, g: np.ndarray, d: int) -> np.ndarray:
-    """Least squares of the normal equations G (d + K square) whose leading d×d block has the (cached) pseudo-
-    inverse Ginv: a Schur complement on the K candidate columns, K small, instead of a new (d + K) solve.
-    Candidate directions the design already spans (Schur complement ~ 0 against their own scale) get 0."""
-    B, C = G[:d, d:], G[d:, d:]
+def _bordered_solve(Ginv: np.ndarray, B: np.ndarray, C: np.ndarray, gd: np.ndarray, ge: np.ndarray) -> np.ndarray:
+    """Least squares of the normal equations [[G, B], [Bᵀ, C]] x = [gd, ge] whose leading d×d block G has the
+    (cached) pseudo-inverse Ginv: a Schur complement on the K candidate columns, K small, instead of a new (d + K)
+    solve. Candidate directions the design already spans (Schur complement ~ 0 against their own scale) get 0."""
     GiB = Ginv @ B
     S = C - B.T @ GiB
     s, V = np.linalg.eigh(S)
     keep = s > SPAN_TOL * max(float(np.abs(np.diag(C)).max()), 1e-300)
-    th = V[:, keep] @ ((V[:, keep].T @ (g[d:] - GiB.T @ g[:d])) / s[keep])
-    return np.concatenate([Ginv @ g[:d] - GiB @ th, th])
+    th = V[:, keep] @ ((V[:, keep].T @ (ge - GiB.T @ gd)) / s[keep])
+    return np.concatenate([Ginv @ gd - GiB @ th, th])
+
+
+def _quadratic(M: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(r,) uᵀ M_c v for each of the r matrices M_c of M (r, m, k), as one matrix-vector product."""
+    r, m, k = M.shape
+    return (M.reshape(r * m, k) @ v).reshape(r, m) @ u
+
+
+def _sse(G: np.ndarray, g: np.ndarray, yy: np.ndarray, x: np.ndarray,
+         extra: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """Per channel, the SSE (y − [D E] x)ᵀ(y − [D E] x) from the normal statistics: G (r, d, d), g (r, d), yy (r,)
+    of D, and `extra` = (DᵀE (r, d, K), EᵀE (r, K, K), Eᵀy (r, K)) of the candidate columns E, if any."""
+    d = G.shape[-1]
+    xd = x[:d]
+    sse = _quadratic(G, xd, xd) - 2 * (g @ xd) + yy
+    if extra is not None:
+        DE, EE, Ey = extra
+        xe = x[d:]
+        sse += 2 * _quadratic(DE, xd, xe) + _quadratic(EE, xe, xe) - 2 * (Ey @ xe)
+    return sse
 
 
 @dataclass
@@ -75,9 +96,13 @@ class Design:
 
     Every column is scaled to unit norm inside (G, g, the pseudo-inverses, the bordered solves): a candidate's
     columns can be 1e-6 of the design's (a Stribeck curve that lives only near q̇ = 0), and a cut relative to the
-    largest eigenvalue would drop them in one solve and keep them in another. `fit` returns x in D's own units."""
+    largest eigenvalue would drop them in one solve and keep them in another. `fit` returns x in D's own units.
 
-    D: np.ndarray  # (N, r, d) weighted columns
+    A candidate E is judged by its cross products with [D y] alone: D is kept channel by channel, [D y] of a channel
+    one contiguous (N, d + 1) array, so each (block, channel) is one product that reads only that channel's rows,
+    and the (d + K)-square normal matrices are never assembled."""
+
+    D: np.ndarray  # (N, r, d) weighted columns (after __post_init__, a view of the channel-major copy)
     y: np.ndarray  # (N, r) weighted right-hand side
     bounds: np.ndarray  # (B + 1,) sample index where each contiguous time block starts, and N
     G: np.ndarray = field(init=False)  # (B, r, d, d)
@@ -89,6 +114,8 @@ class Design:
     scale: np.ndarray = field(init=False)  # (d,) norm of each column of D; G, g are of D / scale
     # the last candidate's `cross` (a candidate is fitted, then cross-validated: the same E twice in a row)
     _crossed: tuple = field(init=False, default=(None, None), repr=False)
+    # `cross_many`'s results by id(E), with E itself (so the id stays that E's): until `forget`
+    _batch: dict = field(init=False, default_factory=dict, repr=False)
 
     @property
     def n_blocks(self) -> int:
@@ -98,41 +125,73 @@ class Design:
         return slice(int(self.bounds[b]), int(self.bounds[b + 1]))
 
     def __post_init__(self) -> None:
-        B, r, d = self.n_blocks, self.D.shape[1], self.D.shape[2]
+        N, r, d = self.D.shape
+        B = self.n_blocks
+        self._Dy = np.empty((r, N, d + 1))  # per channel [D y], contiguous
+        self._Dy[:, :, :d] = self.D.transpose(1, 0, 2)
+        self._Dy[:, :, d] = self.y.T
+        self.D = self._Dy[:, :, :d].transpose(1, 0, 2)
         self.G, self.g, self.yy, self.rows = np.zeros((B, r, d, d)), np.zeros((B, r, d)), np.zeros((B, r)), np.zeros((B, r))
         for b in range(B):
-            sel = self._block(b)
-            Db, yb = self.D[sel], self.y[sel]
-            Dr = Db.transpose(1, 2, 0)  # (r, d, n): per channel a BLAS product, not einsum's loop
-            self.G[b] = Dr @ Dr.transpose(0, 2, 1)
-            self.g[b] = (Dr @ yb.T[:, :, None])[:, :, 0]
-            self.yy[b] = (yb**2).sum(axis=0)
-            self.rows[b] = (np.abs(Db).sum(axis=2) > 0).sum(axis=0)
+            P = self._Dy[:, self._block(b)]  # (r, n, d + 1)
+            Q = P.transpose(0, 2, 1) @ P  # per channel one BLAS product: G, g and yy together
+            self.G[b], self.g[b], self.yy[b] = Q[:, :d, :d], Q[:, :d, d], Q[:, d, d]
+            self.rows[b] = (np.abs(P[:, :, :d]).sum(axis=2) > 0).sum(axis=1)
         self.scale = _norms(self.D)
         self.G /= np.outer(self.scale, self.scale)
         self.g /= self.scale
-        Gb = self.G.sum(axis=1)
-        self.inv_all = _pinv(Gb.sum(axis=0))
-        self.inv_folds = np.stack([_pinv(Gb.sum(axis=0) - Gb[b]) for b in range(B)])
+        # the sums every solve starts from: over channels (per block), over blocks (per channel), over both
+        self._G_block, self._g_block = self.G.sum(axis=1), self.g.sum(axis=1)
+        self._G_channel, self._g_channel, self._yy_channel = self.G.sum(axis=0), self.g.sum(axis=0), self.yy.sum(axis=0)
+        self._G_all, self._g_all = self._G_block.sum(axis=0), self._g_block.sum(axis=0)
+        self.inv_all = _pinv(self._G_all)
+        self.inv_folds = np.stack([_pinv(self._G_all - self._G_block[b]) for b in range(B)])
 
     def cross(self, E: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(D'E, E'E, E'y) per (block, channel) for extra columns E (N, r, K), both scaled to unit-norm columns, and
         E's column norms."""
         if self._crossed[0] is E:
             return self._crossed[1]
-        B, r, d, K = self.n_blocks, self.D.shape[1], self.D.shape[2], E.shape[2]
-        DE, EE, Ey = np.zeros((B, r, d, K)), np.zeros((B, r, K, K)), np.zeros((B, r, K))
-        active, e = columns_on(E)
-        for b in range(B):
-            sel = self._block(b)
-            for c in active:  # views, no copies: a candidate touches few channels
-                Ec = E[sel, c]
-                DE[b, c] = self.D[sel, c].T @ Ec
-                EE[b, c] = Ec.T @ Ec
-                Ey[b, c] = Ec.T @ self.y[sel, c]
-        out = DE / np.outer(self.scale, e), EE / np.outer(e, e), Ey / e, e
+        held = self._batch.get(id(E))
+        out = held[1] if held is not None and held[0] is E else self._cross_products([E])[0]
         self._crossed = (E, out)
         return out
+
+    def cross_many(self, Es: list[np.ndarray]) -> None:
+        """`cross` of several candidates in one pass over D, kept for `cross` until `forget`."""
+        for E, out in zip(Es, self._cross_products(Es)):
+            self._batch[id(E)] = (E, out)
+
+    def _cross_products(self, Es: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+        """`cross` of each E. Per channel, the columns of every candidate on it side by side, one product with [D y]
+        per block: these products are bound by reading D (a candidate has 1-6 columns), so D is read once for all
+        of them rather than once for each."""
+        B, r, d = self.n_blocks, self.D.shape[1], self.D.shape[2]
+        touched = [columns_on(E) for E in Es]
+        stats = [(np.zeros((B, r, d, E.shape[2])), np.zeros((B, r, E.shape[2], E.shape[2])), np.zeros((B, r, E.shape[2])))
+                 for E in Es]
+        for c in range(r):
+            on = [i for i, (active, _) in enumerate(touched) if c in active]  # a candidate touches few channels
+            if not on:
+                continue
+            columns = np.concatenate([Es[i][:, c] for i in on], axis=1)  # (N, ΣK), contiguous
+            ends = np.cumsum([Es[i].shape[2] for i in on])
+            starts = ends - [Es[i].shape[2] for i in on]
+            for b in range(B):
+                sel = self._block(b)
+                M = self._Dy[c, sel].T @ columns[sel]  # (d + 1, ΣK): D'E and y'E of all of them at once
+                for i, lo, hi in zip(on, starts, ends):
+                    DE, EE, Ey = stats[i]
+                    DE[b, c], Ey[b, c] = M[:d, lo:hi], M[d, lo:hi]
+                    Ec = columns[sel, lo:hi]
+                    EE[b, c] = Ec.T @ Ec
+        return [(DE / np.outer(self.scale, e), EE / np.outer(e, e), Ey / e, e)
+                for (_, e), (DE, EE, Ey) in zip(touched, stats)]
+
+    def forget(self) -> None:
+        """Drop what `cross_many` kept (and the candidates' columns it held)."""
+        self._batch.clear()
+        self._crossed = (None, None)
 
     def columns_of(self, E: np.ndarray, keep: list[int]) -> np.ndarray:
         """E[:, :, keep], with its `cross` statistics sliced from E's rather than computed again (each column is
@@ -142,41 +201,38 @@ class Design:
         self._crossed = (sub, (DE[..., keep], EE[:, :, keep][:, :, :, keep], Ey[..., keep], e[keep]))
         return sub
 
-    def augmented(self, E: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        """(G, g) per (block, channel) of [D, E]."""
-        if E is None:
-            return self.G, self.g
-        DE, EE, Ey, _ = self.cross(E)
-        top = np.concatenate([self.G, DE], axis=3)
-        bottom = np.concatenate([np.swapaxes(DE, 2, 3), EE], axis=3)
-        return np.concatenate([top, bottom], axis=2), np.concatenate([self.g, Ey], axis=2)
-
     def cv_sse(self, E: np.ndarray | None) -> np.ndarray:
         """(B, r) held-out SSE of each block and channel, fitting on the other blocks."""
-        G, g = self.augmented(E)
-        Gb, gb = G.sum(axis=1), g.sum(axis=1)  # (B, d, d), (B, d): all channels of a block
-        Gt, gt = Gb.sum(axis=0), gb.sum(axis=0)
-        out = np.zeros((self.n_blocks, G.shape[1]))
-        d = self.D.shape[2]
+        out = np.zeros((self.n_blocks, self.D.shape[1]))
+        if E is None:
+            for b in range(self.n_blocks):
+                x = self.inv_folds[b] @ (self._g_all - self._g_block[b])
+                out[b] = _sse(self.G[b], self.g[b], self.yy[b], x)
+            return out
+        DE, EE, Ey, _ = self.cross(E)
+        DE_block, EE_block, Ey_block = DE.sum(axis=1), EE.sum(axis=1), Ey.sum(axis=1)
+        DE_all, EE_all, Ey_all = DE_block.sum(axis=0), EE_block.sum(axis=0), Ey_block.sum(axis=0)
         for b in range(self.n_blocks):
-            x = self.inv_folds[b] @ (gt - gb[b]) if E is None else _bordered_solve(self.inv_folds[b], Gt - Gb[b], gt - gb[b], d)
-            out[b] = (G[b] @ x) @ x - 2 * g[b] @ x + self.yy[b]
+            x = _bordered_solve(self.inv_folds[b], DE_all - DE_block[b], EE_all - EE_block[b],
+                                self._g_all - self._g_block[b], Ey_all - Ey_block[b])
+            out[b] = _sse(self.G[b], self.g[b], self.yy[b], x, (DE[b], EE[b], Ey[b]))
         return out
 
     def fit(self, E: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         """(x over all blocks in the columns' own units, in-sample SSE per channel)."""
-        G, g = self.augmented(E)
-        Gs, gs = G.sum(axis=(0, 1)), g.sum(axis=(0, 1))
-        x = self.inv_all @ gs if E is None else _bordered_solve(self.inv_all, Gs, gs, self.D.shape[2])
-        Gc, gc, yy = G.sum(axis=0), g.sum(axis=0), self.yy.sum(axis=0)
-        scale = self.scale if E is None else np.concatenate([self.scale, self.cross(E)[3]])
-        return x / scale, (Gc @ x) @ x - 2 * gc @ x + yy
+        if E is None:
+            x = self.inv_all @ self._g_all
+            return x / self.scale, _sse(self._G_channel, self._g_channel, self._yy_channel, x)
+        DE, EE, Ey, e = self.cross(E)
+        DE_channel, EE_channel, Ey_channel = DE.sum(axis=0), EE.sum(axis=0), Ey.sum(axis=0)
+        x = _bordered_solve(self.inv_all, DE_channel.sum(axis=0), EE_channel.sum(axis=0), self._g_all,
+                            Ey_channel.sum(axis=0))
+        sse = _sse(self._G_channel, self._g_channel, self._yy_channel, x, (DE_channel, EE_channel, Ey_channel))
+        return x / np.concatenate([self.scale, e]), sse
 
     def fold_fits(self) -> list[np.ndarray]:
         """x (own units) fitted on all blocks but b, for each b: the block jackknife's replicates."""
-        gb = self.g.sum(axis=1)
-        gt = gb.sum(axis=0)
-        return [self.inv_folds[b] @ (gt - gb[b]) / self.scale for b in range(self.n_blocks)]
+        return [self.inv_folds[b] @ (self._g_all - self._g_block[b]) / self.scale for b in range(self.n_blocks)]
 
 
 WORSE_TOLERANCE = 0.05  # a fix is refused when a channel's held-out RMS grows by over 5 % ...
@@ -204,10 +260,13 @@ class Trial:
         return 1.0 - self.cv_after / self.cv_before if self.cv_before > 0 else 0.0
 
 
-def evaluate(design: Design, cand: Candidate, weights: np.ndarray, base_cv: np.ndarray) -> Trial:
-    """The candidate's columns, weighted like the rows (1/σ, 0 at rest), against the current design; its p-value
-    is left NaN (`robust_p_value` costs a pass over the rows: only the best candidate of a round gets one)."""
-    E = weighted_columns(cand.values, weights)
+def evaluate(design: Design, cand: Candidate, weights: np.ndarray, base_cv: np.ndarray,
+             E: np.ndarray | None = None) -> Trial:
+    """The candidate's columns E, weighted like the rows (1/σ, 0 at rest; made here if not given), against the
+    current design; its p-value is left NaN (`robust_p_value` costs a pass over the rows: only the best candidate
+    of a round gets one)."""
+    if E is None:
+        E = weighted_columns(cand.values, weights)
     channels = columns_on(E)[0]
     before = base_cv[:, channels].sum(axis=1)
     if cand.positive:
@@ -271,3 +330,30 @@ def robust_p_value(design: Design, E: np.ndarray, batch: int) -> float:
 
 def weighted_columns(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
     return values * weights[:, :, None]
+
+
+CROSS_BATCH_BYTES = 64 * 2**20  # candidates' weighted columns held at once for one `Design.cross_many`
+
+
+def batched(design: Design, candidates: Iterable[Candidate],
+            weights: np.ndarray) -> Iterator[tuple[Candidate, np.ndarray]]:
+    """(candidate, its weighted columns) in turn, the columns crossed with the design a batch at a time
+    (`Design.cross_many`, about CROSS_BATCH_BYTES of columns each), so a round of candidates reads D a few times,
+    not once per candidate."""
+    chunk: list[Candidate] = []
+    size = 0
+
+    def flush() -> Iterator[tuple[Candidate, np.ndarray]]:
+        Es = [weighted_columns(c.values, weights) for c in chunk]
+        design.cross_many(Es)
+        yield from zip(chunk, Es)
+        design.forget()
+
+    for c in candidates:
+        chunk.append(c)
+        size += c.values.nbytes
+        if size >= CROSS_BATCH_BYTES:
+            yield from flush()
+            chunk, size = [], 0
+    if chunk:
+        yield from flush()

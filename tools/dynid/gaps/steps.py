@@ -156,12 +156,14 @@ def subset(c: Candidate, axes: Sequence[str]) -> Candidate | None:
     return replace(c, values=c.values[:, :, keep], labels=tuple(c.labels[k] for k in keep), interpret=interpret)
 
 
-def prune(design: Design, cand: Candidate, weights: np.ndarray, cur_cv: np.ndarray) -> Trial:
+def prune(design: Design, cand: Candidate, weights: np.ndarray, cur_cv: np.ndarray,
+          full: np.ndarray | None = None) -> Trial:
     """The step on the channels whose held-out SSE it lowers, judged again without the others until every channel
     it keeps is lowered (a Trial of gain 0 when none is). Each column of a step is one channel's. (A step the
     selection has accepted stays on the channels it had: a later effect may change them, which `held_out` shows.)"""
     c: Candidate | None = cand
-    full = weighted_columns(cand.values, weights)
+    if full is None:
+        full = weighted_columns(cand.values, weights)
     while c is not None:
         E = full if c is cand else design.columns_of(full, [cand.labels.index(label) for label in c.labels])
         channels = columns_on(E)[0]

@@ -33,7 +33,8 @@ from ..robot.regressors.stack import Signals, fill_rows, row_channels
 from .episodes import format_episode, residual_episodes
 from .profile import profile
 from .refit import reference_phi, refit
-from .selection import WORSE_TOLERANCE, Design, Trial, evaluate, robust_p_value, weighted_columns, worse_channels
+from .selection import (WORSE_TOLERANCE, Design, Trial, batched, evaluate, robust_p_value, weighted_columns,
+                        worse_channels)
 from .steps import (FT_STEP, cad_offsets_with_steps, declared_candidates, describe, format_levels, format_step,
                     found_candidates, limit_events, offset_levels, prune)
 
@@ -262,12 +263,12 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
         cur_cv = current.cv_sse(None)
     declared_cv = cur_cv  # what a found effect is judged against when it makes a channel worse
     for _ in range(settings.max_effects):
-        trials = [prune(current, c, w, cur_cv) if c.kind == FT_STEP else evaluate(current, c, w, cur_cv)
-                  for c in candidates if _key(c) not in taken]
+        trials = [prune(current, c, w, cur_cv, E) if c.kind == FT_STEP else evaluate(current, c, w, cur_cv, E)
+                  for c, E in batched(current, [c for c in candidates if _key(c) not in taken], w)]
         if not trials:
             break
         best = max(trials, key=lambda tr: tr.gain)
-        fine = [evaluate(current, c, w, cur_cv) for c in refined(ctx, best.candidate)]
+        fine = [evaluate(current, c, w, cur_cv, E) for c, E in batched(current, refined(ctx, best.candidate), w)]
         best = max([best, *fine], key=lambda tr: tr.gain)
         # best per effect/place, for the report of what was ruled out
         tried = trials
