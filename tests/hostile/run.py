@@ -4,7 +4,8 @@
 (multiprocessing's forkserver, preloaded): the command's `main` in a fresh process of its own, with its own exit
 code, signals and stdout/stderr files, without paying Python's and numpy's start-up (about 2 s on a busy machine)
 for each of some 200 cases. `HOSTILE_SUBPROCESS=1` runs every dynid case through the `dynid` executable instead
-(slower, the same verdicts). The C programs run as they are: from `build-asan/` (AddressSanitizer + UBSan), where
+(slower, the same verdicts). The gap tests and the UR10e's every-command test run their many commands this way
+too. The C programs run as they are: from `build-asan/` (AddressSanitizer + UBSan), where
 scripts/setup builds them, unless `build/` holds a newer build.
 """
 
@@ -26,7 +27,8 @@ TIMEOUT_S = 120.0
 # What the forkserver imports once: every command group's module (dynid.cli.commands) and the heavy imports the
 # commands make lazily, so that a case pays only for the work it does.
 PRELOAD = ["dynid.cli", "dynid.cli.data", "dynid.cli.identify", "dynid.cli.report", "dynid.cli.export",
-           "dynid.cli.gaps", "dynid.cli.spy", "scipy.signal", "lcm"]
+           "dynid.cli.gaps", "dynid.cli.spy", "dynid.simulation", "dynid.pipeline", "dynid.detect.evaluation",
+           "scipy.signal", "lcm"]
 # Text that only a sanitizer (ASan, LSan, UBSan) writes.
 SANITIZER_MARKS = ("AddressSanitizer", "LeakSanitizer", "UndefinedBehaviorSanitizer", "runtime error:")
 

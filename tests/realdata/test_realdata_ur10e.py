@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from ..hostile.run import run_dynid
 from . import cli, convert
 
 UR = convert.REALDATA / "ur10e_mamedov"
@@ -121,36 +122,38 @@ def test_every_command_over_every_file_without_a_traceback(tmp_path: Path) -> No
     assert len(FILES) == 8
     outcomes: list[tuple[str, int, str]] = []
     tracebacks: list[tuple[str, str]] = []
-    for path in FILES:
-        t = np.loadtxt(path, delimiter=",", usecols=0)
-        start, stop = repr(float(t[0] + 2)), repr(float(min(t[0] + 14, t[-1])))
-        data = ("--data", str(path))
-        calls = [
-            ("import", "--robot", "ur10e", *urdf(), *data, "--out", str(tmp_path / f"{path.stem}.npz")),
-            ("structure", "--robot", "ur10e", *urdf(), *data),
-            ("fit", "--robot", "ur10e_known_gains", *urdf(), *data, "--from", start, "--to", stop, "--out",
-             str(tmp_path / f"{path.stem}.model.json")),
-            ("fit", "--robot", "ur10e", *urdf(), *data, "--out", str(tmp_path / "x.json")),  # no scale: exit 2
-            ("validate", "--model", str(model), *data),
-            ("validate", "--model", str(model), *data, "--from", start, "--to", stop),
-            ("detect", "--model", str(model), *data),
-            ("gaps", "--robot", "ur10e_known_gains", *urdf(), *data, "--from", start, "--to", stop),
-            ("validate", "--model", str(model), *data, "--from", repr(float(t[-1] + 1))),  # past the end
-            ("validate", "--model", str(model), *data, "--from", stop, "--to", start),  # reversed
-            ("validate", "--model", str(model), *data, "--payload", "heavy"),
-            ("fit", "--robot", "ur10e", *urdf(), *data, *data, "--payload", "2.8", "--out", str(tmp_path / "y.json")),
-        ]
-        with ThreadPoolExecutor(max_workers=2) as pool:  # two cores: the calls are independent processes
-            finished = list(pool.map(lambda args: (args, run(*args)), calls))
-        for args, done in finished:
-            call = f"{' '.join(args)}"
-            if "Traceback" in done.stderr:
-                tracebacks.append((call, done.stderr))
-                continue
-            assert done.returncode in (0, 2), f"{call}: exit {done.returncode}\n{done.stderr}"
-            if done.returncode == 2:
-                assert len(done.stderr.strip().splitlines()) == 1, f"{call}\n{done.stderr}"
-            outcomes.append((f"{args[0]} {path.name}", done.returncode, done.stderr.strip()))
+    # two at a time, a core each; each a process forked from a server that has imported dynid (tests/hostile/run.py)
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        for path in FILES:
+            t = np.loadtxt(path, delimiter=",", usecols=0)
+            start, stop = repr(float(t[0] + 2)), repr(float(min(t[0] + 14, t[-1])))
+            data = ("--data", str(path))
+            calls = [
+                ("import", "--robot", "ur10e", *urdf(), *data, "--out", str(tmp_path / f"{path.stem}.npz")),
+                ("structure", "--robot", "ur10e", *urdf(), *data),
+                ("fit", "--robot", "ur10e_known_gains", *urdf(), *data, "--from", start, "--to", stop, "--out",
+                 str(tmp_path / f"{path.stem}.model.json")),
+                ("fit", "--robot", "ur10e", *urdf(), *data, "--out", str(tmp_path / "x.json")),  # no scale: exit 2
+                ("validate", "--model", str(model), *data),
+                ("validate", "--model", str(model), *data, "--from", start, "--to", stop),
+                ("detect", "--model", str(model), *data),
+                ("gaps", "--robot", "ur10e_known_gains", *urdf(), *data, "--from", start, "--to", stop),
+                ("validate", "--model", str(model), *data, "--from", repr(float(t[-1] + 1))),  # past the end
+                ("validate", "--model", str(model), *data, "--from", stop, "--to", start),  # reversed
+                ("validate", "--model", str(model), *data, "--payload", "heavy"),
+                ("fit", "--robot", "ur10e", *urdf(), *data, *data, "--payload", "2.8", "--out",
+                 str(tmp_path / "y.json")),
+            ]
+            finished = list(zip(calls, pool.map(lambda args: run_dynid(list(args), tmp_path, timeout=900), calls)))
+            for args, done in finished:
+                call = f"{' '.join(args)}"
+                if "Traceback" in done.stderr:
+                    tracebacks.append((call, done.stderr))
+                    continue
+                assert done.code in (0, 2), f"{call}: exit {done.code}\n{done.stderr}"
+                if done.code == 2:
+                    assert len(done.stderr.strip().splitlines()) == 1, f"{call}\n{done.stderr}"
+                outcomes.append((f"{args[0]} {path.name}", done.code, done.stderr.strip()))
     # The monitor takes the UR10e (currents, no F/T sensor); the log's stamps jitter (8-16 ms), and its samples are
     # taken one per median step, as the robot's loop sends them.
     done = run("export", "--model", str(model), "--out", str(tmp_path / "ur.dcoef"))
