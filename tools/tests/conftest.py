@@ -14,6 +14,8 @@ from filelock import FileLock
 from hypothesis import HealthCheck, Phase
 from hypothesis import settings as hypothesis_settings
 
+from tests.hostile.run import run_dynid
+
 # The reader property tests (test_reader_properties*.py): CI runs the same examples every time (derandomized, no
 # example database), without a deadline (a loaded 2-core machine varies tenfold). DYNID_HYPOTHESIS_EXAMPLES=N
 # searches longer by hand, with new random examples each run (property_support.examples).
@@ -31,6 +33,15 @@ KINDS = ("identification", "validation", "contact")
 
 
 def dynid(*args: str) -> subprocess.CompletedProcess:
+    """`dynid ARGS` as a process of its own, forked from a server that has imported dynid already (the hostile
+    sweep's, tests/hostile/run.py): the executable's exit code, stdout and stderr, without an interpreter start and
+    dynid's imports per call (0.5-1.5 s each, some 160 calls a run). test_gaps holds it to the executable."""
+    done = run_dynid(list(args), Path.cwd(), timeout=900)
+    return subprocess.CompletedProcess(["dynid", *args], done.code, done.stdout, done.stderr)
+
+
+def dynid_executable(*args: str) -> subprocess.CompletedProcess:
+    """`dynid ARGS` through the interpreter, as a user's shell runs it."""
     return subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True, timeout=900)
 
 

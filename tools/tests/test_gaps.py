@@ -12,10 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import dynid
+from conftest import dynid, dynid_executable
 from scipy import stats as sps
-
-from tests.hostile.run import run_dynid
 
 pytestmark = pytest.mark.numerics
 
@@ -66,29 +64,24 @@ PWM = [f"pwm.m{i}" for i in range(4)]
 def gaps(tmp_path_factory: pytest.TempPathFactory):
     """gaps(case[, model, *extra]) -> (result, truth, stdout) of `dynid gaps` on the case's run (simulated once),
     against `model` if given (its inertias held). Every case's simulation and plain `dynid gaps` start at once, two
-    at a time (each is one process on one core of this 2-core machine); a test waits only for what it reads. Each
-    command is a process forked from a server that has imported dynid already (tests/hostile/run.py: no interpreter
-    start and imports per command); `test_a_forked_command_writes_what_the_executable_writes` holds it to `dynid`."""
+    at a time (each is one process on one core of this 2-core machine); a test waits only for what it reads."""
     root = tmp_path_factory.mktemp("gaps")
     lock = threading.Lock()
     cache: dict[tuple, tuple[dict, dict, str]] = {}
-
-    def command(*args: str):
-        return run_dynid(list(args), root, timeout=900)
 
     def analyse(case: str, model: Path | None, extra: tuple[str, ...], n: int) -> tuple[dict, dict, str]:
         out = root / case
         result = root / f"{case}{'.given' if model else ''}{n}.json"
         given = ("--model", str(model)) if model else ()
-        done = command("gaps", "--data", str(out), *given, *extra, "--json", str(result))
-        assert done.code == 0, done.stderr
+        done = dynid("gaps", "--data", str(out), *given, *extra, "--json", str(result))
+        assert done.returncode == 0, done.stderr
         return json.loads(result.read_text()), json.loads((out / "truth.json").read_text()), done.stdout
 
     def simulate_and_analyse(case: str) -> tuple[dict, dict, str]:
         effects = [a for e in CASES[case] for a in ("--effect", e)]
-        done = command("simulate", "--kind", "identification", "--duration", DURATION, *SIMULATE.get(case, []),
-                       *effects, "--out", str(root / case))
-        assert done.code == 0, done.stderr
+        done = dynid("simulate", "--kind", "identification", "--duration", DURATION, *SIMULATE.get(case, []),
+                     *effects, "--out", str(root / case))
+        assert done.returncode == 0, done.stderr
         return analyse(case, None, (), 0)
 
     pool = ThreadPoolExecutor(max_workers=2)
@@ -110,11 +103,11 @@ def gaps(tmp_path_factory: pytest.TempPathFactory):
 
 
 def test_a_forked_command_writes_what_the_executable_writes(gaps, tmp_path: Path) -> None:
-    """The forked commands are the executable's: `dynid gaps` run as `dynid` on the control run writes the same
-    report and the same JSON (but its own seconds) as the forked one did."""
+    """The tests' forked commands (conftest.dynid) are the executable's: `dynid gaps` run through the interpreter on
+    the control run writes the same report and the same JSON (but its own seconds) as the forked one did."""
     result, _, stdout = gaps("control")
     out = tmp_path / "control.json"
-    done = dynid("gaps", "--data", str(gaps.root / "control"), "--json", str(out))
+    done = dynid_executable("gaps", "--data", str(gaps.root / "control"), "--json", str(out))
     assert done.returncode == 0, done.stderr
     alone = json.loads(out.read_text())
     timing = re.compile(r"\(\d+\.\d s;")
