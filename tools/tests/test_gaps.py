@@ -17,7 +17,7 @@ from scipy import stats as sps
 
 pytestmark = pytest.mark.numerics
 
-DURATION = "45"  # s: each case costs ~10 s of simulation and ~5-10 s of analysis (idle machine)
+DURATION = "45"  # s: each case costs ~1 s of simulation and ~3-4 s of analysis (idle machine, 2026-11-28)
 
 # One simulated run per case (same arm, robot seed 0), one effect per run: combining effects on channels that do
 # not share a row was tried and weakens the claim (F/T gain + armature on m3: the F/T gain's freedom moves the
