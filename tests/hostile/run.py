@@ -4,8 +4,8 @@
 (multiprocessing's forkserver, preloaded): the command's `main` in a fresh process of its own, with its own exit
 code, signals and stdout/stderr files, without paying Python's and numpy's start-up (about 2 s on a busy machine)
 for each of some 200 cases. `HOSTILE_SUBPROCESS=1` runs every dynid case through the `dynid` executable instead
-(slower, the same verdicts). The gap tests and the UR10e's every-command test run their many commands this way
-too. The C programs run as they are: from `build-asan/` (AddressSanitizer + UBSan), where
+(slower, the same verdicts). tools/tests' `dynid()` (its conftest.py) and the UR10e's every-command test run their
+commands this way too. The C programs run as they are: from `build-asan/` (AddressSanitizer + UBSan), where
 scripts/setup builds them, unless `build/` holds a newer build.
 """
 

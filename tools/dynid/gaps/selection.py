@@ -168,15 +168,15 @@ class Design:
         of them rather than once for each."""
         B, r, d = self.n_blocks, self.D.shape[1], self.D.shape[2]
         touched = [columns_on(E) for E in Es]
-        stats = [(np.zeros((B, r, d, E.shape[2])), np.zeros((B, r, E.shape[2], E.shape[2])), np.zeros((B, r, E.shape[2])))
-                 for E in Es]
+        widths = [E.shape[2] for E in Es]
+        stats = [(np.zeros((B, r, d, K)), np.zeros((B, r, K, K)), np.zeros((B, r, K))) for K in widths]
         for c in range(r):
             on = [i for i, (active, _) in enumerate(touched) if c in active]  # a candidate touches few channels
             if not on:
                 continue
             columns = np.concatenate([Es[i][:, c] for i in on], axis=1)  # (N, ΣK), contiguous
-            ends = np.cumsum([Es[i].shape[2] for i in on])
-            starts = ends - [Es[i].shape[2] for i in on]
+            ends = np.cumsum([widths[i] for i in on])
+            starts = ends - [widths[i] for i in on]
             for b in range(B):
                 sel = self._block(b)
                 M = self._Dy[c, sel].T @ columns[sel]  # (d + 1, ΣK): D'E and y'E of all of them at once
