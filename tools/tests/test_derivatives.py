@@ -227,6 +227,17 @@ def test_one_dimensional_positions_give_one_dimensional_outputs(uniform):
     np.testing.assert_allclose(out.ddq, full.ddq[:, 2], rtol=1e-12, atol=1e-9)
 
 
+@pytest.mark.parametrize("stamps", ["uniform", "jittered"])
+def test_smooth_is_the_calls_value_to_the_bit(stamps, request):
+    """`smooth` (the measured channels' filter in signals_from_dataset) skips the derivatives, not a digit of q."""
+    t, q, _, _ = request.getfixturevalue(stamps)
+    sg = SavitzkyGolay()
+    np.testing.assert_array_equal(sg.smooth(t[:3000], q[:3000]), sg(t[:3000], q[:3000]).q)
+    np.testing.assert_array_equal(sg.smooth(t[:3000], q[:3000, 1]), sg(t[:3000], q[:3000, 1]).q)
+    with pytest.raises(ValueError, match="fewer than"):
+        sg.smooth(t[:5], q[:5])
+
+
 # ----------------------------------------------------------------------------------------------------------------
 # Real data: Franka Emika Panda log (Gaz et al. 2019), 1 kHz with jittered stamps and dropped samples
 # ----------------------------------------------------------------------------------------------------------------

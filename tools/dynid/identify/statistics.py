@@ -134,17 +134,24 @@ def accumulate_blocks(model: RobotModel, source: SignalChunks, edges: np.ndarray
     gram, rows = np.zeros((nb, r, p + 1, p + 1)), np.zeros((nb, r))
     cross, cross_b = np.zeros((nb, r, p, p)), np.zeros((nb, r, p))
     with_instruments = False
+    # The chunks' rows are written into the same two buffers chunk after chunk (dynid.robot.regressors.stack
+    # .weighted_rows: fresh ones cost a third of the statistics' time in page faults)
+    longest = min(chunk, int(np.max(np.diff(edges[first : last + 1])))) if nb else 0
+    rows_buffer = np.empty((r, longest, p + 1))
+    instruments_buffer: np.ndarray | None = None
     blocks = range(first, last)
     for k in track(blocks, nb, progress) if progress else blocks:
         for lo in range(edges[k], edges[k + 1], chunk):
             sig, inst, w = source(lo, min(lo + chunk, edges[k + 1]))
             # Channel-major, contiguous: one batched product per chunk instead of r strided ones.
-            X = weighted_rows(model, sig, w)  # (r, n, p+1): [W A | W b]
+            X = weighted_rows(model, sig, w, out=rows_buffer)  # (r, n, p+1): [W A | W b]
             rows[k - first] += (w > 0).sum(axis=0)
             Zw = None
             if inst is not None:
                 with_instruments = True
-                Zw = weighted_rows(model, inst, w)[:, :, :p]
+                if instruments_buffer is None:
+                    instruments_buffer = np.empty_like(rows_buffer)
+                Zw = weighted_rows(model, inst, w, out=instruments_buffer)[:, :, :p]
             add_channel_products(X, Zw, gram[k - first], cross[k - first], cross_b[k - first])
     return gram, rows, (cross if with_instruments else None), (cross_b if with_instruments else None)
 

@@ -118,9 +118,9 @@ def _is_uniform(t: np.ndarray, dt: float) -> bool:
     return bool(np.max(np.abs(np.diff(t) - dt)) <= UNIFORM_RTOL * dt)
 
 
-def _shaped(squeeze: bool, *arrays: np.ndarray) -> Derivatives:
+def _shaped(squeeze: bool, *arrays: np.ndarray | None) -> Derivatives:
     if squeeze:
-        arrays = tuple(a[:, 0] for a in arrays)
+        arrays = tuple(None if a is None else a[:, 0] for a in arrays)
     return Derivatives(*arrays)
 
 
@@ -198,6 +198,14 @@ class SavitzkyGolay:
         ValueError
             On non-finite values, shape mismatch, non-increasing time, or fewer samples than the window.
         """
+        return self._fit(t, q, derivatives=True)
+
+    def smooth(self, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """The smoothed values alone: `self(t, x).q`, the same numbers, without the derivatives' work and memory
+        (what dynid.robot.regressors.stack.signals_from_dataset passes the measured channels through)."""
+        return self._fit(t, x, derivatives=False).q
+
+    def _fit(self, t: np.ndarray, q: np.ndarray, derivatives: bool) -> Derivatives:
         t, q2, squeeze = _validate(t, q)
         if t.size < 2:
             raise ValueError(f"need at least {self.polyorder + 2} samples to estimate derivatives, got {t.size}.")
@@ -215,7 +223,7 @@ class SavitzkyGolay:
                 f"the median step of {dt:.6g} s)."
             )
         if _is_uniform(t, dt):
-            out = list(_uniform_poly_fit(q2, w, self.polyorder, dt))
+            out = list(_uniform_poly_fit(q2, w, self.polyorder, dt, derivatives))
         else:
             try:
                 out = list(_local_poly_fit(t, q2, w, self.polyorder))
@@ -238,13 +246,14 @@ def _legendre_derivatives(p: int) -> tuple[np.ndarray, np.ndarray]:
     return d1, d2
 
 
-def _uniform_poly_fit(q: np.ndarray, w: int, p: int, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _uniform_poly_fit(q: np.ndarray, w: int, p: int, dt: float, derivatives: bool = True
+                      ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """Savitzky-Golay on uniform steps: `scipy.signal.savgol_filter(q, w, p, deriv=k, delta=dt, axis=0,
     mode="interp")` for k = 0, 1, 2 (test_derivatives compares the two), one set of weights for the interior and one
     per edge sample, in the Legendre basis of `_local_poly_fit`. scipy.signal is not imported: its 0.35 s import was
     an eighth of `dynid detect` (docs/benchmarks.md#compiled-kernels).
 
-    Returns q, dq, ddq, each (N, n).
+    Returns q, dq, ddq, each (N, n); without `derivatives`, q and None twice.
     """
     from scipy.ndimage import correlate1d
 
@@ -262,20 +271,22 @@ def _uniform_poly_fit(q: np.ndarray, w: int, p: int, dt: float) -> tuple[np.ndar
     # exactly in theory): y = Σ a_j q_j = Σ b_i d_i. A window of one constant reading (a quantised encoder at rest)
     # then gives exactly 0, where Σ a_j q_j gave q·(the rounding of Σ a_j), ±1e-13 rad/s, and friction's sign(q̇)
     # followed it; and no large terms cancel.
+    value = correlate1d(q, weights[:, h, 0], axis=0, mode="constant")  # the interior: centred windows
+    # The first and last h samples take the first and last full window's fit, at their own positions.
+    value[:h] = np.einsum("jn,je->en", q[:w], weights[:, :h, 0])
+    value[n_samples - h:] = np.einsum("jn,je->en", q[n_samples - w:], weights[:, w - h:, 0])
+    if not derivatives:
+        return value, None, None
     steps = np.diff(q, axis=0)
     on_steps = np.cumsum(weights[::-1, :, 1:], axis=0)[::-1][1:]  # (w − 1, w, 2): b for q̇ and q̈
-    out = np.empty((3, *q.shape))
-    out[0] = correlate1d(q, weights[:, h, 0], axis=0, mode="constant")  # the interior: centred windows
+    out = np.empty((2, *q.shape))
     for k in (1, 2):
         # even length 2h, origin 0: output n is Σ_i b_i d_{n−h+i}, the window centred on sample n (the last sample,
         # which the N − 1 steps leave out, is an edge sample: the block below fills it)
-        out[k, :n_samples - 1] = correlate1d(steps, on_steps[:, h, k - 1], axis=0, mode="constant")
-    # The first and last h samples take the first and last full window's fit, at their own positions.
-    out[0, :h] = np.einsum("jn,je->en", q[:w], weights[:, :h, 0])
-    out[0, n_samples - h:] = np.einsum("jn,je->en", q[n_samples - w:], weights[:, w - h:, 0])
-    out[1:, :h] = np.einsum("in,iek->ken", steps[:w - 1], on_steps[:, :h])
-    out[1:, n_samples - h:] = np.einsum("in,iek->ken", steps[n_samples - w:], on_steps[:, w - h:])
-    return out[0], out[1], out[2]
+        out[k - 1, :n_samples - 1] = correlate1d(steps, on_steps[:, h, k - 1], axis=0, mode="constant")
+    out[:, :h] = np.einsum("in,iek->ken", steps[:w - 1], on_steps[:, :h])
+    out[:, n_samples - h:] = np.einsum("in,iek->ken", steps[n_samples - w:], on_steps[:, w - h:])
+    return value, out[0], out[1]
 
 
 def _local_poly_fit(

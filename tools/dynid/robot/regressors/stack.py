@@ -122,7 +122,7 @@ def signals_from_dataset(model: RobotModel, dataset, filter_outputs: bool = Fals
         return Signals(dataset.q, dataset.dq, dataset.ddq, inputs, tau, ft, phi_payload, gravity)
     columns = [dataset.q] + [v[:, None] for v in inputs.values()] + [v[:, None] for v in tau.values()] + list(ft.values())
     columns += [] if gravity is None else [gravity]  # a measured signal: filtered like the outputs
-    smooth = smoother(dataset.t, np.hstack(columns)).q
+    smooth = smoother.smooth(dataset.t, np.hstack(columns))
     cut = np.cumsum([c.shape[1] for c in columns])[:-1]
     parts = iter(np.split(smooth, cut, axis=1))
     q = next(parts)
@@ -211,11 +211,13 @@ def fill_rows(model: RobotModel, sig: Signals, A: np.ndarray, b: np.ndarray) -> 
         fill_rows_reference(model, sig, A, b)
 
 
-def weighted_rows(model: RobotModel, sig: Signals, weights: np.ndarray) -> np.ndarray:
+def weighted_rows(model: RobotModel, sig: Signals, weights: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """[W A | W b] of `sig`'s samples, channel-major (r, N, p + 1): row channel c of sample k is X[c, k], its b last;
-    `weights` (N, r). What the per-channel Grams of dynid.identify.statistics are products of."""
+    `weights` (N, r). What the per-channel Grams of dynid.identify.statistics are products of. `out`: an (r, ≥ N,
+    p + 1) buffer to write into (X is its first N samples), kept by a caller that builds chunk after chunk: a
+    chunk's rows are tens of MB, which a fresh array pays for in page faults each time."""
     r, p, n = len(row_channels(model)), len(model.layout), sig.q.shape[0]
-    X = np.empty((r, n, p + 1))
+    X = np.empty((r, n, p + 1)) if out is None else out[:, :n, :]
     kernel = row_kernel.stack(model)
     if kernel is not None:  # written in place, weighted, through strided views
         row_kernel.fill(kernel, model, sig, X[:, :, :p].transpose(1, 0, 2), X[:, :, p].T, weights)
