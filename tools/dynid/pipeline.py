@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -21,7 +22,7 @@ from threadpoolctl import threadpool_limits
 
 from .config.robot_config import RobotConfig
 from .detect.combined import fit_combined
-from .detect.momentum_t2 import CALIBRATION_MAX_S, observer_record
+from .detect.momentum_t2 import CALIBRATION_MAX_S, ObserverCalibrations, calibration_head, observer_record
 from .detect.t2 import (Detector, calibrate, calibration_residuals, calibration_stride, detector_record,
                         join_calibration, run_calibration_residuals)
 from .identify.fit import CONSISTENT, Estimate, FitResult, FitSettings, fit
@@ -263,20 +264,31 @@ def _identify(model: RobotModel, datasets: Sequence[Run], data_paths: Sequence[s
     sections = replace(fit_record(model, model.config, result, settings.fit, settings.detector,
                                   settings.fit.n_components),
                        cad_ft_offsets=cad_ft_offsets(model, result.statistics), folds=folds)
-    built = build_model(model, result.phi, datasets, data_paths, sections, settings.fit,
-                        detector=settings.detector, nu=result.cv["n_components"],
-                        # only a PWM input drifts with its supply (dynid.identify.supply)
-                        tracking=settings.tracking if model.config.motors_with_input("pwm") else None,
-                        residual_variance=result.residual_variance[result.chosen], cluster=cluster, refs=refs,
-                        folds=folds)
-    identified = built.model
-    if settings.observer:
-        try:
-            heads = [_head(run) for run in datasets]
-            identified.observer = observer_record(identified, heads, settings.detector.alpha,
-                                                  combine=fit_combined(identified, heads))
-        except DataError:  # e.g. too few contact-free samples: `detect` calibrates then, and says why, as before
-            pass
+    # only a PWM input drifts with its supply (dynid.identify.supply)
+    tracking = settings.tracking if model.config.motors_with_input("pwm") else None
+    heads = [_head(run) for run in datasets] if settings.observer else []
+    # The observer's cross-validated calibration samples need Φ, the folds and the settings only: a thread runs them
+    # while this one calibrates T² (the kernels and numpy's loops release the GIL). The two whole-run passes after
+    # them (the in-sample observer, the combined detector's acceleration residuals) stay one at a time: overlapped
+    # too they took a second less and 60-110 MB more (docs/benchmarks.md#compiled-kernels).
+    with ThreadPoolExecutor(1, thread_name_prefix="dynid-observer") as pool:
+        if heads:
+            draft = replace(sections, parameters=dict(zip(model.layout.names, result.phi.tolist())),
+                            supply_tracking=tracking)
+            draft.robot_model  # built once, before two threads read it  # noqa: B018
+            observer = ObserverCalibrations(draft, heads, pool.submit)
+        built = build_model(model, result.phi, datasets, data_paths, sections, settings.fit,
+                            detector=settings.detector, nu=result.cv["n_components"], tracking=tracking,
+                            residual_variance=result.residual_variance[result.chosen], cluster=cluster, refs=refs,
+                            folds=folds)
+        identified = built.model
+        if heads:
+            try:
+                identified.observer = observer_record(identified, heads, settings.detector.alpha,
+                                                      combine=fit_combined(identified, heads),
+                                                      calibrations=observer)
+            except DataError:  # e.g. too few contact-free samples: `detect` calibrates then, and says why, as before
+                pass
     total = time.perf_counter() - started
     identified.fit_time_s = total
     # With --consistent off nothing keeps each body physical: say where the estimate is not (identify/plausibility.py)
@@ -305,9 +317,10 @@ def folds_record(model: RobotModel, result: FitResult) -> FoldsSection | None:
 
 
 def _head(run: Run) -> Dataset:
-    """A run in memory, a streamed one cut to the seconds the observer's calibration reads (its first 150 s)."""
+    """A run cut to the seconds the observer's calibrations read (its first 150 s): once here, rather than a copy in
+    each of them; a streamed one read that far only."""
     if isinstance(run, Dataset):
-        return run
+        return calibration_head(run)
     return run.slice(0, min(run.n_samples, int(CALIBRATION_MAX_S / run.median_step()) + 2))
 
 

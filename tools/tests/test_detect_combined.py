@@ -7,14 +7,15 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from dynid.detect.combined import CombinedDetector, calibrate_combined, combined_detector
+from dynid.detect.combined import CombinedDetector, calibrate_combined, combined_detector, fit_combined
 from dynid.detect.evaluation import detectors
-from dynid.detect.momentum_t2 import calibration_runs, stored_detector
+from dynid.detect.momentum_t2 import ObserverCalibrations, calibration_runs, observer_record, stored_detector
 from dynid.detect.momentum import VELOCITY_WINDOW_S
 from dynid.errors import DataError
 from dynid.identify.model_file import load_model
@@ -65,6 +66,19 @@ def test_the_fit_keeps_kappa_and_detect_uses_it(default_model: Path) -> None:
     again = calibrate_combined(identified, det_m, det_c, runs, identified.folds)
     assert again.scale == pytest.approx(entry.combined.scale, rel=1e-9)
     assert again.samples == entry.combined.calibration_samples == det_m.samples
+
+
+def test_the_fits_observer_section_is_the_one_calibrated_alone(default_model: Path) -> None:
+    """`dynid fit` calibrates the observer on a thread while it calibrates T² (dynid.pipeline): the section it wrote
+    is, to the last digit, the one `observer_record` calibrates alone on the same runs, before or after κ."""
+    identified = load_model(default_model)
+    runs, _ = calibration_runs(identified, None)
+    alone = observer_record(identified, runs, identified.alpha, combine=fit_combined(identified, runs))
+    assert alone.to_json() == identified.observer.to_json()
+    with ThreadPoolExecutor(1) as pool:
+        started = ObserverCalibrations(identified, runs, pool.submit)
+        again = observer_record(identified, runs, identified.alpha, calibrations=started)
+    assert again.entry("monitor").to_json() == alone.entry("monitor").to_json()
 
 
 def test_no_blind_side_on_the_default_runs(default_model: Path, default_experiments: dict) -> None:

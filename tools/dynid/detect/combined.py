@@ -28,7 +28,7 @@ from ..identify.observer_sections import CombinedCalibration
 from ..identify.supply import SupplyTracker, smoothed_residuals
 from ..robot.outputs import residuals
 from ..robot.regressors.stack import payload_of, signals_from_dataset
-from .momentum_t2 import CALIBRATION_MAX_S, MomentumDetector, momentum_calibration_samples
+from .momentum_t2 import MomentumDetector, calibration_head, momentum_calibration_samples
 from .online import FixedLagSavitzkyGolay, online_signals, online_times, raw_signals
 from .t2 import QUANTILE_LEVELS, Detector
 
@@ -80,15 +80,6 @@ def acceleration_statistic(model, det: Detector, e: np.ndarray, dq: np.ndarray) 
     return det.t2(model, e, dq) / det.threshold
 
 
-def _head(ds):  # Dataset -> Dataset
-    """The samples the observer calibrates on: a run's first CALIBRATION_MAX_S seconds."""
-    from ..io.load import apply_window
-
-    if ds.duration > CALIBRATION_MAX_S:
-        return apply_window(ds, None, float(ds.t[0]) + CALIBRATION_MAX_S, source="calibration run")
-    return ds
-
-
 def offline_acceleration(identified, ds, segments) -> tuple[np.ndarray, np.ndarray]:  # -> (e, q̇)
     """The acceleration residuals of a run as `dynid detect` computes them (offline derivatives, two-sided supply
     estimate: dynid.identify.validation.evaluate), each segment's samples through its own Φ."""
@@ -136,7 +127,7 @@ def paired_statistics(identified, det_m: MomentumDetector, det_c: Detector, data
         identified.supply_tracking, det_m.velocity_window_s, measured, folds)
     e_c, active = np.zeros_like(e_m), np.zeros(e_m.shape, dtype=bool)
     for i, ds in enumerate(datasets):
-        ds = _head(ds)
+        ds = calibration_head(ds)
         segments = [(0, ds.n_samples, phi)] if folds is None else folds.segments(i, ds.n_samples, phi)
         e, dq = (offline_acceleration(identified, ds, segments) if est is None
                  else monitor_acceleration(identified, ds, segments, est, det_c.min_speed))

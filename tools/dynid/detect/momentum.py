@@ -324,6 +324,7 @@ def _observe(model: RobotModel, phi: np.ndarray, t: np.ndarray, q: np.ndarray, i
     pdot[0] = 0.0
     # x = τ_meas − τ_model with τ_model = ṗ − (Cᵀq̇ − g), in generalized coordinates
     x_rb = terms.beta_rb - pdot  # the τ_meas part is added per channel below
+    del terms, pdot  # freed as soon as they are used: the observer runs over calibration runs of 150 000 samples
     x = np.zeros((n, n_out))
     for i, s in enumerate(cfg.ft_sensors):
         v0 = model.sensor_v_index[s.name]
@@ -341,6 +342,7 @@ def _observe(model: RobotModel, phi: np.ndarray, t: np.ndarray, q: np.ndarray, i
             known = cfg.motor(m).known_gain
             gain = known if known is not None else phi[layout.block("motor_gain", m).start]
             x[:, rows] += np.outer(np.asarray(inputs[m], float) * gain, C[:, mi])
+    del x_rb, x_joint
     # friction: the identified law where the coordinate moves; its Coulomb part left out where it rests
     for rows, coordinates in friction_coordinates(model, dq):
         for c in coordinates:
@@ -351,6 +353,7 @@ def _observe(model: RobotModel, phi: np.ndarray, t: np.ndarray, q: np.ndarray, i
     at_rest, lo, hi = band_at_rest(model, dq, band or friction_band(model, phi, None, 0.0), min_speed,
                                    lambda slow: _held(t, slow, hold_s))
     r = first_order(t, x, bandwidth_hz)
+    del x
     if tracking is not None and inputs:  # the monitor's causal supply tracking, on the low-passed rows
         r = _tracked(model, phi, tracking, min_speed, t, q, dq, inputs, r, bandwidth_hz)
     # r ≈ friction held − external torque on a resting row: outside the band only

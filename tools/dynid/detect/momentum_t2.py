@@ -15,6 +15,7 @@ and the estimated external torque and wrench, scoring against labels (`dynid det
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from concurrent.futures import Future
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -141,14 +142,11 @@ def momentum_calibration_samples(model: RobotModel, phi: np.ndarray, base: BaseS
     `datasets`) and sample in that run. With `folds` the observer runs block by block, each through its fold's Φ
     (and friction band), started `warm-up` seconds before the block (its time constants, the velocity window, and
     three of the supply tracker's where it tracks) so that only the block's samples count."""
-    from ..io.load import apply_window
-
     es, rests, taus, wheres = [], [], [], []
     settle = SETTLE_TIME_CONSTANTS / (2 * np.pi * bandwidth_hz)
     warm_s = settle + velocity_window_s + (3.0 * tracking.time_constant_s if tracking is not None else 0.0)
     for i, ds in enumerate(datasets):
-        if ds.duration > CALIBRATION_MAX_S:
-            ds = apply_window(ds, None, float(ds.t[0]) + CALIBRATION_MAX_S, source="calibration run")
+        ds = calibration_head(ds)
         segments = [(0, ds.n_samples, phi)] if folds is None else folds.segments(i, ds.n_samples, phi)
         warm = int(np.ceil(warm_s / ds.median_step()))
         t0 = float(ds.t[0])
@@ -167,6 +165,16 @@ def momentum_calibration_samples(model: RobotModel, phi: np.ndarray, base: BaseS
             taus.append(res.tau_ext[keep])
             wheres.append(np.column_stack([np.full(int(keep.sum()), i), index[keep]]))
     return np.vstack(es), np.vstack(rests), np.vstack(taus), np.vstack(wheres)
+
+
+def calibration_head(ds):  # Dataset -> Dataset
+    """The samples a run calibrates the observer on: its first CALIBRATION_MAX_S seconds (the run itself where it is
+    no longer: a caller that cuts it once saves each calibration its own copy)."""
+    from ..io.load import apply_window
+
+    if ds.duration > CALIBRATION_MAX_S:
+        return apply_window(ds, None, float(ds.t[0]) + CALIBRATION_MAX_S, source="calibration run")
+    return ds
 
 
 def momentum_detector(model: RobotModel, e: np.ndarray, rest: np.ndarray, tau: np.ndarray, alpha: float,
@@ -197,30 +205,65 @@ def momentum_detector(model: RobotModel, e: np.ndarray, rest: np.ndarray, tau: n
 OBSERVER_VERSION = 2  # 2: cross-validated over the fit's time blocks (the model's `folds`); 1: in-sample
 
 
+class ObserverCalibrations:
+    """The calibrations behind the model file's `observer` section, read by `observer_record`. The momentum
+    detector's samples with the data's q̇ ("detect") and with the monitor's causal q̇ ("monitor": the same ones where
+    the runs carry no q̇ of their own, one observer pass for both: a third of the section's time on the simulated arm)
+    start at once, each a task of `submit` where given (a thread pool's: `dynid fit` calibrates T² meanwhile; the
+    observer runs block by block, so they hold little memory while T² holds its own). With the model's `folds`, the
+    detect entry's in-sample calibration (what `detect` compares against) runs when it is read: a pass over each whole
+    run, kept out of the overlap for its memory. `identified` needs Φ, the base, the folds, min_speed and the supply
+    tracking only."""
+
+    def __init__(self, identified, datasets: Sequence, submit: Callable[..., Future] | None = None) -> None:
+        submit = submit or _run_now
+        model, phi, folds = identified.robot_model, identified.phi, identified.folds
+        common = (model, phi, identified.base, datasets, identified.min_speed)
+        options = dict(tracking=identified.supply_tracking, folds=folds)
+        causal_only = all(measured_velocity(model, ds) is None for ds in datasets)
+        self.samples = {"detect": submit(momentum_calibration_samples, *common, measured=True, **options)}
+        self.samples["monitor"] = (self.samples["detect"] if causal_only else
+                                   submit(momentum_calibration_samples, *common, measured=False, **options))
+        self._in_sample = None if folds is None else (common, identified.supply_tracking)
+
+    def in_sample(self) -> MomentumCalibration | None:
+        """The detect entry's in-sample calibration (None without folds), computed here, now."""
+        if self._in_sample is None:
+            return None
+        (model, phi, base, datasets, min_speed), tracking = self._in_sample
+        return calibrate_momentum(model, phi, base, datasets, ALPHA, min_speed, tracking=tracking,
+                                  measured=True).section()
+
+
+def _run_now(fn: Callable, *args, **kwargs) -> Future:  # noqa: ANN002, ANN003 - fn's own
+    """`fn(*args, **kwargs)` run here, as a finished future (its value or its exception)."""
+    done: Future = Future()
+    try:
+        done.set_result(fn(*args, **kwargs))
+    except Exception as error:  # noqa: BLE001 - handed to whoever reads the result, as a pool's future does
+        done.set_exception(error)
+    return done
+
+
 def observer_record(identified, datasets: Sequence, monitor_alpha: float,
-                    combine: Callable[[MomentumDetector, tuple], CombinedCalibration | None] | None = None
-                    ) -> ObserverSection:
+                    combine: Callable[[MomentumDetector, tuple], CombinedCalibration | None] | None = None,
+                    calibrations: ObserverCalibrations | None = None) -> ObserverSection:
     """The model file's `observer` section: the momentum detector calibrated on the fit's own (whole, contact-free)
     runs as `dynid detect` calibrates it by default (the data's q̇, α = ALPHA) and as `dynid export` does for the
     monitor (its causal q̇, the model's α), with the sha256 of the runs it was calibrated on: cross-validated where the
     model has its `folds`, with the detect entry's in-sample calibration beside (what `detect` compares against), and
     `combine(detector, its calibration samples)`'s combined level on the detect entry (dynid.detect.combined, which
-    builds on this module: the caller hands it in)."""
-    model, phi = identified.robot_model, identified.phi
-    folds = identified.folds
-    # Runs that carry no q̇ of the robot's own give the detect entry the monitor's causal q̇: one observer pass
-    # serves both (a third of the section's time on the simulated arm).
-    causal_only = all(measured_velocity(model, ds) is None for ds in datasets)
-    entries, samples = {}, None
+    builds on this module: the caller hands it in). `calibrations`: the ones already started for these runs (else
+    they run here)."""
+    model, folds = identified.robot_model, identified.folds
+    calibrations = calibrations or ObserverCalibrations(identified, datasets)
+    entries = {}
     for key, measured, alpha in (("detect", True, ALPHA), ("monitor", False, monitor_alpha)):
-        if samples is None or not causal_only:
-            samples = momentum_calibration_samples(model, phi, identified.base, datasets, identified.min_speed,
-                                                   tracking=identified.supply_tracking, measured=measured, folds=folds)
+        samples = calibrations.samples[key].result()
         det = momentum_detector(model, *samples[:3], alpha, identified.min_speed)
         in_sample = combined = None
-        if folds is not None and key == "detect":
-            in_sample = calibrate_momentum(model, phi, identified.base, datasets, alpha, identified.min_speed,
-                                           tracking=identified.supply_tracking, measured=measured).section()
+        if key == "detect":
+            in_sample = calibrations.in_sample()
         if key == "detect" and combine is not None:
             combined = combine(det, samples)
         entries[key] = ObserverEntry(det.alpha, det.bandwidth_hz, det.velocity_window_s, det.band_sigmas, measured,

@@ -170,6 +170,7 @@ def run_calibration_residuals(model: RobotModel, ds, settings,  # noqa: ANN001 -
         run_t.append(t)
         run_inputs.append({m: v.copy() for m, v in sig.inputs.items()})
     e, e_in, dq = np.vstack(run_e), np.vstack(run_in), np.vstack(run_dq)
+    del run_e, run_in, run_dq  # the chunks, now copied: half the memory of a long run's calibration
     constant = e
     if tracking is not None:  # two-sided over the whole run (the strided samples: the same seconds)
         inputs = {m: np.concatenate([part[m] for part in run_inputs]) for m in run_inputs[0]}
