@@ -42,9 +42,9 @@ from .identify.validation import Evaluated, evaluate, load_run, validation
 from .io.dataset import Dataset
 from .io.load import load_data
 from .pipeline import DetectorSettings, IdentifySettings, identify
-from .robot.effects import augmented_residuals
+from .robot.effects import augmented_residuals_many
 from .robot.model import RobotModel
-from .robot.outputs import measured_outputs, residuals
+from .robot.outputs import measured_outputs
 
 Data = Union[str, Path, Dataset]
 
@@ -351,11 +351,11 @@ class ContactDetector(BaseEstimator):
         phi, effects = identified.phi, identified.effects
         settings = FitSettings(min_speed=identified.min_speed)
 
-        def residual_of(sig, t, phi_k):  # noqa: ANN001, ANN202
-            return augmented_residuals(robot, phi_k, effects, sig, t) if effects else residuals(robot, phi_k, sig)
+        def residuals_of(sig, t, phis):  # noqa: ANN001, ANN202 - dynid.detect.t2.ResidualsOf
+            return augmented_residuals_many(robot, phis, effects, sig, t)
 
         # runs given to calibrate on: out of sample by the caller's choice, through the model's Φ
-        e, dq, e_constant, _ = calibration_residuals(robot, runs, settings, residual_of, identified.supply_tracking,
+        e, dq, e_constant, _ = calibration_residuals(robot, runs, settings, residuals_of, identified.supply_tracking,
                                                      phi)
         found = calibrate(robot, phi, e, dq, self._alpha(), identified.min_speed, variants=(variant,),
                           e_constant=e_constant)

@@ -36,9 +36,9 @@ from .identify.supply import SupplyTracking
 from .errors import DataError, InputError
 from .io.dataset import Dataset
 from .io.stream import Run
-from .robot.effects import Effect, augmented_residuals
+from .robot.effects import Effect, augmented_residuals_many
 from .robot.model import RobotModel
-from .robot.outputs import output_channels, residuals
+from .robot.outputs import output_channels, residuals_many
 
 
 @dataclass(frozen=True)
@@ -110,8 +110,8 @@ def build_model(model: RobotModel, phi: np.ndarray, datasets: Sequence[Dataset],
     fitted without it (docs/detection.md#out-of-sample); the in-sample calibration is kept beside, for comparison."""
     effects = list(effects)
 
-    def residual_of(sig, t, phi_k):  # noqa: ANN001, ANN202 - (Signals, t in the data's own seconds, Φ) -> e
-        return augmented_residuals(model, phi_k, effects, sig, t) if effects else residuals(model, phi_k, sig)
+    def residuals_of(sig, t, phis):  # noqa: ANN001, ANN202 - dynid.detect.t2.ResidualsOf
+        return augmented_residuals_many(model, phis, effects, sig, t)
 
     segments = None if folds is None else [folds.segments(i, ds.n_samples, phi) for i, ds in enumerate(datasets)]
     if cluster is not None and refs is not None and not effects:  # each run's residuals a task of its own
@@ -122,7 +122,7 @@ def build_model(model: RobotModel, phi: np.ndarray, datasets: Sequence[Dataset],
                             "calibrating T²", runs=list(range(len(refs))))
         e, dq, e_constant, e_in = join_calibration(parts)
     else:
-        e, dq, e_constant, e_in = calibration_residuals(model, datasets, settings, residual_of, tracking, phi,
+        e, dq, e_constant, e_in = calibration_residuals(model, datasets, settings, residuals_of, tracking, phi,
                                                         segments)
     detectors = calibrate(model, phi, e, dq, detector.alpha, settings.min_speed, detector.n_mode, nu, e_constant=e_constant)
     in_sample = None if folds is None else calibrate(model, phi, e_in, dq, detector.alpha, settings.min_speed,
@@ -221,7 +221,7 @@ def calibration_task(config: RobotConfig, ref: RunRef, settings: FitSettings, ph
     model = worker_model(config)
     run = worker_run(ref, model)
     with threadpool_limits(limits=1, user_api="blas"):
-        return run_calibration_residuals(model, run, settings, lambda sig, t, phi_k: residuals(model, phi_k, sig),
+        return run_calibration_residuals(model, run, settings, lambda sig, t, phis: residuals_many(model, phis, sig),
                                          tracking, stride, phi, segments)
 
 

@@ -21,7 +21,7 @@ from dynid.config.robot_config import load_config
 from dynid.detect import momentum
 from dynid.identify import supply
 from dynid.robot.model import RobotModel
-from dynid.robot.outputs import divisors, residuals
+from dynid.robot.outputs import divisors, residuals, residuals_many
 from dynid.robot.regressors import kernel as row_kernel
 from dynid.robot.regressors.stack import Signals, fill_rows_reference, row_channels
 from dynid.simulation import SimulationSettings, simulate
@@ -138,6 +138,27 @@ def test_residuals_without_storing_a(name: str) -> None:
     reference = b0 - A0 @ phi
     scale = per_sample_scale(np.abs(A0) * np.abs(phi), b0)
     close(e * divisors(model, phi), reference, scale[:, None])
+
+
+@pytest.mark.parametrize("name", ["icub_right_arm", "ur10e"])
+def test_residuals_of_several_phi_are_each_ones_own(name: str) -> None:
+    """residuals_many builds each sample's rows once for every Φ (the T² calibration's in-sample and held-out
+    residuals): each Φ's e is the one `residuals` gives for it alone, to the bit (the same products, in order)."""
+    model = robot(name)
+    sig = synthetic(model, 300, seed=5)
+    rng = np.random.default_rng(6)
+    phis = [rng.normal(0, 1, len(model.layout)) for _ in range(3)]
+    for phi in phis:
+        for m in model.layout.owners("motor_gain"):
+            phi[model.layout.block("motor_gain", m).start] = rng.uniform(5.0, 15.0)
+    for together, alone in zip(residuals_many(model, phis, sig), (residuals(model, phi, sig) for phi in phis)):
+        np.testing.assert_array_equal(together, alone)
+    zero_gain = phis[1].copy()
+    zero_gain[model.layout.blocks_of("motor_gain")[0].start] = 0.0
+    with pytest.raises(ValueError, match="zero or not finite"):
+        residuals_many(model, [phis[0], zero_gain], sig)
+    with pytest.raises(ValueError, match=r"\(K, N, rows\)"):
+        row_kernel.stack(model).residuals_many(*row_kernel._arrays(model, sig), np.vstack(phis), np.empty((2, 300, 6)))
 
 
 def test_a_wrong_shape_is_refused_not_read_out_of_bounds() -> None:

@@ -126,20 +126,23 @@ def calibration_stride(total_samples: int) -> int:
 
 
 Segments = Sequence[tuple[int, int, np.ndarray]]  # [start, stop) of a run's samples and the Φ its residual takes
+# residuals_of(signals, t in the data's own seconds, [Φ, ...]) -> each Φ's e of those samples
+# (dynid.robot.effects.augmented_residuals_many: the rows built once for every Φ)
+ResidualsOf = Callable[[Signals, np.ndarray, Sequence[np.ndarray]], list[np.ndarray]]
 
 
 def calibration_residuals(model: RobotModel, datasets: Sequence, settings,
-                          residual_of: Callable[[Signals, np.ndarray, np.ndarray], np.ndarray],
-                          tracking: SupplyTracking | None = None, phi: np.ndarray | None = None,
+                          residuals_of: ResidualsOf, tracking: SupplyTracking | None = None,
+                          phi: np.ndarray | None = None,
                           segments: Sequence[Segments | None] | None = None) -> tuple[np.ndarray, ...]:
     """(e, q̇, e with constant gains, e in-sample) on every `calibration_stride`-th sample of the contact-free runs,
-    a chunk at a time (bounded memory), with offline derivatives; residual_of(signals, t in the data's own seconds, Φ)
-    gives e of a chunk. With each run's `segments` (dynid.identify.model_sections.FoldsSection.segments), e is
+    a chunk at a time (bounded memory), with offline derivatives; `residuals_of` gives each Φ's e of a chunk (see
+    `ResidualsOf`). With each run's `segments` (dynid.identify.model_sections.FoldsSection.segments), e is
     cross-validated: each block's through the Φ fitted without it; the in-sample e (through `phi`) comes beside.
     With `tracking`, the input channels are those of the offline, two-sided supply estimate
     (dynid.identify.supply.smoothed_residuals) of each run; without, e and e with constant gains are the same."""
     stride = calibration_stride(sum(ds.n_samples for ds in datasets))
-    parts = [run_calibration_residuals(model, ds, settings, residual_of, tracking, stride, phi,
+    parts = [run_calibration_residuals(model, ds, settings, residuals_of, tracking, stride, phi,
                                        None if segments is None else segments[i]) for i, ds in enumerate(datasets)]
     return join_calibration(parts)
 
@@ -150,8 +153,8 @@ def join_calibration(parts: Sequence[tuple[np.ndarray, ...]]) -> tuple[np.ndarra
 
 
 def run_calibration_residuals(model: RobotModel, ds, settings,  # noqa: ANN001 - a Run, FitSettings
-                              residual_of: Callable[[Signals, np.ndarray, np.ndarray], np.ndarray],
-                              tracking: SupplyTracking | None, stride: int, phi: np.ndarray | None = None,
+                              residuals_of: ResidualsOf, tracking: SupplyTracking | None, stride: int,
+                              phi: np.ndarray | None = None,
                               segments: Segments | None = None) -> tuple[np.ndarray, ...]:
     """One run's part of `calibration_residuals` (a task of its own on a Dask cluster)."""
     source = SignalSource(model, ds, settings, instruments=False)
@@ -162,9 +165,12 @@ def run_calibration_residuals(model: RobotModel, ds, settings,  # noqa: ANN001 -
         hi = min(lo + chunk, ds.n_samples)
         sig = source(lo, hi)[0].slice(keep)
         t = ds.times(lo, hi)[keep].copy()
-        e_in = residual_of(sig, t, phi)
+        if segments is None:
+            e_in = e = residuals_of(sig, t, [phi])[0]
+        else:
+            e_in, e = _segment_residuals(sig, t, lo, stride, segments, residuals_of, phi)
         run_in.append(e_in)
-        run_e.append(e_in if segments is None else _segment_residuals(sig, t, lo, stride, segments, residual_of))
+        run_e.append(e)
         # Copies: a strided view would keep its whole chunk alive, and every chunk of the run with it
         run_dq.append(sig.dq.copy())
         run_t.append(t)
@@ -182,15 +188,19 @@ def run_calibration_residuals(model: RobotModel, ds, settings,  # noqa: ANN001 -
 
 
 def _segment_residuals(sig: Signals, t: np.ndarray, lo: int, stride: int, segments: Segments,
-                       residual_of: Callable[[Signals, np.ndarray, np.ndarray], np.ndarray]) -> np.ndarray:
-    """e of a strided chunk whose first sample is the run's sample `lo`: each segment's samples through its Φ."""
+                       residuals_of: ResidualsOf, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(e through `phi`, e through each segment's Φ) of a strided chunk whose first sample is the run's sample `lo`;
+    the segments cover the run, so both hold every row of the chunk."""
     index = lo + stride * np.arange(t.size)  # the run's sample of each row
-    parts = []
-    for a, b, phi in segments:
+    whole, own = [], []
+    for a, b, phi_k in segments:
         i, j = np.searchsorted(index, a), np.searchsorted(index, b)
         if j > i:
-            parts.append(residual_of(sig.slice(slice(i, j)), t[i:j], phi))
-    return np.vstack(parts)
+            part = sig.slice(slice(i, j))
+            e = residuals_of(part, t[i:j], [phi] if phi_k is phi else [phi, phi_k])
+            whole.append(e[0])
+            own.append(e[-1])
+    return np.vstack(whole), np.vstack(own)
 
 
 def detector_record(model: RobotModel, detectors: dict[str, Detector], e: np.ndarray,

@@ -30,7 +30,7 @@ from ..errors import DataError
 from ..io.dataset import Dataset
 from .effect_library import LIBRARY, Context
 from .model import RobotModel
-from .outputs import divisors, residuals
+from .outputs import divisors, residuals, residuals_many
 from .regressors.friction import stribeck_shape
 from .regressors.stack import Signals, joint_row_shares, row_channels
 
@@ -201,6 +201,14 @@ def augmented_residuals(model: RobotModel, phi: np.ndarray, effects: list[Effect
     if not effects:
         return e
     return e - effect_rows(model, effects, sig, t, phi) / divisors(model, phi)
+
+
+def augmented_residuals_many(model: RobotModel, phis: Sequence[np.ndarray], effects: list[Effect], sig: Signals,
+                             t: np.ndarray | None = None) -> list[np.ndarray]:
+    """`augmented_residuals` for each Φ of `phis`; without effects the rows are built once for all of them."""
+    if effects:
+        return [augmented_residuals(model, phi, effects, sig, t) for phi in phis]
+    return residuals_many(model, phis, sig)
 
 
 def without_ft_steps(model: RobotModel, ds: Dataset, steps: Sequence[Effect]) -> Dataset:

@@ -13,6 +13,7 @@ one motor's input; motor-space rows of a coupled group and directly driven joint
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -86,11 +87,27 @@ def measured_outputs(model: RobotModel, sig: Signals) -> np.ndarray:
     return np.column_stack(cols)
 
 
-def residuals(model: RobotModel, phi: np.ndarray, sig: Signals, chunk: int = DEFAULT_CHUNK) -> np.ndarray:
-    """e = y − ŷ (N, n_out) for parameters Φ; ŷ = y − e."""
+def residuals_many(model: RobotModel, phis: Sequence[np.ndarray], sig: Signals) -> list[np.ndarray]:
+    """`residuals` for each Φ of `phis`, the same numbers: through the kernel the rows are built once for all of them
+    (the T² calibration takes each sample through the fit's Φ and its time block's)."""
+    kernel = row_kernel.stack(model)
+    if kernel is None or len(phis) == 1:
+        return [residuals(model, phi, sig) for phi in phis]
+    gs = [_checked_divisors(model, phi) for phi in phis]
+    e = row_kernel.row_residuals_many(kernel, model, sig, np.vstack(phis))
+    return [e[m] / g for m, g in enumerate(gs)]
+
+
+def _checked_divisors(model: RobotModel, phi: np.ndarray) -> np.ndarray:
     g = divisors(model, phi)
     if np.any(g == 0) or not np.all(np.isfinite(g)):
         raise ValueError("a motor gain of Φ is zero or not finite: the model cannot predict that motor's input")
+    return g
+
+
+def residuals(model: RobotModel, phi: np.ndarray, sig: Signals, chunk: int = DEFAULT_CHUNK) -> np.ndarray:
+    """e = y − ŷ (N, n_out) for parameters Φ; ŷ = y − e."""
+    g = _checked_divisors(model, phi)
     r = len(g)
     kernel = row_kernel.stack(model)
     if kernel is not None:  # b − A Φ row by row in the kernel, A never stored

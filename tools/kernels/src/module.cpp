@@ -192,7 +192,31 @@ NB_MODULE(_kernels, m) {
             },
             nb::arg("q"), nb::arg("dq"), nb::arg("ddq"), nb::arg("inputs").none(), nb::arg("torques").none(),
             nb::arg("ft").none(), nb::arg("gravity").none(), nb::arg("payload").none(), nb::arg("phi"), nb::arg("e"),
-            nb::arg("threads") = 1, "b − A Φ of every sample's rows into e (N, rows), A never stored");
+            nb::arg("threads") = 1, "b − A Φ of every sample's rows into e (N, rows), A never stored")
+        .def(
+            "residuals_many",
+            [](const Stack& s, CArray2 q, CArray2 dq, CArray2 ddq, std::optional<CArray2> inputs,
+               std::optional<CArray2> torques, std::optional<CArray2> ft, std::optional<CArray2> gravity,
+               std::optional<CArray1> payload, CArray2 phi,
+               nb::ndarray<double, nb::ndim<3>, nb::c_contig, nb::device::cpu> e, int threads) {
+                const StackPlan& P = s.plan();
+                StackInputs in = gather(s, q, dq, ddq, inputs, torques, ft, gravity, payload, std::nullopt);
+                const long n = static_cast<long>(q.shape(0));
+                if (phi.shape(1) != static_cast<size_t>(P.columns) || phi.shape(0) < 1)
+                    throw std::invalid_argument("phi: (K, columns), K ≥ 1");
+                if (e.shape(0) != phi.shape(0) || e.shape(1) != static_cast<size_t>(n) ||
+                    e.shape(2) != static_cast<size_t>(P.rows))
+                    throw std::invalid_argument("e must be (K, N, rows)");
+                StackOutput out{nullptr, 0, 0, 0, nullptr, 0, 0, phi.data(), e.data(),
+                                static_cast<int>(phi.shape(0)), n * P.rows};
+                nb::gil_scoped_release release;
+                s.fill(in, out, 0, n, threads);
+            },
+            nb::arg("q"), nb::arg("dq"), nb::arg("ddq"), nb::arg("inputs").none(), nb::arg("torques").none(),
+            nb::arg("ft").none(), nb::arg("gravity").none(), nb::arg("payload").none(), nb::arg("phi"), nb::arg("e"),
+            nb::arg("threads") = 1,
+            "b − A Φ_m of every sample's rows into e[m] (K, N, rows) for each row Φ_m of phi (K, columns): the rows "
+            "built once for all K");
 
     register_observer(m);
     register_plant(m);

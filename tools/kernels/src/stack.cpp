@@ -103,12 +103,15 @@ void Stack::fill_range(const StackInputs& in, const StackOutput& out, long begin
                     b[t.index] += t.coef * x;
             }
         }
-        if (out.phi) {  // residuals only: b − A Φ per row
-            for (int row = 0; row < r; ++row) {
-                const double* a = A.data() + static_cast<size_t>(row) * p;
-                double dot = 0.0;
-                for (int c = 0; c < p; ++c) dot += a[c] * out.phi[c];
-                out.e[k * r + row] = b[row] - dot;
+        if (out.phi) {  // residuals only: b − A Φ per row, the rows built once for every Φ
+            for (int m = 0; m < out.n_phi; ++m) {
+                const double* phi = out.phi + static_cast<size_t>(m) * p;
+                for (int row = 0; row < r; ++row) {
+                    const double* a = A.data() + static_cast<size_t>(row) * p;
+                    double dot = 0.0;
+                    for (int c = 0; c < p; ++c) dot += a[c] * phi[c];
+                    out.e[m * out.e_stride + k * r + row] = b[row] - dot;
+                }
             }
             continue;
         }

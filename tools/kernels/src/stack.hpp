@@ -60,8 +60,11 @@ struct StackOutput {
     long sA0, sA1, sA2;
     double* b;
     long sb0, sb1;
+    // Residuals only: b − A Φ_m per row for each of `n_phi` parameter vectors (rows of phi), into e[m] (N, rows).
     const double* phi = nullptr;
     double* e = nullptr;
+    int n_phi = 1;
+    long e_stride = 0;  // between e[m] and e[m + 1]
 };
 
 class Stack {

@@ -151,5 +151,12 @@ def row_residuals(kernel, model: RobotModel, sig: Signals, phi: np.ndarray) -> n
     return e
 
 
+def row_residuals_many(kernel, model: RobotModel, sig: Signals, phis: np.ndarray) -> np.ndarray:
+    """b − A Φ_m of every row for each row Φ_m of `phis` (K, p): (K, N, r), A built once per sample for all K."""
+    e = np.empty((phis.shape[0], sig.q.shape[0], kernel_rows(kernel)))
+    kernel.residuals_many(*_arrays(model, sig), _c(phis), e, 1)
+    return e
+
+
 def kernel_rows(kernel) -> int:
     return kernel.rows
