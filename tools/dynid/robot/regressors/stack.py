@@ -188,8 +188,13 @@ def rows_at_rest(model: RobotModel, dq: np.ndarray, min_speed: float = DEFAULT_M
     """
     out = np.zeros((dq.shape[0], len(row_channels(model))), dtype=bool)
     for rows, coordinates in friction_coordinates(model, dq):
-        for c in coordinates:
-            out[:, rows] |= (np.abs(c.velocity) < min_speed)[:, None] & (c.share != 0)[None, :]
+        if not coordinates:
+            continue
+        # a row rests where any coordinate on it is slow: (N, coordinates) slow × (coordinates, rows) present, as a
+        # product of 0/1 (exact in float) rather than an or over full-width copies per coordinate
+        slow = np.column_stack([np.abs(c.velocity) < min_speed for c in coordinates]).astype(np.float32)
+        present = np.array([c.share != 0 for c in coordinates], dtype=np.float32)
+        out[:, rows] = (slow @ present) > 0
     return out
 
 
