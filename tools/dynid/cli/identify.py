@@ -519,10 +519,13 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.set_defaults(func=cmd_validate)
 
     sp = sub.add_parser("detect", help=COMMANDS["detect"].help,
-                        description="T² per sample, three variants side by side: momentum (the default where it can be "
-                        "calibrated: the generalized-momentum observer's residuals, no q̈; docs/detection.md), "
-                        "calibrated (acceleration-based residuals, Λ and T²_α calibrated on contact-free data) and "
-                        "paper (diagonal Λ and the F threshold). Against the data's contact column (the skin's) or "
+                        description="T² per sample, four variants side by side: combined (the default where it can be "
+                        "calibrated: the momentum observer's and the calibrated acceleration residuals' T² summed, so "
+                        "that neither side of an F/T sensor is blind; docs/detection.md#no-blind-side), momentum (the "
+                        "generalized-momentum observer's residuals, no q̈), calibrated (acceleration-based residuals, Λ "
+                        "and T²_α calibrated on contact-free data) and paper (diagonal Λ and the F threshold); Λ and "
+                        "T²_α cross-validated over the fit's time blocks, the false positives on data outside the fit "
+                        "and calibration reported beside the in-sample ones. Against the data's contact column (the skin's) or "
                         "--episodes labels: TPR, FPR, ROC/AUC, episodes found, onset delays, TPR per side of the F/T "
                         "sensor; without either, the false positives of a contact-free run.")
     sp.add_argument("--model", required=True, metavar="MODEL", help="a model file of `dynid fit`")
