@@ -234,8 +234,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
 
     sp = sub.add_parser("export", help=COMMANDS["export"].help,
                         description="Write the coefficient file rt_monitor loads (rt_monitor/README.md): the chain, "
-                        "the identified parameters, the channels, Λ and T²_α computed through the monitor's own "
-                        "fixed-lag derivative filter on the contact-free identification data, and the filter. "
+                        "the identified parameters, the channels, the fixed-lag derivative filter, the momentum "
+                        "observer and the combined detector's level, each Λ and T²_α computed as the monitor computes "
+                        "its residuals on the contact-free identification data, cross-validated over the fit's time "
+                        "blocks (or on --data), and the answers the monitor checks its core against at start. "
                         "With --urdf OUT.urdf: the robot's URDF with the identified inertial parameters in every link "
                         "(the physically consistent full set nearest CAD that reproduces the identified base "
                         "parameters), the symmetric friction in <dynamics>, and the rest in OUT.dynamics.yaml "

@@ -448,7 +448,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         description="Fit the model of docs/design.md §3 to one or more experiments (stacked): OLS on the "
                         "base parameters, PLS by NIPALS (ν cross-validated on time blocks) and instrumental variables "
                         "(IDIM-IV, the default: closed-loop data bias OLS and PLS), with jackknife standard errors; "
-                        "then calibrate the T² contact detector on the same data. Writes MODEL (JSON).")
+                        "then calibrate the contact detectors on the same data (the acceleration residuals' T², the momentum "
+                        "observer's and their combined level), each time block's residuals through the Φ fitted "
+                        "without it (docs/detection.md#out-of-sample). Writes MODEL (JSON).")
     robot_arg(sp)
     sp.add_argument("--data", action="append", required=True, metavar="DATA",
                     help="an experiment (dataset, CSV, candump log, ROS 2 bag, YARP folder, a folder of files the "
