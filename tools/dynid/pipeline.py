@@ -22,7 +22,7 @@ from threadpoolctl import threadpool_limits
 
 from .config.robot_config import RobotConfig
 from .detect.combined import fit_combined
-from .detect.momentum_t2 import CALIBRATION_MAX_S, ObserverCalibrations, calibration_head, observer_record
+from .detect.momentum_t2 import CALIBRATION_MAX_S, ObserverCalibrations, observer_record
 from .detect.t2 import (Detector, calibrate, calibration_residuals, calibration_stride, detector_record,
                         join_calibration, run_calibration_residuals)
 from .identify.fit import CONSISTENT, Estimate, FitResult, FitSettings, fit
@@ -317,10 +317,10 @@ def folds_record(model: RobotModel, result: FitResult) -> FoldsSection | None:
 
 
 def _head(run: Run) -> Dataset:
-    """A run cut to the seconds the observer's calibrations read (its first 150 s): once here, rather than a copy in
-    each of them; a streamed one read that far only."""
+    """A run in memory as it is (each calibration cuts its own copy of the seconds it reads, for as long as it runs:
+    kept here for every run at once, a fleet's would add up), a streamed one read as far as they read (150 s)."""
     if isinstance(run, Dataset):
-        return calibration_head(run)
+        return run
     return run.slice(0, min(run.n_samples, int(CALIBRATION_MAX_S / run.median_step()) + 2))
 
 
