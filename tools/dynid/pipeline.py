@@ -266,28 +266,33 @@ def _identify(model: RobotModel, datasets: Sequence[Run], data_paths: Sequence[s
                        cad_ft_offsets=cad_ft_offsets(model, result.statistics), folds=folds)
     # only a PWM input drifts with its supply (dynid.identify.supply)
     tracking = settings.tracking if model.config.motors_with_input("pwm") else None
-    heads = [_head(run) for run in datasets] if settings.observer else []
     # The observer's cross-validated calibration samples need Φ, the folds and the settings only: a thread runs them
     # while this one calibrates T² (the kernels and numpy's loops release the GIL). The two whole-run passes after
     # them (the in-sample observer, the combined detector's acceleration residuals) stay one at a time: overlapped
-    # too they took a second less and 60-110 MB more (docs/benchmarks.md#compiled-kernels).
+    # too they took a second less and 60-110 MB more (docs/benchmarks.md#compiled-kernels). A DataError of the
+    # observer's (e.g. too few contact-free samples) leaves the section out: `detect` calibrates then, and says why.
+    observer, heads = None, []
     with ThreadPoolExecutor(1, thread_name_prefix="dynid-observer") as pool:
-        if heads:
-            draft = replace(sections, parameters=dict(zip(model.layout.names, result.phi.tolist())),
-                            supply_tracking=tracking)
-            draft.robot_model  # built once, before two threads read it  # noqa: B018
-            observer = ObserverCalibrations(draft, heads, pool.submit)
+        if settings.observer:
+            try:
+                heads = [_head(run) for run in datasets]
+                draft = replace(sections, parameters=dict(zip(model.layout.names, result.phi.tolist())),
+                                supply_tracking=tracking)
+                draft.robot_model  # built once, before two threads read it  # noqa: B018
+                observer = ObserverCalibrations(draft, heads, pool.submit)
+            except DataError:
+                observer = None
         built = build_model(model, result.phi, datasets, data_paths, sections, settings.fit,
                             detector=settings.detector, nu=result.cv["n_components"], tracking=tracking,
                             residual_variance=result.residual_variance[result.chosen], cluster=cluster, refs=refs,
                             folds=folds)
         identified = built.model
-        if heads:
+        if observer is not None:
             try:
                 identified.observer = observer_record(identified, heads, settings.detector.alpha,
                                                       combine=fit_combined(identified, heads),
                                                       calibrations=observer)
-            except DataError:  # e.g. too few contact-free samples: `detect` calibrates then, and says why, as before
+            except DataError:
                 pass
     total = time.perf_counter() - started
     identified.fit_time_s = total

@@ -81,6 +81,28 @@ def test_the_fits_observer_section_is_the_one_calibrated_alone(default_model: Pa
     assert again.entry("monitor").to_json() == alone.entry("monitor").to_json()
 
 
+def test_an_observer_that_cannot_be_calibrated_leaves_its_section_out(default_experiments: dict,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """The fit calibrates the observer on a thread beside T²; where that calibration fails on the data (a DataError,
+    e.g. too few contact-free samples), the model file has no `observer` section, as before, and the rest is there."""
+    from dynid import pipeline
+    from dynid.config.robot_config import load_config
+    from dynid.detect import momentum_t2
+    from dynid.io.load import load_data
+    from dynid.robot.model import RobotModel
+
+    def refuse(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+        raise DataError("12 calibration samples for the momentum detector: too few")
+
+    monkeypatch.setattr(momentum_t2, "momentum_calibration_samples", refuse)
+    model = RobotModel(load_config("icub_right_arm"))
+    path = default_experiments["identification"]
+    run = load_data(path, model.config, joint_limits=model.joint_limits).slice(0, 60_000)
+    fitted = pipeline.identify(model, [run], [path]).model
+    assert fitted.observer is None
+    assert fitted.detector is not None and fitted.folds is not None
+
+
 def test_no_blind_side_on_the_default_runs(default_model: Path, default_experiments: dict) -> None:
     """The default detector on the default contact run: proximal TPR at least the calibrated variant's, distal at
     least the momentum variant's, false positives ≤ 1.5 % outside the episodes and on the held-out contact-free
