@@ -267,16 +267,16 @@ def _uniform_poly_fit(q: np.ndarray, w: int, p: int, dt: float, derivatives: boo
     ev = np.stack([V.T, d1 @ V.T / scale, d2 @ V.T / scale**2], axis=2)
     # weights[j, e, k]: sample j's weight in the k-th derivative of the window's fit at position e.
     weights = (V @ np.linalg.solve(V.T @ V, ev.reshape(p + 1, -1))).reshape(w, w, 3)
-    # The derivatives are taken from the steps of q, d_i = q_{i+1} − q_i, with weights b_i = Σ_{j>i} a_j (Σ_j a_j = 0
-    # exactly in theory): y = Σ a_j q_j = Σ b_i d_i. A window of one constant reading (a quantised encoder at rest)
-    # then gives exactly 0, where Σ a_j q_j gave q·(the rounding of Σ a_j), ±1e-13 rad/s, and friction's sign(q̇)
-    # followed it; and no large terms cancel.
     value = correlate1d(q, weights[:, h, 0], axis=0, mode="constant")  # the interior: centred windows
     # The first and last h samples take the first and last full window's fit, at their own positions.
     value[:h] = np.einsum("jn,je->en", q[:w], weights[:, :h, 0])
     value[n_samples - h:] = np.einsum("jn,je->en", q[n_samples - w:], weights[:, w - h:, 0])
     if not derivatives:
         return value, None, None
+    # The derivatives are taken from the steps of q, d_i = q_{i+1} − q_i, with weights b_i = Σ_{j>i} a_j (Σ_j a_j = 0
+    # exactly in theory): y = Σ a_j q_j = Σ b_i d_i. A window of one constant reading (a quantised encoder at rest)
+    # then gives exactly 0, where Σ a_j q_j gave q·(the rounding of Σ a_j), ±1e-13 rad/s, and friction's sign(q̇)
+    # followed it; and no large terms cancel.
     steps = np.diff(q, axis=0)
     on_steps = np.cumsum(weights[::-1, :, 1:], axis=0)[::-1][1:]  # (w − 1, w, 2): b for q̇ and q̈
     out = np.empty((2, *q.shape))
