@@ -168,8 +168,8 @@ def momentum_calibration_samples(model: RobotModel, phi: np.ndarray, base: BaseS
 
 
 def calibration_head(ds):  # Dataset -> Dataset
-    """The samples a run calibrates the observer on: its first CALIBRATION_MAX_S seconds (the run itself where it is
-    no longer: a caller that cuts it once saves each calibration its own copy)."""
+    """The samples a run calibrates the observer on: its first CALIBRATION_MAX_S seconds, a copy (the run itself where
+    it is no longer); each calibration cuts its own, for as long as it runs."""
     from ..io.load import apply_window
 
     if ds.duration > CALIBRATION_MAX_S:
