@@ -56,6 +56,27 @@ def test_gaps_names_the_step_at_the_ankle_stop(leg: dict) -> None:
     assert "r_foot_ft_sensor" not in result["ft_steps"]  # the foot sensor does not step
 
 
+def test_each_step_shows_its_own_held_out_change_and_the_gap_after_is_the_model_files(leg: dict) -> None:
+    """Each step's `held_out` is its own round's change: the two named steps on the leg's fx chain (measured 53.55 →
+    27.38 → 14.0× noise), where each used to show the whole fix's 53.55 → 14.01. The gap table's `after` is the model
+    file's: the tentative steps left out of it change no channel there (the foot sensor's limit step, its fz 27.03 →
+    21.84 when it was counted)."""
+    result = leg["gaps"]
+    on_fx = [e["held_out"]["ft.r_leg_ft_sensor.fx"] for e in result["effects"]
+             if e["name"] == "ft_step" and "ft.r_leg_ft_sensor.fx" in e.get("held_out", {})]
+    assert len(on_fx) == 2
+    assert on_fx[0]["before_over_noise"] == pytest.approx(53.55, rel=0.02)
+    # (the effects named between them move fx a little: the fit's parameters are shared by every channel)
+    assert on_fx[0]["after_over_noise"] == pytest.approx(on_fx[1]["before_over_noise"], rel=1e-3)
+    assert on_fx[0]["after_over_noise"] == pytest.approx(27.38, rel=0.05)
+    gap = {g["channel"]: g for g in result["gap"]}
+    assert gap["ft.r_leg_ft_sensor.fx"]["after_over_noise"] == pytest.approx(on_fx[1]["after_over_noise"], rel=0.02)
+    assert not any(e["in_model"] for e in result["effects"] if e["where"] == "sensor r_foot_ft_sensor")
+    for axis in ("fx", "fy", "fz", "tx", "ty", "tz"):
+        g = gap[f"ft.r_foot_ft_sensor.{axis}"]
+        assert g["after_over_noise"] == pytest.approx(g["before_over_noise"], rel=0.02), (axis, g)
+
+
 @pytest.mark.parametrize("window", sorted(WINDOWS))
 def test_the_fit_with_the_step_loses_the_force_error_and_validate_says_why(leg: dict, window: str) -> None:
     result = leg["validated"]["unconstrained", window]

@@ -293,7 +293,7 @@ def test_elbow_stribeck_is_named_and_its_gap_shrinks(gaps) -> None:
     assert abs(p["static_torque"] - static) <= 0.2 * static, (p, static)
     assert abs(p["velocity"] - float(true["velocity"])) <= 0.2 * float(true["velocity"]), p
     g = _gap(result, "pwm.m3")
-    assert g["after_over_noise"] < 0.5 * g["before_over_noise"], g  # measured 5.84 → 0.86 (1.31 without supply tracking)
+    assert g["after_over_noise"] < 0.5 * g["before_over_noise"], g  # measured 5.67 → 0.97 (the tentative armature left out)
 
 
 def test_slow_stribeck_is_not_misnamed(gaps) -> None:

@@ -252,15 +252,17 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
     taken: set[str] = set()
     duration = float(ctx.t[-1] - ctx.t[0]) if ctx.n > 1 else 0.0
     batch = max(1, min(int(round(BATCH_S * n / max(duration, 1e-9))), n // MIN_BATCHES))  # samples per batch (target)
+    # Each named effect keeps the held-out SSE per block and channel before and after its own round: what a step's
+    # `held_out` reports is its own change, not that of every effect named after it on the same channels.
     for c in declared:  # known steps: in the fix whatever their held-out gain (it is reported)
         Ew = weighted_columns(c.values, w)
         tr = replace(evaluate(current, c, w, cur_cv), p_value=robust_p_value(current, Ew, batch))
         accepted_E.append(Ew)
         accepted.append(c)
         taken.add(_key(c))
-        named.append({"trial": tr})
         current = Design(np.concatenate([design.D] + accepted_E, axis=2), y, bounds)
-        cur_cv = current.cv_sse(None)
+        named.append({"trial": tr, "cv_before": cur_cv})
+        cur_cv = named[-1]["cv_after"] = current.cv_sse(None)
     declared_cv = cur_cv  # what a found effect is judged against when it makes a channel worse
     for _ in range(settings.max_effects):
         trials = [prune(current, c, w, cur_cv, E) if c.kind == FT_STEP else evaluate(current, c, w, cur_cv, E)
@@ -291,8 +293,8 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
         accepted.append(c)
         taken.add(_key(c))
         current = Design(np.concatenate([design.D] + accepted_E, axis=2), y, bounds)
-        cur_cv = current.cv_sse(None)
-        named.append({"trial": best})
+        named.append({"trial": best, "cv_before": cur_cv})
+        cur_cv = named[-1]["cv_after"] = current.cv_sse(None)
 
     # The fix is never accepted when it makes a channel worse on held-out blocks: the last-named effects are
     # dropped until no channel is (a greedy round may hurt a channel that a later effect repairs, so this is
@@ -342,25 +344,29 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
                         "standard_errors": f.standard_errors, "search": dict(c.nonlinear), "cv_gain": tr.gain,
                         "p_value": tr.p_value, "explained": explained, "secondary_to": primary,
                         "confident": i < len(declared) or (enough and primary is None), "declared": i < len(declared)})
-    after = _rms_per_channel(cur_cv.sum(axis=0), current.rows.sum(axis=0))
     # The augmented model holds what was named: a tentative effect is reported, but it enters the model file only
     # when asked (--keep-tentative), refitted without it otherwise (its columns would have taken part of the fit).
     kept = [i for i, e in enumerate(effects) if e["confident"] or settings.keep_tentative]
     if len(kept) < len(accepted):
         named_E = [accepted_E[i] for i in kept]
-        named_design = Design(np.concatenate([design.D] + named_E, axis=2), y, bounds) if named_E else design
-        phi, fitted = refit(named_design, V, [accepted[i] for i in kept], ctx,
+        current = Design(np.concatenate([design.D] + named_E, axis=2), y, bounds) if named_E else design
+        phi, fitted = refit(current, V, [accepted[i] for i in kept], ctx,
                             reference_phi(model, reference[1] if reference else None))
         for i, f in zip(kept, fitted):  # what is reported of a named effect is what the model file holds
             effects[i].update(parameters=f.parameters, standard_errors=f.standard_errors)
+        # the gap after (its table, where it stays, the second pass's supply estimate): the model file's
+        cur_cv = current.cv_sse(None)
+        resid_after = y - current.D @ current.fit(None)[0]
+    after = _rms_per_channel(cur_cv.sum(axis=0), current.rows.sum(axis=0))
     for i, e in enumerate(effects):
         e["in_model"] = i in kept
     events = limit_events(ctx) if any(e["name"] == FT_STEP for e in effects) else []
     for e, item in zip(effects, named):  # a step: its change points with the limit events there, its channels' gaps
-        if e["name"] == FT_STEP:
+        if e["name"] == FT_STEP:  # before and after its own round
             chans = item["trial"].channels
-            held = _rms_per_channel(base_cv[:, chans].sum(axis=0), current.rows[:, chans].sum(axis=0))
-            now = _rms_per_channel(cur_cv[:, chans].sum(axis=0), current.rows[:, chans].sum(axis=0))
+            rows = current.rows[:, chans].sum(axis=0)
+            held = _rms_per_channel(item["cv_before"][:, chans].sum(axis=0), rows)
+            now = _rms_per_channel(item["cv_after"][:, chans].sum(axis=0), rows)
             e.update(describe(e, events, {channels[k].name: (float(b), float(a)) for k, b, a in zip(chans, held, now)}))
 
     best_by_key: dict[str, Trial] = {}
