@@ -397,6 +397,25 @@ def test_export_print_and_errors(exported: Path, tmp_path: Path) -> None:
     assert not (tmp_path / "x.dcoef").exists()
 
 
+def test_export_print_says_which_velocity_the_observer_takes_and_a_prismatic_joints_units(exported: Path) -> None:
+    from dynid.export.coefficients import describe
+
+    c = read_coefficients(exported)
+    assert c.velocity_window > 0 and c.observer_velocity == 0
+    text = describe(c)
+    assert f"causal q̇ over {c.velocity_window} samples" in text and "measured q̇" not in text
+    assert "min speed 0.01 rad/s," in text and " N," not in text.split("momentum observer")[1]
+    c.observer_velocity = 1  # a bus that carries q̇ (the UR10e's, the Panda's)
+    body = next(i for i in range(c.n_bodies) if c.joint_index[i] == 0)
+    c.joint_type = [2 if i == body else k for i, k in enumerate(c.joint_type)]  # prismatic, as TIAGo's torso lift
+    text = describe(c)
+    assert "the robot's measured q̇ (dq.J on its bus)" in text and "causal q̇" not in text
+    assert "(m/s for a prismatic joint)" in text
+    first, second = [line for line in text.splitlines() if "τ_ext variance" in line][:2]
+    assert first.split("]")[1].startswith(" N, τ_ext") and first.endswith(" N²")
+    assert second.split("]")[1].startswith(" Nm, τ_ext") and second.endswith(" Nm²")
+
+
 def test_contact_run_side_and_detection(exported: Path, default_experiments: dict, tmp_path: Path) -> None:
     """The contact run through the core: distal contacts are detected, and the side named is the skin's."""
     c = read_coefficients(exported)

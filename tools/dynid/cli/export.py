@@ -208,7 +208,8 @@ def _export_coefficients(args: argparse.Namespace) -> dict[str, Any]:
         print("  the file carries the momentum observer too: `rt_monitor --residual momentum` (or export "
               "--residual momentum) runs it instead, on q and q̇ with no q̈ to filter")
     momentum = None if obs is None else {
-        "bandwidth_hz": obs.detector.bandwidth_hz, "velocity_window": obs.velocity_window,
+        "bandwidth_hz": obs.detector.bandwidth_hz, "velocity": "measured" if obs.measured else "causal",
+        "velocity_window": obs.velocity_window,
         "threshold": obs.detector.threshold, "ft_thresholds": obs.detector.ft_thresholds,
         "residual_variance": dict(zip(done.channels, obs.detector.variance.tolist())),
         "calibration_samples": obs.detector.samples}

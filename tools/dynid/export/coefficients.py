@@ -408,8 +408,11 @@ def describe(c: coefficients_t) -> str:
         lines.append(f"  {c.channel_names[i]:18s} Λ {c.residual_variance[i]:.4g}  divisor {c.divisor[i]:.6g}"
                      f"  gates joints 0x{c.gate_joints[i]:x} motors 0x{c.gate_motors[i]:x}")
     sides = ", ".join(f"{n} {t:.6g}" for n, t in zip(c.sensor_names, c.ft_threshold)) or "none"
+    # a prismatic joint's q̇ is in m/s and its torque in N
+    prismatic = {c.joint_index[i] for i in range(c.n_bodies) if c.joint_type[i] == 2 and c.joint_index[i] >= 0}
+    speed = "rad/s" + (" (m/s for a prismatic joint)" if prismatic else "")
     lines.append(f"T²: α {c.alpha}, threshold {c.threshold:.6g}, F/T-side thresholds {sides}, "
-                 f"min speed {c.min_speed} rad/s, from {c.calibration_samples} samples; debounce on {c.debounce_on} "
+                 f"min speed {c.min_speed} {speed}, from {c.calibration_samples} samples; debounce on {c.debounce_on} "
                  f"off {c.debounce_off}, hysteresis {c.hysteresis}")
     lines.append(f"derivatives: fixed-lag Savitzky-Golay, window {c.window}, order {c.order}, lag {c.lag} "
                  f"({1e3 * c.lag * c.sample_period:.3g} ms), period {c.sample_period:.6g} s")
@@ -422,15 +425,18 @@ def describe(c: coefficients_t) -> str:
     if c.velocity_window > 0:
         chosen = {1: "the monitor runs it", 2: "the monitor runs it in the combined detector"}.get(
             c.residual, "carried; the monitor runs the acceleration residuals")
-        lines.append(f"momentum observer ({chosen}): bandwidth {c.observer_bandwidth:g} Hz, causal q̇ over "
-                     f"{c.velocity_window} samples; T²_α {c.observer_threshold:.6g} (all rows at rest "
+        velocity = ("the robot's measured q̇ (dq.J on its bus)" if c.observer_velocity
+                    else f"causal q̇ over {c.velocity_window} samples")
+        lines.append(f"momentum observer ({chosen}): bandwidth {c.observer_bandwidth:g} Hz, {velocity}; "
+                     f"T²_α {c.observer_threshold:.6g} (all rows at rest "
                      f"{c.observer_rest_threshold:.6g}), F/T-side thresholds "
                      + (", ".join(f"{n} {t:.6g}" for n, t in zip(c.sensor_names, c.observer_ft_threshold)) or "none"))
         for i in range(c.n_outputs):
             lines.append(f"  {c.channel_names[i]:18s} Λ {c.observer_variance[i]:.4g}")
         for j in range(c.n_joints):
-            lines.append(f"  {c.joint_names[j]:18s} static-friction band [{f(c.joint_band[j])}] Nm, τ_ext variance "
-                         f"{c.tau_variance[j]:.4g} Nm²")
+            unit = "N" if j in prismatic else "Nm"
+            lines.append(f"  {c.joint_names[j]:18s} static-friction band [{f(c.joint_band[j])}] {unit}, τ_ext variance "
+                         f"{c.tau_variance[j]:.4g} {unit}²")
         for k in range(c.n_motors):
             if c.motor_friction_on[k]:
                 lines.append(f"  {c.motor_names[k]:18s} static-friction band [{f(c.motor_band[k])}] Nm")
