@@ -61,3 +61,14 @@ def test_a_thin_rod_is_plausible(arm: RobotModel) -> None:
     k = [b.name for b in arm.bodies].index("r_forearm")
     rod = pin.Inertia.FromCylinder(0.5, 0.005, 0.2)  # two large moments, one tiny: a body all the same
     assert implausible(arm, _with_body(arm, k, rod.toDynamicParameters())) == []
+
+
+def test_negative_friction_is_named_and_a_solvers_rounding_is_not(arm: RobotModel) -> None:
+    phi = np.nan_to_num(arm.cad_parameters(), nan=0.0)
+    joint, motor = arm.layout.blocks_of("joint_friction")[0], arm.layout.blocks_of("motor_friction")[-1]
+    phi[joint.slice] = [0.2, 0.3, -0.0732, 0.01]  # fv+ < 0: the Panda's joint 6 in its default fit
+    phi[motor.slice] = [-0.05, 0.1, 0.0, -1e-9]  # fc+ < 0; fv- on the consistent fit's bound, rounded
+    found = implausible(arm, phi)
+    assert [(w.get("joint") or w.get("motor"), w["problem"], w["negative"]) for w in found] == [
+        (joint.owner, "friction", {"fv_pos": -0.0732}), (motor.owner, "friction", {"fc_pos": -0.05})]
+    assert found[0]["text"] == f"{joint.owner}: negative friction fv_pos -0.0732 (it would drive the motion, not damp it)"

@@ -193,7 +193,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     if warnings:
         why = ("--consistent pseudo-inertia lets a centre of mass leave its sphere"
                if args.consistent == PSEUDO_INERTIA_ONLY else
-               "--consistent on keeps every body physical; the data may not determine these bodies one by one")
+               "--consistent on keeps every body physical and friction dissipative; the data may not determine these "
+               "bodies one by one")
         print(f"  WARNING: {len(warnings)} physically implausible estimate(s) ({why}):")
         for w in warnings:
             print(f"    {w['text']}")

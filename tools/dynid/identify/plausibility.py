@@ -10,7 +10,9 @@ keep the CAD values. Nothing in the regression keeps each body physical, so a re
   (I₁ + I₂ ≥ I₃): equivalently, the pseudo-inertia J = [[½ tr(I)·1 − I, h], [hᵀ, m]] (Wensing, Kim and Slotine,
   RA-L 2018) is not positive definite;
 - the centre of mass farther from the body's frame than 1.5 × the link's extent + 5 cm, the extent being the
-  farthest of its child joints, its fixed frames and its CAD centre of mass.
+  farthest of its child joints, its fixed frames and its CAD centre of mass;
+- a joint's or motor's friction coefficient (fc±, fv±) negative: friction that feeds energy into the motion (the
+  consistent fit bounds them at 0; the monitor evaluates what the file holds).
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from ..robot.model import RobotModel
 
 COM_MARGIN_FACTOR = 1.5
 COM_MARGIN_M = 0.05
+FRICTION_TOLERANCE = 1e-6  # Nm, Nm s/rad: below a solver's rounding of a bound at 0, far below any real friction
 
 
 def inertia_about_com(phi_body: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -76,4 +79,20 @@ def implausible(model: RobotModel, phi: np.ndarray) -> list[dict[str, Any]]:
         if np.array_equal(inertial[10 * k : 10 * k + 10], cad[10 * k : 10 * k + 10]):
             f["urdf_values"] = True
             f["text"] += " (the URDF's own values: the data leave this body at its CAD)"
+    return found + negative_friction(model, phi)
+
+
+def negative_friction(model: RobotModel, phi: np.ndarray) -> list[dict[str, Any]]:
+    """One entry per joint or motor with a negative friction coefficient: which, and the coefficients."""
+    found: list[dict[str, Any]] = []
+    for kind, who in (("joint_friction", "joint"), ("motor_friction", "motor")):
+        for block in model.layout.blocks_of(kind):
+            values = np.asarray(phi, float)[block.slice]
+            negative = {name.rsplit(".", 1)[1]: float(v) for name, v in zip(block.names, values)
+                        if v < -FRICTION_TOLERANCE}
+            if negative:
+                found.append({who: block.owner, "problem": "friction", "negative": negative,
+                              "text": f"{block.owner}: negative friction "
+                                      + ", ".join(f"{k} {v:.3g}" for k, v in negative.items())
+                                      + " (it would drive the motion, not damp it)"})
     return found
