@@ -27,7 +27,7 @@ from dynid.errors import ConfigError, DataError
 from dynid.export.coefficients import read_coefficients
 from dynid.export.monitor_config import url_for_writing
 from dynid.export.monitor_log import read_lcm_log
-from dynid.export.player import play_run
+from dynid.export.player import clock_drift, play_run
 from dynid.io.dataset import Dataset
 from dynid.io.load import load_data
 
@@ -320,6 +320,38 @@ def test_nominal_stamps_put_the_runs_own_samples_on_the_nominal_period(panda: di
     slow.t = data.t[0] + 2.0 * (data.t - data.t[0])  # recorded at about 500 Hz: not the bus's rate
     played = play_run(panda["config"], slow, f"candump:{tmp_path / 'slow.log'}", stamps="nominal")
     assert played.nominal_s == pytest.approx(np.median(np.diff(slow.t)).round(6), abs=1e-12)
+
+
+def test_clock_drift_counts_whole_periods_and_leaves_real_losses_alone() -> None:
+    t = np.concatenate([[0.0], np.cumsum(np.tile([0.010, 0.012], 500))])  # a logger's 10 and 12 ms at 100 Hz
+    drift = clock_drift(t, 0.010)
+    assert drift.span_s == pytest.approx(11.0) and drift.drift_s == pytest.approx(1.0) and drift.periods == 100
+    assert drift.ppm == pytest.approx(1e6 / 11) and drift.misleads()
+    lossy = np.delete(np.arange(1000) * 1e-3, [100, 500, 501, 502])  # samples lost, stamped on the period
+    assert clock_drift(lossy, 1e-3).drift_s == pytest.approx(0.0, abs=1e-12) and not clock_drift(lossy, 1e-3).misleads()
+    slow_clock = np.arange(1000) * 1.0002e-3  # a board clock 200 ppm slow: the sample clock follows it
+    assert not clock_drift(slow_clock, 1e-3).misleads()
+
+
+def test_play_names_recorded_stamps_that_drift_and_the_monitor_bridges_them(panda: dict, tmp_path: Path) -> None:
+    """Recorded steps of 1.0 and 1.2 ms at the Panda's 1 kHz: `play` notes the drift, and the monitor bridges samples
+    the run never lost; with --stamps nominal it evaluates the run's samples one for one."""
+    data = panda["data"].slice(0, 600)
+    data.t = data.t[0] + np.concatenate([[0.0], np.cumsum(np.tile([1.0e-3, 1.2e-3], 300)[:599])])
+    data.save(tmp_path / "drift.npz")
+    evaluated = {}
+    for stamps in ("recorded", "nominal"):
+        log = tmp_path / f"{stamps}.log"
+        done = run(DYNID, "play", "--robot", "panda", "--data", tmp_path / "drift.npz", "--sink", f"candump:{log}",
+                   "--stamps", stamps)
+        assert done.returncode == 0, done.stderr
+        assert ("note: the recorded steps are not whole periods of 1 ms" in done.stdout) == (stamps == "recorded")
+        conf = tmp_path / f"{stamps}.conf"
+        conf.write_text(panda["conf"].read_text().replace(str(panda["lcm"]), str(tmp_path / f"{stamps}.lcmlog")))
+        done = run(RT_MONITOR, "--model", panda["coef"], "--config", conf, "--replay", log)
+        assert done.returncode == 0, done.stderr
+        evaluated[stamps] = int(done.stdout.split(", evaluated ")[1].split(",")[0])
+    assert evaluated["nominal"] == 600 and evaluated["recorded"] > 600  # bridged: samples the run never had
 
 
 def test_buses_that_share_an_id_get_a_dbc_each(tmp_path: Path) -> None:

@@ -33,10 +33,19 @@ def cmd_play(args: argparse.Namespace) -> dict[str, Any]:
     print(f"played {args.data} ({config.name}) -> {args.sink}: {played.samples} samples at {stamps} (recorded: mean "
           f"step {1e3 * played.period_s:.4g} ms, {1e3 * lo:.4g} to {1e3 * hi:.4g} ms), {played.frames} frames",
           file=out)
+    drift = played.drift
+    if drift is not None and drift.misleads():
+        print(f"note: the recorded steps are not whole periods of {1e3 * drift.period_s:.6g} ms: they drift "
+              f"{drift.drift_s:+.4g} s over {drift.span_s:.4g} s ({drift.ppm:.0f} ppm) from rt_monitor's sample clock, "
+              "which reads that as samples lost or late and bridges or holds them; --stamps nominal plays the "
+              "samples one for one, as `dynid detect` and `dynid export` take them", file=out)
     return {"robot": config.name, "data": args.data, "sink": args.sink, "samples": played.samples,
             "frames": played.frames, "load": played.load, "period_s": played.period_s,
             "sent_period_s": played.nominal_s, "step_min_s": lo, "step_max_s": hi, "stamps": args.stamps,
             "realtime": args.realtime, "encoder": args.encoder,
+            "clock_drift": None if drift is None else {"period_s": drift.period_s, "drift_s": drift.drift_s,
+                                                       "ppm": drift.ppm, "periods": drift.periods,
+                                                       "misleads_the_monitor": drift.misleads()},
             "bad_rows": dropped}
 
 

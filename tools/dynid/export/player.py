@@ -47,6 +47,41 @@ class Played:
     period_s: float  # the run's mean sample period, as recorded
     step_range_s: tuple[float, float]  # its smallest and largest step (the jitter sent as recorded)
     nominal_s: float | None = None  # stamps="nominal": the grid's step the samples went out on
+    drift: ClockDrift | None = None  # stamps="recorded": how far the stamps drift from the monitor's grid
+
+
+@dataclass(frozen=True)
+class ClockDrift:
+    """Recorded stamps against the grid the monitor's sample clock puts samples on (one per period): a run whose
+    steps are not whole periods (the UR10e logger's 10 and 12 ms at 100 Hz, the Panda's 0.97-1.00 ms at 1 kHz)
+    drifts off it, and the clock, made for boards that send on a timer and following a drift of a few hundred ppm
+    only (rt_monitor/include/rt_monitor/sample_clock.hpp), reads the excess as samples lost or late: it bridges or
+    holds samples the run never lost."""
+
+    period_s: float  # the monitor's period for this run (the bus's, or the median step: BusDescription.nominal_period)
+    span_s: float  # the stamps' span, first to last
+    drift_s: float  # that span less the whole periods the steps round to
+    periods: int  # the drift in whole periods: grid slots more (fewer) than the rounded steps account for
+
+    @property
+    def ppm(self) -> float:
+        return 0.0 if self.span_s <= 0 else 1e6 * abs(self.drift_s) / self.span_s
+
+    def misleads(self) -> bool:
+        """Whether the drift reaches a whole period, faster than the clock follows."""
+        return abs(self.periods) >= 1 and self.ppm > DRIFT_FOLLOWED_PPM
+
+
+DRIFT_FOLLOWED_PPM = 500.0  # the sample clock's slow leak follows a board clock "a few hundred ppm" off
+
+
+def clock_drift(t: np.ndarray, period_s: float) -> ClockDrift:
+    """How the recorded stamps `t` sit against a grid of `period_s` from their first."""
+    steps = np.diff(t)
+    span = float(t[-1] - t[0]) if t.size > 1 else 0.0
+    whole = np.rint(steps / period_s)
+    drift = span - float(whole.sum()) * period_s
+    return ClockDrift(period_s, span, drift, int(round(span / period_s) - whole.sum()))
 
 
 def player_csv(data: Dataset, bus: BusDescription, robot: str) -> str:
@@ -83,11 +118,15 @@ def play_run(config: RobotConfig, data: Dataset, sink: str, realtime: bool = Fal
     if not BOARDS.is_file():
         raise InputError(f"{BOARDS} is not built: run scripts/setup")
     steps = np.diff(data.t)
-    nominal = None
-    if stamps == "nominal":  # the run's own samples on the grid of its nominal period: the bus's where its rate
-        # agrees with the median step, else the median step (to the µs), as `dynid export` takes the file's period
-        nominal = round(bus.nominal_period(float(np.median(steps))) * 1e6) * 1e-6
+    # the run's period as the monitor takes it: the bus's where its rate agrees with the median step, else the
+    # median step (to the µs), as `dynid export` takes the file's period
+    period = round(bus.nominal_period(float(np.median(steps))) * 1e6) * 1e-6 if steps.size else 1.0 / bus.rate
+    nominal = drift = None
+    if stamps == "nominal":  # the run's own samples on the grid of that period
+        nominal = period
         data = replace(data, t=data.t[0] + np.arange(data.n_samples) * nominal)
+    else:
+        drift = clock_drift(data.t, period)
     with tempfile.TemporaryDirectory(prefix="dynid-play-") as tmp:
         conf, csv = Path(tmp) / "monitor.conf", Path(tmp) / "data.csv"
         conf.write_text(monitor_config_text(config))
@@ -116,4 +155,4 @@ def play_run(config: RobotConfig, data: Dataset, sink: str, realtime: bool = Fal
         elif words[1:2] == ["bus"]:
             load[words[2]] = float(words[4]) / 100
     return Played(samples, frames, load, text.strip(), float(steps.mean()), (float(steps.min()), float(steps.max())),
-                  nominal)
+                  nominal, drift)
