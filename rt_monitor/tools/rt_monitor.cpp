@@ -13,6 +13,7 @@
 // samples' processing and response times (loop overruns, missed deadlines), the messages published, the resident set.
 // Exit codes: 0 done, 2 bad arguments or configuration, 1 a source or LCM failure, 3 mlockall refused, 4 SCHED_FIFO
 // refused, 5 CPU affinity refused, 6 nothing evaluated or ended blind (the watchdog), 10+ a refused coefficient file.
+#include <sched.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -315,9 +316,16 @@ int main(int argc, char** argv) {
     if (!replay.empty() && !loopback.empty()) return usage("--replay and --loopback exclude each other");
     if (!residual.empty() && residual != "acceleration" && residual != "momentum" && residual != "combined")
         return usage("--residual is acceleration, momentum or combined, not '" + residual + "'");
-    // Range checks are the system's (SCHED_FIFO's priorities, the allowed CPUs): a refusal has its own exit code.
+    // A priority outside SCHED_FIFO's range (which the system states, unprivileged) is a bad value, exit 2; what the
+    // system refuses at start-up (a priority beyond RLIMIT_RTPRIO, a CPU not allowed) has an exit code of its own.
     if (rts.fifo && !parse_int(priority, -1000000, 1000000, rts.priority))
         return usage("--priority needs an integer, got '" + priority + "'");
+    if (rts.fifo) {
+        const int lo = sched_get_priority_min(SCHED_FIFO), hi = sched_get_priority_max(SCHED_FIFO);
+        if (rts.priority < lo || rts.priority > hi)
+            return usage("--priority " + priority + ": SCHED_FIFO's priorities are " + std::to_string(lo) + ".." +
+                         std::to_string(hi));
+    }
     if (have_cpu && !parse_cpu_list(cpu, rts.cpus))
         return usage("--cpu needs a CPU list as taskset -c takes it (1, 0,2 or 0-3), got '" + cpu + "'");
 

@@ -75,11 +75,13 @@ def _refused(done: subprocess.CompletedProcess, code: int, *words: str) -> None:
     assert done.stdout == ""  # refused before the loop: no run, no counters
 
 
-@pytest.mark.parametrize("priority", ["0", "100"])
-def test_priority_outside_sched_fifo_range_is_refused(priority: str, tmp_path: Path) -> None:
+@pytest.mark.parametrize("priority", ["0", "100", "200"])
+def test_priority_outside_sched_fifo_range_is_a_bad_value(priority: str, tmp_path: Path) -> None:
+    """Exit 2 before the system is asked: SCHED_FIFO's range is known unprivileged (sched_get_priority_min/max)."""
     lo, hi = os.sched_get_priority_min(os.SCHED_FIFO), os.sched_get_priority_max(os.SCHED_FIFO)
-    _refused(monitor("--priority", priority, tmp=tmp_path), EXIT_PRIORITY, f"--priority {priority}",
-             f"its priorities are {lo}..{hi}")
+    done = monitor("--priority", priority, tmp=tmp_path)
+    assert done.returncode == 2 and done.stdout == "", (done.returncode, done.stderr)
+    assert f"--priority {priority}: SCHED_FIFO's priorities are {lo}..{hi}" in done.stderr.splitlines()[0], done.stderr
 
 
 def test_cpu_not_allowed_is_refused(tmp_path: Path) -> None:
