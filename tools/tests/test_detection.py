@@ -90,3 +90,24 @@ def test_nothing_at_rest_changes_nothing() -> None:
     still = _motor_at_rest(moving.dq)
     assert (~still).sum() > N // 2
     assert np.array_equal(banded[~still], e[~still])
+
+
+def test_an_episode_found_by_one_sample_above_is_not_a_sustained_onset() -> None:
+    """`episodes_detected` counts an episode's first sample above the level; `episodes_sustained` only an alarm held
+    ONSET_S (10 samples at 1 kHz, 1 at 100 Hz), as the monitor's onset: a lone sample is what a 1 % false-positive
+    rate puts into half the episodes of 70 samples."""
+    from dynid.detect.t2 import score
+
+    t = np.arange(1000) * 1e-3
+    contact = np.zeros(1000)
+    contact[100:170] = contact[400:470] = 1
+    t2 = np.zeros(1000)
+    t2[130] = 5.0  # one sample above in the first episode
+    t2[420:431] = 5.0  # eleven in a row in the second, 20 ms after its start
+    s = score(t, t2, 1.0, contact)
+    assert (s["episodes"], s["episodes_detected"]) == (2, 2) and s["delay_s"]["median"] == pytest.approx(0.025)
+    assert s["episodes_sustained"] == {"samples": 10, "found": 1}
+    t2[425] = 0.0  # the run broken into 5 and 5: no onset
+    assert score(t, t2, 1.0, contact)["episodes_sustained"]["found"] == 0
+    slow = score(t * 10, t2, 1.0, contact)  # at 100 Hz one sample is an onset
+    assert slow["episodes_sustained"] == {"samples": 1, "found": 2}

@@ -407,6 +407,9 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
         if s.get("episodes"):
             delay = s["delay_s"]
             line += f", episodes {s['episodes_detected']}/{s['episodes']}"
+            held = s.get("episodes_sustained")
+            if held and held["samples"] > 1:  # at 100 Hz one sample is the monitor's onset: the same count
+                line += f", {held['found']}/{s['episodes']} held {held['samples']} samples as the monitor's onset"
             if delay["median"] is not None:
                 line += f", delay median {1e3 * delay['median']:.0f} ms p90 {1e3 * delay['p90']:.0f} ms"
                 line += f" max {1e3 * delay['max']:.0f} ms"
