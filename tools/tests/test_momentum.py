@@ -305,3 +305,16 @@ def test_the_api_detector_uses_the_momentum_residual(default_experiments: dict[s
     assert result["fpr"] <= 0.015  # measured 0.81 %
     assert detector.predict(run).mean() == pytest.approx(result["fpr"])
     assert detector.momentum_.bandwidth_hz == 15.0 and detector.momentum_.threshold > 0
+
+
+def test_a_bandwidth_above_the_datas_nyquist_is_a_bad_value(default_experiments: dict[str, Path], default_model: Path,
+                                                           tmp_path: Path) -> None:
+    """Given by the user, a bandwidth the data's rate cannot carry ends the command (exit 2, one line, nothing
+    written); only the default, where a slow log cannot carry it, drops the observer with a note."""
+    out = tmp_path / "m.dcoef"
+    for command in (("detect", "--data", str(default_experiments["contact"])), ("export", "--out", str(out))):
+        done = dynid(*command[:1], "--model", str(default_model), *command[1:], "--bandwidth", "600")
+        assert done.returncode == 2, done.stdout
+        assert done.stderr.strip() == (f"dynid {command[0]}: error: the observer's bandwidth 600 Hz is at or above the "
+                                       "data's Nyquist frequency (500 Hz): give a lower --bandwidth"), done.stderr
+    assert not out.exists()

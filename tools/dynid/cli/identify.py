@@ -352,7 +352,8 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
                                           args.label_widening, found.side, detector=stored, folds=folds,
                                           in_sample=stored_in_sample(ev.identified) if stored is not None else None)
         except DataError as e:
-            if args.residual == "momentum" or calibration_given:  # asked for: its failure is the command's
+            # asked for (the residual, its calibration runs or its bandwidth): its failure is the command's
+            if args.residual == "momentum" or calibration_given or args.bandwidth != DEFAULT_BANDWIDTH_HZ:
                 raise
             skipped = str(e)  # the default: say why, and report the acceleration-based variants
     combined = None

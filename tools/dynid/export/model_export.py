@@ -185,8 +185,8 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
         try:
             observer = monitor_observer(identified, originals, alpha, min_speed, settings)  # the observer takes stamps
         except DataError as e:  # the acceleration residuals the monitor runs do not need it: said, not fatal
-            if settings.residual in ("momentum", "combined"):
-                raise
+            if settings.residual in ("momentum", "combined") or settings.bandwidth_hz != DEFAULT_BANDWIDTH_HZ:
+                raise  # asked for (a residual, or a bandwidth of the user's): its failure is the command's
             note = str(e)
     scale, combined_note = 0.0, note or "no observer"
     if observer is not None:
