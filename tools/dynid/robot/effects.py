@@ -41,6 +41,7 @@ FT_AXES = ("fx", "fy", "fz", "tx", "ty", "tz")
 REQUIRED = {**JOINT_EFFECTS, FT_STEP: ("from_s",)}
 UNITS = {"static_torque": "Nm", "velocity": "rad/s", "stiffness": "Nm/rad", "rest": "rad", "amplitude": "Nm",
          "period_deg": "deg", "width": "duty", "tau": "s", "force": "N", "torque": "Nm", "from_s": "s", "to_s": "s",
+         "inertia": "kg m²", "ms": "ms", "limit_deg": "deg",
          **{f"d{a}": "N" if a[0] == "f" else "Nm" for a in FT_AXES}}
 
 
