@@ -69,6 +69,12 @@ def test_each_step_shows_its_own_held_out_change_and_the_gap_after_is_the_model_
     # (the effects named between them move fx a little: the fit's parameters are shared by every channel)
     assert on_fx[0]["after_over_noise"] == pytest.approx(on_fx[1]["before_over_noise"], rel=1e-3)
     assert on_fx[0]["after_over_noise"] == pytest.approx(27.38, rel=0.05)
+    # The two steps' fx columns differ only inside the last time block (59.20-62.52 s): the jackknife's fold without
+    # it cannot tell them apart, so their dfx has no standard error (it was 7.4 N on a 1.2 N step); the second's
+    # torques, which no other step shares, keep theirs.
+    first, second = [e for e in result["effects"] if e["name"] == "ft_step" and e["in_model"]]
+    assert first["standard_errors"]["dfx"] is None and second["standard_errors"]["dfx"] is None
+    assert all(0 < second["standard_errors"][a] < 1 for a in ("dtx", "dty", "dtz"))
     gap = {g["channel"]: g for g in result["gap"]}
     assert gap["ft.r_leg_ft_sensor.fx"]["after_over_noise"] == pytest.approx(on_fx[1]["after_over_noise"], rel=0.02)
     assert not any(e["in_model"] for e in result["effects"] if e["where"] == "sensor r_foot_ft_sensor")

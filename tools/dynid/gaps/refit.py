@@ -30,10 +30,13 @@ def refit(current: Design, V: np.ndarray, accepted: list[Candidate], ctx: Contex
     """(Φ, effects) of the final fit. Φ = Φ_ref outside the identifiable subspace V, the fit inside it (V has no
     component along held parameters, which keep Φ_ref's). A payload's ten parameters are added to its link's
     inertial parameters in Φ: the augmented model is then a standard one for it (the monitor needs nothing new).
-    Standard errors: block jackknife (the rows are correlated within a block, not across blocks)."""
+    Standard errors: block jackknife (the rows are correlated within a block, not across blocks); none for an
+    effect that a fold cannot determine (Design.fold_blind: a short F/T step inside one block, two steps that differ
+    only in one block), whose replicate there is the solver's choice, not an estimate."""
     dof = V.shape[1]
     x = current.fit(None)[0]  # the selection's own solve (same column scaling, same cut)
     folds = current.fold_fits()
+    blind = current.fold_blind()
     layout = ctx.model.layout
 
     def full(xx: np.ndarray) -> np.ndarray:
@@ -55,9 +58,16 @@ def refit(current: Design, V: np.ndarray, accepted: list[Candidate], ctx: Contex
         th = x[start : start + k]
         params = dict(c.interpret(th, phi))
         jack = [c.interpret(xb[start : start + k], full(xb)) for xb in folds]
+        undetermined = set()  # the parameters that move with a coordinate some fold cannot determine
+        if blind[start : start + k].any():
+            moved = th.copy()
+            moved[blind[start : start + k]] += 1.0 + np.abs(moved[blind[start : start + k]])
+            alt = c.interpret(moved, phi)
+            undetermined = {n for n, v in params.items() if isinstance(v, (int, float)) and alt.get(n) != v}
         se: dict[str, float | None] = {}
         for name in params:
-            if name in c.nonlinear or not isinstance(params[name], (int, float)):  # searched, or a label / matrix
+            if (name in c.nonlinear or not isinstance(params[name], (int, float))  # searched, or a label / matrix
+                    or name in undetermined):
                 se[name] = None
                 continue
             vals = np.array([j[name] for j in jack], float)

@@ -230,6 +230,13 @@ class Design:
         sse = _sse(self._G_channel, self._g_channel, self._yy_channel, x, (DE_channel, EE_channel, Ey_channel))
         return x / np.concatenate([self.scale, e]), sse
 
+    def fold_blind(self, share: float = 0.99) -> np.ndarray:
+        """(d,) True for a coordinate that some fold (every block but one) cannot determine: less than `share` of it
+        lies in that fold's span (the diagonal of the projector G⁺G), so its replicate there is the pseudo-inverse's
+        choice, not an estimate (an effect inside one block; two F/T steps that differ only there)."""
+        span = np.einsum("bij,bjk->bik", self.inv_folds, self._G_all[None] - self._G_block)
+        return (np.diagonal(span, axis1=1, axis2=2) < share).any(axis=0)
+
     def fold_fits(self) -> list[np.ndarray]:
         """x (own units) fitted on all blocks but b, for each b: the block jackknife's replicates."""
         return [self.inv_folds[b] @ (self._g_all - self._g_block[b]) / self.scale for b in range(self.n_blocks)]

@@ -6,7 +6,7 @@ An effect record of the model file (``effects``, format_version 2):
     where              "joint r_elbow", "motor m3", "sensor r_arm_ft"
     parameters         {name: value} in the plant's units (Nm, rad/s, Nm/rad, rad, …)
     standard_errors    {name: SE or null}: block-jackknife over the held-out time blocks; null for a value found by
-                       search (a Stribeck velocity) rather than by regression
+                       search (a Stribeck velocity) rather than by regression, or of an effect a fold cannot determine
     units              {name: unit}
     coefficients       the regression coefficients θ of the effect's columns (row units), as fitted
     search             the searched nonlinear value(s)
