@@ -84,7 +84,7 @@ def main() -> None:
     ap.add_argument("--figures", type=Path, help="where the ROC figures go (PNG)")
     args = ap.parse_args()
     args.work.mkdir(parents=True, exist_ok=True)
-    print("| run | variant | episodes found | onset delay median / p90 / max, ms | FPR | TPR | AUC |")
+    print("| run | variant | episodes found (held 10 ms) | onset delay median / p90 / max, ms | FPR | TPR | AUC |")
     print("|---|---|---|---|---|---|---|")
     for name, detect in runs(args.sim, args.realdata, args.work):
         out = args.work / f"{name}.detect.json"
@@ -95,7 +95,8 @@ def main() -> None:
             delays = ("/".join("-" if d.get(k) is None else f"{1e3 * d[k]:.0f}" for k in ("median", "p90", "max"))
                       if d else "-")
             tpr = "-" if s.get("tpr") is None else f"{100 * s['tpr']:.1f} %"
-            found = f"{s['episodes_detected']}/{s['episodes']}" if s.get("episodes") else "-"
+            held = (s.get("episodes_sustained") or {}).get("found")  # the level held as the monitor's onset
+            found = f"{s['episodes_detected']}/{s['episodes']} ({held})" if s.get("episodes") else "-"
             auc = s.get("auc")
             auc = f"{auc:.3f}" if auc is not None and np.isfinite(auc) else "-"  # no contact labelled: no ROC
             print(f"| {name} | {variant} | {found} | {delays} | {100 * s['fpr']:.2f} % | {tpr} | {auc} |")
