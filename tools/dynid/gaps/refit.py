@@ -58,7 +58,7 @@ def refit(current: Design, V: np.ndarray, accepted: list[Candidate], ctx: Contex
         th = x[start : start + k]
         params = dict(c.interpret(th, phi))
         jack = [c.interpret(xb[start : start + k], full(xb)) for xb in folds]
-        undetermined = set()  # the parameters that move with a coordinate some fold cannot determine
+        undetermined: set[str] = set()  # the parameters that move with a coordinate some fold cannot determine
         if blind[start : start + k].any():
             moved = th.copy()
             moved[blind[start : start + k]] += 1.0 + np.abs(moved[blind[start : start + k]])
