@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -220,6 +221,7 @@ def test_spy_view_shows_events_status_and_rates(run: dict) -> None:
     # A status line a second of CAN time; the replayed boards' rates: 14 frames a sample at 1 kHz.
     status = [l for l in out if "frames/s" in l]
     assert len(status) >= 4
+    assert all(re.search(r"  samples \d+ assembled, \d+ evaluated  ", l) for l in status), status[0]
     rates = [float(l.split(" frames/s")[0].split()[-1]) for l in status]
     samples = [float(l.split(" samples/s")[0].split()[-1]) for l in status]
     n_frames, n_samples = msgs["DYNID_STATUS"][-1].frames, msgs["DYNID_STATUS"][-1].samples

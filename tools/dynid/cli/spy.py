@@ -145,8 +145,8 @@ class View:
         faults = getattr(m, "faults", 0)
         self.status_line = (f"{t:10.3f} s  {'IN CONTACT' if m.in_contact else 'no contact'}"
                             + (f"  FAULT: {fault_text(faults)}" if faults else "")
-                            + f"{'  STALE' if m.stale else ''}  frames {m.frames}  samples {m.samples_evaluated}/"
-                            f"{m.samples}{rate}  loop {m.loop_us_mean:.1f}/{m.loop_us_max:.1f} µs"
+                            + f"{'  STALE' if m.stale else ''}  frames {m.frames}  samples {m.samples} assembled, "
+                            f"{m.samples_evaluated} evaluated{rate}  loop {m.loop_us_mean:.1f}/{m.loop_us_max:.1f} µs"
                             + (f"  {supply_text(m.supply_ratio)}" if m.n_supply else "")
                             + (f"  {problems}" if problems else ""))
         if self.tty:
