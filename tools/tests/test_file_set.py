@@ -171,6 +171,20 @@ def test_the_command_line_says_it_in_one_line_with_exit_2(tmp_path: Path) -> Non
     assert "'*_torques.txt' of the configuration's files: field matches no file" in done.stderr and not out.exists()
 
 
+def test_fit_on_a_folder_the_files_field_does_not_match_says_how_it_read_it(tmp_path: Path) -> None:
+    """Another robot's logger folder (TIAGo's names under a configuration whose `files:` are the Panda's): read as a
+    folder of runs, its first file fails; the error says why the folder was not one run of the configuration."""
+    cfg, run, _ = stacked_setup(tmp_path)
+    for name in list(run.iterdir()):  # another logger's names: run_01_time.csv, ...
+        name.rename(name.with_suffix(".csv"))
+    done = subprocess.run([sys.executable, "-m", "dynid.cli", "fit", "--robot", str(cfg), "--data", str(run),
+                           "--out", str(tmp_path / "m.json")], capture_output=True, text=True)
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert f"(--data {run} was read as a folder of runs, one a file: '" in done.stderr, done.stderr
+    assert "of the configuration's files: field matches no file; the folder holds run_01_positions.csv" in done.stderr
+    assert not (tmp_path / "m.json").exists()
+
+
 @pytest.mark.parametrize("files, message", [
     ("files: [a.txt]\n", r"field 'files' must be a mapping of file name \(or glob\) to its columns"),
     ("files: {}\n", r"field 'files' must be a mapping"),

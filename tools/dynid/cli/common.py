@@ -281,6 +281,20 @@ def expand_data(args: argparse.Namespace, config: RobotConfig | None = None) -> 
     return paths, windows
 
 
+def folder_of_runs_hint(args: argparse.Namespace, config: RobotConfig) -> str:
+    """Why a --data folder was read as a folder of runs rather than as one run of the configuration's `files:`
+    (added to the error a run of it ends in: the user most likely meant the robot's own logger folder)."""
+    from ..io.file_set import matched_files
+
+    if not config.files:
+        return ""
+    for spec in args.data:
+        path = Path(spec)
+        if path.is_dir() and isinstance(why := matched_files(path, config.files), str):
+            return f" (--data {spec} was read as a folder of runs, one a file: {why})"
+    return ""
+
+
 def bad_rows(args: argparse.Namespace) -> str:
     return getattr(args, "bad_rows", DEFAULT_POLICY)
 
