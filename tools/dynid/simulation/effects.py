@@ -77,6 +77,23 @@ CATALOG: dict[str, EffectKind] = {
 }
 
 _CHOICES = {"shape": ("thermal", "linear"), "axis": ("x", "y", "z")}
+# What a parameter may be, physically: (effect, parameter) -> (lowest, whether it may equal it, highest or None).
+# An amplitude drawn with random signs, a friction, an inertia or a stiffness is not negative; a velocity, a time
+# constant, a period and a mass are positive (the plant divided by them, or diverged on them, with a traceback).
+_RANGES: dict[tuple[str, str], tuple[float, bool, float | None]] = {
+    ("stribeck", "excess"): (0.0, True, None), ("stribeck", "velocity"): (0.0, False, None),
+    ("spring", "stiffness"): (0.0, True, None), ("armature", "inertia"): (0.0, True, None),
+    ("payload", "mass"): (0.0, False, None),
+    ("ft_drift", "force"): (0.0, True, None), ("ft_drift", "torque"): (0.0, True, None),
+    ("ft_drift", "tau"): (0.0, False, None), ("pwm_delay", "ms"): (0.0, True, None),
+    ("pwm_deadzone", "width"): (0.0, True, 1.0), ("coupling_error", "error"): (-1.0, False, None),
+    ("load_friction", "coefficient"): (0.0, True, 1.0),
+    ("cogging", "amplitude"): (0.0, True, None), ("cogging", "period_deg"): (0.0, False, None),
+    ("base_tilt", "degrees"): (-90.0, False, 90.0),
+    ("ft_step", "force"): (0.0, True, None), ("ft_step", "torque"): (0.0, True, None),
+    ("ft_gain", "gain"): (0.0, True, None), ("ft_gain", "crosstalk"): (0.0, True, None),
+    ("drag", "coefficient"): (0.0, True, None),
+}
 _NAMES = ("joint",)  # parameters that name a part of the arm (coupling_error's column), checked in parse_effect
 
 
@@ -149,6 +166,12 @@ def parse_effect(text: str, config: RobotConfig, bodies: tuple[str, ...]) -> Eff
             raise InputError(f"effect '{name}': {key} must be a number, got '{value}'") from None
         if number != number or number in (float("inf"), float("-inf")):
             raise InputError(f"effect '{name}': {key} must be finite, got '{value}'")
+        if (name, key) in _RANGES:
+            lo, closed, hi = _RANGES[name, key]
+            if number < lo or (number == lo and not closed) or (hi is not None and number >= hi):
+                allowed = (f"{'at least' if closed else 'above'} {lo:g}"
+                           + (f" and below {hi:g}" if hi is not None else ""))
+                raise InputError(f"effect '{name}': {key} must be {allowed}, got '{value}'")
         params[key] = number
     _check_target(name, spec.target, target, config, bodies)
     if name == "ft_step" and not 0 <= float(params["from_s"]) < float(params["to_s"]):

@@ -20,7 +20,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..config.robot_config import RobotConfig
-from ..errors import InputError
+from ..errors import DataError, InputError
 from ..io.dataset import Dataset
 from ..io.load import MIN_SAMPLES
 from ..progress import track
@@ -145,6 +145,19 @@ def scale_friction(truth: TrueRobot, config: RobotConfig, joint: str, factor: fl
 
 
 def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
+    """The experiment `settings` describe on the simulated arm `config`: its data, truth and realism figures."""
+    try:
+        return _simulate(config, settings)
+    except RuntimeError as e:  # the plant (compiled or not) could not be integrated: an input, not a bug
+        if not str(e).startswith("the plant"):
+            raise
+        given = ", ".join(x.kind + (f" on {x.target}" if x.target else "") for x in settings.effects)
+        why = f"with the hidden effects {given}: their parameters make the arm unstable" if given else \
+            "(the trajectory or the rate?)"
+        raise DataError(f"{e}: the simulated arm cannot be integrated {why}") from None
+
+
+def _simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
     if settings.kind not in KINDS:
         raise InputError(f"unknown experiment kind '{settings.kind}' (known: {', '.join(KINDS)})")
     if not MIN_RATE_HZ <= settings.rate_hz <= MAX_RATE_HZ:
@@ -169,6 +182,9 @@ def simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
     streams = np.random.SeedSequence([settings.seed, _KIND_STREAM[settings.kind], settings.robot_seed]).spawn(5)
     rng_ref, rng_contact, rng_noise, rng_disturbance, rng_effects = (np.random.default_rng(s) for s in streams)
     effects = list(settings.effects)
+    delay_s = sum(float(e.params["ms"]) * 1e-3 for e in effects if e.kind == "pwm_delay")
+    if delay_s >= settings.seconds:  # the recorded PWM would be its first sample throughout
+        raise InputError(f"effect 'pwm_delay': {1e3 * delay_s:g} ms is not shorter than the run ({settings.seconds:g} s)")
     truth = draw_true_robot(model, settings.robot_seed)
     for joint, factor in settings.friction_scale:
         scale_friction(truth, config, joint, factor)
