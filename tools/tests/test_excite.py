@@ -237,3 +237,12 @@ def test_limits_field_per_joint_and_refused_when_wrong(tmp_path: Path) -> None:
         bad.write_text(text + wrong + "\n")
         with pytest.raises(ConfigError, match=words):
             load_config(bad)
+
+
+def test_a_base_frequency_rounded_to_whole_periods_says_so(tmp_path: Path) -> None:
+    """0.06 Hz in 10 s is 0.6 of a period: rounded to one, 0.1 Hz, which the output and its JSON name."""
+    r = dynid("excite", "--duration", "10", "--base-frequency", "0.06", "--max-evaluations", "20", "--out",
+              str(tmp_path / "traj.csv"), "--json", str(tmp_path / "e.json"))
+    assert r.returncode == 0, r.stderr
+    assert "--base-frequency 0.06 Hz rounded to 0.1 Hz: 1 whole period(s) in 10 s" in r.stdout, r.stdout
+    assert json.loads((tmp_path / "e.json").read_text())["base_frequency_hz"] == pytest.approx(0.1)

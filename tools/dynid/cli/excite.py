@@ -94,6 +94,9 @@ def cmd_excite(args: argparse.Namespace) -> dict[str, Any]:
           f"{1 / f:g} s, {args.harmonics} harmonics of {f:g} Hz, in {result.seconds:.1f} s "
           f"({result.evaluations} evaluations, {result.starts} SLSQP run(s)"
           f"{', stopped by its budget' if result.stopped_by_time else ''}) -> {args.out}")
+    if args.base_frequency is not None and not np.isclose(f, args.base_frequency, rtol=1e-9):
+        print(f"  --base-frequency {args.base_frequency:g} Hz rounded to {f:g} Hz: {periods} whole period(s) in "
+              f"{args.duration:g} s (the trajectory ends where it starts, at rest)")
     print(f"  condition number of the weighted, column-scaled regressor on its rank ({objective.rank}; what `dynid "
           f"structure --data` prints for a run, here with predicted inputs): designed "
           f"{designed:.4g}, today's identification trajectory over the same {args.duration:g} s "
