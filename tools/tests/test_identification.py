@@ -89,6 +89,20 @@ def test_table_ii_identified_beats_cad(default_model: Path, default_experiments,
             assert ch["cad"] is None  # a CAD model has no gains: its PWM prediction is undefined
 
 
+def test_validate_on_a_contact_run_says_the_errors_include_the_contacts(default_model: Path, default_experiments,
+                                                                         tmp_path: Path) -> None:
+    out = tmp_path / "v.json"
+    done = dynid("validate", "--model", str(default_model), "--data", str(default_experiments["contact"]) + "@20:40",
+                 "--json", str(out))
+    assert done.returncode == 0, done.stderr
+    fraction = json.loads(out.read_text())["contact_fraction"]
+    assert 0.05 < fraction < 0.95  # a window of the default contact run
+    assert f"note: {100 * fraction:.1f} % of these samples are in contact" in done.stdout
+    done = dynid("validate", "--model", str(default_model), "--data", str(default_experiments["validation"]) + "@0:20",
+                 "--json", str(out))
+    assert "in contact" not in done.stdout and "contact_fraction" not in json.loads(out.read_text())
+
+
 def test_calibrated_threshold_keeps_its_promise(default_model: Path, default_experiments, tmp_path: Path) -> None:
     # --residual acceleration: these are the acceleration-based variants' promises (the observer's: test_momentum.py)
     free = run_json(tmp_path, "detect", "--model", str(default_model), "--data", str(default_experiments["validation"]),
