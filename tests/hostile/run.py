@@ -51,8 +51,11 @@ class Outcome:
     seconds: float
 
 
-def _dynid_child(argv: list[str], cwd: str, out: str, err: str) -> None:
-    """In the forked child: the `dynid` entry point on argv, stdout and stderr (fds 1, 2) into files."""
+def _dynid_child(argv: list[str], cwd: str, out: str, err: str, unset: tuple[str, ...] = ()) -> None:
+    """In the forked child: the `dynid` entry point on argv, stdout and stderr (fds 1, 2) into files, without the
+    environment variables `unset`."""
+    for name in unset:
+        os.environ.pop(name, None)
     for fd, path in ((1, out), (2, err)):
         f = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         os.dup2(f, fd)
@@ -75,13 +78,15 @@ def _forkserver() -> Any:
     return _context
 
 
-def run_dynid(argv: list[str], cwd: Path, timeout: float = TIMEOUT_S) -> Outcome:
+def run_dynid(argv: list[str], cwd: Path, timeout: float = TIMEOUT_S, unset: tuple[str, ...] = ()) -> Outcome:
+    """`dynid argv` in `cwd` as a process of its own, forked from the preloaded server; `unset`: environment
+    variables the command runs without."""
     if os.environ.get("HOSTILE_SUBPROCESS") == "1":
-        return run_program(DYNID, argv, cwd, timeout)
+        return run_program(DYNID, argv, cwd, timeout, unset)
     with tempfile.TemporaryDirectory(prefix="hostile-") as streams:  # beside no case's files: they stay untouched
         out, err = Path(streams) / "stdout", Path(streams) / "stderr"
         started = time.perf_counter()
-        child = _forkserver().Process(target=_dynid_child, args=(argv, str(cwd), str(out), str(err)))
+        child = _forkserver().Process(target=_dynid_child, args=(argv, str(cwd), str(out), str(err), tuple(unset)))
         child.start()
         child.join(timeout)
         if child.exitcode is None:
@@ -95,8 +100,10 @@ def _text(path: Path) -> str:
     return path.read_bytes().decode(errors="replace") if path.exists() else ""
 
 
-def run_program(path: Path, argv: list[str], cwd: Path, timeout: float = TIMEOUT_S) -> Outcome:
-    env = dict(os.environ, ASAN_OPTIONS="detect_leaks=1:abort_on_error=0", UBSAN_OPTIONS="print_stacktrace=1")
+def run_program(path: Path, argv: list[str], cwd: Path, timeout: float = TIMEOUT_S,
+                unset: tuple[str, ...] = ()) -> Outcome:
+    env = {k: v for k, v in os.environ.items() if k not in unset}
+    env.update(ASAN_OPTIONS="detect_leaks=1:abort_on_error=0", UBSAN_OPTIONS="print_stacktrace=1")
     started = time.perf_counter()
     done = subprocess.run([str(path), *argv], cwd=cwd, capture_output=True, timeout=timeout, env=env)
     return Outcome(done.returncode, done.stdout.decode(errors="replace"), done.stderr.decode(errors="replace"),

@@ -9,12 +9,11 @@ Bad input ends with exit 2, one line, nothing written.
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import dynid
 
 from dynid.config.robot_config import load_config
 from dynid.excite import ConditionObjective, design, joint_limits
@@ -30,10 +29,6 @@ from dynid.simulation.experiment import identification_reference
 # trajectory: 82.3; the design reaches 29.6): the 60 s design of docs/excitation.md takes longer than a test should.
 DURATION = 40.0
 BUDGET = 90
-
-
-def dynid(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True, timeout=600)
 
 
 @pytest.fixture(scope="module")

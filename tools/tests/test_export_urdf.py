@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import subprocess
-import sys
 import xml.etree.ElementTree as ET
 from dataclasses import replace
 from pathlib import Path
@@ -21,6 +19,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import yaml
+from conftest import dynid
 
 from dynid.export.physical_set import PHYSICAL_TOL
 from dynid.export.urdf_check import physical_model, round_trip
@@ -30,10 +29,6 @@ from dynid.robot.regressors.stack import signals_from_dataset
 
 TOLERANCE = 1e-9  # relative, per channel
 STRIDE = 100  # every 100th sample of the 300 s validation run: 3000 states
-
-
-def dynid(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True, timeout=900)
 
 
 @pytest.fixture(scope="module")

@@ -4,13 +4,13 @@ file's checks, and the threshold's promise when the contact-free validation run 
 from __future__ import annotations
 
 import subprocess
-import sys
 import zlib
 from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.signal import savgol_coeffs
+from conftest import dynid
 
 from dynid.config.robot_config import load_config
 from dynid.detect.online import FixedLagSavitzkyGolay, online_signals, online_times, raw_signals
@@ -30,10 +30,6 @@ BUILDS = [b for b in (ROOT / "build", ROOT / "build-asan") if (b / "rt_monitor" 
 RT_EVAL = ROOT / "build" / "rt_monitor" / "rt_eval"
 FIXTURE = ROOT / "rt_monitor" / "tests" / "data" / "icub_cad.dcoef"
 EXIT_BASE = 10  # rt_monitor: kExitBase + LoadError
-
-
-def dynid(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True, timeout=900)
 
 
 def without_known_answers(c: coefficients_t) -> coefficients_t:

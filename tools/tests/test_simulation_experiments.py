@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import dynid
 
 from dynid.config.robot_config import load_config
 from dynid.io.csv_format import read_csv
@@ -22,10 +23,6 @@ from dynid.simulation import KINDS, SimulationSettings, simulate
 
 ICUB = load_config("icub_right_arm")
 MODEL = RobotModel(ICUB)
-
-
-def dynid(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True, timeout=600)
 
 
 @pytest.mark.parametrize("kind", list(KINDS))

@@ -11,6 +11,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
+from conftest import dynid as forked_dynid
 
 from dynid.config.robot_config import load_config
 from dynid.errors import ConfigError
@@ -20,8 +21,7 @@ TILT = "12"
 
 
 def dynid(*args: str) -> dict:
-    done = subprocess.run([sys.executable, "-m", "dynid.cli", *args, "--json", "-"], capture_output=True, text=True,
-                          timeout=900)
+    done = forked_dynid(*args, "--json", "-")
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout)
 
