@@ -64,7 +64,16 @@ def _dynid_child(argv: list[str], cwd: str, out: str, err: str, unset: tuple[str
     sys.argv = ["dynid", *argv]
     from dynid.cli import main
 
-    sys.exit(main(argv))  # multiprocessing turns SystemExit into the exit code, as the interpreter would
+    code: object = 1
+    try:
+        code = main(argv)
+    except SystemExit as e:
+        code = e.code
+    finally:  # the exit code beside the streams too: the forkserver's report of it can be lost (below)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        Path(out).with_name("code").write_text(str(code if isinstance(code, int) else 0 if code is None else 1))
+    sys.exit(code)  # multiprocessing turns SystemExit into the exit code, as the interpreter would
 
 
 _context: Any = None
@@ -93,7 +102,11 @@ def run_dynid(argv: list[str], cwd: Path, timeout: float = TIMEOUT_S, unset: tup
             child.kill()
             child.join()
             raise AssertionError(f"dynid {' '.join(argv)}: still running after {timeout:g} s")
-        return Outcome(child.exitcode, _text(out), _text(err), time.perf_counter() - started)
+        code = child.exitcode
+        written = Path(streams) / "code"
+        if code == 255 and written.is_file():  # multiprocessing's 255: the forkserver's status read hit EOF, seen
+            code = int(written.read_text())  # once in a CI run after a complete command; the child's own word
+        return Outcome(code, _text(out), _text(err), time.perf_counter() - started)
 
 
 def _text(path: Path) -> str:
