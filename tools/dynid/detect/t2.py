@@ -261,13 +261,11 @@ def sustained(alarm: np.ndarray, k: int) -> np.ndarray:
     """The alarm's samples that belong to a run of at least `k` in a row: what the monitor's debounce keeps."""
     if k <= 1:
         return alarm
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], alarm.astype(np.int8), [0]])))
-    starts, stops = edges[::2], edges[1::2]
-    keep = np.zeros(alarm.size + 1, dtype=np.int32)
-    long = stops - starts >= k
-    np.add.at(keep, starts[long], 1)
-    np.add.at(keep, stops[long], -1)
-    return np.cumsum(keep[:-1]) > 0
+    on = np.zeros(alarm.size, dtype=bool)
+    for a, b in contact_episodes(alarm):  # the alarm's runs, as a contact column's episodes
+        if b - a >= k:
+            on[a:b] = True
+    return on
 
 
 def episode_onsets(t: np.ndarray, alarm: np.ndarray, contact: np.ndarray, k: int = 1) -> list[float | None]:
@@ -287,13 +285,19 @@ def score(t: np.ndarray, t2: np.ndarray, threshold: float, contact: np.ndarray |
     counts as found by its first sample above the level (`episodes_detected`, the delays) and, apart, by an alarm
     sustained for ONSET_S as the monitor's onset takes it (`episodes_sustained`): at a 1 % false-positive rate a
     single sample finds an episode of 70 samples by chance one time in two."""
+    return _score(t, t2, threshold, contact, side)[0]
+
+
+def _score(t: np.ndarray, t2: np.ndarray, threshold: float, contact: np.ndarray | None,
+           side: np.ndarray | None = None) -> tuple[dict, list[float | None]]:
+    """(`score`'s result, each episode's onset delay: None where missed)."""
     from sklearn.metrics import roc_auc_score, roc_curve  # ~0.3 s: only where detection is scored
 
     alarm = t2 > threshold
     out: dict = {"threshold": threshold, "alarm_rate": float(alarm.mean()), "samples": int(t2.size)}
     if contact is None:
         out["fpr"] = out["alarm_rate"]
-        return out
+        return out, []
     truth = contact != 0
     out["contact_fraction"] = float(truth.mean())
     out["tpr"] = float(alarm[truth].mean()) if truth.any() else None
@@ -308,7 +312,8 @@ def score(t: np.ndarray, t2: np.ndarray, threshold: float, contact: np.ndarray |
     out["episodes"] = len(onsets)
     out["episodes_detected"] = len(delays)
     k = onset_samples(t)
-    out["episodes_sustained"] = {"samples": k, "found": sum(d is not None for d in episode_onsets(t, alarm, contact, k))}
+    held = episode_onsets(t, alarm, contact, k)
+    out["episodes_sustained"] = {"samples": k, "found": sum(d is not None for d in held)}
     out["delay_s"] = {"median": float(np.median(delays)) if delays else None,
                       "p90": float(np.percentile(delays, 90)) if delays else None}
     if side is not None:
@@ -316,7 +321,7 @@ def score(t: np.ndarray, t2: np.ndarray, threshold: float, contact: np.ndarray |
         for name, code in (("distal", 1.0), ("proximal", -1.0)):
             sel = truth & (side == code)
             out["tpr_by_side"][name] = float(alarm[sel].mean()) if sel.any() else None
-    return out
+    return out, onsets
 
 
 def channel_names(model: RobotModel) -> list[str]:
@@ -327,10 +332,9 @@ def score_with_delays(t: np.ndarray, t2: np.ndarray, threshold: float, contact: 
                       side: np.ndarray | None = None, shift_s: float = 0.0) -> dict:
     """dynid.detect.t2.score plus every episode's onset delay (None: missed) and, with `shift_s`, the delays
     against the labels' start + shift_s (labels widened by shift_s, as the UR10e folder's are)."""
-    out = score(t, t2, threshold, contact, side)
+    out, delays = _score(t, t2, threshold, contact, side)
     if contact is None:
         return out
-    delays = episode_onsets(t, t2 > threshold, contact)
     out["onset_delays_s"] = delays
     found = [d for d in delays if d is not None]
     if found:
