@@ -2,6 +2,7 @@
 
 #include "rt_monitor/kinematics.hpp"
 #include "rt_monitor/multiversion.hpp"
+#include "vector4.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -38,19 +39,6 @@ inline double observed_friction(double v, const Row& row, double min_speed) noex
 // by side (the window's halves, then added), and the value-only filter two blocks of channels at once, so the
 // additions' latency overlaps. The channels are taken in blocks of 4: a row is read up to `channels` rounded up to 4
 // (the ring's rows are padded for it); only the first `channels` outputs are written.
-constexpr int kPad = 4;  // the filter's channel block: a row is read up to its channels rounded up to this
-constexpr int padded(int n) noexcept { return (n + kPad - 1) / kPad * kPad; }
-
-using V4 = double __attribute__((vector_size(4 * sizeof(double))));  // GCC's and clang's vector extension
-// Vectors go through references only: a vector passed or returned by value would have a different ABI in the AVX
-// build and the baseline one (-Wpsabi).
-inline void load(V4& v, const double* p) noexcept {
-    std::memcpy(&v, p, sizeof v);  // an unaligned load: the outputs' block starts after the joints'
-}
-inline void store(const V4& v, double* out, int n) noexcept {
-    for (int i = 0; i < n; ++i) out[i] = v[i];
-}
-
 RT_MULTIVERSION
 void filter_window(const double* x, int stride, int channels, int W, const double* w0, const double* w1,
                    const double* w2, double* o0, double* o1, double* o2) noexcept {
@@ -123,6 +111,17 @@ Core::Core(const Coefficients& c) noexcept : c_(c) {
         accel_isolation_[j] = c.accel_tau_variance[j] > 0 ? c.isolation_sigmas * std::sqrt(c.accel_tau_variance[j]) : -1;
         observer_isolation_[j] = c.tau_variance[j] > 0 ? c.isolation_sigmas * std::sqrt(c.tau_variance[j]) : -1;
     }
+    // The derivative filter as sliding moments where that takes fewer operations than the convolution: a block of
+    // 4 channels slides in M(M − 1)/2 + 3M vector operations and gives an estimate in M more (M moments: the fit's
+    // order + 1), where the convolution takes W per estimate. So the joints (three estimates) from a handful of
+    // taps, the outputs (the value only) from a longer window.
+    if (moments_.configure(c.filter.data(), kMaxWindow, 3, c.window, c.order)) {
+        const int M = c.order + 1, slide = M * (M - 1) / 2 + 3 * M;
+        if (slide + 3 * M < 3 * c.window) sliding_channels_ = c.n_joints;
+        if (sliding_channels_ > 0 && slide + M < c.window) sliding_channels_ = width_;
+    }
+    row_map_.assign(c.row_map, c.n_outputs, c.n_joints);
+    tau_map_.assign(c.tau_map.transpose(), c.n_outputs, c.n_joints);
     ratio_.fill(1.0);  // stays 1 on every channel but the tracked motor inputs
     obs_ratio_.fill(1.0);
     residual_ = c.residual;
@@ -133,12 +132,14 @@ Core::Core(const Coefficients& c) noexcept : c_(c) {
 
 void Core::reset() noexcept {
     ring_.fill(0.0);
+    moments_.reset();
     slot_ = 0;
     count_ = 0;
     above_run_ = below_run_ = 0;
     window_ = residual_ == Residual::kMomentum   ? c_.velocity_window
               : residual_ == Residual::kCombined ? std::max(c_.window, c_.velocity_window)
                                                  : c_.window;
+    ring_rows_ = window_ + 1;  // one more: the sample leaving the filter's window is still there for the moments
     observing_ = false;
     r_.setZero();
     inputs_.setZero();
@@ -255,8 +256,7 @@ void Core::predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y
     for (int i = 0; i < c_.n_outputs; ++i) {
         out.active[i] = true;
         if (i >= nft) {
-            double s = 0;
-            for (int j = 0; j < nj; ++j) s += c_.row_map(i, j) * load[j];
+            double s = row_map_.dot(i, load.data());
             const int m = c_.channel_motor[i];
             if (m >= 0 && c_.motor_friction_on[m]) {
                 const double mf[4] = {c_.motor_friction(m, 0), c_.motor_friction(m, 1), c_.motor_friction(m, 2),
@@ -278,12 +278,14 @@ void Core::predict(const VecJ& q, const VecJ& dq, const VecJ& ddq, const VecO& y
 }
 
 const Output& Core::step(const double* q, const double* dq, const double* y) noexcept {
-    const int W = window_, nj = c_.n_joints, no = c_.n_outputs;
-    double *a = row(slot_), *b = row(slot_ + W);
+    const int W = window_, R = ring_rows_, nj = c_.n_joints, no = c_.n_outputs;
+    double *a = row(slot_), *b = row(slot_ + R);
     for (int k = 0; k < nj; ++k) a[k] = b[k] = q[k];
     for (int k = 0; k < no; ++k) a[nj + k] = b[nj + k] = y[k];
-    slot_ = slot_ + 1 == W ? 0 : slot_ + 1;
+    slot_ = slot_ + 1 == R ? 0 : slot_ + 1;
     ++count_;
+    if (sliding_channels_ > 0 && residual_ != Residual::kMomentum)
+        moments_.push(newest(c_.window + 1), a, padded(sliding_channels_) / kPad);
     out_.event = Event::kNone;
     if (residual_ == Residual::kCombined) {
         combine(q, dq, y);
@@ -330,9 +332,16 @@ void Core::accelerate(Output& o) noexcept {
     // The window, oldest first: the joints' value, slope and curvature in one pass over its rows, then the outputs'.
     const double* window = newest(W);
     const double* w = c_.filter.data();  // columns: value, slope, curvature
-    filter_window(window, stride_, nj, W, w, w + kMaxWindow, w + 2 * kMaxWindow, o.q.data(), o.dq.data(),
-                  o.ddq.data());
-    filter_window(window + nj, stride_, no, W, w, nullptr, nullptr, o.y.data(), nullptr, nullptr);
+    if (sliding_channels_ >= nj) {
+        moments_.estimate(0, 0, nj, o.q.data());
+        moments_.estimate(1, 0, nj, o.dq.data());
+        moments_.estimate(2, 0, nj, o.ddq.data());
+    } else {
+        filter_window(window, stride_, nj, W, w, w + kMaxWindow, w + 2 * kMaxWindow, o.q.data(), o.dq.data(),
+                      o.ddq.data());
+    }
+    if (sliding_channels_ == width_) moments_.estimate(0, nj, no, o.y.data());
+    else filter_window(window + nj, stride_, no, W, w, nullptr, nullptr, o.y.data(), nullptr, nullptr);
     predict(o.q, o.dq, o.ddq, o.y, o.p);
     if (&o != &out_) return;  // the combined detector's acceleration half: its wrench and τ_ext are the observer's
     for (int k = 0; k < c_.n_sensors; ++k) o.wrench[k] = o.p.e.segment<6>(6 * k);
@@ -395,7 +404,7 @@ double Core::observe(const double* q, const double* measured_dq, const double* y
             continue;
         }
         double s = c_.divisor[i] * y[i];  // the motors' (or a torque sensor's) torque on this row
-        for (int j = 0; j < nj; ++j) s += c_.row_map(i, j) * x_joint[j];
+        s = row_map_.dot(i, x_joint.data(), s);
         const int m = c_.channel_motor[i];
         if (m >= 0 && c_.motor_friction_on[m]) s -= observed_friction(vm[m], c_.motor_friction.row(m), ms);
         x[i] = s;
@@ -451,11 +460,10 @@ double Core::observe(const double* q, const double* measured_dq, const double* y
 
 void Core::isolate(Output& o, const VecO& rows, const std::array<double, kMaxJoints>& level) noexcept {
     const int nj = c_.n_joints, no = c_.n_outputs;
-    // A plain loop: Eigen's product of these run-time sizes goes through its general matrix-vector kernel, whose
-    // set-up costs more than the robot's few dozen multiply-adds.
+    // Over the map's nonzeros: Eigen's dense product of these run-time sizes goes through its general matrix-vector
+    // kernel, whose set-up costs more than the robot's few dozen multiply-adds.
     o.tau_ext.head(nj).setZero();
-    for (int i = 0; i < no; ++i)
-        for (int j = 0; j < nj; ++j) o.tau_ext[j] += c_.tau_map(j, i) * rows[i];
+    for (int i = 0; i < no; ++i) tau_map_.axpy(i, rows[i], o.tau_ext.data());
     o.joint = -1;
     for (int j = nj - 1; j >= 0 && o.joint < 0; --j)
         if (level[j] >= 0 && std::abs(o.tau_ext[j]) > level[j]) o.joint = j;

@@ -8,6 +8,8 @@
 
 #include "rt_monitor/coefficients.hpp"
 #include "rt_monitor/momentum.hpp"
+#include "rt_monitor/sliding_moments.hpp"
+#include "rt_monitor/sparse_rows.hpp"
 
 namespace dynid::rt {
 
@@ -103,7 +105,7 @@ private:
     void rnea(const VecJ& q, const VecJ& dq, const VecJ& ddq, VecJ& tau,
               std::array<Vec6, kMaxSensors>& sensor_force) const noexcept;
     // The newest n samples of the ring, oldest first (n contiguous rows, stride_ apart).
-    const double* newest(int n) const noexcept { return ring_.data() + size_t(slot_ + window_ - n) * size_t(stride_); }
+    const double* newest(int n) const noexcept { return ring_.data() + size_t(slot_ + ring_rows_ - n) * size_t(stride_); }
     void accelerate(Output& o) noexcept;
     void combine(const double* q, const double* dq, const double* y) noexcept;
     // The observer into out_ (q̇ the measured `dq`, or estimated where it is null); returns its T²_α at this sample
@@ -122,12 +124,19 @@ private:
     // (isolation_sigmas·σ of its τ_ext, −1 where none was calibrated).
     std::array<double, kMaxOutputs> inverse_variance_{}, inverse_observer_variance_{};
     std::array<double, kMaxJoints> accel_isolation_{}, observer_isolation_{};
+    // The row map (outputs × joints) and the external-torque map, transposed (outputs × joints), by their nonzeros.
+    SparseRows<kMaxOutputs, kMaxJoints> row_map_, tau_map_;
     int width_ = 0;  // channels per raw sample: n_joints + n_outputs
-    int window_ = 0;  // samples in the ring: the derivative filter's window, the observer's velocity window, or both
+    int window_ = 0;  // samples before a residual: the derivative filter's window, the observer's velocity window, or both
+    int ring_rows_ = 0;  // samples in the ring: window_ + 1
     // The last samples, one row a sample: q, then y, then padding that the filter reads past its channels (it takes
-    // the channels in blocks of 4). Each sample is stored twice, at rows slot and slot + window, so the window is
+    // the channels in blocks of 4). Each sample is stored twice, at rows slot and slot + ring_rows_, so the window is
     // always a contiguous block of rows; a row is stride_ values, a multiple of 4, so every row is 32-byte aligned.
-    alignas(64) std::array<double, size_t(kRingStride) * 2 * kMaxWindow> ring_{};
+    alignas(64) std::array<double, size_t(kRingStride) * 2 * (kMaxWindow + 1)> ring_{};
+    // The derivative filter's sliding moments over the first sliding_channels_ channels of a row (0: none, the
+    // joints', or every channel): the rest go through the convolution.
+    SlidingMoments moments_;
+    int sliding_channels_ = 0;
     int stride_ = 0;
     double* row(int s) noexcept { return ring_.data() + size_t(s) * size_t(stride_); }
     int slot_ = 0;
