@@ -21,6 +21,7 @@ from dynid.cli import main
 from dynid.config.robot_config import load_config
 from dynid.errors import DataError
 from dynid.identify.model_file import load_model
+from dynid.io.align import keep_increasing
 from dynid.io.csv_format import read_csv
 from dynid.io.load import load_data
 
@@ -121,7 +122,7 @@ def test_every_kind_is_counted_and_only_bad_rows_are_dropped(tmp_path: Path) -> 
     message = str(refused.value)
     for words in ("8 bad rows of 200", "1 cut short", "1 empty", "1 with a wrong number of fields",
                   "1 with a cell that is not a number", "1 with a non-finite value", "1 with a value beyond ±1e+06",
-                  "1 with a negative time", "1 whose time does not increase",
+                  "1 with a negative time", "1 whose time is out of order",
                   "at row 4 (line 5), row 11 (line 12), row 21 (line 22), row 31 (line 32), row 41 (line 42), ...",
                   "the first: line 5 is empty"):
         assert words in message, message
@@ -141,6 +142,36 @@ def test_one_stale_row_drops_itself_only_and_a_lone_bad_row_keeps_its_old_messag
                                         r"0\.099 s \(1 bad row of 150;"):
         read_csv(path, config, require_all=False)
     assert read_csv(path, config, require_all=False, bad_rows="skip").n_samples == 149
+
+
+def test_a_row_stamped_ahead_drops_itself_only(tmp_path: Path) -> None:
+    # A stamp 0.5 s ahead of its neighbours: the rule "beat every earlier stamp" kept it and dropped the 399 good rows
+    # after it, up to t = 0.5 s; the longest increasing run keeps them and drops it.
+    config = load_config()
+    n = len(config.joints)
+    rows = [good(0.001 * k, n) for k in range(600)]
+    rows[100] = good(0.6, n)
+    path = table(tmp_path, rows)
+    with pytest.raises(DataError, match=r"t is out of order at row 101 \(line 102\): 0\.6 s, ahead of the next row "
+                                        r"kept \(0\.101 s\) \(1 bad row of 600;"):
+        read_csv(path, config, require_all=False)
+    kept = read_csv(path, config, require_all=False, bad_rows="skip")
+    assert kept.t.tolist() == [0.001 * k for k in range(600) if k != 100]
+
+
+@pytest.mark.parametrize(("stamps", "dropped"), [
+    (np.r_[np.arange(10.0), 3.5, np.arange(10.0, 20.0)], [10]),          # re-sent with an old stamp
+    (np.r_[np.arange(10.0), 50.0, np.arange(10.0, 20.0)], [10]),         # stamped ahead
+    (np.r_[0.0, 1.0, 1.0, 2.0], [2]),                                    # repeated: the later one goes
+    (np.r_[np.arange(8.0), np.arange(3.0)], [8, 9, 10]),                 # a clock that restarts: the longer stretch
+    (np.r_[np.arange(3.0), np.arange(8.0)], [3, 4, 5]),
+    (np.arange(5.0), []),
+])
+def test_keep_increasing_keeps_the_longest_increasing_run_earliest_first(stamps: np.ndarray, dropped: list[int]
+                                                                         ) -> None:
+    keep = keep_increasing(stamps)
+    assert np.flatnonzero(~keep).tolist() == dropped
+    assert np.all(np.diff(stamps[keep]) > 0)
 
 
 def test_a_window_per_run_cuts_that_run_alone_and_the_model_file_keeps_it(panda_run: Path, tmp_path: Path) -> None:

@@ -92,14 +92,15 @@ def wrench_at(t: float) -> np.ndarray:
 
 
 def write_arm_bag(path: Path, wrench_period: float = 0.0025, gap_at: float | None = None,
-                  garbage: tuple[int, ...] = (), storage: str = "mcap") -> None:
+                  garbage: tuple[int, ...] = (), storage: str = "mcap", ahead: dict[int, float] | None = None) -> None:
     """Joint states at 1 kHz for 0.5 s; a wrench at 400 Hz starting 10.3 ms late; a gripper's joint states on the same
-    topic; an optional silence of the wrench topic and garbage joint states."""
+    topic; an optional silence of the wrench topic, garbage joint states, and joint states stamped `ahead` s late."""
     with BagWriter(path, storage) as bag:
         for k in range(500):
             t = k * 1e-3
             position = np.full(len(ARM), 1e150) if k in garbage else q_at(t)
-            bag.joint_state("/joint_states", stamp_ns(T0 + t), list(ARM), position)
+            stamp = T0 + t + (ahead or {}).get(k, 0.0)  # the header's; the bag records it at T0 + t
+            bag.joint_state("/joint_states", stamp_ns(stamp), list(ARM), position, log_ns=stamp_ns(T0 + t))
             if k % 50 == 0:
                 bag.joint_state("/joint_states", stamp_ns(T0 + t) + 1, ["r_hand_finger"], np.array([0.5]))
         k = 0
@@ -161,6 +162,18 @@ def test_garbage_joint_states_are_bad_rows_refused_or_skipped(tmp_path: Path) ->
         load_data(tmp_path / "bag", config, require_all=False)
     ds = load_data(tmp_path / "bag", config, require_all=False, bad_rows="skip")
     assert ds.n_samples == 484 and ds.meta["bad_rows"]["count"] == 3
+
+
+def test_one_header_stamp_ahead_drops_that_message_only(tmp_path: Path) -> None:
+    # The rule "beat every earlier stamp" kept the message stamped 0.1 s ahead and dropped the 100 good ones after it.
+    config = load_config(arm_config(tmp_path, WRIST))
+    write_arm_bag(tmp_path / "bag", ahead={200: 0.1})
+    with pytest.raises(DataError, match=r"t is out of order at message 205 of /joint_states: .* ahead of the next row "
+                                        r"kept .*\(1 bad row of 487;"):
+        load_data(tmp_path / "bag", config, require_all=False)
+    ds = load_data(tmp_path / "bag", config, require_all=False, bad_rows="skip")
+    assert ds.n_samples == 486 and ds.meta["bad_rows"]["count"] == 1
+    assert np.all(np.diff(ds.t) > 0) and np.sum((ds.t > T0 + 0.2005) & (ds.t < T0 + 0.2995)) == 99  # k = 201..299
 
 
 def bag_cases() -> list[tuple[str, str, str]]:

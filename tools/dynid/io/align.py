@@ -3,7 +3,7 @@
 The rule of a YARP folder (dynid.io.yarp) and of a ROS 2 bag read with `ros2.rate` (dynid.io.rosbag), one code for
 both so that the two give the same samples from the same messages:
 
-- a source's message whose stamp does not come after every earlier one is dropped and counted (`keep_increasing`);
+- a source's message out of the longest run of strictly increasing stamps is dropped and counted (`keep_increasing`);
 - time 0 is the `origin` the reader chooses (the earliest stamp of any source it sees); the common span is where
   every source read has messages; a silence longer than `max_gap` inside it is refused, naming the source;
 - each channel is interpolated linearly onto a grid at `rate` over that span, in seconds from the origin (float64
@@ -12,6 +12,7 @@ both so that the two give the same samples from the same messages:
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,10 +30,36 @@ class Stream:
 
 
 def keep_increasing(stamps: np.ndarray) -> np.ndarray:
-    """The mask of the messages whose stamp comes after every earlier kept one (a re-sent message is dropped)."""
-    keep = np.ones(stamps.size, bool)
-    if stamps.size > 1:
-        keep[1:] = stamps[1:] > np.maximum.accumulate(stamps)[:-1]
+    """The mask of the longest run of messages (or rows) whose stamps strictly increase, in their order; where several
+    are as long, the one of the earliest messages. A message re-sent with an old stamp drops itself, and so does one
+    stamped ahead of its neighbours, where keeping each stamp that beats every earlier one would drop everything up
+    to the next later stamp instead. After a clock that restarts, the run may take from both stretches: the first's
+    stamps below the second's end, then the second's above them (the longer stretch where one holds the other's
+    span)."""
+    t = np.asarray(stamps, dtype=float)
+    n = t.size
+    if n < 2 or bool(np.all(t[1:] > t[:-1])):
+        return np.ones(n, bool)
+    # ahead[i]: the length of the longest increasing run that starts at message i, from the right: the longest run
+    # of increasing −t ending at i in reversed order (patience sorting, strict, O(n log n)).
+    ahead = np.empty(n, np.int64)
+    tails: list[float] = []
+    for i in range(n - 1, -1, -1):
+        x = -t[i]
+        k = bisect.bisect_left(tails, x)
+        if k == len(tails):
+            tails.append(x)
+        else:
+            tails[k] = x
+        ahead[i] = k + 1
+    # The earliest messages first: take each one that can still start a run as long as what is left to take.
+    keep = np.zeros(n, bool)
+    need, last = len(tails), -np.inf
+    for i in range(n):
+        if need and ahead[i] == need and t[i] > last:
+            keep[i] = True
+            need -= 1
+            last = t[i]
     return keep
 
 

@@ -18,8 +18,9 @@ A row is bad, and counted under the first of these kinds that applies:
                     rad/s), or a time beyond ±`MAX_ABS_TIME`; positions, inputs, torques, wrenches and derivatives
                     are checked, extra columns (any unit) and the contact label are not
 ``time_negative``   t < 0 (the data's own seconds start at or after 0: a negative stamp is a clock not yet set)
-``time_not_         t at or before the t of an earlier good row (a re-sent or stale row). A good row's t is
-increasing``        compared with the latest good t before it, so one stale row drops itself only
+``time_not_         t out of the longest run of good rows whose t strictly increases (where several are as long,
+increasing``        the earliest rows'): a stale or re-sent row drops itself only, and so does a row stamped ahead
+                    of its neighbours (dynid.io.align.keep_increasing)
 ==================  ===========================================================================================
 """
 
@@ -32,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError
+from .align import keep_increasing
 
 POLICIES: tuple[str, ...] = ("refuse", "skip")
 DEFAULT_POLICY = "refuse"
@@ -48,7 +50,7 @@ KINDS: dict[str, str] = {  # kind -> how a refusal counts it ("9 with a value be
     "non_finite": "with a non-finite value",
     "out_of_range": f"with a value beyond ±{MAX_ABS_VALUE:g}",
     "time_negative": "with a negative time",
-    "time_not_increasing": "whose time does not increase",
+    "time_not_increasing": "whose time is out of order",
 }
 # Column kinds (dynid.io.csv_format.Column.kind) whose values are measurements checked against MAX_ABS_VALUE.
 MEASURED_KINDS = frozenset({"q", "dq", "ddq", "pwm", "current", "tau", "ft"})
@@ -145,14 +147,24 @@ def find_bad_rows(data: np.ndarray, rows: np.ndarray, names: Sequence[str], kind
     good = np.flatnonzero(kind_of == "")
     if good.size > 1:
         tg = t[good]
-        latest = np.maximum.accumulate(tg)
+        kept = keep_increasing(tg)
         stale = np.zeros(n, bool)
-        stale[good[1:]] = tg[1:] <= latest[:-1]
+        stale[good[~kept]] = True
         if stale.any():
-            before = np.empty(n)
-            before[good[1:]] = latest[:-1]
-            mark(stale, "time_not_increasing", lambda i: f"t is not strictly increasing at {label(int(rows[i]))}: "
-                 f"{float(t[i])!r} s follows {float(before[i])!r} s")
+            # the kept rows' times just before and just after each dropped one (−inf, +inf at the ends)
+            kept_t = tg[kept]
+            at = np.searchsorted(np.flatnonzero(kept), np.arange(tg.size))  # kept rows before each good row
+            before, after = np.full(n, -np.inf), np.full(n, np.inf)
+            before[good] = np.where(at > 0, kept_t[np.maximum(at - 1, 0)], -np.inf)
+            after[good] = np.where(at < kept_t.size, kept_t[np.minimum(at, kept_t.size - 1)], np.inf)
+
+            def say_order(i: int) -> str:
+                where = label(int(rows[i]))
+                if t[i] <= before[i]:
+                    return f"t is not strictly increasing at {where}: {float(t[i])!r} s follows {float(before[i])!r} s"
+                return f"t is out of order at {where}: {float(t[i])!r} s, ahead of the next row kept ({float(after[i])!r} s)"
+
+            mark(stale, "time_not_increasing", say_order)
     bad_in_table = kind_of != ""
     all_rows = np.concatenate([rows[bad_in_table], np.array([m.row for m in malformed], dtype=np.int64)])
     if not all_rows.size:
