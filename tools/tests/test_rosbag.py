@@ -217,6 +217,17 @@ def test_a_bag_that_cannot_be_read_is_refused_in_one_line(tmp_path: Path, name: 
     assert code == 2 and len(err.splitlines()) == 1 and says in err, err
 
 
+def test_a_storage_file_without_its_metadata_is_named_and_readable_alone(tmp_path: Path) -> None:
+    config = arm_config(tmp_path, WRIST)
+    write_arm_bag(tmp_path / "bag")
+    (tmp_path / "bag" / "metadata.yaml").unlink()
+    code, _, err = run("import", "--robot", str(config), "--data", str(tmp_path / "bag"), "--out", str(tmp_path / "d.npz"))
+    storage = next((tmp_path / "bag").glob("*.mcap"))
+    assert code == 2 and err.strip().endswith(f"holds the ROS 2 bag storage file {storage.name} but no metadata.yaml: "
+                                              f"give {storage} itself, or the bag's folder with its metadata.yaml"), err
+    assert load_data(storage, load_config(config), require_all=False).n_samples == 487
+
+
 def test_zero_header_stamps_are_refused_unless_the_log_time_is_asked_for(tmp_path: Path) -> None:
     with BagWriter(tmp_path / "bag", "mcap") as bag:
         for k in range(200):

@@ -94,6 +94,11 @@ def _load(
         return read_yarp(path, config, joint_limits=joint_limits, require_all=require_all, bad_rows=bad_rows)
     elif path.is_dir() and config.files:  # a logger's folder of files, one per signal group
         return read_file_set(path, config, joint_limits=joint_limits, require_all=require_all, bad_rows=bad_rows)
+    if path.is_dir():  # a bag's storage file without its metadata.yaml: the file itself is a bag
+        storage = sorted(p.name for p in path.iterdir() if p.suffix.lower() in (".mcap", ".db3") and p.is_file())
+        if storage:
+            raise DataError(f"{path}: holds the ROS 2 bag storage file {storage[0]} but no metadata.yaml: give "
+                            f"{path / storage[0]} itself, or the bag's folder with its metadata.yaml")
     if not path.is_file():
         raise DataError(f"data path is not a file: {path} (a folder is a run when it is a `dynid simulate` directory, a "
                         "ROS 2 bag, a YARP dumper folder, or holds the files the configuration's 'files' field names)")
