@@ -311,6 +311,19 @@ def test_foreign_truth_file(default_experiments, default_model, tmp_path: Path) 
     one_line_exit_2(done, "other_arm")
 
 
+def test_another_arms_truth_of_the_same_robot_is_refused(default_experiments, default_model, tmp_path: Path) -> None:
+    # Another `dynid simulate --robot-seed`: the same robot's name, other true parameters than the fitted data's.
+    truth = load(default_experiments["identification"] / "truth.json")
+    truth["robot_seed"] += 1
+    truth["parameters"] = {k: 1.01 * v for k, v in truth["parameters"].items()}
+    (tmp_path / "truth.json").write_text(json.dumps(truth))
+    done = dynid("report", "--model", str(default_model), "--validation", str(default_experiments["validation"]),
+                 "--contact", str(default_experiments["contact"]), "--out", str(tmp_path / "r.html"),
+                 "--truth", str(tmp_path / "truth.json"))
+    one_line_exit_2(done, "holds another icub_right_arm's truth than the model was fitted on")
+    assert not (tmp_path / "r.html").exists()
+
+
 # ------------------------------------------------------------------------------------------------------------
 # Helpers, on synthetic signals
 

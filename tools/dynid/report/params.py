@@ -77,13 +77,21 @@ def find_truth(identified: IdentifiedModel, data_paths: list[str], explicit: str
     """The truth to compare with: --truth if given, else the truth.json beside the identification data (the
     model file's record), else beside a report's data. Only a truth of the model's robot is taken."""
     robot = identified.config.name
+    beside = _truth_beside(identified.data_paths, robot)  # the plant the model was fitted on, where its data still is
     if explicit:
         path = Path(explicit)
         if not path.is_file():
             raise DataError(f"truth file not found: {path}")
-        return read_truth(path, robot)
-    candidates = identified.data_paths + data_paths
-    for c in candidates:
+        truth = read_truth(path, robot)
+        if beside is not None and truth.parameters != beside.parameters:
+            raise DataError(f"{path} holds another {robot}'s truth than the model was fitted on ({beside.path}, beside "
+                            "its data): each simulated arm draws its own parameters")
+        return truth
+    return beside or _truth_beside(data_paths, robot)
+
+
+def _truth_beside(data_paths: list[str], robot: str) -> Truth | None:
+    for c in data_paths:
         path = beside_run(c, TRUTH_FILE)
         if path.is_file():
             try:
