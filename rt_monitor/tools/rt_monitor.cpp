@@ -11,6 +11,7 @@
 // --stats-out (soak, docs/benchmarks.md "Soak"): at exit, a JSON object with every counter (frames by kind, the sample
 // clock's taken/held/lost), the heap allocations made after start-up (all, and those inside lcm_publish), the
 // samples' processing and response times (loop overruns, missed deadlines), the messages published, the resident set.
+// A replay's file:// log (mode=w) is renamed into place when the replay ends with exit 0, and left as it was otherwise.
 // Exit codes: 0 done, 2 bad arguments or configuration, 1 a source or LCM failure, 3 mlockall refused, 4 SCHED_FIFO
 // refused, 5 CPU affinity refused, 6 nothing evaluated or ended blind (the watchdog), 10+ a refused coefficient file.
 #include <sched.h>
@@ -181,6 +182,28 @@ std::unique_ptr<lcm::LCM> open_lcm(const std::string& url, std::string& said) {
 }
 
 constexpr int kExitBlind = 6;  // a run that evaluated no sample, or ended blind (the watchdog's reason)
+
+// A replay's file:// log written with mode=w goes to PATH.partial and is renamed into place when the replay ends with
+// exit 0, so a failed replay leaves the log it would have replaced as it was (a live run's log is a recording, written
+// in place). Where liblcm would refuse the path (a missing folder, a directory), the URL is left for it to refuse.
+struct PartialLog {
+    std::string path, partial;
+};
+bool partial_log(std::string& url, PartialLog& log) {
+    if (url.rfind("file://", 0) != 0) return false;
+    const size_t query = url.find('?');
+    const std::string path = url.substr(7, query == std::string::npos ? std::string::npos : query - 7);
+    const std::string options = query == std::string::npos ? "" : url.substr(query);
+    if (path.empty() || options.find("mode=a") != std::string::npos) return false;  // appending: nothing to replace
+    struct stat st {};
+    if (stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) return false;
+    const size_t slash = path.rfind('/');
+    const std::string folder = slash == std::string::npos ? "." : slash == 0 ? "/" : path.substr(0, slash);
+    if (stat(folder.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) return false;
+    log = {path, path + ".partial"};
+    url = "file://" + log.partial + options;
+    return true;
+}
 
 std::unique_ptr<FrameSource> open_source(const MonitorConfig& cfg, const std::string& replay, const std::string& loopback,
                                          bool realtime, std::string& err) {
@@ -381,6 +404,9 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "rt_monitor: error: %s\n", err.c_str());
         return replay.empty() ? 1 : 2;
     }
+    PartialLog partial;
+    const std::string given_url = url;  // what the start-up line names
+    const bool in_parts = !replay.empty() && partial_log(url, partial);
     // liblcm writes its own reason to fd 2 ("Error: LCM provider ... not found"): caught and put on the one line.
     std::string lcm_said;
     std::unique_ptr<lcm::LCM> lcm = open_lcm(url, lcm_said);
@@ -405,7 +431,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "rt_monitor: running: %s; LCM %s; %s; %s residuals\n",
                  !replay.empty() ? ("replay of " + replay + (realtime ? " in real time" : "")).c_str()
                  : !loopback.empty() ? ("loopback transport in " + loopback).c_str() : "SocketCAN",
-                 (url.empty() ? std::string("default URL") : url).c_str(), describe_rt_settings(rts).c_str(),
+                 (given_url.empty() ? std::string("default URL") : given_url).c_str(), describe_rt_settings(rts).c_str(),
                  core->residual() == Residual::kMomentum   ? "momentum-observer"
                  : core->residual() == Residual::kCombined ? "combined (momentum-observer and acceleration)"
                                                            : "acceleration");
@@ -418,12 +444,23 @@ int main(int argc, char** argv) {
 
     print_exit_line(g_stop ? "stopped by signal" : (rc ? "failed" : "end of input"), asm_, *src, *loop);
     // A monitor that evaluated nothing, or ended blind, watched nothing: never exit 0 then (one line, the reason).
-    if (rc == 0 && !g_stop && (loop->counters().evaluated == 0 || (watchdog->active() & kBlind))) {
+    const bool blind = rc == 0 && !g_stop && (loop->counters().evaluated == 0 || (watchdog->active() & kBlind));
+    if (blind) rc = kExitBlind;
+    if (in_parts) {  // the replay's log into place, or gone (its LCM closed first: nothing publishes after the loop)
+        lcm.reset();
+        if (rc == 0 && std::rename(partial.partial.c_str(), partial.path.c_str()) != 0) {
+            std::fprintf(stderr, "rt_monitor: error: cannot write %s: %s\n", partial.path.c_str(), std::strerror(errno));
+            rc = 1;
+        }
+        if (rc != 0) {
+            std::remove(partial.partial.c_str());
+            std::fprintf(stderr, "rt_monitor: the LCM log %s is not written: the replay failed\n", partial.path.c_str());
+        }
+    }
+    if (blind)
         std::fprintf(stderr, "rt_monitor: error: %s: %s\n",
                      loop->counters().evaluated == 0 ? "evaluated no sample" : "ended blind",
                      *watchdog->reason(kBlind) ? watchdog->reason(kBlind) : "no sample was completed");
-        rc = kExitBlind;
-    }
     if (!stats_out.empty() && !write_stats(stats_out, asm_, *src, *loop, publisher, *core, g_stop, rc, replay,
                                            realtime, loopback)) {
         std::fprintf(stderr, "rt_monitor: error: cannot write %s\n", stats_out.c_str());

@@ -159,6 +159,22 @@ def _bad_run(setup: dict, clean: dict, lines: list[str], name: str):
     return status, msgs
 
 
+def test_a_failed_replay_leaves_the_log_it_would_have_replaced(setup: dict, clean: dict) -> None:
+    # The clean run's LCM log is there; a replay of another robot's frames (every ID unknown) evaluates no sample.
+    lcm_log = setup["root"] / "clean.lcmlog"
+    before = lcm_log.read_bytes()
+    log = setup["root"] / "foreign.log"
+    log.write_text("".join(f"({1700000000 + k * 1e-3:.6f}) can0 7FF#0011223344556677\n" for k in range(2000)))
+    conf = setup["root"] / "clean.conf"  # the clean run's configuration: the same file:// log, mode=w
+    done = subprocess.run([str(RT_MONITOR), "--model", str(setup["coef"]), "--config", str(conf), "--replay", str(log)],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 6, done.stderr
+    lines = done.stderr.splitlines()
+    assert lines[-2] == f"rt_monitor: the LCM log {lcm_log} is not written: the replay failed", done.stderr
+    assert lines[-1].startswith("rt_monitor: error: evaluated no sample"), done.stderr
+    assert lcm_log.read_bytes() == before and not Path(f"{lcm_log}.partial").exists()
+
+
 def test_unknown_ids(setup: dict, clean: dict) -> None:
     lines = []
     for i, line in enumerate(clean["lines"]):
