@@ -110,8 +110,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
           + f" in {elapsed:.1f} s ({elapsed_fit:.1f} s the regression) -> {args.out}")
     print_run_uncertainty(result)
     skipped = {p: s for p, ds in zip(paths, runs) if (s := skipped_rows(p, ds.meta)) is not None}
-    print(f"  base parameters: rank {base.rank} of {len(model.layout)}; {int(result.identified.sum())} determined to "
-          f"10 % or better; PLS ν = {result.cv['n_components']} "
+    print(f"  base parameters: rank {base.rank} of {len(model.layout)}; {int(result.identified.sum())} determined (a "
+          f"standard error under 10 % of the value or 5 % of its size); PLS ν = {result.cv['n_components']} "
           + (f"(cross-validated on {result.statistics.n_blocks} time blocks)" if args.n_components is None else
              "(--n-components)"))
     gains = [i for i, n in enumerate(independent) if n.endswith(".phi_m")]
@@ -182,7 +182,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         for c, (v, e) in determined.items():
             print(f"    {c:60s} {v:12.5g} ± {e:.2g}")
         if undetermined:
-            print("  not determined by this run (standard error above 10 %, or unseen by a jackknife fold; no value "
+            print("  not determined by this run (standard error above both, or unseen by a jackknife fold; no value "
                   "given): " + ", ".join(undetermined))
     edges = result.borderline()
     if edges["determined"]:

@@ -56,7 +56,7 @@ UNSETTLED_FOLDS_DROPPED = 10
 BASE_RTOL = 1e-6
 PRESS_TIE_RTOL = 1e-9  # held-out PRESS values this close to the least are a tie (cross_validate_nu)
 IDENTIFIED_RSE = 0.1  # a combination is identified when its standard error is below 10 % of its size …
-IDENTIFIED_SCALE = 0.05  # … or below 5 % of its CAD size (a physical quantity that is truly near zero)
+IDENTIFIED_SCALE = 0.05  # … or below 5 % of its size (`_sizes`: a physical quantity that is truly near zero)
 
 
 @dataclass(frozen=True)
@@ -120,7 +120,7 @@ class FitResult:
         """The fit's decisions that sit on their thresholds (dynid.margins), each taken the conservative way: base
         combinations not determined, singular values not counted in the rank, an IV iteration not settled."""
         chosen = self.estimates[self.chosen]
-        cad = np.abs(self.base.base(np.nan_to_num(self.model.cad_parameters(), nan=0.0)))
+        cad = _sizes(self.model, self.base, self.statistics)
         names = self.base.combinations()
         return {"determined": [names[i] for i in np.flatnonzero(borderline_determined(chosen, cad))],
                 "rank_cut": [float(v) for v in self.base.on_the_cut],
@@ -390,7 +390,7 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
                         "run holds no information to calibrate the detector on (values not finite, or a run that does "
                         "not move)")
     chosen = estimates[chosen_name]
-    cad = np.abs(base.base(np.nan_to_num(model.cad_parameters(), nan=0.0)))
+    cad = _sizes(model, base, stats)
     settled, _ = iv_settled(chosen.detail)
 
     def determined(blocks_only: bool = False) -> np.ndarray:
@@ -454,9 +454,26 @@ def check_excitation(model: RobotModel, base: BaseParameters) -> None:
                     "every joint both ways (dynid excite designs one)")
 
 
+def _sizes(model: RobotModel, base: BaseParameters, stats: Statistics) -> np.ndarray:
+    """(rank,) each combination's size, IDENTIFIED_SCALE's yardstick: the CAD value of the combination; for one whose
+    representative is an F/T offset, which no CAD gives, the RMS of what its channel reads on the fit's rows, so an
+    offset known to a twentieth of its channel's reading is determined whatever its own value (TIAGo's torque offsets,
+    ±4 mNm near 0, beside torques of 0.3 Nm)."""
+    size = np.abs(base.base(np.nan_to_num(model.cad_parameters(), nan=0.0)))
+    offsets = model.layout.span("ft_offset")
+    p = stats.p
+    gram = stats.gram.sum(axis=0)  # (channels, p+1, p+1): a channel's ‖Wb‖² at [p, p], its offset's ‖W·1‖² at [j, j]
+    for i, j in enumerate(base.independent):
+        if offsets.start <= j < offsets.stop:
+            c = int(np.argmax(gram[:, j, j]))  # the one channel the offset acts on
+            if gram[c, j, j] > 0:
+                size[i] = np.sqrt(gram[c, p, p] / gram[c, j, j])  # the weights cancel: RMS of y in its units
+    return size
+
+
 def _determined(e: Estimate, cad: np.ndarray) -> np.ndarray:
-    """(rank,) bool: combinations whose jackknife error is under 10 % of their value or 5 % of their CAD size, past
-    the margin's band (dynid.margins: on the band, not determined, and `borderline_determined` names them)."""
+    """(rank,) bool: combinations whose jackknife error is under 10 % of their value or 5 % of their size (`_sizes`),
+    past the margin's band (dynid.margins: on the band, not determined, and `borderline_determined` names them)."""
     rse, rsc = _error_ratios(e, cad)
     return (rse < IDENTIFIED_RSE) & ~_near(rse, IDENTIFIED_RSE) | (rsc < IDENTIFIED_SCALE) & ~_near(rsc, IDENTIFIED_SCALE)
 
