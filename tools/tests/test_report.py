@@ -272,6 +272,19 @@ def run_report(model: Path | str, validation: Path | str, contact: Path | str, o
                  "--out", str(out))
 
 
+def test_a_validation_run_with_contacts_is_noted(default_experiments, default_model, tmp_path: Path) -> None:
+    # As `dynid validate` notes it: the errors and the false positives then count the contacts the model lacks.
+    c = default_experiments["contact"]
+    done = run_report(default_model, c, c, tmp_path / "r.html")
+    assert done.returncode == 0, done.stderr
+    assert dynid("validate", "--model", str(default_model), "--data", str(c), "--json", str(tmp_path / "v.json")
+                 ).returncode == 0
+    fraction = json.loads((tmp_path / "v.json").read_text())
+    page = (tmp_path / "r.html").read_text()
+    share = f"{100 * fraction['contact_fraction']:.1f} % of the validation run's samples are in contact"
+    assert share in page and "false positives below count its contacts as false" in page
+
+
 def test_missing_files(default_experiments, default_model, tmp_path: Path) -> None:
     v, c, out = default_experiments["validation"], default_experiments["contact"], tmp_path / "r.html"
     one_line_exit_2(run_report(tmp_path / "none.json", v, c, out), "model file not found")

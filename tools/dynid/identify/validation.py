@@ -127,6 +127,9 @@ def validation(ev: Evaluated, model_label: str, data_label: str,
     ft = [o.row for o in outs if o.kind == "ft"]
     result: dict[str, Any] = {"model": model_label, "data": data_label, "samples": ev.dataset.n_samples,
                               "channels": {}}
+    contact = ev.dataset.contact
+    if contact is not None and np.any(contact != 0):  # the model has no contact: its error includes the contacts'
+        result["contact_fraction"] = float(np.mean(contact != 0))
     if ft:
         cad_e = cad_ft_residuals(ev) if cad_e is None else cad_e
         # Table II per F/T sensor, in the configuration's order (6 rows each); `table_ii` is the first sensor's,

@@ -235,6 +235,10 @@ def _page(r: dict[str, Any], identified: IdentifiedModel, units: dict[str, str],
         + (f"True parameters from <code>{H.esc(r['truth'])}</code>." if r["truth"] else "No true parameters known.")
         + "</p>",
         "<h2>Prediction error (the paper's Table II)</h2>",
+        (f"<p class=\"note\">{100 * v['contact_fraction']:.1f} % of the validation run's samples are in contact (its "
+         "contact column): the errors below include the contact forces the model does not predict, and the false "
+         "positives below count its contacts as false. Validate on a contact-free run (or a window of one).</p>"
+         if v.get("contact_fraction") else ""),
         _tables_ii(v, r["paper"]),
         ("<p class=\"note\">Norm of the F/T prediction error on the validation run. CAD: the URDF inertia with the "
          "F/T offsets that fit it best on the identification data."
