@@ -1,7 +1,7 @@
 // A matrix's nonzero entries row by row (compressed rows), of fixed capacity: the core's products with the row map
 // and the external-torque map skip the zeros most of their rows hold (a joint-torque sensor's row names one joint,
 // a motor's its coupled joints). The products add the nonzero terms in the dense loop's order, so they give the
-// dense loop's result exactly: a zero term adds nothing to a finite sum. Internal to the core.
+// dense loop's value exactly: a zero term adds nothing to a finite sum (at most a zero's sign differs).
 #pragma once
 
 #include <array>
