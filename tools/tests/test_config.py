@@ -88,6 +88,8 @@ BAD = [
     ("zero known gain", _set(["motors", "m3", "known_gain"], 0.0), "motors.m3.known_gain"),
     ("derivative polyorder", _set(["derivatives"], {"polyorder": 2.5}), "derivatives.polyorder"),
     ("derivative option", _set(["derivatives"], {"window": 0.1}), "derivatives.window"),
+    ("derivative method", _set(["derivatives"], {"method": "savgoll"}), "derivatives.method' must be one of savgol, "
+     "adaptive, got 'savgoll' (did you mean 'savgol'?)"),
     ("ft_steps not a list", _set(["ft_steps"], "24.4,61.2"), "'ft_steps' must be a list of change points"),
     ("ft_steps not numbers", _set(["ft_steps"], [24.4, "61.2 s"]), "'ft_steps' must be a list of change points"),
     ("ft_steps not finite", _set(["ft_steps"], [24.4, float("inf")]), "'ft_steps' must be a list of change points"),
@@ -150,6 +152,12 @@ def test_unknown_bundled_name() -> None:
 def test_ft_steps_are_read_in_seconds(tmp_path: Path) -> None:
     assert load_config("icub_right_arm").ft_steps == ()
     assert load_config(write_variant(tmp_path, _set(["ft_steps"], [24.4, 61]))).ft_steps == (24.4, 61.0)
+
+
+def test_the_configurations_derivative_methods_are_the_estimators() -> None:
+    from dynid.config.robot_config import DERIVATIVE_METHODS
+    from dynid.io.derivatives import METHODS
+    assert set(DERIVATIVE_METHODS) == set(METHODS)
 
 
 def test_derivative_options_keep_their_types(tmp_path: Path) -> None:

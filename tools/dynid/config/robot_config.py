@@ -7,6 +7,7 @@ with a `ConfigError` whose message names the field, e.g. ``icub_right_arm: actua
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import math
 from dataclasses import dataclass, field
@@ -453,6 +454,7 @@ def _limits(f: Fields, joints: tuple[str, ...]) -> MotionLimits:
 _DERIVATIVE_OPTIONS: dict[str, type] = {
     "method": str, "window_s": float, "polyorder": int, "d": float, "max_window": int, "causal": bool,
 }
+DERIVATIVE_METHODS = ("savgol", "adaptive")  # dynid.io.derivatives.METHODS (the config layer does not import io)
 
 
 def _derivatives(f: Fields) -> dict[str, Any]:
@@ -468,6 +470,10 @@ def _derivatives(f: Fields) -> dict[str, Any]:
             raise d.fail(key, f"must be a positive integer, got {value!r}")
         if not isinstance(value, kind):
             raise d.fail(key, f"must be a {kind.__name__}, got {value!r}")
+        if key == "method" and value not in DERIVATIVE_METHODS:
+            near = difflib.get_close_matches(value, DERIVATIVE_METHODS, n=1)
+            raise d.fail(key, f"must be one of {', '.join(DERIVATIVE_METHODS)}, got {value!r}"
+                         + (f" (did you mean '{near[0]}'?)" if near else ""))
         out[key] = value
     return out
 
