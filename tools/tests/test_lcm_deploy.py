@@ -11,6 +11,7 @@ import json
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import uuid
@@ -244,6 +245,17 @@ def test_spy_view_shows_events_status_and_rates(run: dict) -> None:
     assert last.n_supply == 4 and list(last.supply_ratio) != [1.0] * 4
     assert out[-1].endswith(", supply r " + " ".join(f"{r:.4f}" for r in last.supply_ratio))
     assert all("  supply r " in l for l in status)
+
+
+def test_spy_into_a_pipe_closed_early_stops_quietly(run: dict) -> None:
+    # `dynid spy ... | head -1`: once the reader has its line, spy stops as a tool killed by SIGPIPE, saying nothing.
+    # (--json: every message, megabytes, more than the pipe holds, so spy is still writing when the pipe closes.)
+    proc = subprocess.Popen([sys.executable, "-m", "dynid.cli", "spy", "--lcm-url", f"file://{run['lcm_log']}?speed=0",
+                             "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    first = proc.stdout.readline()
+    proc.stdout.close()
+    err = proc.stderr.read()
+    assert proc.wait(timeout=60) == 128 + signal.SIGPIPE and first and err == "", err
 
 
 def test_spy_count_stops_after_n_events(run: dict) -> None:

@@ -12,6 +12,8 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
+import os
+import signal
 import sys
 import warnings
 import xml.etree.ElementTree as ET
@@ -81,6 +83,11 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as e:
         sys.stderr.write(f"dynid {args.command}: error: {e}\n")
         return e.exit_code
+    except BrokenPipeError:
+        # The reader of stdout closed it (`dynid spy | head -1`): what it wanted was written. Stop as a tool killed by
+        # SIGPIPE would, without a message, and keep the interpreter's final flush off the closed pipe.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 128 + signal.SIGPIPE
     except (OSError, ET.ParseError) as e:
         # A file the readers did not anticipate (unreadable, not XML, a device): still one line, exit 2.
         where = f"{e.filename}: " if getattr(e, "filename", None) else ""
