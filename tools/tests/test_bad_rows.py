@@ -159,6 +159,38 @@ def test_a_row_stamped_ahead_drops_itself_only(tmp_path: Path) -> None:
     assert kept.t.tolist() == [0.001 * k for k in range(600) if k != 100]
 
 
+def _with_velocities(clean: Path, out: Path, change=None) -> Path:
+    """`clean` with dq columns, the derivative of its q (as a controller records them), `change`d: (dq, tau) -> dq."""
+    config = load_config("panda")
+    ds = load_data(clean, config)
+    dq = np.gradient(ds.q, ds.t, axis=0)
+    if change is not None:
+        dq = change(dq, np.column_stack([ds.tau[j] for j in ds.joints]))
+    header, *rows = clean.read_text().splitlines()
+    names = [f"dq.{j}" for j in ds.joints]
+    out.write_text("\n".join([header + "," + ",".join(names)]
+                             + [r + "," + ",".join(repr(float(x)) for x in dq[k]) for k, r in enumerate(rows)]) + "\n")
+    return out
+
+
+def test_recorded_velocities_are_checked_against_the_positions(panda_run: Path, tmp_path: Path) -> None:
+    config = load_config("panda")
+    good = load_data(_with_velocities(panda_run, tmp_path / "good.csv"), config)
+    assert good.meta.get("derivatives", {}).get("dq", "recorded") == "recorded"
+    with pytest.raises(DataError, match=r"dq\.panda_joint1 is 57\.\d times the derivative of q\.panda_joint1 \(deg/s\? "
+                                        r"rad/s are expected\)"):
+        load_data(_with_velocities(panda_run, tmp_path / "deg.csv", lambda dq, tau: np.degrees(dq)), config)
+
+    def torque_in_place(dq: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        moving = int(np.argmax(np.sqrt(np.mean(dq**2, axis=0))))  # a joint that moves: the check looks at it
+        dq[:, moving] = tau[:, moving]
+        return dq
+
+    with pytest.raises(DataError, match=r"does not follow the derivative of q\.panda_joint\d \(correlation .* while the "
+                                        r"joint moves\): another signal's column\?"):
+        load_data(_with_velocities(panda_run, tmp_path / "shifted.csv", torque_in_place), config)
+
+
 @pytest.mark.parametrize(("stamps", "dropped"), [
     (np.r_[np.arange(10.0), 3.5, np.arange(10.0, 20.0)], [10]),          # re-sent with an old stamp
     (np.r_[np.arange(10.0), 50.0, np.arange(10.0, 20.0)], [10]),         # stamped ahead

@@ -165,6 +165,7 @@ def check_plausible(dataset: Dataset, source: str = "", headerless: bool = False
         raise DataError(f"{where}{e}") from None
     period = float(np.median(np.diff(dataset.t)))
     if MIN_PERIOD_S <= period < MAX_PERIOD_S:
+        check_velocities(dataset, where, headerless)
         return
     # The unit that makes it a period of 10 µs to 100 ms, if one does.
     unit = next(((short, long) for short, long, scale in _TIME_UNITS if MIN_PERIOD_S <= period * scale < 0.1), None)
@@ -175,6 +176,46 @@ def check_plausible(dataset: Dataset, source: str = "", headerless: bool = False
         f"{where}t steps by {period:.6g} s between samples (the median step), outside the sample periods a run may "
         f"have ({MIN_PERIOD_S * 1e6:g} µs to under {MAX_PERIOD_S:g} s): {hint}{declare}"
     )
+
+
+# A recorded joint velocity against the derivative of the recorded positions, on a joint that moves (its RMS speed
+# at least MOVING_SPEED, rad/s or m/s): on the real runs the least-squares scale of one on the other is 0.95–1.00 (a
+# controller's filter lags a little) and their correlation 0.97–1.00; in deg/s the scale is 57.3; a column of another
+# signal (a headerless log a column short shifts every column after it) correlates 0.2 or less.
+VELOCITY_SCALE = (0.5, 2.0)
+MIN_VELOCITY_CORRELATION = 0.5
+MOVING_SPEED = 0.05
+
+
+def check_velocities(dataset: Dataset, where: str = "", headerless: bool = False) -> None:
+    """Refuse a recorded q̇ (the `velocity.<joint>` extra columns the momentum detector takes, else recorded `dq`)
+    that is not the derivative of q: another unit, or another signal's column."""
+    columns = [dataset.extra.get(f"velocity.{j}") for j in dataset.joints]
+    if all(c is not None for c in columns):
+        names, v = [f"velocity.{j}" for j in dataset.joints], np.column_stack(columns)
+    elif dataset.dq is not None and dataset.meta.get("derivatives", {}).get("dq", "recorded") == "recorded":
+        names, v = [f"dq.{j}" for j in dataset.joints], np.asarray(dataset.dq, float)
+    else:
+        return
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g = np.gradient(dataset.q, dataset.t, axis=0)
+    declare = " (a headerless log declares its units in the configuration's 'columns:' field)" if headerless else ""
+    for j, joint in enumerate(dataset.joints):
+        gj, vj = g[:, j], v[:, j]
+        ok = np.isfinite(gj) & np.isfinite(vj)
+        gj, vj = gj[ok], vj[ok]
+        if gj.size < MIN_SAMPLES or not np.sqrt(np.mean(gj**2)) >= MOVING_SPEED:
+            continue  # a joint at rest: its velocity is noise on both sides
+        scale = float(vj @ gj / (gj @ gj))
+        correlation = float(np.corrcoef(vj, gj)[0, 1]) if vj.std() > 0 else 0.0
+        if correlation < MIN_VELOCITY_CORRELATION:
+            raise DataError(f"{where}{names[j]} does not follow the derivative of q.{joint} (correlation "
+                            f"{correlation:.2f} while the joint moves): another signal's column? (a log a column "
+                            "short shifts every column after it)")
+        if not VELOCITY_SCALE[0] <= scale <= VELOCITY_SCALE[1]:
+            unit = " (deg/s? rad/s are expected)" if 45 < scale < 70 else ""
+            raise DataError(f"{where}{names[j]} is {scale:.3g} times the derivative of q.{joint}{unit}: recorded "
+                            f"velocities must be in the positions' unit per second, each in its joint's column{declare}")
 
 
 def check_values(dataset: Dataset, row_offset: int = 0) -> None:
