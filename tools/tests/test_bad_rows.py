@@ -177,7 +177,7 @@ def test_recorded_velocities_are_checked_against_the_positions(panda_run: Path, 
     config = load_config("panda")
     good = load_data(_with_velocities(panda_run, tmp_path / "good.csv"), config)
     assert good.meta.get("derivatives", {}).get("dq", "recorded") == "recorded"
-    with pytest.raises(DataError, match=r"dq\.panda_joint1 is 57\.\d times the derivative of q\.panda_joint1 \(deg/s\? "
+    with pytest.raises(DataError, match=r"dq\.panda_joint1 is 57\.\d times the rate of q\.panda_joint1 \(deg/s\? "
                                         r"rad/s are expected\)"):
         load_data(_with_velocities(panda_run, tmp_path / "deg.csv", lambda dq, tau: np.degrees(dq)), config)
 
@@ -186,7 +186,7 @@ def test_recorded_velocities_are_checked_against_the_positions(panda_run: Path, 
         dq[:, moving] = tau[:, moving]
         return dq
 
-    with pytest.raises(DataError, match=r"does not follow the derivative of q\.panda_joint\d \(correlation .* while the "
+    with pytest.raises(DataError, match=r"does not follow the motion of q\.panda_joint\d \(correlation .* while the "
                                         r"joint moves\): another signal's column\?"):
         load_data(_with_velocities(panda_run, tmp_path / "shifted.csv", torque_in_place), config)
 

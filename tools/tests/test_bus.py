@@ -322,6 +322,26 @@ def test_nominal_stamps_put_the_runs_own_samples_on_the_nominal_period(panda: di
     assert played.nominal_s == pytest.approx(np.median(np.diff(slow.t)).round(6), abs=1e-12)
 
 
+def test_play_says_where_the_nominal_period_comes_from_and_that_a_jittered_log_loses_its_time_axis(
+        panda: dict, tmp_path: Path) -> None:
+    data = panda["data"].slice(0, 300)
+    data.t = data.t + np.random.default_rng(0).uniform(-0.3e-3, 0.3e-3, data.n_samples)  # a jittered logger's stamps
+    data.save(tmp_path / "jittered.npz")
+    done = run(DYNID, "play", "--robot", "panda", "--data", tmp_path / "jittered.npz", "--stamps", "nominal",
+               "--sink", f"candump:{tmp_path / 'j.log'}")
+    assert done.returncode == 0, done.stderr
+    assert "samples at stamps every 1 ms (the bus's period)" in done.stdout
+    assert "note: the log's stamps are the nominal grid, not the recording's" in done.stdout
+    slow = panda["data"].slice(0, 300)
+    slow.t = 2.0 * slow.t  # recorded at 500 Hz on the Panda's 1 kHz bus, on the dot
+    slow.save(tmp_path / "slow.npz")
+    done = run(DYNID, "play", "--robot", "panda", "--data", tmp_path / "slow.npz", "--stamps", "nominal",
+               "--sink", f"candump:{tmp_path / 's.log'}")
+    assert done.returncode == 0, done.stderr
+    assert "stamps every 2 ms (the run's median step: the bus's period, 1 ms, is not the run's)" in done.stdout
+    assert "note:" not in done.stdout  # its steps are the grid's: nothing relabelled
+
+
 def test_clock_drift_counts_whole_periods_and_leaves_real_losses_alone() -> None:
     t = np.concatenate([[0.0], np.cumsum(np.tile([0.010, 0.012], 500))])  # a logger's 10 and 12 ms at 100 Hz
     drift = clock_drift(t, 0.010)

@@ -28,11 +28,20 @@ def cmd_play(args: argparse.Namespace) -> dict[str, Any]:
     lo, hi = played.step_range_s
     out = sys.stderr if args.sink == "candump:-" else sys.stdout  # the log itself is on standard output
     print(played.summary, file=out)
-    stamps = ("their recorded stamps" if played.nominal_s is None
-              else f"stamps every {1e3 * played.nominal_s:.6g} ms (the nominal period)")
+    if played.nominal_s is None:
+        stamps = "their recorded stamps"
+    elif abs(played.nominal_s - played.bus_period_s) <= 1e-6:
+        stamps = f"stamps every {1e3 * played.nominal_s:.6g} ms (the bus's period)"
+    else:
+        stamps = (f"stamps every {1e3 * played.nominal_s:.6g} ms (the run's median step: the bus's period, "
+                  f"{1e3 * played.bus_period_s:.6g} ms, is not the run's)")
     print(f"played {args.data} ({config.name}) -> {args.sink}: {played.samples} samples at {stamps} (recorded: mean "
           f"step {1e3 * played.period_s:.4g} ms, {1e3 * lo:.4g} to {1e3 * hi:.4g} ms), {played.frames} frames",
           file=out)
+    if played.nominal_s is not None and hi - lo > 0.05 * played.nominal_s:
+        print(f"note: the log's stamps are the nominal grid, not the recording's (its steps of {1e3 * lo:.4g} to "
+              f"{1e3 * hi:.4g} ms each went out as {1e3 * played.nominal_s:.6g} ms): its time axis is the monitor's, "
+              "not the robot's; analyse the recording itself offline (validate, detect), not this log", file=out)
     drift = played.drift
     if drift is not None and drift.misleads():
         print(f"note: the recorded steps are not whole periods of {1e3 * drift.period_s:.6g} ms: they drift "

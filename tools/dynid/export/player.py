@@ -48,6 +48,7 @@ class Played:
     step_range_s: tuple[float, float]  # its smallest and largest step (the jitter sent as recorded)
     nominal_s: float | None = None  # stamps="nominal": the grid's step the samples went out on
     drift: ClockDrift | None = None  # stamps="recorded": how far the stamps drift from the monitor's grid
+    bus_period_s: float = 0.0  # the bus's own period (1 / its rate): the nominal one where the run's steps agree
 
 
 @dataclass(frozen=True)
@@ -155,4 +156,4 @@ def play_run(config: RobotConfig, data: Dataset, sink: str, realtime: bool = Fal
         elif words[1:2] == ["bus"]:
             load[words[2]] = float(words[4]) / 100
     return Played(samples, frames, load, text.strip(), float(steps.mean()), (float(steps.min()), float(steps.max())),
-                  nominal, drift)
+                  nominal, drift, 1.0 / bus.rate)
