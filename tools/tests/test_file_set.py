@@ -180,8 +180,10 @@ def test_fit_on_a_folder_the_files_field_does_not_match_says_how_it_read_it(tmp_
     done = subprocess.run([sys.executable, "-m", "dynid.cli", "fit", "--robot", str(cfg), "--data", str(run),
                            "--out", str(tmp_path / "m.json")], capture_output=True, text=True)
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
-    assert f"(--data {run} was read as a folder of runs, one a file: '" in done.stderr, done.stderr
+    # The folder's mismatch first, as validate says it; then what reading it as a folder of runs ran into.
+    assert done.stderr.startswith(f"dynid fit: error: {run}: '"), done.stderr
     assert "of the configuration's files: field matches no file; the folder holds run_01_positions.csv" in done.stderr
+    assert "(read instead as a folder of runs, one a file, it failed: " in done.stderr
     assert not (tmp_path / "m.json").exists()
 
 

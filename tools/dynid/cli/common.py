@@ -281,18 +281,19 @@ def expand_data(args: argparse.Namespace, config: RobotConfig | None = None) -> 
     return paths, windows
 
 
-def folder_of_runs_hint(args: argparse.Namespace, config: RobotConfig) -> str:
-    """Why a --data folder was read as a folder of runs rather than as one run of the configuration's `files:`
-    (added to the error a run of it ends in: the user most likely meant the robot's own logger folder)."""
+def folder_of_runs_error(args: argparse.Namespace, config: RobotConfig, error: Exception) -> str:
+    """The error a run ended in, led by why its --data folder was read as a folder of runs rather than as one run of
+    the configuration's `files:` where that is so: the user most likely meant the robot's own logger folder (or gave
+    another robot's), and the first file's failure is only what followed."""
     from ..io.file_set import matched_files
 
-    if not config.files:
-        return ""
-    for spec in args.data:
-        path = Path(spec)
-        if path.is_dir() and isinstance(why := matched_files(path, config.files), str):
-            return f" (--data {spec} was read as a folder of runs, one a file: {why})"
-    return ""
+    if config.files:
+        for spec in args.data:
+            path = Path(spec)
+            if (path.is_dir() and not any(p.is_dir() for p in path.iterdir())  # a parent of run folders is one
+                    and isinstance(why := matched_files(path, config.files), str)):
+                return f"{spec}: {why} (read instead as a folder of runs, one a file, it failed: {error})"
+    return str(error)
 
 
 def bad_rows(args: argparse.Namespace) -> str:

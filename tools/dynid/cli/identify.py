@@ -37,7 +37,7 @@ from .out_of_sample import out_of_sample, print_out_of_sample
 from .validate_blocks import block_count, print_blocks
 from .common import confidence as alpha
 from .common import one_blas_thread
-from .common import (bad_rows, expand_data, finite_float, folder_of_runs_hint, json_arg, min_speed_arg,
+from .common import (bad_rows, expand_data, finite_float, folder_of_runs_error, json_arg, min_speed_arg,
                      non_negative_float, payload_arg, payloads, plural, positive_float, positive_int, robot_arg,
                      skipped_rows, window, window_args)
 
@@ -79,7 +79,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     try:
         runs = [stream_run(ref, model) for ref in refs]  # every run checked before any work; a dataset file streamed
     except DataError as e:
-        raise DataError(f"{e}{folder_of_runs_hint(args, config)}") from None
+        raise DataError(folder_of_runs_error(args, config, e)) from None
     steps = known_steps(args.steps_from, model, args.workers or args.scheduler) if args.steps_from else []
     if steps:  # the fit with known F/T steps: the fit of the measurements with them taken out (in memory)
         runs = [without_ft_steps(model, load_run(ref.path, model, ref.window, ref.payload, ref.bad_rows), steps)
