@@ -121,10 +121,12 @@ def _rewrite(path: Path, edit) -> None:
                                                      r"file; the folder holds run_01_positions.txt"),
     (lambda run: (run / "run_02_time.txt").write_text("0\n"), r"'\*_time.txt' .* matches 2 files \(run_01_time.txt, "
                                                               r"run_02_time.txt\)"),
+    # A file with a sample more than the others: the others' last sample is cut short, a bad row (below: skipped).
     (lambda run: _rewrite(run / "run_01_torques.txt", lambda s: s + "1\n" * 7),
-     r"run_01_torques.txt holds 301 samples, run_01_time.txt 300"),
+     r"run_01_time.txt ends after sample 300, run_01_torques.txt holds 301: sample 301 is cut short \(1 bad row of "
+     r"301;"),
     (lambda run: _rewrite(run / "run_01_torques.txt", lambda s: s + "1\n"),
-     r"run_01_torques.txt: 2101 lines of one value each are not whole samples of the 7 columns"),
+     r"sample 301 is cut short \(1 bad row of 301;"),
     (lambda run: (run / "run_01_time.txt").write_text("1,2\n" * N), r"its lines hold 2 values, but the configuration "
                                                                     r"describes 1 columns"),
     (lambda run: (run / "run_01_time.txt").write_text(""), r"run_01_time.txt: the file is empty"),
@@ -143,6 +145,18 @@ def test_a_bad_folder_is_refused_in_one_line(tmp_path: Path, change, message: st
 ])
 def test_a_bad_table_of_the_folder_is_refused_in_one_line(tmp_path: Path, change, message: str) -> None:
     _bad(tmp_path, rows_setup, change, message)
+
+
+def test_a_file_that_ends_early_leaves_its_missing_samples_cut_short(tmp_path: Path) -> None:
+    # The logger stopped: the torques end 40 samples early, 3 lines into the last one they have.
+    cfg, run, _ = stacked_setup(tmp_path)
+    _rewrite(run / "run_01_torques.txt", lambda s: "".join(s.splitlines(keepends=True)[: 7 * 259 + 3]))
+    with pytest.raises(DataError, match=r"41 bad rows of 300: 41 cut short; at sample 260, .*the first: "
+                                        r"run_01_torques.txt ends 3 of 7 lines into sample 260: the last sample, cut "
+                                        r"short"):
+        load_data(run, load_config(cfg))
+    ds = load_data(run, load_config(cfg), bad_rows="skip")
+    assert ds.n_samples == 259 and ds.meta["bad_rows"]["count"] == 41 and ds.meta["bad_rows"]["kinds"] == {"cut_short": 41}
 
 
 def test_a_bad_line_is_its_samples_bad_row_refused_or_skipped(tmp_path: Path) -> None:

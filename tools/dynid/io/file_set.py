@@ -6,8 +6,8 @@ Each file is told its layout by its content, and must hold one of two:
 
 A first line that is not a number is a header and is skipped; its field count must still be the file's column
 count, so a file with more or fewer columns than described is refused rather than read shifted. Row k of every file
-is sample k: the files must hold as many samples each, and a t that several files carry must be the same time in
-each (to 1 µs: the logger's one clock). A line that does not parse makes its sample a bad row, named by its file and
+is sample k: a file that ends before the others leaves the samples it lacks cut short (bad rows), and a t that
+several files carry must be the same time in each (to 1 µs: the logger's one clock). A line that does not parse makes its sample a bad row, named by its file and
 line, and the merged table then passes every rule of a CSV (dynid.io.csv_format, dynid.io.bad_rows): refused by
 default, dropped and counted with ``bad_rows="skip"``. Samples in messages are 1-based.
 """
@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import glob
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -97,13 +97,14 @@ def _read_one(path: Path, spec: RunFile) -> _FileTable:
         return _FileTable(path, spec, data, {m.row: m for m in reversed(table.malformed)}, raw)
     if width == 1:  # one value a line, a sample's values on consecutive lines
         table = parse_table(path, raw, skip, 1, None, line, "the file holds one value a line")
-        if table.total % n:
-            raise DataError(f"{path}: {table.total} lines of one value each are not whole samples of the {n} "
-                            f"columns the configuration describes for it (a sample's values on {n} lines)")
-        flat = np.full(table.total, np.nan)
+        samples = -(-table.total // n)  # the last one cut short where the logger stopped mid-sample
+        flat = np.full(samples * n, np.nan)
         flat[table.rows] = table.data[:, 0]
         bad = {m.row // n: Malformed(m.row // n, m.kind, m.detail.replace(
             ", column 1:", f", column {spec.columns[m.row % n].name}:", 1)) for m in reversed(table.malformed)}
+        if table.total % n:
+            bad[samples - 1] = Malformed(samples - 1, "cut_short", f"{path.name} ends {table.total % n} of "
+                                         f"{n} lines into sample {samples}: the last sample, cut short")
         return _FileTable(path, spec, flat.reshape(-1, n), bad, raw)
     raise DataError(f"{path}: its lines hold {width} values, but the configuration describes {n} columns for it "
                     f"(a line per sample of {n} values, or one value a line)")
@@ -122,12 +123,18 @@ def read_file_set(
     if isinstance(paths, str):
         raise DataError(f"{folder}: {paths}")
     tables = [_read_one(p, spec) for p, spec in zip(paths, config.files)]
-    first = tables[0]
-    for tab in tables[1:]:
-        if tab.data.shape[0] != first.data.shape[0]:
-            raise DataError(f"{folder}: {tab.path.name} holds {tab.data.shape[0]} samples, {first.path.name} "
-                            f"{first.data.shape[0]}: the files of one run hold one row of each sample")
-    n = first.data.shape[0]
+    # A file that ends before the others (its logger stopped): the samples it lacks are cut short, bad rows as a CSV's
+    # cut last line is, refused or dropped with the rest; the samples before are rows of every file, as ever.
+    n = max(tab.data.shape[0] for tab in tables)
+    longest = max(tables, key=lambda tab: tab.data.shape[0])
+    for i, tab in enumerate(tables):
+        have = tab.data.shape[0]
+        if have == n:
+            continue
+        lacking = {k: Malformed(k, "cut_short", f"{tab.path.name} ends after sample {have}, {longest.path.name} "
+                                f"holds {n}: sample {k + 1} is cut short") for k in range(have, n)}
+        tables[i] = replace(tab, data=np.vstack([tab.data, np.full((n - have, tab.data.shape[1]), np.nan)]),
+                            malformed={**lacking, **tab.malformed})
     names: list[str] = []
     parts: list[np.ndarray] = []
     t_from: _FileTable | None = None
