@@ -16,6 +16,7 @@ from conftest import dynid
 
 from dynid.config.robot_config import load_config
 from dynid.identify.model_file import load_model
+from dynid.io.load import load_data
 
 
 def truth_of(run: Path) -> dict:
@@ -87,6 +88,22 @@ def test_table_ii_identified_beats_cad(default_model: Path, default_experiments,
             assert ch["ratio_to_noise"] <= 1.2, name  # measured 0.32…1.11×
         else:
             assert ch["cad"] is None  # a CAD model has no gains: its PWM prediction is undefined
+
+
+def test_detect_says_when_the_data_do_not_fit_the_model(default_model: Path, default_experiments, tmp_path: Path) -> None:
+    # The validation run with its F/T sensor's offset moved by 40 N (a re-mounted sensor): contact-free, yet every
+    # detector is above its level nearly everywhere. That is a model that does not fit, not contact.
+    config = load_config("icub_right_arm")
+    data = load_data(default_experiments["validation"], config).slice(0, 20000)
+    data.ft["r_arm_ft"][:, 0] += 40.0
+    data.save(tmp_path / "moved.npz")
+    out = tmp_path / "d.json"
+    done = dynid("detect", "--model", str(default_model), "--data", str(tmp_path / "moved.npz"), "--json", str(out))
+    assert done.returncode == 0, done.stderr
+    assert "note: every detector is above its level" in done.stdout and json.loads(out.read_text())["data_misfit"]
+    done = dynid("detect", "--model", str(default_model), "--data", str(default_experiments["validation"]) + "@0:20",
+                 "--json", str(out))
+    assert "do not fit the model" not in done.stdout and "data_misfit" not in json.loads(out.read_text())
 
 
 def test_validate_on_a_contact_run_says_the_errors_include_the_contacts(default_model: Path, default_experiments,

@@ -321,6 +321,9 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
     return result
 
 
+MISFIT_FPR = 0.5  # every detector above its level on more than half of the contact-free samples: not a contact
+
+
 @one_blas_thread
 def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
     calibration_given = bool(args.calibration) or (args.calibration_from, args.calibration_to) != (None, None)
@@ -408,6 +411,12 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
     if combined is not None:  # the events of --json are the default detector's
         print(f"  combined: {plural(len(combined.events), 'contact event')} (--json's events)")
     print_out_of_sample(found.result["out_of_sample"])
+    rates = [s["fpr"] for s in found.result["variants"].values() if s.get("fpr") is not None]
+    if rates and min(rates) > MISFIT_FPR:  # α promises 1 - α: no detector is anywhere near, the data are not the model's
+        found.result["data_misfit"] = True
+        print(f"  note: every detector is above its level on at least {100 * min(rates):.0f} % of the samples taken "
+              "as contact-free: these data do not fit the model (another robot or set-up, units or columns, a sensor "
+              "offset that moved), or the run is in contact throughout")
     for variant, s in found.result["variants"].items():
         tpr = "n/a" if s.get("tpr") is None else f"{100 * s['tpr']:.1f} %"
         line = f"  {variant:10s} threshold {s['threshold']:9.3g}: TPR {tpr}, FPR {100 * s['fpr']:.2f} %"
