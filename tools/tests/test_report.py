@@ -84,9 +84,10 @@ def report(default_experiments: dict[str, Path], default_model: Path, tmp_path_f
     runs = {
         "report": ("report", "--model", str(default_model), "--validation", v, "--contact", c, "--out", str(d / "r.html")),
         "validate": ("validate", "--model", str(default_model), "--data", v),
-        # the page shows the paper's two acceleration-based detectors (its Fig. 3-5), not the momentum observer
-        "detect_contact": ("detect", "--model", str(default_model), "--data", c, "--residual", "acceleration"),
-        "detect_validation": ("detect", "--model", str(default_model), "--data", v, "--residual", "acceleration"),
+        # the page shows detect's default variants: the combined detector, the momentum observer and the paper's two
+        # acceleration-based detectors (its Fig. 3-5)
+        "detect_contact": ("detect", "--model", str(default_model), "--data", c),
+        "detect_validation": ("detect", "--model", str(default_model), "--data", v),
     }
     out = {"html": d / "r.html", "dir": d}
     for name, args in runs.items():
@@ -101,13 +102,15 @@ def report(default_experiments: dict[str, Path], default_model: Path, tmp_path_f
 def test_numbers_are_those_of_validate_and_detect(report) -> None:
     r = load(report["report"])
     assert r["validation"] == load(report["validate"])
-    # detect's `out_of_sample` (whether DATA lies outside the fit, and the in-sample calibration's FPR beside) is the
-    # command's own report on its input, not a figure of the page
+    # detect's `out_of_sample` (whether DATA lies outside the fit, and the in-sample calibration's FPR beside), its
+    # events and what it calibrated on are the command's own report on its input, not figures of the page
     for run in ("contact", "validation"):
         detected = load(report[f"detect_{run}"])
-        assert "out_of_sample" in detected
-        detected.pop("out_of_sample")
-        assert r["detection"][run] == detected
+        for own in ("out_of_sample", "events", "calibration"):
+            assert own in detected
+            detected.pop(own)
+        assert r["detection"][run] == detected and list(detected["variants"]) == ["combined", "momentum", "calibrated",
+                                                                                  "paper"]
     # the printed summary quotes the same numbers
     calibrated = r["detection"]["contact"]["variants"]["calibrated"]
     assert f"TPR {100 * calibrated['tpr']:.1f} %" in report["stdout"]

@@ -104,3 +104,28 @@ def visibility(ev: Evaluated, det: Detector, t2: np.ndarray, truth, rows: np.nda
     return {"visible": sum(v.visible for v in episodes),
             "visible_found": sum(f for v, f in zip(episodes, found) if v.visible),
             "episodes": [{**v.as_dict(), "start_s": float(t[v.start]), "found": f} for v, f in zip(episodes, found)]}
+
+
+def add_stored_default(ev: Evaluated, found: Detection, alpha: float, shift_s: float = 0.0) -> str | None:
+    """The momentum observer's and the combined detector's variants added to `found` (first, as `dynid detect`
+    lists them), from the detectors the model file keeps: `detect`'s default and what the monitor runs, without
+    recalibrating. Returns why they could not be (a model without them, or other settings), None when added."""
+    from .combined import combined_detection, stored_combined
+    from .momentum import DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S
+    from .momentum_t2 import momentum_detection, stored_detector, stored_in_sample
+
+    identified = ev.identified
+    stored = None if identified.effects else stored_detector(identified, "detect", alpha, DEFAULT_BANDWIDTH_HZ,
+                                                             VELOCITY_WINDOW_S)
+    combined = None if stored is None or "calibrated" not in found.detectors else stored_combined(identified, alpha)
+    if combined is None:
+        return ("the model file keeps no momentum observer and combined detector at this α for its runs "
+                "(`dynid detect` calibrates them)")
+    momentum = momentum_detection(identified, ev.dataset, None, alpha, DEFAULT_BANDWIDTH_HZ, shift_s, found.side,
+                                  detector=stored, folds=identified.folds, in_sample=stored_in_sample(identified))
+    both = combined_detection(identified, ev.dataset, momentum, found.t2["calibrated"], found.detectors["calibrated"],
+                              combined, found.side, shift_s)
+    found.result["variants"] = {"combined": both.result, "momentum": momentum.result, **found.result["variants"]}
+    found.result["residual"] = "combined"
+    return None
+

@@ -15,7 +15,8 @@ from matplotlib.patches import Patch
 
 from ..io.dataset import contact_episodes
 
-COLORS = {"calibrated": "#1f77b4", "paper": "#d62728", "distal": "#ff7f0e", "proximal": "#9467bd"}
+COLORS = {"combined": "#2ca02c", "momentum": "#8c564b", "calibrated": "#1f77b4", "paper": "#d62728", "distal": "#ff7f0e",
+          "proximal": "#9467bd"}
 BINS = 2000
 
 

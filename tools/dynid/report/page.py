@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ..detect.evaluation import detection
+from ..detect.evaluation import add_stored_default, detection
 from ..errors import DataError
 from ..identify.model_file import IdentifiedModel, load_model
 from ..identify.validation import Evaluated, cad_ft_residuals, evaluate, load_run, validation
@@ -126,6 +126,7 @@ def write_report(args: ReportSettings) -> dict[str, Any]:
         state["cad_e"] = cad_ft_residuals(ev)
         state["validation"] = validation(ev, args.model, args.validation, state["cad_e"])
         state["det_val"] = detection(ev, args.model, args.validation, args.alpha, args.n_mode)
+        state["default_skipped"] = add_stored_default(ev, state["det_val"], args.alpha)
 
     def evaluate_contact() -> None:
         if ds_con is None:
@@ -133,6 +134,8 @@ def write_report(args: ReportSettings) -> dict[str, Any]:
             return
         ev = state["con"] = evaluate(args.model, args.contact, identified, ds_con)
         state["det_con"] = detection(ev, args.model, args.contact, args.alpha, args.n_mode)
+        if state["default_skipped"] is None:
+            add_stored_default(ev, state["det_con"], args.alpha)
 
     def draw() -> None:
         state["figures"], state["window_s"] = _figures(state, args)
@@ -152,6 +155,7 @@ def write_report(args: ReportSettings) -> dict[str, Any]:
                   if identified.config.name == PAPER_ROBOT else None),
         "truth": truth.path if truth else None, "parameters": params, "truth_check": truth_summary(params),
         "motor_gains": gains_by_estimator(identified, truth), "window_s": state["window_s"],
+        "default_skipped": state["default_skipped"],
         "figures": [f[0] for f in state["figures"]],
     }
     html_text = _page(result, identified, units, state["figures"])
@@ -250,9 +254,13 @@ def _page(r: dict[str, Any], identified: IdentifiedModel, units: dict[str, str],
         "<h2>Contact detection</h2>",
         H.detection(r["detection"]["validation"], r["detection"]["contact"], r["paper"], alpha)
         if r["detection"]["contact"] else H.false_positives(r["detection"]["validation"], alpha),
-        f"<p class=\"note\">α = {alpha:g}. <i>calibrated</i>: the acceleration residuals' T², motor channels at "
-        "rest left out, Λ and the threshold from cross-validated residuals of the identification data (`dynid "
-        "detect` reports the combined detector, its default, and the momentum observer beside it). <i>paper</i>: diagonal Λ and the F "
+        f"<p class=\"note\">α = {alpha:g}. <i>combined</i> (`dynid detect`'s default, and the monitor's): the "
+        "momentum observer's and the acceleration residuals' T², each over its level, summed, over κ; "
+        "<i>momentum</i>: the observer's T² alone; both from the detectors the model file keeps"
+        + (f" (not shown: {H.esc(r['default_skipped'])})" if r.get("default_skipped") else "")
+        + ". <i>calibrated</i>: the acceleration residuals' T², motor channels at "
+        "rest left out, Λ and the threshold from cross-validated residuals of the identification data. The figures "
+        "draw the two acceleration variants' T², as the paper's. <i>paper</i>: diagonal Λ and the F "
         f"threshold with n = {'dim(e)' if r['n_mode'] == 'dim' else 'ν'}."
         + (f" Distal contacts show in the F/T, proximal ones only in the {words}." if "table_ii" in v else "") + "</p>",
         shown["fig-t2-validation"], shown.get("fig-t2-contact", ""), shown.get("fig-roc", ""),
