@@ -11,7 +11,7 @@
 // --stats-out (soak, docs/benchmarks.md "Soak"): at exit, a JSON object with every counter (frames by kind, the sample
 // clock's taken/held/lost), the heap allocations made after start-up (all, and those inside lcm_publish), the
 // samples' processing and response times (loop overruns, missed deadlines), the messages published, the resident set.
-// A replay's file:// log (mode=w) is renamed into place when the replay ends with exit 0, and left as it was otherwise.
+// A replay's file:// log (mode=w) is renamed into place when the replay ends with exit 0; a failed one's is PATH.failed.
 // Exit codes: 0 done, 2 bad arguments or configuration, 1 a source or LCM failure, 3 mlockall refused, 4 SCHED_FIFO
 // refused, 5 CPU affinity refused, 6 nothing evaluated or ended blind (the watchdog), 10+ a refused coefficient file.
 #include <sched.h>
@@ -184,8 +184,9 @@ std::unique_ptr<lcm::LCM> open_lcm(const std::string& url, std::string& said) {
 constexpr int kExitBlind = 6;  // a run that evaluated no sample, or ended blind (the watchdog's reason)
 
 // A replay's file:// log written with mode=w goes to PATH.partial and is renamed into place when the replay ends with
-// exit 0, so a failed replay leaves the log it would have replaced as it was (a live run's log is a recording, written
-// in place). Where liblcm would refuse the path (a missing folder, a directory), the URL is left for it to refuse.
+// exit 0, so a failed replay leaves the log it would have replaced as it was; its own log, whose status messages say
+// what went wrong, becomes PATH.failed (a live run's log is a recording, written in place). Where liblcm would refuse
+// the path (a missing folder, a directory), the URL is left for it to refuse.
 struct PartialLog {
     std::string path, partial;
 };
@@ -452,9 +453,13 @@ int main(int argc, char** argv) {
             std::fprintf(stderr, "rt_monitor: error: cannot write %s: %s\n", partial.path.c_str(), std::strerror(errno));
             rc = 1;
         }
-        if (rc != 0) {
-            std::remove(partial.partial.c_str());
-            std::fprintf(stderr, "rt_monitor: the LCM log %s is not written: the replay failed\n", partial.path.c_str());
+        if (rc != 0) {  // the failed replay's own log, for its status messages, beside the one it would have replaced
+            const std::string failed = partial.path + ".failed";
+            if (std::rename(partial.partial.c_str(), failed.c_str()) == 0)
+                std::fprintf(stderr, "rt_monitor: the replay failed: its LCM log is %s, %s is left as it was\n",
+                             failed.c_str(), partial.path.c_str());
+            else
+                std::remove(partial.partial.c_str());
         }
     }
     if (blind)

@@ -170,9 +170,11 @@ def test_a_failed_replay_leaves_the_log_it_would_have_replaced(setup: dict, clea
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 6, done.stderr
     lines = done.stderr.splitlines()
-    assert lines[-2] == f"rt_monitor: the LCM log {lcm_log} is not written: the replay failed", done.stderr
+    assert lines[-2] == (f"rt_monitor: the replay failed: its LCM log is {lcm_log}.failed, {lcm_log} is left as it "
+                         "was"), done.stderr
     assert lines[-1].startswith("rt_monitor: error: evaluated no sample"), done.stderr
     assert lcm_log.read_bytes() == before and not Path(f"{lcm_log}.partial").exists()
+    assert read_lcm_log(Path(f"{lcm_log}.failed"))["DYNID_STATUS"]  # the failed run's status, for what went wrong
 
 
 def test_unknown_ids(setup: dict, clean: dict) -> None:

@@ -46,7 +46,8 @@ def replay(bench: dict, name: str, change=lambda text: text, coef: Path | None =
     conf.write_text(change(monitor_config_text(bench["config"], f"file://{lcm}?mode=w")))
     done = subprocess.run([str(RT_MONITOR), "--model", str(coef or bench["coef"]), "--config", str(conf), "--replay",
                            str(log or bench["log"])], capture_output=True, text=True, timeout=300)
-    return done.returncode, done.stderr, (read_lcm_log(lcm) if lcm.exists() else {})
+    written = lcm if done.returncode == 0 else lcm.with_name(lcm.name + ".failed")  # a failed replay's own log
+    return done.returncode, done.stderr, (read_lcm_log(written) if written.exists() else {})
 
 
 def faults(msgs: dict) -> int:
