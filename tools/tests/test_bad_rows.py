@@ -23,7 +23,8 @@ from dynid.errors import DataError
 from dynid.identify.model_file import load_model
 from dynid.io.align import keep_increasing
 from dynid.io.csv_format import read_csv
-from dynid.io.load import load_data
+from dynid.io.dataset import Dataset
+from dynid.io.load import check_velocities, load_data
 
 GARBAGE_ROWS = 9
 
@@ -186,9 +187,17 @@ def test_recorded_velocities_are_checked_against_the_positions(panda_run: Path, 
         dq[:, moving] = tau[:, moving]
         return dq
 
-    with pytest.raises(DataError, match=r"does not follow the motion of q\.panda_joint\d \(correlation .* while the "
-                                        r"joint moves\): another signal's column\?"):
+    with pytest.raises(DataError, match=r"does not follow the motion of q\.panda_joint\d \(its travel, scaled, leaves "
+                                        r"\d+ % unexplained while the joint moves\): another signal's column\?"):
         load_data(_with_velocities(panda_run, tmp_path / "shifted.csv", torque_in_place), config)
+
+
+def test_a_joint_at_constant_speed_with_a_wrapped_angle_passes_the_velocity_check() -> None:
+    t = np.arange(20000) * 1e-3
+    q = (2.0 * t[:, None] + np.pi) % (2 * np.pi) - np.pi  # a continuous joint turning at 2 rad/s, logged in [−π, π)
+    check_velocities(Dataset(t=t, joints=("wheel",), q=q, dq=np.full((t.size, 1), 2.0)))
+    with pytest.raises(DataError, match=r"dq\.wheel is 57\.3 times the rate of q\.wheel \(deg/s\?"):
+        check_velocities(Dataset(t=t, joints=("wheel",), q=q, dq=np.full((t.size, 1), np.degrees(2.0))))
 
 
 @pytest.mark.parametrize(("stamps", "dropped"), [
