@@ -22,7 +22,9 @@ void powers(double u, int n, double* out) noexcept {
 bool SlidingMoments::configure(const double* weights, int stride, int columns, int W, int order) noexcept {
     moments_ = 0;
     const int n = order + 1;
-    if (order < 0 || n > kMaxMoments || W < n || W > kMaxWindow || columns < 1 || columns > kEstimates) return false;
+    // W ≥ 3: the newest tap at u = 1 (the update adds it with weight 1), as the loader's smallest window
+    if (order < 0 || n > kMaxMoments || W < std::max(n, 3) || W > kMaxWindow || columns < 1 || columns > kEstimates)
+        return false;
     center_ = 0.5 * (W - 1);
     scale_ = std::max(center_, 1.0);
     using Square = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxMoments, kMaxMoments>;

@@ -528,6 +528,54 @@ TEST(Combined, IsTheSumOfBothResidualsRunAlone) {
     EXPECT_EQ(compared, 3000 - first);
 }
 
+TEST(Combined, FilterIsTheConvolutionWhateverTheRingLength) {
+    // An observer window longer than the filter's (60 against 31 samples) makes the combined core's ring longer than
+    // the acceleration core's: the sample leaving the filter's window must still be the one 31 back. Both cores'
+    // estimates must agree to the bit, and with the convolution of the file's weights, across a reset mid-window.
+    auto c = load_fixture();
+    c->combined_scale = 1.7;
+    c->velocity_window = 60;
+    ASSERT_GT(c->velocity_window, c->window);
+    Core combined(*c), filter(*c);
+    ASSERT_TRUE(combined.set_residual(Residual::kCombined));
+    ASSERT_TRUE(filter.set_residual(Residual::kAcceleration));
+    const int W = c->window, nj = c->n_joints, no = c->n_outputs;
+    std::vector<std::vector<double>> rows;  // the raw samples since the last reset: q, then y
+    double worst = 0;
+    int compared = 0;
+    for (int k = 0; k < 2500; ++k) {
+        if (k == 1000) {  // a gap in the frames: both restart, mid-way through a window of the moments
+            combined.reset(), filter.reset(), rows.clear();
+        }
+        const double t = 1e-3 * k;
+        std::vector<double> x(size_t(nj + no));
+        for (int j = 0; j < nj; ++j) x[size_t(j)] = 1.5 + 0.3 * std::sin(0.7 * t * (j + 1) + j);
+        for (int i = 0; i < no; ++i) x[size_t(nj + i)] = (i < 6 ? 20.0 : 0.0) + 0.01 * std::cos(3.0 * t + i);
+        rows.push_back(x);
+        combined.step(x.data(), x.data() + nj);
+        const Output& a = filter.step(x.data(), x.data() + nj);
+        if (!a.ready || !combined.output().ready) continue;
+        const Output& b = combined.acceleration_output();
+        for (int j = 0; j < nj; ++j)
+            ASSERT_TRUE(a.q[j] == b.q[j] && a.dq[j] == b.dq[j] && a.ddq[j] == b.ddq[j]) << k;
+        for (int i = 0; i < no; ++i) ASSERT_EQ(a.y[i], b.y[i]) << k;
+        const size_t n = rows.size();
+        for (int r = 0; r < 3; ++r)
+            for (int ch = 0; ch < nj + (r == 0 ? no : 0); ++ch) {
+                double direct = 0, scale = 0;
+                for (int s = 0; s < W; ++s) {
+                    const double term = c->filter(s, r) * rows[n - size_t(W) + size_t(s)][size_t(ch)];
+                    direct += term, scale += std::abs(term);
+                }
+                const double got = ch < nj ? (r == 0 ? a.q[ch] : r == 1 ? a.dq[ch] : a.ddq[ch]) : a.y[ch - nj];
+                worst = std::max(worst, std::abs(got - direct) / scale);
+            }
+        ++compared;
+    }
+    EXPECT_GT(compared, 2000);
+    EXPECT_LT(worst, 1e-12);
+}
+
 TEST(Combined, RefusedWhereTheFileHasNoScale) {
     auto c = load_fixture();
     Core core(*c);  // the CAD fixture: an observer, no combined_scale

@@ -7,6 +7,7 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <memory>
 #include <random>
 #include <vector>
 
@@ -96,8 +97,10 @@ TEST(SlidingMoments, RefusesWeightsThatAreNotThePolynomialsOfTheOrder) {
     w[10] += 1e-3;
     EXPECT_FALSE(moments.configure(w.data(), kMaxWindow, 3, 31, 3));
     EXPECT_FALSE(moments.configure(w.data(), kMaxWindow, 3, 31, SlidingMoments::kMaxMoments));  // above its capacity
-    const std::vector<double> quartic = savitzky_golay(31, 4, 7, 0.001);  // fits it could take are not rounded as well
+    const std::vector<double> quartic = savitzky_golay(31, 4, 7, 0.001);  // a true quartic fit: above its capacity too
     EXPECT_FALSE(moments.configure(quartic.data(), kMaxWindow, 3, 31, 4));
+    const std::vector<double> two(3 * kMaxWindow, 0.5);  // two taps of a line: the newest would not sit at u = 1
+    EXPECT_FALSE(moments.configure(two.data(), kMaxWindow, 1, 2, 1));
     w[10] = std::nan("");
     EXPECT_FALSE(moments.configure(w.data(), kMaxWindow, 3, 31, 3));
     EXPECT_FALSE(moments.configured());

@@ -11,7 +11,7 @@
 // --stats-out (soak, docs/benchmarks.md "Soak"): at exit, a JSON object with every counter (frames by kind, the sample
 // clock's taken/held/lost), the heap allocations made after start-up (all, and those inside lcm_publish), the
 // samples' processing and response times (loop overruns, missed deadlines), the messages published, the resident set.
-// A replay's file:// log (mode=w) is renamed into place when the replay ends with exit 0; a failed one's is PATH.failed.
+// A replay's file:// log (mode=w) is renamed into place when the replay runs to its end; a failed one's is PATH.failed.
 // Exit codes: 0 done, 2 bad arguments or configuration, 1 a source or LCM failure, 3 mlockall refused, 4 SCHED_FIFO
 // refused, 5 CPU affinity refused, 6 nothing evaluated or ended blind (the watchdog), 10+ a refused coefficient file.
 #include <sched.h>
@@ -183,9 +183,9 @@ std::unique_ptr<lcm::LCM> open_lcm(const std::string& url, std::string& said) {
 
 constexpr int kExitBlind = 6;  // a run that evaluated no sample, or ended blind (the watchdog's reason)
 
-// A replay's file:// log written with mode=w goes to PATH.partial and is renamed into place when the replay ends with
-// exit 0, so a failed replay leaves the log it would have replaced as it was; its own log, whose status messages say
-// what went wrong, becomes PATH.failed (a live run's log is a recording, written in place). Where liblcm would refuse
+// A replay's file:// log written with mode=w goes to PATH.partial and is renamed into place when the replay reaches the
+// end of its log with nothing failed, so a failed or stopped replay leaves the log it would have replaced as it was;
+// its own log, whose status messages say what went wrong, becomes PATH.failed (a live run's log is a recording, written in place). Where liblcm would refuse
 // the path (a missing folder, a directory), the URL is left for it to refuse.
 struct PartialLog {
     std::string path, partial;
@@ -195,9 +195,11 @@ bool partial_log(std::string& url, PartialLog& log) {
     const size_t query = url.find('?');
     const std::string path = url.substr(7, query == std::string::npos ? std::string::npos : query - 7);
     const std::string options = query == std::string::npos ? "" : url.substr(query);
-    if (path.empty() || options.find("mode=a") != std::string::npos) return false;  // appending: nothing to replace
+    // liblcm takes the last mode=: appending replaces nothing
+    const size_t mode = options.rfind("mode=");
+    if (path.empty() || (mode != std::string::npos && options.compare(mode, 6, "mode=a") == 0)) return false;
     struct stat st {};
-    if (stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) return false;
+    if (lstat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) return false;  // a link is written through, as liblcm does
     const size_t slash = path.rfind('/');
     const std::string folder = slash == std::string::npos ? "." : slash == 0 ? "/" : path.substr(0, slash);
     if (stat(folder.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) return false;
@@ -447,17 +449,18 @@ int main(int argc, char** argv) {
     // A monitor that evaluated nothing, or ended blind, watched nothing: never exit 0 then (one line, the reason).
     const bool blind = rc == 0 && !g_stop && (loop->counters().evaluated == 0 || (watchdog->active() & kBlind));
     if (blind) rc = kExitBlind;
-    if (in_parts) {  // the replay's log into place, or gone (its LCM closed first: nothing publishes after the loop)
+    if (in_parts) {  // the replay's log into place, or beside it (its LCM closed first: nothing publishes after the loop)
         lcm.reset();
-        if (rc == 0 && std::rename(partial.partial.c_str(), partial.path.c_str()) != 0) {
+        const bool whole = rc == 0 && !g_stop;  // the log replayed to its end, nothing failed
+        if (whole && std::rename(partial.partial.c_str(), partial.path.c_str()) != 0) {
             std::fprintf(stderr, "rt_monitor: error: cannot write %s: %s\n", partial.path.c_str(), std::strerror(errno));
             rc = 1;
         }
-        if (rc != 0) {  // the failed replay's own log, for its status messages, beside the one it would have replaced
+        if (!whole || rc != 0) {  // its own log, for its status messages, beside the one it would have replaced
             const std::string failed = partial.path + ".failed";
             if (std::rename(partial.partial.c_str(), failed.c_str()) == 0)
-                std::fprintf(stderr, "rt_monitor: the replay failed: its LCM log is %s, %s is left as it was\n",
-                             failed.c_str(), partial.path.c_str());
+                std::fprintf(stderr, "rt_monitor: the replay %s: its LCM log is %s, %s is left as it was\n",
+                             g_stop ? "was stopped" : "failed", failed.c_str(), partial.path.c_str());
             else
                 std::remove(partial.partial.c_str());
         }

@@ -192,6 +192,12 @@ def test_recorded_velocities_are_checked_against_the_positions(panda_run: Path, 
         load_data(_with_velocities(panda_run, tmp_path / "shifted.csv", torque_in_place), config)
 
 
+def test_a_velocity_column_of_zeros_is_named_as_such() -> None:
+    t = np.arange(5000) * 1e-3
+    with pytest.raises(DataError, match=r"dq\.a is zero throughout while q\.a moves"):
+        check_velocities(Dataset(t=t, joints=("a",), q=np.sin(t)[:, None], dq=np.zeros((t.size, 1))))
+
+
 def test_a_joint_at_constant_speed_with_a_wrapped_angle_passes_the_velocity_check() -> None:
     t = np.arange(20000) * 1e-3
     q = (2.0 * t[:, None] + np.pi) % (2 * np.pi) - np.pi  # a continuous joint turning at 2 rad/s, logged in [−π, π)

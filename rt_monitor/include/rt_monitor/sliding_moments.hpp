@@ -2,8 +2,11 @@
 // polynomial of the fit's order in the tap index, so an estimate is a fixed combination of the window's polynomial
 // moments μ_m = Σ_s φ_m(s)·x_s, and the moments slide with the window by a triangular shift. Rounding would build up
 // in the sliding sums; a second set of moments, summed directly over the samples as they arrive, replaces them each
-// time a whole window has passed, so no error outlives a window. Fixed-size, no allocation, noexcept (the core's
-// rules); the direct convolution stays the reference (tests/test_core.cpp compares the two).
+// time a whole window has passed, so rounding lasts at most two windows. Unlike the convolution, a sample's rounding
+// stays until that replacement after it has left the window: a finite glitch of size G leaves about ulp(G)·Σ|w| in
+// the estimates for up to a window more, a non-finite one poisons them for up to two (the assembler passes finite
+// values only). Fixed-size, no allocation, noexcept (the core's rules); the direct convolution stays the reference
+// (tests/test_sliding_moments.cpp compares the two; tests/test_core.cpp the core's outputs with it).
 #pragma once
 
 #include "rt_monitor/capacity.hpp"

@@ -13,6 +13,7 @@ import argparse
 import contextlib
 import importlib
 import os
+import select
 import signal
 import sys
 import warnings
@@ -66,6 +67,16 @@ def _notes(command: str, default: Callable[..., None]) -> Callable[..., None]:
     return show
 
 
+def _reader_gone(stream) -> bool:
+    """Whether `stream` is a pipe whose reading end is closed (poll reports an error on the writing end)."""
+    try:
+        poll = select.poll()
+        poll.register(stream.fileno(), select.POLLOUT)
+        return any(events & (select.POLLERR | select.POLLHUP) for _, events in poll.poll(0))
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser(_command(argv)).parse_args(argv)
@@ -83,11 +94,14 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as e:
         sys.stderr.write(f"dynid {args.command}: error: {e}\n")
         return e.exit_code
-    except BrokenPipeError:
-        # The reader of stdout closed it (`dynid spy | head -1`): what it wanted was written. Stop as a tool killed by
-        # SIGPIPE would, without a message, and keep the interpreter's final flush off the closed pipe.
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 128 + signal.SIGPIPE
+    except BrokenPipeError as e:
+        if _reader_gone(sys.stdout):
+            # The reader of stdout closed it (`dynid spy | head -1`): what it wanted was written. Stop as a tool killed
+            # by SIGPIPE would, without a message, and keep the interpreter's final flush off the closed pipe.
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            return 128 + signal.SIGPIPE
+        sys.stderr.write(f"dynid {args.command}: error: {e.strerror or e}\n")  # another pipe than stdout
+        return EXIT_BAD_INPUT
     except (OSError, ET.ParseError) as e:
         # A file the readers did not anticipate (unreadable, not XML, a device): still one line, exit 2.
         where = f"{e.filename}: " if getattr(e, "filename", None) else ""

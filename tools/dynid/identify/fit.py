@@ -467,7 +467,7 @@ def _sizes(model: RobotModel, base: BaseParameters, stats: Statistics) -> np.nda
         if offsets.start <= j < offsets.stop:
             c = int(np.argmax(gram[:, j, j]))  # the one channel the offset acts on
             if gram[c, j, j] > 0:
-                size[i] = np.sqrt(gram[c, p, p] / gram[c, j, j])  # the weights cancel: RMS of y in its units
+                size[i] = np.sqrt(gram[c, p, p] / gram[c, j, j])  # RMS of y in its units, weighted by the rows' W²
     return size
 
 

@@ -9,7 +9,9 @@ dataset (`meta["bad_rows"]`) into the command's output, its `--json` and the mod
 A row is bad, and counted under the first of these kinds that applies:
 
 ==================  ===========================================================================================
-``cut_short``       the file's last line, with no line end, with fewer fields than a row has (the logger stopped)
+``cut_short``       the file's last line, with no line end, with fewer fields than a row has (the logger stopped);
+                    in a folder of files, the samples a file lacks where it ends before the others, or a partial last
+                    sample of a one-value-a-line file (dynid.io.file_set)
 ``empty``           a blank line between rows
 ``column_count``    another number of fields than a row has
 ``not_a_number``    a cell that is not a decimal number

@@ -218,8 +218,11 @@ def check_velocities(dataset: Dataset, where: str = "", headerless: bool = False
             continue
         if not np.sqrt(np.mean((b / span[ok]) ** 2)) >= MOVING_SPEED:
             continue  # a joint at rest: its velocity is noise on both sides
+        if not np.any(a):
+            raise DataError(f"{where}{names[j]} is zero throughout while q.{joint} moves: a controller that records no "
+                            "velocity there? (leave the column out and dynid estimates q̇ from q)")
         scale = float(a @ b / (b @ b))
-        unexplained = float(np.linalg.norm(a - scale * b) / np.linalg.norm(a)) if np.any(a) else 1.0
+        unexplained = float(np.linalg.norm(a - scale * b) / np.linalg.norm(a))
         if unexplained > MAX_UNEXPLAINED:
             raise DataError(f"{where}{names[j]} does not follow the motion of q.{joint} (its travel, scaled, leaves "
                             f"{100 * unexplained:.0f} % unexplained while the joint moves): another signal's column? (a "
