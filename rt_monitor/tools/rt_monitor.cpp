@@ -121,12 +121,9 @@ int help() {
 // The parent directory exists and the path is not a directory (or another non-file): what rename() needs.
 bool writable_file(const std::string& path) {
     struct stat st {};
-    if (stat(path.c_str(), &st) == 0) {
-        if (!S_ISREG(st.st_mode)) {
-            errno = S_ISDIR(st.st_mode) ? EISDIR : EINVAL;
-            return false;
-        }
-        return true;
+    if (stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {
+        errno = S_ISDIR(st.st_mode) ? EISDIR : EINVAL;
+        return false;
     }
     const size_t slash = path.rfind('/');
     const std::string dir = slash == std::string::npos ? "." : (slash == 0 ? "/" : path.substr(0, slash));
@@ -135,7 +132,8 @@ bool writable_file(const std::string& path) {
         errno = ENOTDIR;
         return false;
     }
-    return true;
+    // written beside, then renamed into place: the folder must take a new file (errno: EACCES, EROFS)
+    return access(dir.c_str(), W_OK | X_OK) == 0;
 }
 
 // LCM opens a file:// URL for reading unless its query says mode=w or mode=a (the last mode= wins, as in liblcm);
@@ -340,6 +338,7 @@ int main(int argc, char** argv) {
     }
     if (model.empty() || config.empty()) return usage("--model and --config are required");
     if (!replay.empty() && !loopback.empty()) return usage("--replay and --loopback exclude each other");
+    if (realtime && replay.empty()) return usage("--realtime paces a --replay: give the log to replay");
     if (!residual.empty() && residual != "acceleration" && residual != "momentum" && residual != "combined")
         return usage("--residual is acceleration, momentum or combined, not '" + residual + "'");
     // A priority outside SCHED_FIFO's range (which the system states, unprivileged) is a bad value, exit 2; what the

@@ -177,6 +177,9 @@ MONITOR_FLAGS = [
     monitor("monitor-replay-empty-value", *RUN, "", *URL, code=2, says="'--replay' needs a value", synopsis=True),
     monitor("monitor-replay-and-loopback", *RUN, "{log}", "--loopback", "{out}", *URL, code=2,
             says="--replay and --loopback exclude each other", synopsis=True),
+    # Found by stop 47's walkthrough: --realtime without --replay fell through to SocketCAN.
+    monitor("monitor-realtime-without-replay", "--model", "{coef}", "--config", "{conf}", "--realtime", *URL, code=2,
+            says="--realtime paces a --replay", synopsis=True),
     monitor("monitor-loopback-missing-directory", "--model", "{coef}", "--config", "{conf}", "--loopback", "{in}/no",
             *URL, code=1, says="loopback bind: No such file or directory"),
     # Found by this sweep: liblcm's own line came on stderr before the monitor's.

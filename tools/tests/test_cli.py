@@ -155,3 +155,23 @@ def test_unwritable_json(tmp_path: Path) -> None:
 @pytest.mark.parametrize("samples", ["0", "-5", "many"])
 def test_samples_must_be_positive(samples: str) -> None:
     assert_one_line_error(run("structure", "--samples", samples), "--samples")
+
+
+def test_an_unwritable_output_directory_is_refused_before_any_work(tmp_path: Path, monkeypatch) -> None:
+    """A read-only file system (or a directory without write permission) is found before a fit runs, not after
+    it wrote its model and failed on --json. (os.access is what the check asks; root ignores permission bits, so
+    the read-only directory is simulated here.)"""
+    import argparse
+    import os
+
+    from dynid.cli.common import check_outputs
+    from dynid.errors import InputError
+
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode: False if Path(p) == ro else real(p, mode))
+    args = argparse.Namespace(command="fit", out=str(tmp_path / "m.json"), json=str(ro / "r.json"))
+    with pytest.raises(InputError, match=r"cannot write '.*/ro/r\.json' \(--json\): the directory .*/ro is not writable"):
+        check_outputs(args)
+    check_outputs(argparse.Namespace(command="fit", out=str(tmp_path / "m.json"), json=str(tmp_path / "r.json")))

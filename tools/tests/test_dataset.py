@@ -283,6 +283,9 @@ def test_load_data_checks_channels_and_units_of_a_dataset_file(tmp_path: Path) -
     make(20, q=np.full((20, 7), 45.0)).save(tmp_path / "d.npz")
     limits = {j: (-1.0, 1.0) for j in JOINTS}
     assert "looks like degrees" in one_line_error(load_data, tmp_path / "d.npz", CFG, joint_limits=limits)
+    make(20, q=np.full((20, 7), 2.69)).save(tmp_path / "e.npz")  # radians, within a turn: no hint of degrees
+    message = one_line_error(load_data, tmp_path / "e.npz", CFG, joint_limits=limits)
+    assert "not a posture this joint reaches" in message and "degrees" not in message
 
 
 def test_load_data_csv(tmp_path: Path) -> None:

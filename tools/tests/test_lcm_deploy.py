@@ -279,6 +279,9 @@ def test_spy_duration_on_a_silent_bus() -> None:
     (["--lcm-url", "file:///nonexistent/x.lcmlog"], "No such file"),
     (["--count", "0"], "must be positive"),
     (["--count", "1", "--duration", "1"], "exclude each other"),
+    # a URL pasted from rt_monitor's configuration: LCM would open (and empty) the log to write
+    (["--lcm-url", "file:///nonexistent/x.lcmlog?mode=w"], "opens its log for writing (mode=w empties it), and spy reads"),
+    (["--lcm-url", "file:///nonexistent/x.lcmlog?speed=0&mode=a"], "opens its log for writing"),
 ])
 def test_spy_bad_input_is_one_line_exit_2(args: list[str], why: str) -> None:
     done = _spy(*args)

@@ -56,8 +56,8 @@ INPUT_OPTIONS: tuple[str, ...] = ("data", "model", "validation", "contact", "tru
 
 
 def check_outputs(args: argparse.Namespace, extra: dict[str, str] | None = None) -> None:
-    """Refuse, before any work, an output the command could not write or should not: a missing directory, an
-    existing directory (or, for an output directory, an existing file), two outputs on one file, an output on one
+    """Refuse, before any work, an output the command could not write or should not: a missing or unwritable
+    directory (a read-only file system), an existing directory (or, for an output directory, an existing file), two outputs on one file, an output on one
     of the command's inputs. Without this a fit ran a minute before its --out was refused, an import wrote its
     dataset and then failed on --json (exit 2 with the dataset left behind), and `import --data x.csv --out x.csv`
     replaced the CSV by the dataset. `extra` names outputs of a command's own (option or description -> path),
@@ -78,12 +78,17 @@ def check_outputs(args: argparse.Namespace, extra: dict[str, str] | None = None)
         if (command, option) in DIRECTORY_OUTPUTS:
             if path.exists() and not path.is_dir():
                 raise InputError(f"cannot write to '{value}' (--{option}): it exists and is not a directory")
+            where = path if path.exists() else path.parent
+            if where.is_dir() and not os.access(where, os.W_OK | os.X_OK):
+                raise InputError(f"cannot write to '{value}' (--{option}): {where} is not writable")
         elif not path.name:
             raise InputError(f"cannot write '{value}' (--{option}): not a file name")
         elif not path.parent.is_dir():
             raise InputError(f"cannot write '{value}' (--{option}): the directory {path.parent} does not exist")
         elif path.exists() and not path.is_file():
             raise InputError(f"cannot write '{value}' (--{option}): it exists and is not a regular file")
+        elif not os.access(path.parent, os.W_OK | os.X_OK):  # outputs are written beside, then renamed into place
+            raise InputError(f"cannot write '{value}' (--{option}): the directory {path.parent} is not writable")
         real = os.path.realpath(value)
         if real in inputs:
             raise InputError(f"cannot write '{value}' (--{option}): it is the input --{inputs[real]}")

@@ -20,6 +20,7 @@ from collections.abc import Iterator
 from typing import Any, Callable
 
 from ..errors import InputError
+from ..export.monitor_config import url_for_writing
 from ..export.monitor_log import ratios_text
 from .commands import COMMANDS
 from .common import plural, positive_float, positive_int
@@ -209,6 +210,10 @@ def spy(lc: Any, count: int | None, duration: float | None, on_message: Callable
 def cmd_spy(args: argparse.Namespace) -> dict[str, Any]:
     if args.count is not None and args.duration is not None:
         raise InputError("--count and --duration exclude each other")
+    url = args.lcm_url or ""
+    if url.startswith("file://") and url_for_writing(url) is None:  # the last mode= is w or a: LCM opens it to write
+        raise InputError(f"--lcm-url {url} opens its log for writing (mode=w empties it), and spy reads: give the "
+                         f"file:// URL without mode=, e.g. {url.split('?', 1)[0]}?speed=0")
     lc = open_lcm(args.lcm_url)
     counts = {ch: 0 for ch in CHANNELS}
     onsets = ends = 0
@@ -230,7 +235,6 @@ def cmd_spy(args: argparse.Namespace) -> dict[str, Any]:
         elif channel == "DYNID_STATUS":
             view.status(msg)
 
-    url = args.lcm_url or ""
     skipped = [0]
     log = url.startswith("file://")
     with liblcm_stderr(capture=log) as lib:

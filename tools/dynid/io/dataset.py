@@ -457,7 +457,11 @@ def check_units(
         excess = np.maximum(lower - q, q - upper)
         i = int(np.argmax(excess))
         if excess[i] > margin:
+            # beyond a turn, degrees (or another unit); within one, a posture the joint cannot take
+            why = ("it looks like degrees, radians are expected (metres for a prismatic joint)"
+                   if abs(q[i]) > 2 * np.pi else
+                   "not a posture this joint reaches (another robot's or joint's column, or a wrong offset?)")
             raise DataError(
                 f"q.{joint} reaches {q[i]:g} at {row(i)}, outside its limits [{lower:g}, {upper:g}] by more than "
-                f"{margin:.3g}: it looks like degrees, radians are expected (metres for a prismatic joint)"
+                f"{margin:.3g}: {why}"
             )
