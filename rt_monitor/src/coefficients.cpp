@@ -89,9 +89,13 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     if (std::memcmp(data, kMagic, sizeof kMagic) != 0)
         return fail(LoadError::kMagic, "not a dynid coefficient file (bad magic)");
     const uint32_t version = read_le32(data + 8);
-    if (version != uint32_t(kFileVersion))
+    if (version != uint32_t(kFileVersion))  // older: the model exports again; newer: this monitor is the old one
         return fail(LoadError::kVersion, "format version " + std::to_string(version) + ", this monitor reads " +
-                                             std::to_string(kFileVersion) + ": export the model again (dynid export)");
+                                             std::to_string(kFileVersion) +
+                                             (version < uint32_t(kFileVersion)
+                                                  ? ": export the model again (dynid export)"
+                                                  : ": a newer dynid wrote it: build this monitor from that dynid, or "
+                                                    "export with this one"));
     const uint64_t length = read_le32(data + 12);
     if (size != kHeader + length + 4)
         return fail(LoadError::kTruncated, "truncated or padded: " + std::to_string(size) + " bytes, the header says " +

@@ -286,6 +286,9 @@ def _bad_files(good: bytes) -> dict[str, tuple[bytes, int, str]]:
     flipped[len(good) // 2] ^= 0x01
     bad["wrong CRC"] = (bytes(flipped), EXIT_BASE + 5, "CRC mismatch")
     bad["wrong version"] = (wrap(payload, version=3), EXIT_BASE + 4, f"format version 3, this monitor reads {file_version()}")
+    bad["newer version"] = (wrap(payload, version=file_version() + 1), EXIT_BASE + 4,
+                            f"format version {file_version() + 1}, this monitor reads {file_version()}: a newer dynid "
+                            "wrote it: build this monitor from that dynid")
 
     c = coefficients_t.decode(payload)
     nj = capacity().joints + 1  # one above the capacity

@@ -70,9 +70,10 @@ def unwrap(data: bytes, where: str = "coefficient file") -> bytes:
     magic, version, length = HEADER.unpack_from(data)
     if magic != MAGIC:
         raise DataError(f"{where}: not a dynid coefficient file (bad magic)")
-    if version != FILE_VERSION:
-        raise DataError(f"{where}: format version {version}, this dynid reads {FILE_VERSION}: export the model again "
-                        "(dynid export)")
+    if version != FILE_VERSION:  # older: the model exports again; newer: this dynid is the old one
+        remedy = ("export the model again (dynid export)" if version < FILE_VERSION else
+                  "a newer dynid wrote it: read it with that dynid, or export with this one")
+        raise DataError(f"{where}: format version {version}, this dynid reads {FILE_VERSION}: {remedy}")
     if len(data) != HEADER.size + length + 4:
         raise DataError(f"{where}: truncated or padded ({len(data)} bytes, the header says {HEADER.size + length + 4})")
     (crc,) = struct.unpack_from("<I", data, HEADER.size + length)
