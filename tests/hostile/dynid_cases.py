@@ -428,8 +428,11 @@ FLAGS = [
     dynid("play-sink-into-missing-directory", "play", "--data", "{run}", "--sink", "candump:{out}/no/x.log",
           says="does not exist"),
     dynid("play-run-missing", "play", "--data", "{in}/gone.csv", "--sink", "candump:{out}/x.log", says="gone.csv"),
-    dynid("play-loopback-nobody-listening", "play", "--data", "{run}", "--sink", "loopback:{out}",
+    dynid("play-loopback-nobody-listening", "play", "--data", "{run}", "--sink", "loopback:{out}", "--realtime",
           says="is rt_monitor --loopback running?"),
+    # Found by stop 47's walkthrough: unpaced onto a live sink, the monitor read the samples 105 µs apart.
+    dynid("play-live-sink-unpaced", "play", "--data", "{run}", "--sink", "loopback:{out}",
+          says="is live: add --realtime"),
     dynid("play-window-empty", "play", "--data", "{run}", "--sink", "candump:{out}/x.log", "--from", "50",
           says="holds no sample"),
     dynid("export-print-garbage", "export", "--print", "{in}/c.dcoef", says="not a dynid coefficient file (bad magic)",

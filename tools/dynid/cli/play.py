@@ -18,6 +18,9 @@ def cmd_play(args: argparse.Namespace) -> dict[str, Any]:
     kind, _, where = args.sink.partition(":")
     if kind not in ("candump", "loopback", "socketcan") or (kind != "socketcan" and not where):
         raise InputError(f"--sink must be candump:PATH, loopback:DIR or socketcan, got {args.sink!r}")
+    if kind != "candump" and not args.realtime:  # a live monitor stamps frames as they come: they must come in time
+        raise InputError(f"--sink {args.sink} is live: add --realtime (as fast as possible, rt_monitor would read the "
+                         "samples microseconds apart and refuse their period)")
     if kind == "candump" and where != "-":
         check_outputs(args, {"sink": where})
     config = load_config(args.robot, args.urdf)
@@ -71,8 +74,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--data", required=True, metavar="RUN", help="the run to play (RUN@FROM:TO: a window of it)")
     sp.add_argument("--sink", required=True, metavar="SINK", help="candump:PATH (a candump -L log; candump:- to "
                     "standard output), loopback:DIR (rt_monitor --loopback DIR), or socketcan (the buses' interfaces)")
-    sp.add_argument("--realtime", action="store_true", help="pace the samples at the run's own times (live sinks "
-                    "need it; default: as fast as possible)")
+    sp.add_argument("--realtime", action="store_true", help="pace the samples at the run's own times (the live "
+                    "sinks, loopback and socketcan, need it and are refused without; default: as fast as possible)")
     sp.add_argument("--encoder", choices=ENCODERS, default="auto", help="auto (default: the iCub board emulators for "
                     "the iCub protocol's bus, the generic encoder for any other), generic, or icub")
     sp.add_argument("--strain-sat", choices=("auto", "on", "off"), default="auto", help="frames' long forms (the "
