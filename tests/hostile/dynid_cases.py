@@ -191,6 +191,9 @@ MODELS = [
           says="model file lacks its 'parameters' section", make=model(setting("parameters", DELETE))),
     dynid("detect-model-no-outputs", "detect", "--model", M, "--data", "{run}", says="lacks its 'outputs' section",
           make=model(setting("outputs", DELETE))),
+    # Found by stop 47's walkthrough: --robot beside --model was ignored (the model's robot's DBC was written).
+    dynid("export-model-and-another-robot", "export", "--model", M, "--robot", "panda", "--dbc", "{out}/x.dbc",
+          says="--robot panda is not", make=model(lambda m: None)),
     dynid("export-model-nan-parameter", "export", "--model", M, "--out", "{out}/c.dcoef",
           says="every parameter must be a finite number",
           make=model(lambda m: m["parameters"].__setitem__("m0.phi_m", float("nan")))),

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from ..config.bus import LOAD_LIMIT
-from ..config.robot_config import load_config
+from ..config.robot_config import DEFAULT_ROBOT, load_config
 from ..errors import InputError
 from ..export.coefficients import (
     DEFAULT_END_S,
@@ -92,6 +92,11 @@ def _export_bus(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
+    if args.model and args.robot is not None:  # the model carries its robot: another one given is a mistake, not ignored
+        given, own = load_config(args.robot, args.urdf, need_urdf=False).name, load_model(args.model).config.name
+        if given != own:
+            raise InputError(f"--robot {args.robot} is not {args.model}'s robot ({own}): leave --robot out with --model")
+    args.robot = args.robot or DEFAULT_ROBOT
     if args.dbc or args.monitor_config:
         if args.cad or args.print or (args.urdf and args.model):
             raise InputError("--dbc and --monitor-config go with --model MODEL or --robot CFG [--urdf FILE] (and --out "
@@ -251,8 +256,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     "and benchmarks: nominal gains, no friction, Λ = the noise σ², the F threshold, at --rate)")
     sp.add_argument("--rate", type=positive_float, default=None, metavar="HZ",
                     help="with --cad: the boards' sample rate (default 1000 Hz)")
-    sp.add_argument("--robot", default="icub_right_arm", metavar="CFG", help="robot of --cad, --dbc and "
-                    "--monitor-config when no --model is given (default icub_right_arm)")
+    sp.add_argument("--robot", default=None, metavar="CFG", help="robot of --cad, --dbc and --monitor-config when no "
+                    f"--model is given (default {DEFAULT_ROBOT}); with --model, the model's robot (another is refused)")
     sp.add_argument("--dbc", metavar="OUT.dbc", help="write the robot's CAN bus (its configuration's bus description) "
                     "as a DBC that cantools reads (`python -m cantools decode OUT.dbc < candump.log`); one DBC per bus, "
                     "OUT-<bus>.dbc, where buses share IDs; prints each bus's load")
