@@ -79,7 +79,10 @@ def _reader_gone(stream) -> bool:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
-    args = build_parser(_command(argv)).parse_args(argv)
+    args, unknown = build_parser(_command(argv)).parse_known_args(argv)
+    if unknown:  # named by the command they were given to, as its other usage errors are
+        sys.stderr.write(f"dynid {args.command}: error: unrecognized arguments: {' '.join(unknown)} (see --help)\n")
+        return EXIT_BAD_INPUT
     json_target = getattr(args, "json", None)
     # With --json -, stdout carries the JSON alone: the human report goes to stderr.
     human = contextlib.redirect_stdout(sys.stderr) if json_target == "-" else contextlib.nullcontext()
