@@ -21,6 +21,8 @@ Layer: beside errors and progress; `distributed` is imported only when a cluster
 from __future__ import annotations
 
 import contextlib
+import signal
+import threading
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
@@ -35,6 +37,21 @@ class ClusterError(InputError):
     """The cluster could not be reached or failed during the run (not the data's fault)."""
 
     exit_code = 3
+
+
+@contextlib.contextmanager
+def _workers_ignore_sigint():
+    """Start processes with Ctrl-C ignored (an ignored signal stays ignored across exec, and Python then installs no
+    handler of its own): the terminal's SIGINT reaches the whole process group, and the workers each printed their
+    KeyboardInterrupt traceback; this process alone handles it now, and closing the cluster ends them."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 class DaskCluster:
@@ -55,7 +72,7 @@ class DaskCluster:
                 self.name = f"a local Dask cluster of {workers} worker process{'es' * (workers != 1)}"
                 # One thread a worker: the tasks are numpy and Pinocchio loops that hold the GIL between calls
                 # Tasks wait for a worker no longer than this (a cluster whose every worker died stops the fit)
-                with dask.config.set({"distributed.scheduler.no-workers-timeout": NO_WORKERS_TIMEOUT}):
+                with dask.config.set({"distributed.scheduler.no-workers-timeout": NO_WORKERS_TIMEOUT}), _workers_ignore_sigint():
                     # ":0": the scheduler's HTTP server on a free port (8787 may be another cluster's)
                     self._local = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                                dashboard_address=":0", silence_logs=50)
