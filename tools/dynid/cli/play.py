@@ -41,6 +41,9 @@ def cmd_play(args: argparse.Namespace) -> dict[str, Any]:
     print(f"played {args.data} ({config.name}) -> {args.sink}: {played.samples} samples at {stamps} (recorded: mean "
           f"step {1e3 * played.period_s:.4g} ms, {1e3 * lo:.4g} to {1e3 * hi:.4g} ms), {played.frames} frames",
           file=out)
+    if played.dq_estimated:
+        print("note: the run records no q̇ and the bus carries it: sent as the configuration's derivative filter "
+              "estimates it from q (a recording's own q̇, where there is one, is what the robot would send)", file=out)
     if played.nominal_s is not None and hi - lo > 0.05 * played.nominal_s:
         print(f"note: the log's stamps are the nominal grid, not the recording's (its steps of {1e3 * lo:.4g} to "
               f"{1e3 * hi:.4g} ms each went out as {1e3 * played.nominal_s:.6g} ms): its time axis is the monitor's, "
@@ -54,7 +57,7 @@ def cmd_play(args: argparse.Namespace) -> dict[str, Any]:
     return {"robot": config.name, "data": args.data, "sink": args.sink, "samples": played.samples,
             "frames": played.frames, "load": played.load, "period_s": played.period_s,
             "sent_period_s": played.nominal_s, "step_min_s": lo, "step_max_s": hi, "stamps": args.stamps,
-            "realtime": args.realtime, "encoder": args.encoder,
+            "realtime": args.realtime, "encoder": args.encoder, "dq_estimated": played.dq_estimated,
             "clock_drift": None if drift is None else {"period_s": drift.period_s, "drift_s": drift.drift_s,
                                                        "ppm": drift.ppm, "periods": drift.periods,
                                                        "misleads_the_monitor": drift.misleads()},

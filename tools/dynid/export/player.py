@@ -49,6 +49,7 @@ class Played:
     nominal_s: float | None = None  # stamps="nominal": the grid's step the samples went out on
     drift: ClockDrift | None = None  # stamps="recorded": how far the stamps drift from the monitor's grid
     bus_period_s: float = 0.0  # the bus's own period (1 / its rate): the nominal one where the run's steps agree
+    dq_estimated: bool = False  # the bus carries q̇, the run records none: sent as estimated from q
 
 
 @dataclass(frozen=True)
@@ -118,6 +119,13 @@ def play_run(config: RobotConfig, data: Dataset, sink: str, realtime: bool = Fal
         raise InputError(f"--stamps must be one of {', '.join(STAMPS)}, got {stamps!r}")
     if not BOARDS.is_file():
         raise InputError(f"{BOARDS} is not built: run scripts/setup")
+    estimated = data.dq is None and any(s.target.startswith("dq.") for f in bus.frames for s in f.signals)
+    if estimated:  # the bus carries q̇ and the run records none (a simulated run): sent as the offline filter estimates it
+        options = dict(config.derivatives)
+        try:
+            data = data.with_derivatives(options.pop("method", None), **options)
+        except ValueError as e:
+            raise DataError(f"the bus carries q̇, the run records none, and it cannot be estimated from q: {e}") from None
     steps = np.diff(data.t)
     # the run's period as the monitor takes it: the bus's where its rate agrees with the median step, else the
     # median step (to the µs), as `dynid export` takes the file's period
@@ -156,4 +164,4 @@ def play_run(config: RobotConfig, data: Dataset, sink: str, realtime: bool = Fal
         elif words[1:2] == ["bus"]:
             load[words[2]] = float(words[4]) / 100
     return Played(samples, frames, load, text.strip(), float(steps.mean()), (float(steps.min()), float(steps.max())),
-                  nominal, drift, 1.0 / bus.rate)
+                  nominal, drift, 1.0 / bus.rate, estimated)
