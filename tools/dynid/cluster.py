@@ -72,7 +72,8 @@ class DaskCluster:
                 self.name = f"a local Dask cluster of {workers} worker process{'es' * (workers != 1)}"
                 # One thread a worker: the tasks are numpy and Pinocchio loops that hold the GIL between calls
                 # Tasks wait for a worker no longer than this (a cluster whose every worker died stops the fit)
-                with dask.config.set({"distributed.scheduler.no-workers-timeout": NO_WORKERS_TIMEOUT}), _workers_ignore_sigint():
+                timeouts = {"distributed.scheduler.no-workers-timeout": NO_WORKERS_TIMEOUT}
+                with dask.config.set(timeouts), _workers_ignore_sigint():
                     # ":0": the scheduler's HTTP server on a free port (8787 may be another cluster's)
                     self._local = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                                dashboard_address=":0", silence_logs=50)

@@ -57,8 +57,9 @@ INPUT_OPTIONS: tuple[str, ...] = ("data", "model", "validation", "contact", "tru
 
 def check_outputs(args: argparse.Namespace, extra: dict[str, str] | None = None) -> None:
     """Refuse, before any work, an output the command could not write or should not: a missing or unwritable
-    directory (a read-only file system), an existing directory (or, for an output directory, an existing file), two outputs on one file, an output on one
-    of the command's inputs. Without this a fit ran a minute before its --out was refused, an import wrote its
+    directory (a read-only file system), an existing directory (or, for an output directory, an existing file), two
+    outputs on one file, an output on one of the command's inputs. Without this a fit ran a minute before its --out
+    was refused (or wrote its model and then failed on --json into a read-only folder), an import wrote its
     dataset and then failed on --json (exit 2 with the dataset left behind), and `import --data x.csv --out x.csv`
     replaced the CSV by the dataset. `extra` names outputs of a command's own (option or description -> path),
     checked the same way."""
