@@ -133,28 +133,21 @@ def test_every_kind_is_counted_and_only_bad_rows_are_dropped(tmp_path: Path) -> 
     assert kept.meta["bad_rows"]["count"] == 8 and kept.meta["bad_rows"]["rows_read"] == 200
 
 
-def test_one_stale_row_drops_itself_only_and_a_lone_bad_row_keeps_its_old_message(tmp_path: Path) -> None:
-    config = load_config()
-    n = len(config.joints)
-    rows = [good(0.001 * k, n) for k in range(150)]
-    rows[100] = good(0.05, n)
-    path = table(tmp_path, rows)
-    with pytest.raises(DataError, match=r"t is not strictly increasing at row 101 \(line 102\): 0\.05 s follows "
-                                        r"0\.099 s \(1 bad row of 150;"):
-        read_csv(path, config, require_all=False)
-    assert read_csv(path, config, require_all=False, bad_rows="skip").n_samples == 149
-
-
-def test_a_row_stamped_ahead_drops_itself_only(tmp_path: Path) -> None:
-    # A stamp 0.5 s ahead of its neighbours: the rule "beat every earlier stamp" kept it and dropped the 399 good rows
-    # after it, up to t = 0.5 s; the longest increasing run keeps them and drops it.
+@pytest.mark.parametrize(("stamp", "says"), [
+    # a stale row: the message it always had
+    (0.05, r"t is not strictly increasing at row 101 \(line 102\): 0\.05 s follows 0\.099 s \(1 bad row of 600;"),
+    # a stamp ahead of its neighbours: the rule "beat every earlier stamp" kept it and dropped the 499 good rows after
+    # it, up to t = 0.6 s; the longest increasing run keeps them and drops it
+    (0.6, r"t is out of order at row 101 \(line 102\): 0\.6 s, ahead of the next row kept \(0\.101 s\) \(1 bad row "
+          r"of 600;"),
+])
+def test_one_row_out_of_order_drops_itself_only(tmp_path: Path, stamp: float, says: str) -> None:
     config = load_config()
     n = len(config.joints)
     rows = [good(0.001 * k, n) for k in range(600)]
-    rows[100] = good(0.6, n)
+    rows[100] = good(stamp, n)
     path = table(tmp_path, rows)
-    with pytest.raises(DataError, match=r"t is out of order at row 101 \(line 102\): 0\.6 s, ahead of the next row "
-                                        r"kept \(0\.101 s\) \(1 bad row of 600;"):
+    with pytest.raises(DataError, match=says):
         read_csv(path, config, require_all=False)
     kept = read_csv(path, config, require_all=False, bad_rows="skip")
     assert kept.t.tolist() == [0.001 * k for k in range(600) if k != 100]
