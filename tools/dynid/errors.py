@@ -7,6 +7,8 @@ prints its message on one line and exits with `exit_code`. Every other exception
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 EXIT_BAD_INPUT = 2
 # Control characters left once whitespace is folded: a file's bytes quoted in a message (a NUL or an ESC in a CSV
@@ -32,6 +34,24 @@ class ConfigError(InputError):
 
 class DataError(InputError):
     """A data file (CSV, candump log, dataset) that cannot be used as it is."""
+
+
+class SetupError(InputError, ImportError):
+    """A module scripts/setup generates is missing (a clone run without the set-up). An ImportError too: it is raised
+    where that module is imported."""
+
+
+@contextmanager
+def made_by_setup(package: str, what: str) -> Iterator[None]:
+    """Around the import of a module from `package` (`what` it is), which scripts/setup generates: where it is
+    missing, a SetupError that says so in one line rather than a ModuleNotFoundError from deep inside. Any other
+    missing module is raised as it is (a broken install is not a missing set-up)."""
+    try:
+        yield
+    except ModuleNotFoundError as e:
+        if e.name != package and not (e.name or "").startswith(package + "."):
+            raise
+        raise SetupError(f"{what} ({package}) is not generated: run scripts/setup") from None
 
 
 class DataNote(UserWarning):

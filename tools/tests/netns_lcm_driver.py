@@ -40,7 +40,7 @@ def main() -> None:
     import lcm
 
     types = {}
-    gen = Path(__file__).resolve().parents[1] / "dynid" / "export" / "lcm_messages"
+    gen = Path(__file__).resolve().parents[1] / "dynid" / "export" / "_lcmtypes"  # lcm-gen's, made by scripts/setup
     for name in ("contact_event_t", "monitor_status_t", "residual_t"):
         spec = importlib.util.spec_from_file_location(name, gen / f"{name}.py")
         assert spec and spec.loader

@@ -1,5 +1,5 @@
 """The monitor's LCM output as deployed: the real UDP multicast provider inside a private network namespace, the
-generated Python types against lcm-gen, the Java types (lcm-spy), and `dynid spy`.
+generated Python types against today's .lcm files, the Java types (lcm-spy), and `dynid spy`.
 
 Every run replays the same short candump log (6 s of the default contact experiment around its first contact);
 a file:// run of it is the reference the other transports and decoders are compared with.
@@ -57,15 +57,36 @@ def run(default_experiments: dict, exported: Path, tmp_path_factory: pytest.Temp
 # ---- generated Python types -------------------------------------------------------------------------------
 
 
-def test_checked_in_python_types_are_lcm_gens_output(tmp_path: Path) -> None:
-    """tools/dynid/export/lcm_messages is lcm-gen's output for rt_monitor/lcmtypes, byte for byte (regenerate on drift)."""
-    names = ("contact_event_t", "monitor_status_t", "residual_t")
-    subprocess.run([str(VENV_BIN / "lcm-gen"), "--python", "--ppath", str(tmp_path)]
-                   + [str(ROOT / "rt_monitor" / "lcmtypes" / f"{n}.lcm") for n in names], check=True)
-    here = ROOT / "tools" / "dynid" / "export" / "lcm_messages"
-    for f in ("__init__.py",) + tuple(f"{n}.py" for n in names):
-        assert (tmp_path / "dynid" / f).read_text() == (here / f).read_text(), (
-            f"{here / f} differs from lcm-gen's: lcm-gen --python --ppath TMP rt_monitor/lcmtypes/... and copy TMP/dynid/*")
+def test_generated_python_types_are_lcm_gens_output_for_todays_lcm_files(tmp_path: Path) -> None:
+    """The Python types dynid imports (scripts/setup generates them; not checked in) are lcm-gen's output for the .lcm
+    files as they are now: a .lcm edited without a rerun of scripts/setup fails here, not as a fingerprint mismatch
+    on the bus."""
+    import dynid.export._lcmtypes as generated
+
+    subprocess.run([str(VENV_BIN / "lcm-gen"), "--python", "--ppath", str(tmp_path),
+                    *sorted(str(p) for p in (ROOT / "rt_monitor" / "lcmtypes").glob("*.lcm"))], check=True)
+    here, fresh = Path(generated.__file__).parent, tmp_path / "dynid"
+    names = {p.name for d in (here, fresh) for p in d.glob("*.py")}
+    stale = sorted(n for n in names if not ((here / n).is_file() and (fresh / n).is_file()
+                                            and (here / n).read_bytes() == (fresh / n).read_bytes()))
+    assert stale == [], f"{here}: {', '.join(stale)} not lcm-gen's output: run scripts/setup"
+
+
+def test_without_the_generated_types_dynid_says_to_run_setup(tmp_path: Path) -> None:
+    """A package without them (a clone run without scripts/setup): the CLI ends in one line naming the fix, exit 2,
+    and an import raises that line, not a ModuleNotFoundError from inside."""
+    shutil.copytree(ROOT / "tools" / "dynid", tmp_path / "dynid",
+                    ignore=shutil.ignore_patterns("_lcmtypes", "__pycache__", "_kernels*"))
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    line = "lcm-gen's Python for rt_monitor/lcmtypes (dynid.export._lcmtypes) is not generated: run scripts/setup"
+    for command in ("export", "spy"):
+        done = subprocess.run([sys.executable, "-m", "dynid", command, "--help"], cwd=tmp_path, env=env,
+                              capture_output=True, text=True, timeout=120)
+        assert (done.returncode, done.stdout, done.stderr) == (2, "", f"dynid {command}: error: {line}\n")
+    done = subprocess.run([sys.executable, "-c", "from dynid.export.lcm_messages import residual_t"], cwd=tmp_path,
+                          env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 1 and done.stderr.splitlines()[-1] == f"dynid.errors.SetupError: {line}", done.stderr
+    assert "ModuleNotFoundError" not in done.stderr and str(tmp_path / "dynid") in done.stderr  # the copy, not the tree
 
 
 # ---- the real UDP multicast provider, inside a private network namespace ----------------------------------

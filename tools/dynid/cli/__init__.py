@@ -79,7 +79,12 @@ def _reader_gone(stream) -> bool:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
-    args, unknown = build_parser(_command(argv)).parse_known_args(argv)
+    try:  # the command's group is imported here: its modules may need what scripts/setup generates (SetupError)
+        parser = build_parser(_command(argv))
+    except InputError as e:
+        sys.stderr.write(f"dynid {_command(argv)}: error: {e}\n")
+        return e.exit_code
+    args, unknown = parser.parse_known_args(argv)
     if unknown:  # named by the command they were given to, as its other usage errors are
         sys.stderr.write(f"dynid {args.command}: error: unrecognized arguments: {' '.join(unknown)} (see --help)\n")
         return EXIT_BAD_INPUT
