@@ -142,6 +142,11 @@ def test_a_headerless_log_read_through_columns(tmp_path: Path) -> None:
     np.savetxt(cut, table[:, : 1 + j], delimiter=",", fmt="%.6f")
     with pytest.raises(DataError, match=r"column tau\..* is missing.*\(the file has 8 of the 16 columns described\)"):
         load_data(cut, model.config)
+    lost = tmp_path / "lost.csv"  # one q column lost: every later column would be read one to the left
+    np.savetxt(lost, np.delete(table, 3, axis=1)[:, : 2 * j], delimiter=",", fmt="%.6f")
+    with pytest.raises(DataError, match=r"14 fields, which ends inside .*'s tau\.\* columns \(6 of 7\): a column is "
+                                        r"missing or extra.*end at field 1, 8, 15 and 16\)"):
+        load_data(lost, model.config)
     bad = tmp_path / "bad.csv"
     bad.write_text(log.read_text().replace("5.000000\n", "x\n", 1))
     with pytest.raises(DataError, match="line 1, column 16: 'x' is not a number"):

@@ -44,6 +44,31 @@ def _width(raw: bytes) -> int:
 _WIDTH_LINES = 200
 
 
+def _groups(config: RobotConfig) -> list[str]:
+    """Each listed column's group: the kind before its first dot (q, velocity, current, …); a skipped column is a
+    group of its own."""
+    return [f"{SKIP}{i}" if c.name == SKIP else c.name.split(".", 1)[0] for i, c in enumerate(config.columns)]
+
+
+def check_group_end(path: Path, config: RobotConfig, width: int) -> None:
+    """A file that stops before the configuration's list does must stop where a group of columns ends (the UR's
+    25-column logs after the desired currents, its 31-column ones after the desired torques): one that stops inside
+    a group has lost or gained a column somewhere, and every column after it would be read shifted, silently where
+    the channels it shifts into are still plausible."""
+    groups = _groups(config)
+    if width >= len(groups) or groups[width - 1] != groups[width]:
+        return
+    group = groups[width]
+    size = groups.count(group)
+    ends = [i for i in range(1, len(groups) + 1) if i == len(groups) or groups[i - 1] != groups[i]]
+    raise DataError(
+        f"{path}: the rows have {width} fields, which ends inside the configuration {config.name}'s {group}.* "
+        f"columns ({width - groups.index(group)} of {size}): a column is missing or extra, and the columns after it "
+        f"would be read shifted (the groups of its columns end at field {', '.join(map(str, ends[:-1]))} and "
+        f"{ends[-1]})"
+    )
+
+
 def read_headerless(
     path: str | Path,
     config: RobotConfig,
@@ -67,6 +92,7 @@ def read_headerless(
             f"{path}: the rows have {width} fields, but the configuration {config.name} describes "
             f"{len(config.columns)} columns"
         )
+    check_group_end(path, config, width)
     table = parse_table(path, raw, 0, width, None, _line, f"the rows have {width}")
     data = table.data
     described = config.columns[:width]
