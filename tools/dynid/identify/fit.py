@@ -128,9 +128,10 @@ class FitResult:
 
 
 def instrument_signals(sig: Signals, t: np.ndarray, window_s: float) -> Signals:
-    """The instrument trajectory: positions smoothed over `window_s`, with their derivatives."""
+    """The instrument trajectory: positions smoothed over `window_s`, with their derivatives (the long window by FFT:
+    an instrument row at rest is left out with the fit's own, so its q̇ need not be exactly 0 there)."""
     try:
-        smooth = SavitzkyGolay(window_s=window_s)(t, sig.q)
+        smooth = SavitzkyGolay(window_s=window_s, fft=True)(t, sig.q)
     except ValueError as e:
         raise DataError(f"cannot build the IV instruments: {e}") from None
     return Signals(smooth.q, smooth.dq, smooth.ddq, sig.inputs, sig.tau, sig.ft, sig.payload, sig.gravity)

@@ -160,6 +160,10 @@ class SavitzkyGolay:
 
     window_s: float = 0.031
     polyorder: int = 3
+    # The interior of a uniform run correlated by FFT, for long windows (the IV instruments' 201 samples: 5.6× faster
+    # a chunk), to about 1e-15 of the data's scale; off where a resting joint's q̇ must be exactly 0, as the
+    # regressor's friction sign takes it (`_uniform_poly_fit`).
+    fft: bool = False
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.window_s) and self.window_s > 0):
@@ -223,7 +227,7 @@ class SavitzkyGolay:
                 f"the median step of {dt:.6g} s)."
             )
         if _is_uniform(t, dt):
-            out = list(_uniform_poly_fit(q2, w, self.polyorder, dt, derivatives))
+            out = list(_uniform_poly_fit(q2, w, self.polyorder, dt, derivatives, self.fft))
         else:
             try:
                 out = list(_local_poly_fit(t, q2, w, self.polyorder))
@@ -246,16 +250,21 @@ def _legendre_derivatives(p: int) -> tuple[np.ndarray, np.ndarray]:
     return d1, d2
 
 
-def _uniform_poly_fit(q: np.ndarray, w: int, p: int, dt: float, derivatives: bool = True
+def _uniform_poly_fit(q: np.ndarray, w: int, p: int, dt: float, derivatives: bool = True, fft: bool = False
                       ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """Savitzky-Golay on uniform steps: `scipy.signal.savgol_filter(q, w, p, deriv=k, delta=dt, axis=0,
     mode="interp")` for k = 0, 1, 2 (test_derivatives compares the two), one set of weights for the interior and one
     per edge sample, in the Legendre basis of `_local_poly_fit`. scipy.signal is not imported: its 0.35 s import was
     an eighth of `dynid detect` (docs/benchmarks.md#compiled-kernels).
 
+    With `fft` the interior is correlated through FFTs (`_fft_correlate`): O(log N) a sample rather than O(w), the
+    same numbers to about 1e-15 of the data's scale, but a window of one constant reading no longer gives exactly 0.
+
     Returns q, dq, ddq, each (N, n); without `derivatives`, q and None twice.
     """
-    from scipy.ndimage import correlate1d
+    from scipy.ndimage import correlate1d as direct
+
+    correlate1d = _fft_correlate if fft else direct
 
     n_samples = q.shape[0]
     h = w // 2
@@ -287,6 +296,18 @@ def _uniform_poly_fit(q: np.ndarray, w: int, p: int, dt: float, derivatives: boo
     out[:, :h] = np.einsum("in,iek->ken", steps[:w - 1], on_steps[:, :h])
     out[:, n_samples - h:] = np.einsum("in,iek->ken", steps[n_samples - w:], on_steps[:, w - h:])
     return value, out[0], out[1]
+
+
+def _fft_correlate(x: np.ndarray, kernel: np.ndarray, axis: int = 0, mode: str = "constant") -> np.ndarray:
+    """`scipy.ndimage.correlate1d(x, kernel, axis=0, mode="constant")` where the kernel fits inside x (the windows
+    `_uniform_poly_fit` fills by FFT): the full convolution with the reversed kernel, shifted to correlate1d's origin
+    (the kernel's sample len // 2 on the output's)."""
+    assert axis == 0 and mode == "constant"
+    n, m = x.shape[0], kernel.size
+    size = 1 << int(np.ceil(np.log2(n + m - 1)))
+    full = np.fft.irfft(np.fft.rfft(x, size, axis=0) * np.fft.rfft(kernel[::-1], size)[:, None], size, axis=0)
+    start = m - 1 - m // 2
+    return full[start : start + n]
 
 
 def _local_poly_fit(
