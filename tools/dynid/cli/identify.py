@@ -289,7 +289,8 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
         for what, unit, key in (("force", "N", "force_error"), ("torque", "Nm", "torque_error")):
             i, c = table["identified"][what], table["cad"][what]
             change = f"{100 * (i['mean'] / c['mean'] - 1):+6.1f} %" if c["mean"] > 0 else "     -  "
-            print(f"    {what:6s} {i['mean']:8.3f} ± {i['std']:.3f} {unit:2s}   {c['mean']:8.3f} ± {c['std']:.3f} {unit:2s}"
+            # significant digits, not decimals: a wrist's torque errors are hundredths of a newton metre
+            print(f"    {what:6s} {i['mean']:8.4g} ± {i['std']:<7.3g} {unit:2s} {c['mean']:8.4g} ± {c['std']:<7.3g} {unit:2s}"
                   f"    {change}"
                   + (f"   {PAPER[key][0]} ± {PAPER[key][1]} / {PAPER[key + '_cad'][0]} ± {PAPER[key + '_cad'][1]}"
                      if paper else ""))
