@@ -194,6 +194,9 @@ MODELS = [
     # Found by stop 47's walkthrough: --robot beside --model was ignored (the model's robot's DBC was written).
     dynid("export-model-and-another-robot", "export", "--model", M, "--robot", "panda", "--dbc", "{out}/x.dbc",
           says="--robot panda is not", make=model(lambda m: None)),
+    # Found by stop 48's walkthrough: gaps ignored --robot beside --model, and blamed the model's robot's config.
+    dynid("gaps-model-and-another-robot", "gaps", "--model", M, "--robot", "panda", "--data", "{run}",
+          says="--robot panda is not", make=model(lambda m: None)),
     dynid("export-model-nan-parameter", "export", "--model", M, "--out", "{out}/c.dcoef",
           says="every parameter must be a finite number",
           make=model(lambda m: m["parameters"].__setitem__("m0.phi_m", float("nan")))),

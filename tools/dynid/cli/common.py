@@ -16,7 +16,7 @@ from typing import Any, NoReturn
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ..config.robot_config import DEFAULT_ROBOT, RobotConfig
+from ..config.robot_config import DEFAULT_ROBOT, RobotConfig, load_config
 from ..errors import EXIT_BAD_INPUT, InputError
 from ..io.bad_rows import DEFAULT_POLICY, KINDS
 from ..io.bad_rows import POLICIES as BAD_ROW_POLICIES
@@ -180,9 +180,12 @@ def _json_default(obj: Any) -> Any:
 
 
 
-def robot_arg(sp: argparse.ArgumentParser) -> None:
-    sp.add_argument("--robot", default=DEFAULT_ROBOT, metavar="CFG",
-                    help=f"robot configuration: a YAML file or a bundled name (default {DEFAULT_ROBOT})")
+def robot_arg(sp: argparse.ArgumentParser, with_model: bool = False) -> None:
+    """--robot and --urdf; `with_model`: the command also takes --model, whose robot --robot must then be (the
+    default applies later, where there is no model: `model_robot`)."""
+    sp.add_argument("--robot", default=None if with_model else DEFAULT_ROBOT, metavar="CFG",
+                    help=f"robot configuration: a YAML file or a bundled name (default {DEFAULT_ROBOT}"
+                    + ("; with --model, the model's" if with_model else "") + ")")
     sp.add_argument("--urdf", metavar="FILE", help="the robot's URDF, replacing the configuration's (needed by a "
                     "bundled configuration whose URDF you supply, e.g. ur10e; or set DYNID_URDF_PATH)")
 
@@ -360,3 +363,15 @@ def one_blas_thread(command):  # noqa: ANN001, ANN201 - a command function, wrap
         with threadpool_limits(limits=1, user_api="blas"):
             return command(args)
     return run
+
+
+def model_robot(args: argparse.Namespace) -> None:
+    """With --model, a --robot of another robot is a mistake, not ignored; without, --robot's default applies."""
+    if args.model and args.robot is not None:
+        from ..identify.model_file import load_model
+
+        given = load_config(args.robot, args.urdf, need_urdf=False).name
+        own = load_model(args.model).config.name
+        if given != own:
+            raise InputError(f"--robot {args.robot} is not {args.model}'s robot ({own}): leave --robot out with --model")
+    args.robot = args.robot or DEFAULT_ROBOT

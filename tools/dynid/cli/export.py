@@ -24,7 +24,7 @@ from ..detect.momentum import DEFAULT_BANDWIDTH_HZ
 from ..export.model_export import MOMENTUM_EVENTS, ExportSettings, export_cad, export_model
 from ..identify.model_file import load_model
 from .commands import COMMANDS
-from .common import check_outputs
+from .common import check_outputs, model_robot
 from .common import confidence as alpha
 from .common import int_in, json_arg, payload_arg, payloads, plural, positive_float, split_data_window
 from .common import non_negative_int as lag
@@ -92,11 +92,7 @@ def _export_bus(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
-    if args.model and args.robot is not None:  # the model carries its robot: another one given is a mistake, not ignored
-        given, own = load_config(args.robot, args.urdf, need_urdf=False).name, load_model(args.model).config.name
-        if given != own:
-            raise InputError(f"--robot {args.robot} is not {args.model}'s robot ({own}): leave --robot out with --model")
-    args.robot = args.robot or DEFAULT_ROBOT
+    model_robot(args)  # the model carries its robot: another one given is a mistake, not ignored
     if args.dbc or args.monitor_config:
         if args.cad or args.print or (args.urdf and args.model):
             raise InputError("--dbc and --monitor-config go with --model MODEL or --robot CFG [--urdf FILE] (and --out "

@@ -17,7 +17,7 @@ from ..robot.effects import FT_STEP
 from ..robot.model import RobotModel
 from ..pipeline import check_scale
 from .commands import COMMANDS
-from .common import bad_rows, json_arg, plural, robot_arg, skipped_rows, window, window_args
+from .common import bad_rows, json_arg, model_robot, plural, robot_arg, skipped_rows, window, window_args
 
 
 def change_points(text: str) -> tuple[float, ...]:
@@ -34,6 +34,7 @@ def change_points(text: str) -> tuple[float, ...]:
 
 
 def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
+    model_robot(args)
     identified = load_model(args.model) if args.model else None
     config = identified.config if identified is not None else load_config(args.robot, args.urdf)
     model = RobotModel(config)
@@ -76,7 +77,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         "load-dependent friction, PWM delay, coupling error, base tilt, F/T gain, a wrench at a joint limit, an F/T "
         "offset that steps between change points; a payload against a given model) by "
         "cross-validated forward selection, refit with them and print the gap before and after per channel.")
-    robot_arg(sp)
+    robot_arg(sp, with_model=True)
     sp.add_argument("--data", required=True, metavar="DATA", help="the measured experiment (.csv, candump or .npz)")
     window_args(sp)
     sp.add_argument("--model", metavar="MODEL", help="an identified model: its gap on DATA is shown too, "
