@@ -151,6 +151,58 @@ std::string file_url_for_writing(const std::string& url) {
     return mode == "w" || mode == "a" ? "" : url.substr(0, value) + "w" + url.substr(end);
 }
 
+// Why liblcm could not open `url` as the monitor's LCM, or "" (an empty URL: LCM's default): a provider liblcm lacks,
+// a UDP multicast group outside 224.0.0.0/4, a port or ttl out of range. A configuration error (exit 2), found before
+// anything is opened; dynid.export.monitor_config.lcm_url_problem is the same rule (tested together).
+std::string lcm_url_problem(const std::string& url) {
+    if (url.empty()) return "";
+    const size_t sep = url.find("://");
+    const std::string provider = sep == std::string::npos ? url : url.substr(0, sep);
+    static const char* kProviders[] = {"udpm", "mpudpm", "file", "memq", "tcpq"};
+    if (sep == std::string::npos ||
+        std::none_of(std::begin(kProviders), std::end(kProviders), [&](const char* p) { return provider == p; }))
+        return "no LCM provider '" + provider + "' (liblcm has udpm, mpudpm, file, memq, tcpq: PROVIDER://...)";
+    const std::string rest = url.substr(sep + 3);
+    const size_t q = rest.find('?');
+    const std::string network = rest.substr(0, q), query = q == std::string::npos ? "" : rest.substr(q + 1);
+    if (provider == "file" && network.empty()) return "a file:// URL names its log: file:///PATH?mode=w";
+    if (provider != "udpm" && provider != "mpudpm") return "";
+    const auto digits = [](const std::string& v) {
+        return !v.empty() && v.size() <= 5 && std::all_of(v.begin(), v.end(), [](char c) { return c >= '0' && c <= '9'; });
+    };
+    if (!network.empty()) {
+        const size_t colon = network.find(':');
+        const std::string address = network.substr(0, colon);
+        int part[4], n = 0;
+        bool ok = true;
+        for (size_t at = 0; ok && n < 5; ++n) {
+            const size_t dot = address.find('.', at);
+            const std::string v = address.substr(at, dot == std::string::npos ? std::string::npos : dot - at);
+            ok = digits(v) && std::stoi(v) <= 255 && n < 4;
+            if (ok) part[n] = std::stoi(v);
+            if (dot == std::string::npos) { ++n; break; }
+            at = dot + 1;
+        }
+        if (!ok || n != 4 || part[0] < 224 || part[0] > 239)
+            return "'" + address + "' is not a UDP multicast group (224.0.0.0-239.255.255.255)";
+        if (colon != std::string::npos) {
+            const std::string port = network.substr(colon + 1);
+            if (!digits(port) || std::stoi(port) < 1 || std::stoi(port) > 65535) return "port '" + port + "' is not 1-65535";
+        }
+    }
+    for (size_t at = 0; at <= query.size() && !query.empty();) {
+        const size_t amp = query.find('&', at);
+        const std::string pair = query.substr(at, amp == std::string::npos ? std::string::npos : amp - at);
+        if (pair.rfind("ttl=", 0) == 0 || pair == "ttl") {
+            const std::string v = pair.size() > 4 ? pair.substr(4) : "";
+            if (!digits(v) || std::stoi(v) > 255) return "ttl '" + v + "' is not 0-255";
+        }
+        if (amp == std::string::npos) break;
+        at = amp + 1;
+    }
+    return "";
+}
+
 // lcm::LCM(url), with what liblcm writes to fd 2 meanwhile returned in `said` (whitespace folded to one line).
 std::unique_ptr<lcm::LCM> open_lcm(const std::string& url, std::string& said) {
     std::fflush(stderr);
@@ -388,6 +440,10 @@ int main(int argc, char** argv) {
     if (!asm_.init(cfg, *coef, err)) return bad_config(config + ": " + err);
 
     if (!have_url) url = cfg.lcm_url;
+    if (const std::string why = lcm_url_problem(url); !why.empty()) {
+        std::fprintf(stderr, "rt_monitor: error: LCM URL '%s': %s\n", url.c_str(), why.c_str());
+        return 2;
+    }
     if (const std::string fixed = file_url_for_writing(url); !fixed.empty()) {
         std::fprintf(stderr,
                      "rt_monitor: error: LCM URL '%s' opens its file for reading (LCM's default without mode=w or "

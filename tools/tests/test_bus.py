@@ -25,7 +25,7 @@ from test_rt_core import detector_columns, raw_samples, stream
 from dynid.config.robot_config import load_config
 from dynid.errors import ConfigError, DataError
 from dynid.export.coefficients import read_coefficients
-from dynid.export.monitor_config import url_for_writing
+from dynid.export.monitor_config import lcm_url_problem, url_for_writing
 from dynid.export.monitor_log import read_lcm_log
 from dynid.export.player import clock_drift, play_run
 from dynid.io.dataset import Dataset
@@ -192,6 +192,47 @@ def test_an_lcm_log_the_monitor_would_open_for_reading_is_refused(url: str, fixe
         f"dynid export: error: --lcm-url {url} opens its file for reading (LCM's default without mode=w or mode=a), "
         f"and the monitor writes: {fixed}"], done.stderr
     assert not out.exists() and not (tmp_path / "e.lcmlog").exists()
+
+
+# URLs liblcm cannot open as the monitor's LCM (URL, the reason's start; None: fine). Found by a walkthrough: export
+# wrote `lcm_url bogus` and rt_monitor then failed with exit 1, not as a configuration error.
+BAD_LCM_URLS = [
+    ("bogus", "no LCM provider 'bogus'"),
+    ("udp://239.255.76.67:7667", "no LCM provider 'udp'"),
+    ("file://", "a file:// URL names its log"),
+    ("udpm://8.8.8.8:7667", "'8.8.8.8' is not a UDP multicast group"),
+    ("udpm://239.255.76:7667", "'239.255.76' is not a UDP multicast group"),
+    ("udpm://239.255.76.67.1:7667", "'239.255.76.67.1' is not a UDP multicast group"),
+    ("udpm://239.256.76.67:7667", "'239.256.76.67' is not a UDP multicast group"),
+    ("udpm://239.255.76.67:0", "port '0' is not 1-65535"),
+    ("udpm://239.255.76.67:", "port '' is not 1-65535"),
+    ("udpm://239.255.76.67:7667?ttl=256", "ttl '256' is not 0-255"),
+    ("udpm://239.255.76.67:7667?ttl=x", "ttl 'x' is not 0-255"),
+    ("udpm://239.255.76.67:7667?ttl=1", None),
+    ("udpm://", None),
+    ("tcpq://localhost:7700", None),
+]
+
+
+@pytest.mark.parametrize(("url", "why"), BAD_LCM_URLS)
+def test_an_lcm_url_liblcm_cannot_open_is_a_configuration_error(url: str, why: str | None, tmp_path: Path,
+                                                                arm_monitor: tuple[Path, Path]) -> None:
+    """`dynid export --lcm-url` and rt_monitor refuse by one rule, in one line, exit 2, before anything is opened (a
+    good URL is not run here: the monitor would open it)."""
+    assert lcm_url_problem(url).startswith(why) if why else lcm_url_problem(url) == ""
+    if why is None:
+        return
+    coef, conf = arm_monitor
+    done = run(ROOT / "build/rt_monitor/rt_monitor", "--model", coef, "--config", conf, "--replay", "/dev/null",
+               "--lcm-url", url)
+    assert done.returncode == 2 and done.stderr.strip().splitlines() == [
+        f"rt_monitor: error: LCM URL '{url}': {lcm_url_problem(url)}"], done.stderr
+    if url == BAD_LCM_URLS[0][0]:  # the command line's refusal once: a process costs a second
+        out = tmp_path / "arm.conf"
+        done = run(DYNID, "export", "--robot", "icub_right_arm", "--monitor-config", out, "--lcm-url", url)
+        assert done.returncode == 2 and done.stderr.strip().splitlines() == [
+            f"dynid export: error: --lcm-url {url}: {lcm_url_problem(url)}"], done.stderr
+        assert not out.exists()
 
 
 # ---- a robot that is no iCub, end to end -----------------------------------------------------------------

@@ -64,8 +64,46 @@ def url_for_writing(url: str) -> str | None:
     return head + "?" + "&".join(pairs)
 
 
+LCM_PROVIDERS = ("udpm", "mpudpm", "file", "memq", "tcpq")  # liblcm 1.5's
+
+
+def _number(text: str) -> int | None:
+    """A URL field of 1-5 ASCII digits as an int, else None (rt_monitor's `digits`)."""
+    return int(text) if 1 <= len(text) <= 5 and all("0" <= c <= "9" for c in text) else None
+
+
+def lcm_url_problem(url: str) -> str:
+    """Why liblcm could not open `url` as the monitor's LCM, or "" (an empty URL: LCM's default): a provider liblcm
+    lacks, a UDP multicast group outside 224.0.0.0/4, a port or ttl out of range. rt_monitor refuses by the same
+    rule (its lcm_url_problem; tools/tests/test_bus.py runs both), before anything is opened."""
+    if not url:
+        return ""
+    provider, sep, rest = url.partition("://")
+    if not sep or provider not in LCM_PROVIDERS:
+        return f"no LCM provider '{provider if sep else url}' (liblcm has {', '.join(LCM_PROVIDERS)}: PROVIDER://...)"
+    if provider == "file" and not rest.split("?", 1)[0]:
+        return "a file:// URL names its log: file:///PATH?mode=w"
+    if provider not in ("udpm", "mpudpm"):
+        return ""
+    network, _, query = rest.partition("?")
+    if network:
+        address, colon, port = network.partition(":")
+        parts = [_number(p) for p in address.split(".")]
+        if not (len(parts) == 4 and all(p is not None and p <= 255 for p in parts) and 224 <= parts[0] <= 239):
+            return f"'{address}' is not a UDP multicast group (224.0.0.0-239.255.255.255)"
+        if colon and not 1 <= (_number(port) or 0) <= 65535:
+            return f"port '{port}' is not 1-65535"
+    for pair in query.split("&") if query else ():
+        key, _, value = pair.partition("=")
+        if key == "ttl" and not ((ttl := _number(value)) is not None and ttl <= 255):
+            return f"ttl '{value}' is not 0-255"
+    return ""
+
+
 def monitor_config_text(config: RobotConfig, lcm_url: str | None = None) -> str:
     """The rt_monitor configuration (docs/formats.md, "rt_monitor configuration") for a robot configuration."""
+    if lcm_url and (why := lcm_url_problem(lcm_url)):
+        raise InputError(f"--lcm-url {lcm_url}: {why}")
     if lcm_url and (fixed := url_for_writing(lcm_url)):
         raise InputError(f"--lcm-url {lcm_url} opens its file for reading (LCM's default without mode=w or mode=a), "
                          f"and the monitor writes: {fixed}")
