@@ -6,6 +6,7 @@ the lcm-spy launcher finds the installed jar; the installed C++ headers of the L
 from __future__ import annotations
 
 import os
+import re
 import shlex
 import shutil
 import subprocess
@@ -53,6 +54,18 @@ def test_tree_holds_the_monitor_types_config_and_unit(prefix: Path) -> None:
 def _unit(prefix: Path) -> dict[str, str]:
     text = (prefix / "lib" / "systemd" / "system" / "dynid-rt-monitor.service").read_text()
     return dict(l.split("=", 1) for l in text.splitlines() if "=" in l and not l.startswith("#"))
+
+
+def test_unit_does_not_restart_on_a_refused_file_or_configuration(prefix: Path) -> None:
+    """A restart fixes none of the refusals: bad arguments or configuration (2), a refused real-time setting (3-5),
+    and every reason a coefficient file is refused (kExitBase + LoadError, read from the header: 21 and 22 were once
+    missing, so systemd restarted an implausible file every second)."""
+    header = (ROOT / "rt_monitor" / "include" / "rt_monitor" / "coefficients.hpp").read_text()
+    base = int(re.search(r"kExitBase = (\d+);", header).group(1))
+    enum = re.search(r"enum class LoadError : int \{(.*?)\};", header, re.S).group(1)
+    reasons = [int(v) for v in re.findall(r"= (\d+),", enum) if int(v) > 0]
+    prevented = set(map(int, _unit(prefix)["RestartPreventExitStatus"].split()))
+    assert {2, 3, 4, 5} | {base + r for r in reasons} <= prevented, sorted(prevented)
 
 
 def test_unit_runs_the_installed_monitor_with_the_rt_settings(prefix: Path) -> None:
