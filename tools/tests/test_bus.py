@@ -374,6 +374,11 @@ def test_play_says_where_the_nominal_period_comes_from_and_that_a_jittered_log_l
     assert done.returncode == 0, done.stderr
     assert "samples at stamps every 1 ms (the bus's period)" in done.stdout
     assert "note: the log's stamps are the nominal grid, not the recording's" in done.stdout
+    # the log's time counts from its first sample: where that is in the run is said (a walkthrough read the foot's
+    # put-down 0.31 s early in the monitor's events of the iCub leg, whose run starts at 0.31 s)
+    assert (f"time: the log's first sample is the run's t = {data.t[0]:.6g} s; `dynid import`, `dynid spy` and "
+            f"rt_monitor count the log's time from it: a time there is the run's less {data.t[0]:.6g} s") in done.stdout
+    assert load_data(tmp_path / "j.log", panda["config"]).t[0] == 0.0
     slow = panda["data"].slice(0, 300)
     slow.t = 2.0 * slow.t  # recorded at 500 Hz on the Panda's 1 kHz bus, on the dot
     slow.save(tmp_path / "slow.npz")
@@ -382,6 +387,7 @@ def test_play_says_where_the_nominal_period_comes_from_and_that_a_jittered_log_l
     assert done.returncode == 0, done.stderr
     assert "stamps every 2 ms (the run's median step: the bus's period, 1 ms, is not the run's)" in done.stdout
     assert "note:" not in done.stdout  # its steps are the grid's: nothing relabelled
+    assert ("time:" in done.stdout) == (slow.t[0] != 0.0)
 
 
 def test_a_run_without_the_velocity_the_bus_carries_sends_its_estimate(panda: dict, tmp_path: Path) -> None:

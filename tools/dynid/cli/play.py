@@ -41,6 +41,11 @@ def cmd_play(args: argparse.Namespace) -> dict[str, Any]:
     print(f"played {args.data} ({config.name}) -> {args.sink}: {played.samples} samples at {stamps} (recorded: mean "
           f"step {1e3 * played.period_s:.4g} ms, {1e3 * lo:.4g} to {1e3 * hi:.4g} ms), {played.frames} frames",
           file=out)
+    first = float(data.t[0])
+    if abs(first) > 1e-9:  # the log's times count from its first frame: say where that is in the run
+        print(f"time: the log's first sample is the run's t = {first:.6g} s; `dynid import`, `dynid spy` and rt_monitor "
+              f"count the log's time from it: a time there is the run's less {first:.6g} s (shift the run's "
+              "episode labels by as much for this log)", file=out)
     if played.dq_estimated:
         print("note: the run records no q̇ and the bus carries it: sent as the configuration's derivative filter "
               "estimates it from q (a recording's own q̇, where there is one, is what the robot would send)", file=out)
@@ -61,7 +66,7 @@ def cmd_play(args: argparse.Namespace) -> dict[str, Any]:
             "clock_drift": None if drift is None else {"period_s": drift.period_s, "drift_s": drift.drift_s,
                                                        "ppm": drift.ppm, "periods": drift.periods,
                                                        "misleads_the_monitor": drift.misleads()},
-            "bad_rows": dropped}
+            "bad_rows": dropped, "first_sample_t_s": first}
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
