@@ -183,8 +183,8 @@ MONITOR_FLAGS = [
     monitor("monitor-loopback-missing-directory", "--model", "{coef}", "--config", "{conf}", "--loopback", "{in}/no",
             *URL, code=1, says="loopback bind: No such file or directory"),
     # Found by this sweep: liblcm's own line came on stderr before the monitor's.
-    monitor("monitor-lcm-unknown-provider", *RUN, "{log}", "--lcm-url", "bogus://x", code=1,
-            says="cannot open LCM at 'bogus://x': Error: LCM provider \"bogus\" not found"),
+    monitor("monitor-lcm-unknown-provider", *RUN, "{log}", "--lcm-url", "bogus://x", code=2,
+            says="LCM URL 'bogus://x': no LCM provider 'bogus'"),
     monitor("monitor-lcm-log-into-missing-directory", *RUN, "{log}", "--lcm-url", "file://{out}/no/e.lcmlog?mode=w",
             code=1, says="Failed to open {out}/no/e.lcmlog: No such file or directory"),
     monitor("monitor-lcm-log-onto-a-directory", *RUN, "{log}", "--lcm-url", "file://{out}?mode=w", code=1,
