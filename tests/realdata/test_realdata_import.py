@@ -158,3 +158,35 @@ def test_the_loggers_folder_imports_as_its_converted_csv(tmp_path: Path, robot: 
     for family in ("tau", "ft", "extra"):
         a, b = getattr(ds, family), getattr(ref, family)
         assert sorted(a) == sorted(b) and all(np.array_equal(a[k], b[k]) for k in b), family
+
+
+# Each real run with F/T, as a user gives it: (configuration, --urdf, the folder).
+FT_RUNS = {
+    "icub_leg": ("icub_right_leg_standing", REALDATA / "icub_leg_insitu" / "iCubGenova02.urdf",
+                 REALDATA / "icub_leg_insitu" / "dumperLeftLegNoIMU"),
+    "tiago": ("tiago_wrist", convert.TIAGO_URDF, REALDATA / "tiago_wrist_ft" / "dynamic"),
+}
+UNITS = {  # what is done to a sensor's columns fx fy fz tx ty tz, words of the refusal
+    "torques in N·mm": (lambda w: w * [1, 1, 1, 1e3, 1e3, 1e3], "torques in N·mm"),
+    "forces in mN": (lambda w: w * [1e3, 1e3, 1e3, 1, 1, 1], "forces in mN"),
+    "swapped": (lambda w: w[:, [3, 4, 5, 0, 1, 2]], "swapped"),
+}
+
+
+@needs_data
+@pytest.mark.parametrize("run", list(FT_RUNS))
+def test_real_wrenches_pass_the_unit_check_and_in_another_unit_do_not(run: str) -> None:
+    """dynid.io.wrenches on the real sensors, untared (the TIAGo's Fz −69 N at rest): every run loads; each sensor's
+    columns in another unit are refused, naming the sensor (docs/formats.md#dataset-file has the figures)."""
+    from dynid.errors import DataError
+    from dynid.io.load import check_plausible, load_data
+
+    robot, urdf, folder = FT_RUNS[run]
+    config = load_config(robot, urdf)
+    data = load_data(folder, config)  # passes check_plausible, the wrenches' check with it
+    for sensor in data.ft:
+        for change, words in UNITS.values():
+            bad = data.slice(0, data.n_samples)
+            bad.ft = {**data.ft, sensor: change(data.ft[sensor])}
+            with pytest.raises(DataError, match=f"ft.{sensor}'s .*{words}"):
+                check_plausible(bad, config=config)

@@ -4,6 +4,8 @@
   drive the monitor into a contact that never ended (T² 1.7e21).
 - A model file with a zero motor gain ended `validate`, `detect` and `export` in a traceback; a body mass of 1e308
   passed with NaN thresholds; a detector threshold of −1 scored 100 % false positives with exit 0.
+- F/T torques in N·mm fitted with exit 0 and a warning (a centre of mass 87.8 m away, a residual 1659 times the
+  noise): nothing checked an F/T sensor's magnitudes (dynid.io.wrenches).
 """
 
 from __future__ import annotations
@@ -12,8 +14,12 @@ import json
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 from conftest import dynid
+
+from dynid.io.csv_format import write_csv
+from dynid.io.dataset import Dataset
 
 
 def test_a_motionless_run_is_refused_naming_what_never_moves(default_experiments: dict, tmp_path: Path) -> None:
@@ -63,3 +69,42 @@ def test_an_impossible_model_file_is_refused_by_every_command(edit: str, default
         assert done.returncode == 2 and done.stderr.count("\n") == 1 and words in done.stderr, (args[0], done.stderr)
         assert "Traceback" not in done.stderr
     assert not (tmp_path / "c.dcoef").exists()
+
+
+# (what is done to the run's F/T columns, words of the refusal): the default arm's sensor, columns fx fy fz tx ty tz.
+WRENCHES = {
+    "torques in N·mm": (lambda w: w * [1, 1, 1, 1e3, 1e3, 1e3], "torques in N·mm"),
+    "forces in mN": (lambda w: w * [1e3, 1e3, 1e3, 1, 1, 1], "forces in mN"),
+    "force and torque swapped": (lambda w: w[:, [3, 4, 5, 0, 1, 2]], "swapped"),
+    "both ×1000": (lambda w: w * 1e3, "forces in mN"),  # the lever is the same: the forces' swing gives it away
+}
+
+
+def _short_run(default_experiments: dict, change=None) -> Dataset:  # noqa: ANN001 - change: (N, 6) -> (N, 6)
+    run = Dataset.load(Path(default_experiments["validation"]) / "dataset.npz").slice(0, 20000)  # 20 s
+    if change is not None:
+        run.ft = {name: change(w) for name, w in run.ft.items()}
+    return run
+
+
+@pytest.mark.parametrize("case", list(WRENCHES))
+def test_an_ft_sensor_in_another_unit_is_refused_at_load(case: str, default_experiments: dict, tmp_path: Path) -> None:
+    change, words = WRENCHES[case]
+    run = _short_run(default_experiments, change)
+    run.save(tmp_path / "run.npz")  # a dataset file: fit streams it and checks its first rows
+    done = dynid("fit", "--data", str(tmp_path / "run.npz"), "--out", str(tmp_path / "m.json"))
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert "ft.r_arm_ft" in done.stderr and words in done.stderr and "Traceback" not in done.stderr
+    assert not (tmp_path / "m.json").exists()
+    write_csv(run, tmp_path / "run.csv")  # a CSV: read whole (load_data)
+    done = dynid("import", "--data", str(tmp_path / "run.csv"), "--out", str(tmp_path / "run2.npz"))
+    assert done.returncode == 2 and done.stderr.count("\n") == 1 and words in done.stderr, done.stderr
+    assert not (tmp_path / "run2.npz").exists()
+
+
+def test_large_ft_offsets_pass_the_unit_check(default_experiments: dict, tmp_path: Path) -> None:
+    """An untared sensor (the TIAGo's Fz reads −69 N at rest) is not a wrong unit: every figure is taken about the
+    channels' medians. 400 N and 30 Nm of offset, beyond any of the real runs', on the default arm's 2 kg forearm."""
+    _short_run(default_experiments, lambda w: w + [400, -250, 300, 30, -20, 25]).save(tmp_path / "run.npz")
+    done = dynid("structure", "--data", str(tmp_path / "run.npz"))
+    assert done.returncode == 0, done.stderr

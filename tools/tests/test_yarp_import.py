@@ -46,7 +46,8 @@ def _q_deg(t: np.ndarray) -> np.ndarray:
 
 
 def _ft(t: np.ndarray) -> np.ndarray:
-    return np.column_stack([5.0 - k + (0.5 + k) * t for k in range(6)])
+    """Ramps, the torques a tenth of the forces: a lever arm of 0.27 m, within the arm (dynid.io.wrenches)."""
+    return np.column_stack([(5.0 - k + (0.5 + k) * t) * (1.0 if k < 3 else 0.1) for k in range(6)])
 
 
 def _write_port(root: Path, port: str, stamps: np.ndarray, lines: list[str], cut: str = "") -> None:

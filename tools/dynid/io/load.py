@@ -21,6 +21,7 @@ from .csv_format import check_columns, read_csv
 from .file_set import read_file_set
 from .headerless import looks_headerless, read_headerless
 from .rosbag import is_bag, looks_like_bag_file, read_bag
+from .wrenches import check_wrenches
 from .yarp import is_dumper_folder, read_yarp
 from .dataset import _ZIP_MAGIC, SIMULATION_DATASET, Dataset, check_units
 
@@ -68,7 +69,8 @@ def load_data(
     form is told by content first, then by extension: a zip archive (or ``.npz``) is a dataset file, a
     ``.log`` or a file whose first line is a ``candump -L`` frame is a CAN log, a ``.csv`` is a CSV
     (`dynid.io.csv_format.read_csv`). Anything else raises `DataError`.
-    Every form then passes `check_plausible` (enough samples, a sample period in seconds). A table's bad rows
+    Every form then passes `check_plausible` (enough samples, a sample period in seconds, recorded velocities that
+    are q's rate, F/T wrenches in N and N·m). A table's bad rows
     (dynid.io.bad_rows) are refused, or dropped and counted with ``bad_rows="skip"``.
     """
     path = Path(path)
@@ -76,7 +78,7 @@ def load_data(
         raise DataError(f"--bad-rows must be one of {', '.join(POLICIES)}, got {bad_rows!r}")
     dataset = _load(path, config, joint_limits, require_all, bad_rows)
     headerless = dataset.meta.get("source_format") == "headerless csv" and dataset.meta.get("source") == str(path)
-    check_plausible(dataset, str(path), headerless=headerless)
+    check_plausible(dataset, str(path), headerless=headerless, config=config)
     return dataset
 
 
@@ -146,12 +148,15 @@ MIN_PERIOD_S, MAX_PERIOD_S = 1e-5, 1.0
 _TIME_UNITS = (("ms", "milliseconds", 1e-3), ("us", "microseconds", 1e-6), ("ns", "nanoseconds", 1e-9))
 
 
-def check_plausible(dataset: Dataset, source: str = "", headerless: bool = False, n_samples: int | None = None) -> None:
+def check_plausible(dataset: Dataset, source: str = "", headerless: bool = False, n_samples: int | None = None,
+                    config: RobotConfig | None = None) -> None:
     """Refuse data no command can use, before any command writes or fits anything (issue 22's sweep): fewer than
     `MIN_SAMPLES` samples (a one-row CSV was imported as a dataset of 0 s), a measured value beyond
     `MAX_ABS_VALUE`, or a median step of `t` outside `MIN_PERIOD_S` to below `MAX_PERIOD_S` (a time column in
-    milliseconds was imported as 3000 s of data). A `headerless` log is told where its unit is declared.
-    `n_samples`: the run's count when `dataset` is its first rows only (a streamed run, dynid.io.stream)."""
+    milliseconds was imported as 3000 s of data); then recorded velocities that are not q's rate
+    (`check_velocities`) and, with the robot's `config`, F/T wrenches in another unit (dynid.io.wrenches). A
+    `headerless` log is told where its unit is declared. `n_samples`: the run's count when `dataset` is its first
+    rows only (a streamed run, dynid.io.stream)."""
     where = f"{source}: " if source else ""
     n = dataset.n_samples if n_samples is None else n_samples
     if n < MIN_SAMPLES:
@@ -166,6 +171,8 @@ def check_plausible(dataset: Dataset, source: str = "", headerless: bool = False
     period = float(np.median(np.diff(dataset.t)))
     if MIN_PERIOD_S <= period < MAX_PERIOD_S:
         check_velocities(dataset, where, headerless)
+        if config is not None:
+            check_wrenches(dataset, config, where, headerless)
         return
     # The unit that makes it a period of 10 µs to 100 ms, if one does.
     unit = next(((short, long) for short, long, scale in _TIME_UNITS if MIN_PERIOD_S <= period * scale < 0.1), None)

@@ -241,7 +241,8 @@ def open_run(path: str | Path, config: RobotConfig, joint_limits: Mapping[str, t
         return load_data(p, config, joint_limits=joint_limits, require_all=require_all)
     head = run.slice(0, min(run.n_samples, HEAD_ROWS))
     check_matches_config(head, config, require_all=require_all, source=str(file))
-    check_plausible(head, str(file), n_samples=run.n_samples)  # the count is the file's, the rest its first rows'
+    # the count is the file's, the rest its first rows'
+    check_plausible(head, str(file), n_samples=run.n_samples, config=config)
     return run
 
 
