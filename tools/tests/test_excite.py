@@ -9,6 +9,7 @@ Bad input ends with exit 2, one line, nothing written.
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -199,6 +200,49 @@ def test_simulate_refuses_a_trajectory_without_velocities_or_beyond_the_limits(t
     r = dynid("simulate", "--trajectory", str(tmp_path / "out.csv"), "--out", str(tmp_path / "run"))
     assert r.returncode == 2 and "limits" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert not (tmp_path / "run").exists()
+
+
+def _sway(dq_of: Callable = lambda t, dq: dq) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """4 s of every joint swaying about mid-range at 0.5 Hz, at rest at t = 0, at 100 Hz: (t, q, dq_of(t, q̇))."""
+    config = load_config()
+    model = RobotModel(config)
+    t = np.arange(0, 4.0 + 1e-9, 0.01)[:, None]
+    lo, hi = (np.array([model.joint_limits[j][k] for j in config.joints]) for k in (0, 1))
+    amplitude = 0.2 * (hi - lo)
+    q = (lo + hi) / 2 + amplitude * (1 - np.cos(np.pi * t)) / 2
+    return t[:, 0], q, dq_of(t, amplitude * np.pi * np.sin(np.pi * t) / 2)
+
+
+def _write_trajectory(path: Path, t: np.ndarray, q: np.ndarray, dq: np.ndarray) -> Path:
+    joints = load_config().joints
+    header = ",".join(["t", *(f"q.{j}" for j in joints), *(f"dq.{j}" for j in joints)])
+    rows = (",".join(repr(float(v)) for v in row) for row in np.column_stack([t, q, dq]))
+    path.write_text(header + "\n" + "\n".join(rows) + "\n")
+    return path
+
+
+def test_simulate_follows_a_trajectory_whose_dq_is_its_qs_rate(tmp_path: Path) -> None:
+    r = dynid("simulate", "--trajectory", str(_write_trajectory(tmp_path / "sway.csv", *_sway())), "--out",
+              str(tmp_path / "run"))
+    assert r.returncode == 0 and (tmp_path / "run" / "dataset.npz").is_file(), r.stderr
+
+
+@pytest.mark.parametrize("case, dq_of, words", [
+    ("1.3 times", lambda t, dq: 1.3 * dq, "dq.r_shoulder_pitch is not the rate of q.r_shoulder_pitch: it integrates "
+                                          "to 1.3 times"),
+    ("in deg/s", lambda t, dq: np.degrees(dq), "deg/s?"),
+    ("0.1 s late", lambda t, dq: np.roll(dq, 10, axis=0), "% unexplained"),
+    ("one joint's zero", lambda t, dq: dq * (np.arange(7) != 3), "dq.r_elbow stays still while q.r_elbow moves"),
+])
+def test_simulate_refuses_a_trajectory_whose_dq_is_not_its_qs_rate(tmp_path: Path, case: str, dq_of: Callable,
+                                                                   words: str) -> None:
+    """The controller follows q and dq, interpolated between samples by cubic Hermite: a dq that is not q's rate
+    (accepted before, the arm following a path the CSV does not describe) is refused in one line, nothing written.
+    `dynid excite`'s own CSV passes (test_csv_round_trips_through_simulate_and_fit above)."""
+    r = dynid("simulate", "--trajectory", str(_write_trajectory(tmp_path / "bad.csv", *_sway(dq_of))), "--out",
+              str(tmp_path / "run"))
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and words in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr and not (tmp_path / "run").exists()
 
 
 def test_todays_reference_is_the_one_simulate_follows() -> None:

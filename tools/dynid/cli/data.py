@@ -12,7 +12,7 @@ import numpy as np
 from ..config.robot_config import load_config
 from ..errors import InputError
 from ..io.csv_format import read_csv
-from ..io.load import apply_window, load_data
+from ..io.load import apply_window, check_reference_velocities, load_data
 from ..robot.model import RobotModel
 from ..robot.regressors.base import data_base_parameters, exciting_signals
 from ..robot.regressors.stack import row_channels, rows_at_rest, signals_from_dataset
@@ -164,7 +164,8 @@ def tilt_degrees(text: str) -> float:
 
 
 def _trajectory(path: str | None, config) -> GivenTrajectory | None:  # config: RobotConfig
-    """--trajectory TRAJ.csv: an experiment CSV with t, q and dq of every joint (ddq optional, unused), t from 0."""
+    """--trajectory TRAJ.csv: an experiment CSV with t, q and dq of every joint (ddq optional, unused), t from 0, dq
+    the rate of q."""
     if path is None:
         return None
     model = RobotModel(config)
@@ -174,6 +175,7 @@ def _trajectory(path: str | None, config) -> GivenTrajectory | None:  # config: 
                          "(dynid excite writes both)")
     if abs(float(data.t[0])) > 1e-9:
         raise InputError(f"{path}: the trajectory's time starts at {data.t[0]:g} s, not 0")
+    check_reference_velocities(data, f"{path}: ")  # a dq that is not q's rate bends the path the plant follows
     return GivenTrajectory(data.t - data.t[0], data.q, data.dq, str(path))
 
 
@@ -307,8 +309,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     "m/s²) for a configuration with 'gravity: {imu: FRAME}' (default 0: a fixed base)")
     sp.add_argument("--trajectory", metavar="TRAJ.csv",
                     help="follow this reference instead of the reaching moves: a CSV of t (from 0), q and dq of every "
-                    "joint, e.g. from `dynid excite`; the arm starts at its first sample, at rest; the duration "
-                    "defaults to the trajectory's")
+                    "joint, dq the rate of q (0.9-1.1 times, else refused), e.g. from `dynid excite`; the arm starts "
+                    "at its first sample, at rest; the duration defaults to the trajectory's")
     sp.add_argument("--out", metavar="DIR", help="the directory to write")
     json_arg(sp)
     sp.set_defaults(func=cmd_simulate)

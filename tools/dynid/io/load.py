@@ -10,6 +10,7 @@ import re
 import warnings
 from collections.abc import Mapping
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -199,6 +200,44 @@ MOVING_SPEED = 0.05
 VELOCITY_CHECK_S = 0.05
 
 
+class Agreement(NamedTuple):
+    """A velocity column against its joint's positions, over stretches of `VELOCITY_CHECK_S`."""
+
+    scale: float  # least-squares factor of what v integrates to on how far q moved: 1 for q's rate; inf: q still
+    unexplained: float  # ‖a − scale·b‖ / ‖a‖: 0 for q's rate up to the factor, near 1 for another signal
+    zero: bool  # v is zero in every stretch
+
+
+def velocity_agreement(t: np.ndarray, q: np.ndarray, v: np.ndarray, rest: str = "q") -> list[Agreement | None]:
+    """Per joint, how the velocities `v` follow the positions `q` (both (N, J)): None where not judged, a run of
+    under 20 stretches or a joint at rest: at rest by q alone for a log (``rest="q"``: a still joint's velocity is
+    noise on both sides), or by both q and v for a computed reference (``rest="both"``: it has no noise, so a still q
+    under a moving v is judged too)."""
+    n = max(5, int(round(VELOCITY_CHECK_S / float(np.median(np.diff(t))))))
+    edges = np.arange(0, t.size, n)
+    if edges.size < 20:
+        return [None] * q.shape[1]  # too short a run to judge
+    integral = np.concatenate([np.zeros((1, v.shape[1])), np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None], 0)])
+    moved, travelled, span = np.diff(q[edges], axis=0), np.diff(integral[edges], axis=0), np.diff(t[edges])
+    found: list[Agreement | None] = []
+    for j in range(q.shape[1]):
+        a, b = travelled[:, j], moved[:, j]
+        ok = np.isfinite(a) & np.isfinite(b) & (np.abs(b) < np.pi)  # more than π in 50 ms: a wrapped angle, no motion
+        a, b, dt = a[ok], b[ok], span[ok]
+        q_moves = bool(np.sqrt(np.mean((b / dt) ** 2)) >= MOVING_SPEED) if b.size else False
+        v_moves = bool(np.sqrt(np.mean((a / dt) ** 2)) >= MOVING_SPEED) if a.size else False
+        if b.size < 20 or not (q_moves or (rest == "both" and v_moves)):
+            found.append(None)
+        elif not np.any(a):
+            found.append(Agreement(0.0, 1.0, True))
+        elif not q_moves:
+            found.append(Agreement(float("inf"), 1.0, False))
+        else:
+            scale = float(a @ b / (b @ b))
+            found.append(Agreement(scale, float(np.linalg.norm(a - scale * b) / np.linalg.norm(a)), False))
+    return found
+
+
 def check_velocities(dataset: Dataset, where: str = "", headerless: bool = False) -> None:
     """Refuse a recorded q̇ (the `velocity.<joint>` extra columns the momentum detector takes, else recorded `dq`)
     that is not the rate of q: another unit, or another signal's column."""
@@ -209,35 +248,49 @@ def check_velocities(dataset: Dataset, where: str = "", headerless: bool = False
         names, v = [f"dq.{j}" for j in dataset.joints], np.asarray(dataset.dq, float)
     else:
         return
-    t, q = dataset.t, dataset.q
-    n = max(5, int(round(VELOCITY_CHECK_S / float(np.median(np.diff(t))))))
-    edges = np.arange(0, t.size, n)
-    if edges.size < 20:
-        return  # too short a run to judge
-    integral = np.concatenate([np.zeros((1, v.shape[1])), np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None], 0)])
-    moved, travelled, span = np.diff(q[edges], axis=0), np.diff(integral[edges], axis=0), np.diff(t[edges])
     declare = " (a headerless log declares its units in the configuration's 'columns:' field)" if headerless else ""
-    for j, joint in enumerate(dataset.joints):
-        a, b = travelled[:, j], moved[:, j]
-        ok = np.isfinite(a) & np.isfinite(b) & (np.abs(b) < np.pi)  # more than π in 50 ms: a wrapped angle, no motion
-        a, b = a[ok], b[ok]
-        if b.size < 20:
+    for name, joint, fit in zip(names, dataset.joints, velocity_agreement(dataset.t, dataset.q, v)):
+        if fit is None:
             continue
-        if not np.sqrt(np.mean((b / span[ok]) ** 2)) >= MOVING_SPEED:
-            continue  # a joint at rest: its velocity is noise on both sides
-        if not np.any(a):
-            raise DataError(f"{where}{names[j]} is zero throughout while q.{joint} moves: a controller that records no "
+        if fit.zero:
+            raise DataError(f"{where}{name} is zero throughout while q.{joint} moves: a controller that records no "
                             "velocity there? (leave the column out and dynid estimates q̇ from q)")
-        scale = float(a @ b / (b @ b))
-        unexplained = float(np.linalg.norm(a - scale * b) / np.linalg.norm(a))
-        if unexplained > MAX_UNEXPLAINED:
-            raise DataError(f"{where}{names[j]} does not follow the motion of q.{joint} (its travel, scaled, leaves "
-                            f"{100 * unexplained:.0f} % unexplained while the joint moves): another signal's column? (a "
-                            "log a column short shifts every column after it)")
-        if not VELOCITY_SCALE[0] <= scale <= VELOCITY_SCALE[1]:
-            unit = " (deg/s? rad/s are expected)" if 45 < scale < 70 else ""
-            raise DataError(f"{where}{names[j]} is {scale:.3g} times the rate of q.{joint}{unit}: recorded "
+        if fit.unexplained > MAX_UNEXPLAINED:
+            raise DataError(f"{where}{name} does not follow the motion of q.{joint} (its travel, scaled, leaves "
+                            f"{100 * fit.unexplained:.0f} % unexplained while the joint moves): another signal's "
+                            "column? (a log a column short shifts every column after it)")
+        if not VELOCITY_SCALE[0] <= fit.scale <= VELOCITY_SCALE[1]:
+            unit = " (deg/s? rad/s are expected)" if 45 < fit.scale < 70 else ""
+            raise DataError(f"{where}{name} is {fit.scale:.3g} times the rate of q.{joint}{unit}: recorded "
                             f"velocities must be in the positions' unit per second, each in its joint's column{declare}")
+
+
+# A reference trajectory (`dynid simulate --trajectory`) is computed, not measured: its dq is its q's derivative to the
+# sampling's rounding (`dynid excite`'s: scale 0.9999, 0.01 % unexplained), and the plant's cubic Hermite interpolation
+# takes q and dq at their word between samples. dq scaled 1.3 leaves the same 0.01 % but is 30 % off; a dq 0.1 s
+# late leaves 31–38 % unexplained. A finite difference of q one sample behind (5 ms at 100 Hz) leaves about 3 %.
+REFERENCE_SCALE = (0.9, 1.1)
+REFERENCE_UNEXPLAINED = 0.1
+
+
+def check_reference_velocities(dataset: Dataset, where: str = "") -> None:
+    """Refuse a reference trajectory whose dq is not the rate of its q (`REFERENCE_SCALE`, `REFERENCE_UNEXPLAINED`):
+    another trajectory's, another unit, a column shifted, a still joint said to move."""
+    if dataset.dq is None:
+        return
+    rule = (f"a trajectory's dq must be its q's rate (scaled {REFERENCE_SCALE[0]:g}–{REFERENCE_SCALE[1]:g}, at most "
+            f"{100 * REFERENCE_UNEXPLAINED:.0f} % unexplained over {1e3 * VELOCITY_CHECK_S:.0f} ms stretches; "
+            "dynid excite writes both)")
+    for joint, fit in zip(dataset.joints, velocity_agreement(dataset.t, dataset.q, dataset.dq, rest="both")):
+        if fit is None:
+            continue
+        if fit.zero or np.isinf(fit.scale):
+            still, moving = ("dq", "q") if fit.zero else ("q", "dq")
+            raise DataError(f"{where}{still}.{joint} stays still while {moving}.{joint} moves: {rule}")
+        if fit.unexplained > REFERENCE_UNEXPLAINED or not REFERENCE_SCALE[0] <= fit.scale <= REFERENCE_SCALE[1]:
+            unit = " (deg/s? rad/s are expected)" if 45 < fit.scale < 70 else ""
+            raise DataError(f"{where}dq.{joint} is not the rate of q.{joint}: it integrates to {fit.scale:.3g} times "
+                            f"how far q moves, {100 * fit.unexplained:.0f} % unexplained{unit}; {rule}")
 
 
 def check_values(dataset: Dataset, row_offset: int = 0) -> None:
