@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -175,3 +176,50 @@ def test_output_path_that_is_a_file_is_refused(tmp_path: Path) -> None:
     done = dynid("simulate", "--duration", "0.1", "--out", str(target))
     assert done.returncode == 2 and "not a directory" in done.stderr
     assert target.read_text() == "keep me"
+
+
+def _recorded_csv(folder: Path) -> None:
+    folder.mkdir()
+    (folder / "data.csv").write_text("t,q.r_elbow\n0,0.1\n")
+
+
+def _imported_dataset(folder: Path) -> None:
+    folder.mkdir()
+    t = np.arange(200) * 0.01
+    Dataset(t=t, joints=("a",), q=np.sin(t)[:, None], meta={"source": "lab/run.csv"}).save(folder / "dataset.npz")
+
+
+def _yarp_folder(folder: Path) -> None:
+    (folder / "icub" / "right_arm" / "stateExt:o").mkdir(parents=True)
+    (folder / "icub" / "right_arm" / "stateExt:o" / "data.log").write_text("1 0.5 (1 2 3) [ok]\n")
+
+
+@pytest.mark.parametrize("make", [_recorded_csv, _imported_dataset, _yarp_folder])
+def test_out_onto_a_folder_that_is_not_a_simulated_run_is_refused(tmp_path: Path, make: Callable[[Path], None]
+                                                                  ) -> None:
+    """A recorded run's folder given as --out by mistake: its data.csv used to be replaced, and a YARP or logger
+    folder given a dataset.npz read as the simulated run from then on. Refused before any work, nothing touched."""
+    folder = tmp_path / "run"
+    make(folder)
+    before = {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+    done = dynid("simulate", "--duration", "0.2", "--out", str(folder))
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert "not an earlier `dynid simulate` run" in done.stderr and "new or empty directory" in done.stderr
+    assert {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]  # no temporary directory left beside it
+
+
+def test_out_onto_an_earlier_simulated_run_replaces_its_files_only(tmp_path: Path) -> None:
+    """As `fit --out` replaces a model file, simulate replaces its own earlier run (scripts/main runs again into the
+    same folders); what else the user put there stays. An empty folder is written to."""
+    run = tmp_path / "run"
+    assert dynid("simulate", "--duration", "0.2", "--out", str(run)).returncode == 0
+    (run / "model.json").write_text("{}")
+    done = dynid("simulate", "--duration", "0.3", "--seed", "1", "--out", str(run))
+    assert done.returncode == 0, done.stderr
+    assert json.loads((run / "truth.json").read_text())["duration_s"] == 0.3
+    assert Dataset.load(run / "dataset.npz").n_samples == 300 and (run / "model.json").read_text() == "{}"
+    assert sorted(p.name for p in run.iterdir()) == ["data.csv", "dataset.npz", "model.json", "truth.json", "truth.npz"]
+    (tmp_path / "empty").mkdir()
+    assert dynid("simulate", "--duration", "0.2", "--out", str(tmp_path / "empty")).returncode == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["empty", "run"]

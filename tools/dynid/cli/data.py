@@ -19,7 +19,7 @@ from ..robot.regressors.stack import row_channels, rows_at_rest, signals_from_da
 from ..simulation import SimulationSettings, parse_effect, simulate
 from ..simulation.controller import GivenTrajectory
 from ..simulation.effects import CATALOG, catalog_text
-from ..simulation.output import write_simulation
+from ..simulation.output import check_output_dir, write_simulation
 from .commands import COMMANDS
 from .common import (bad_rows, int_in, json_arg, min_speed_arg, positive_float, robot_arg, seed, skipped_rows, window,
                      window_args)
@@ -209,6 +209,7 @@ def cmd_simulate(args: argparse.Namespace) -> dict[str, Any]:
                                 "units": e.units} for k, e in CATALOG.items()}}
     if not args.out:
         raise InputError("--out DIR is required (the directory to write the experiment to)")
+    check_output_dir(args.out)  # before any work: a folder that is not an earlier simulated run is refused
     config = load_config(args.robot, args.urdf)
     bodies = tuple(b.name for b in RobotModel(config).bodies)
     effects = tuple(parse_effect(text, config, bodies) for text in args.effect)
@@ -311,6 +312,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     help="follow this reference instead of the reaching moves: a CSV of t (from 0), q and dq of every "
                     "joint, dq the rate of q (0.9-1.1 times, else refused), e.g. from `dynid excite`; the arm starts "
                     "at its first sample, at rest; the duration defaults to the trajectory's")
-    sp.add_argument("--out", metavar="DIR", help="the directory to write")
+    sp.add_argument("--out", metavar="DIR", help="the directory to write: new, empty, or an earlier simulated run's "
+                    "(its four files are replaced); a directory holding anything else is refused")
     json_arg(sp)
     sp.set_defaults(func=cmd_simulate)

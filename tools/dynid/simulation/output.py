@@ -9,15 +9,26 @@
                   track, the contact's share of each F/T channel and joint torque, the supply factors, the
                   stuck friction coordinates and the reference
 
-Each file is written atomically; the directory itself may hold the files of an earlier run until each is
-replaced. Any dynid command that takes DATA accepts the directory and reads its dataset.npz.
+DIR is new, empty, or the output of an earlier `dynid simulate`, whose four files are replaced (as `fit --out`
+replaces a model file; anything else in it is left as it is). A directory holding anything else is refused
+(`check_output_dir`): a recorded run's `data.csv` would be overwritten, and a YARP or logger folder given a
+`dataset.npz` would read as the simulated run from then on. The files are written into a temporary directory, beside
+a new DIR and then renamed to it, or inside an existing one and then moved up, `dataset.npz` last (the earlier
+run's removed first): a failure while writing leaves DIR as it was, and a run without its `dataset.npz` is not a
+run. Any dynid command that takes DATA accepts the directory and reads its dataset.npz.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
+import shutil
+import tempfile
 from pathlib import Path
 from typing import BinaryIO
+
+import numpy as np
 
 from ..errors import DataError
 from ..io.csv_format import write_csv
@@ -25,16 +36,70 @@ from ..io.dataset import SIMULATION_DATASET, atomic_write
 from .experiment import Simulation
 
 FILES = {"dataset": SIMULATION_DATASET, "csv": "data.csv", "truth": "truth.json", "truth_signals": "truth.npz"}
+TRUTH_FORMAT = "dynid-truth"  # truth.json's "format" (experiment.py)
+SIMULATED_SOURCE = "dynid simulate"  # how the dataset's meta "source" starts (experiment.py)
+
+
+def is_simulation_dir(out: Path) -> bool:
+    """Whether `out` holds an earlier `dynid simulate` output: its truth.json or its dataset.npz says so."""
+    with contextlib.suppress(OSError, ValueError, KeyError, TypeError, AttributeError):
+        if json.loads((out / FILES["truth"]).read_text(encoding="utf-8")).get("format") == TRUTH_FORMAT:
+            return True
+    with contextlib.suppress(OSError, ValueError, KeyError, TypeError, AttributeError):
+        with np.load(out / SIMULATION_DATASET, allow_pickle=False) as members:  # the meta member alone is read
+            return str(json.loads(str(members["meta"])).get("source", "")).startswith(SIMULATED_SOURCE)
+    return False
+
+
+def check_output_dir(out_dir: str | Path) -> None:
+    """Refuse a DIR that `write_simulation` must not write to: a file, or a directory that holds anything but an
+    earlier simulation's output."""
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise DataError(f"cannot write to '{out}': it exists and is not a directory")
+    if not out.is_dir():
+        return
+    try:
+        held = sorted(p.name for p in out.iterdir())
+    except OSError as e:
+        raise DataError(f"cannot write to '{out}': {e.strerror or e}") from None
+    if held and not is_simulation_dir(out):
+        shown = ", ".join(held[:3]) + (f" and {len(held) - 3} more" if len(held) > 3 else "")
+        raise DataError(f"cannot write to '{out}': it holds {shown}, not an earlier `dynid simulate` run, which the "
+                        f"run's files ({', '.join(FILES.values())}) would replace or take over; give a new or empty "
+                        "directory")
 
 
 def write_simulation(sim: Simulation, out_dir: str | Path) -> dict[str, str]:
     out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise DataError(f"cannot write to '{out}': it exists and is not a directory")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
+    check_output_dir(out)
+    fresh = not out.exists()
+    try:  # the files are written beside DIR when it is new (then renamed to it), else inside it (then moved up)
+        if fresh:
+            out.parent.mkdir(parents=True, exist_ok=True)
+        work = Path(tempfile.mkdtemp(dir=out.parent if fresh else out, prefix=f".{out.name}.", suffix=".tmp"))
     except OSError as e:
         raise DataError(f"cannot create the output directory '{out}': {e.strerror or e}") from None
+    try:
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(work, 0o777 & ~umask)  # mkdtemp makes 0700; DIR gets a new directory's usual permissions
+        _write_files(sim, work)
+        if fresh:
+            os.replace(work, out)  # one rename: DIR appears complete
+        else:  # an empty DIR or an earlier run's: its dataset goes first, the new one comes last
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(out / SIMULATION_DATASET)
+            for name in sorted(FILES.values(), key=lambda n: n == SIMULATION_DATASET):
+                os.replace(work / name, out / name)
+    except OSError as e:
+        raise DataError(f"cannot write to '{out}': {e.strerror or e}") from None
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return {key: str(out / name) for key, name in FILES.items()}
+
+
+def _write_files(sim: Simulation, out: Path) -> None:
     paths = {key: out / name for key, name in FILES.items()}
     sim.truth_signals.save(paths["truth_signals"])
     text = json.dumps(sim.truth, indent=1, allow_nan=False).encode() + b"\n"
@@ -44,5 +109,4 @@ def write_simulation(sim: Simulation, out_dir: str | Path) -> dict[str, str]:
 
     atomic_write(paths["truth"], write)
     write_csv(sim.dataset, paths["csv"])
-    sim.dataset.save(paths["dataset"])  # last: its presence means the run completed
-    return {key: str(p) for key, p in paths.items()}
+    sim.dataset.save(paths["dataset"])
