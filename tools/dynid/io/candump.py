@@ -8,7 +8,10 @@ Reading. Frames are taken in stamp order (as the monitor's frame sources hand th
 frame is decoded once. Sample assembly is the monitor's (rt_monitor/README.md): one sample per clock frame; where
 the clock frame is the second half of a pair (the iCub strain board's torque half), only when its first half came at
 most `pair_us` before with no other first half between (halves of two samples are never mixed); every other pair's
-values are its latest complete pair; every other value, and the skin, is the latest before the sample. Frames of
+values are its latest complete pair; every other value, and the skin, is the latest before the sample. The dataset
+has a contact column (any skin bit set) only where the log carries the frames of the description's skin targets, every
+patch's: a bus without skin (the iCub leg's) or a log without those frames gives a run with no contact ground truth,
+never one known to be contact-free (a log with some patches' frames only: left out, with a note). Frames of
 unknown IDs or buses, wrong lengths, reserved bits set and error frames are skipped; so are lines that are no classic
 frame, counted in `meta.skipped_lines`. A log with no complete sample, or a frame the samples need that never comes
 before the last one, is refused with one line.
@@ -28,13 +31,14 @@ from __future__ import annotations
 import os
 import re
 import tempfile
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from ..config.bus import BusDescription, BusFrame, BusSignal, is_value_target
 from ..config.robot_config import RobotConfig
-from ..errors import DataError
+from ..errors import DataError, DataNote
 from .can_database import BusCodec, codec_of
 from .dataset import FT_CHANNELS, Dataset
 
@@ -156,14 +160,23 @@ def read_candump(path: str | Path, config: RobotConfig) -> Dataset:
     jidx = {name: i for i, name in enumerate(config.joints)}
     families: dict[str, dict[str, np.ndarray]] = {"pwm": {}, "current": {}, "tau": {}}
     ft: dict[str, np.ndarray] = {}
-    contact = np.zeros(n, np.uint8)
+    # Contact ground truth only where the log carries it: the frames of every skin target (contact bits) of the
+    # description. A bus with none (the iCub leg's), or a log without their frames, records no contact, not "no
+    # contact"; a log with some patches' frames but not others' knows contact on part of the robot only: left out.
+    skin_frames = [f for f in bus.frames if any(s.target.startswith("skin.") for s in f.signals)]
+    silent = [f for f in skin_frames if not got[f.name][0].size]
+    contact = np.zeros(n, np.uint8) if skin_frames and not silent else None
+    if skin_frames and silent and len(silent) < len(skin_frames):
+        patches = sorted({s.target[5:] for f in silent for s in f.signals if s.target.startswith("skin.")})
+        warnings.warn(DataNote(
+            f"{path}: no {', '.join(where(f) for f in silent)} in the log: the contact of skin patch"
+            f"{'es' * (len(patches) != 1)} {', '.join(patches)} is unknown, so the run has no contact ground truth "
+            "(its contact column is left out)"), stacklevel=2)
     for f in bus.frames:
-        targets = [s for s in f.signals if is_value_target(s.target) or s.target.startswith("skin.")]
+        targets = [s for s in f.signals if is_value_target(s.target)
+                   or (contact is not None and s.target.startswith("skin."))]
         if not targets:
             continue
-        skin_only = all(s.target.startswith("skin.") for s in targets)
-        if skin_only and not got[f.name][0].size:
-            continue  # no skin frames: no contact recorded
         at = latest(f)
         values = got[f.name][1]
         for s in targets:
@@ -177,6 +190,7 @@ def read_candump(path: str | Path, config: RobotConfig) -> Dataset:
                 sensor, _, comp = name.rpartition(".")
                 ft.setdefault(sensor, np.full((n, 6), np.nan))[:, FT_CHANNELS.index(comp)] = v
             elif family == "skin":
+                assert contact is not None
                 contact |= (v != 0).astype(np.uint8)
             else:
                 families[family][name] = v
@@ -196,7 +210,8 @@ def read_candump(path: str | Path, config: RobotConfig) -> Dataset:
                    pwm={m: v[keep] for m, v in families["pwm"].items()},
                    current={m: v[keep] for m, v in families["current"].items()},
                    tau={j: v[keep] for j, v in families["tau"].items()},
-                   ft={s: v[keep] for s, v in ft.items()}, contact=contact[keep], extra=extra,
+                   ft={s: v[keep] for s, v in ft.items()}, contact=None if contact is None else contact[keep],
+                   extra=extra,
                    meta={"source": str(path), "source_format": "candump", "robot": config.name,
                          "messages": sorted(f.name for f in bus.frames), "skipped_lines": skipped})
 
