@@ -55,7 +55,6 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
         + ("" if dataset.dq is not None else "\n  no dq/ddq columns: derivatives will be estimated from q when needed")
         + (f"\n  extra columns kept: {len(dataset.extra)} ({', '.join(sorted(dataset.extra)[:4])}"
            f"{', ...' if len(dataset.extra) > 4 else ''})" if dataset.extra else "")
-        + (f"\n  skipped {skipped} malformed line{'s' * (skipped != 1)} of the candump log" if skipped else "")
     )
     bad = skipped_rows(args.data, dataset.meta) if fresh else None
     ros2 = dataset.meta.get("ros2") if fresh else None

@@ -9,12 +9,13 @@ dataset (`meta["bad_rows"]`) into the command's output, its `--json` and the mod
 A row is bad, and counted under the first of these kinds that applies:
 
 ==================  ===========================================================================================
-``cut_short``       the file's last line, with no line end, with fewer fields than a row has (the logger stopped);
-                    in a folder of files, the samples a file lacks where it ends before the others, or a partial last
-                    sample of a one-value-a-line file (dynid.io.file_set)
+``cut_short``       the file's last line, with no line end, with fewer fields than a row has (the logger stopped; a
+                    candump log's: no frame line); in a folder of files, the samples a file lacks where it ends
+                    before the others, or a partial last sample of a one-value-a-line file (dynid.io.file_set)
 ``empty``           a blank line between rows
 ``column_count``    another number of fields than a row has
 ``not_a_number``    a cell that is not a decimal number
+``not_a_frame``     a candump log's line that is no frame line (dynid.io.candump)
 ``non_finite``      a nan or an inf
 ``out_of_range``    a measured value beyond ±`MAX_ABS_VALUE` (1e6: no sensor of an arm reads a million N, Nm, A,
                     rad/s), or a time beyond ±`MAX_ABS_TIME`; positions, inputs, torques, wrenches and derivatives
@@ -49,6 +50,7 @@ KINDS: dict[str, str] = {  # kind -> how a refusal counts it ("9 with a value be
     "empty": "empty",
     "column_count": "with a wrong number of fields",
     "not_a_number": "with a cell that is not a number",
+    "not_a_frame": "not a candump -L frame",
     "non_finite": "with a non-finite value",
     "out_of_range": f"with a value beyond ±{MAX_ABS_VALUE:g}",
     "time_negative": "with a negative time",
@@ -63,7 +65,7 @@ class Malformed:
     """A line that did not parse into a row: its 0-based row number (as the reader numbers rows) and why."""
 
     row: int
-    kind: str  # cut_short, empty, column_count or not_a_number
+    kind: str  # cut_short, empty, column_count, not_a_number or not_a_frame
     detail: str  # the reader's own sentence for it, e.g. "row 3 (line 4) has 2 fields, but the header has 4 columns"
 
 

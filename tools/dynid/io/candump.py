@@ -12,9 +12,12 @@ values are its latest complete pair; every other value, and the skin, is the lat
 has a contact column (any skin bit set) only where the log carries the frames of the description's skin targets, every
 patch's: a bus without skin (the iCub leg's) or a log without those frames gives a run with no contact ground truth,
 never one known to be contact-free (a log with some patches' frames only: left out, with a note). Frames of
-unknown IDs or buses, wrong lengths, reserved bits set and error frames are skipped; so are lines that are no classic
-frame, counted in `meta.skipped_lines`. A log with no complete sample, or a frame the samples need that never comes
-before the last one, is refused with one line.
+unknown IDs or buses, wrong lengths, reserved bits set, extended, remote and error frames are skipped (bus traffic, as
+the monitor counts it); blank lines and `#` comments are no lines of the log. Any other line (garbage, an odd number
+of hex digits, a CAN FD frame, a last line cut short) is a bad row of the log (dynid.io.bad_rows: `not_a_frame`, or
+`cut_short` for a last line with no line end): refused with its line number by default, dropped and counted in
+`meta.bad_rows` (and `meta.skipped_lines`) with `bad_rows="skip"`, as a CSV's bad rows are. A log with no frame at
+all, no complete sample, or a frame the samples need that never comes before the last one, is refused with one line.
 
 Writing, per sample k at t_k (t0 + the data's time) and frame, in the description's send order: at t_k + the
 frame's `offset_us` (the iCub boards: POSITION and PID_VAL at −300 µs, STATUS −250 µs every 10 ms, skin −200 µs,
@@ -39,12 +42,48 @@ import numpy as np
 from ..config.bus import BusDescription, BusFrame, BusSignal, is_value_target
 from ..config.robot_config import RobotConfig
 from ..errors import DataError, DataNote
+from .bad_rows import DEFAULT_POLICY, BadRows, Malformed, apply_policy
 from .can_database import BusCodec, codec_of
 from .dataset import FT_CHANNELS, Dataset
 
 # A frame line. At most 12 digits of seconds (31 700 years), so that the stamp in µs fits int64; whole bytes of
-# payload only (an odd hex digit would shift every later frame's bytes). Any other line is skipped.
-_LINE = re.compile(rb"^\((\d{1,12})\.(\d{6})\)\s+(\S+)\s+([0-9A-Fa-f]{3})#((?:[0-9A-Fa-f]{2}){0,8})\s*$", re.M)
+# payload only (an odd hex digit would shift every later frame's bytes). Fields are separated within the line.
+_STAMP = rb"^[ \t]*\((\d{1,12})\.(\d{6})\)[ \t]+(\S+)[ \t]+"
+_LINE = re.compile(_STAMP + rb"([0-9A-Fa-f]{3})#((?:[0-9A-Fa-f]{2}){0,8})[ \t\r]*$", re.M)
+# A well-formed line of a frame no bus description holds: an extended or error frame (8-digit ID, candump prints an
+# error frame with its flag in the ID) or a remote frame. Bus traffic, skipped as a frame of an unknown ID is (and as
+# rt_monitor --replay takes them), not a damaged log.
+_OTHER = re.compile(_STAMP + rb"(?:[0-9A-Fa-f]{8}#(?:[Rr][0-8]?|(?:[0-9A-Fa-f]{2}){0,8})|[0-9A-Fa-f]{3}#[Rr][0-8]?)"
+                    rb"[ \t\r]*$", re.M)
+_FD = re.compile(_STAMP + rb"[0-9A-Fa-f]+##")
+SHOW_CHARS = 60  # of a bad line, in its refusal
+
+
+def _bad_lines(text: bytes, frames: int) -> tuple[list[Malformed], int]:
+    """The lines of the log that are neither a frame (`frames` of them matched `_LINE`), another frame (`_OTHER`),
+    blank nor a `#` comment, each a `Malformed` of its 0-based line number; and how many lines are not blank."""
+    lines = text.split(b"\n")
+    content = [k for k, line in enumerate(lines) if line.strip() and not line.lstrip().startswith(b"#")]
+    if len(content) == frames + len(_OTHER.findall(text)):
+        return [], len(content)
+    cut = len(lines) - 1 if not text.endswith(b"\n") else -1  # a last line with no line end: the logger stopped
+    bad = []
+    for k in content:
+        line = lines[k]
+        if _LINE.match(line) or _OTHER.match(line):
+            continue
+        shown = line.decode("utf-8", "backslashreplace").strip()
+        shown = repr(shown if len(shown) <= SHOW_CHARS else shown[: SHOW_CHARS - 3] + "...")
+        if k == cut:
+            bad.append(Malformed(k, "cut_short", f"line {k + 1}, the last, has no line end and is no frame: {shown} "
+                                 "(the log was cut short)"))
+        elif _FD.match(line):
+            bad.append(Malformed(k, "not_a_frame", f"line {k + 1} is a CAN FD frame, {shown}: the log of a classic-CAN "
+                                 "bus has none"))
+        else:
+            bad.append(Malformed(k, "not_a_frame", f"line {k + 1} is no classic-CAN candump -L frame "
+                                 f"'(SECONDS.MICROSECONDS) IFACE ID#HEXDATA': {shown}"))
+    return bad, len(content)
 
 
 def _decode_rows(codec: BusCodec, frame: BusFrame, payload: np.ndarray, dlc: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
@@ -69,7 +108,9 @@ def _decode_rows(codec: BusCodec, frame: BusFrame, payload: np.ndarray, dlc: np.
     return values, good
 
 
-def read_candump(path: str | Path, config: RobotConfig) -> Dataset:
+def read_candump(path: str | Path, config: RobotConfig, bad_rows: str = DEFAULT_POLICY) -> Dataset:
+    """The log's samples (module docstring); its bad lines refused or, with `bad_rows="skip"`, dropped and recorded
+    in `meta["bad_rows"]` (dynid.io.bad_rows)."""
     path = Path(path)
     bus = config.bus
     if bus is None:
@@ -80,9 +121,13 @@ def read_candump(path: str | Path, config: RobotConfig) -> Dataset:
     except OSError as e:
         raise DataError(f"cannot read {path}: {e.strerror or e}") from None
     rows = _LINE.findall(text)
-    skipped = sum(1 for line in text.split(b"\n") if line.strip()) - len(rows)  # malformed lines, told by import
     if not rows:
         raise DataError(f"{path}: no classic-CAN candump -L frame in the file")
+    # Lines that are no frame (garbage, a line cut short): bad rows, refused or dropped and counted as a CSV's are.
+    bad, total = _bad_lines(text, len(rows))
+    found = BadRows(np.array([m.row for m in bad], np.int64), tuple(m.kind for m in bad), bad[0].detail, total) \
+        if bad else None
+    dropped = apply_policy(found, np.ones(1, bool), bad_rows, str(path), lambda k: f"line {k + 1}")
     rows.sort(key=lambda r: int(r[0]) * 1_000_000 + int(r[1]))
     t_us = np.array([int(a) * 1_000_000 + int(b) for a, b, *_ in rows], np.int64)
     # A bus name that is no UTF-8 is no configured bus: its frames are skipped like those of any other bus.
@@ -213,7 +258,8 @@ def read_candump(path: str | Path, config: RobotConfig) -> Dataset:
                    ft={s: v[keep] for s, v in ft.items()}, contact=None if contact is None else contact[keep],
                    extra=extra,
                    meta={"source": str(path), "source_format": "candump", "robot": config.name,
-                         "messages": sorted(f.name for f in bus.frames), "skipped_lines": skipped})
+                         "messages": sorted(f.name for f in bus.frames), "skipped_lines": len(bad),
+                         **({"bad_rows": dropped} if dropped is not None else {})})
 
 
 # ---- writing ----

@@ -124,7 +124,7 @@ def _load(
             raise DataError(f"{path}: {e}") from None
         return dataset
     if suffix == ".log" or _CANDUMP_LINE.match(first_line):
-        dataset = read_candump(path, config)
+        dataset = read_candump(path, config, bad_rows=bad_rows)
         check_matches_config(dataset, config, require_all=require_all, source=str(path))
         return dataset
     if suffix in (".csv", ".txt") and config.columns and looks_headerless(head):
