@@ -130,6 +130,63 @@ def test_a_damaged_port_is_one_line(tmp_path: Path, damage, message: str) -> Non
     assert "\n" not in str(info.value)
 
 
+def _damage_lines(path: Path, lines: dict[int, str]) -> None:
+    """Replace the given 1-based lines of a port's data.log."""
+    text = path.read_text().splitlines()
+    for k, line in lines.items():
+        text[k - 1] = line
+    path.write_text("\n".join(text) + "\n")
+
+
+def test_a_bad_line_is_refused_by_default_and_skip_drops_that_ports_message(tmp_path: Path) -> None:
+    """A line cut to 3 values in one port: refused by default naming its file and line; with skip, that port's message
+    is dropped and its neighbours interpolated across it (the signals are linear in time: exactly), the other port and
+    every sample of the grid untouched."""
+    config = _config(tmp_path)
+    clean = load_data(_dumper(tmp_path), config)
+    root = _dumper(tmp_path / "bad")
+    log = root / "icub/right_arm/analog:o/data.log"
+    _damage_lines(log, {301: " ".join(log.read_text().splitlines()[300].split()[:5])})
+    with pytest.raises(DataError) as refused:
+        load_data(root, config)
+    assert str(refused.value) == (
+        f"{root}: icub/right_arm/analog:o/data.log line 301: 3 values (an F/T sensor's fx fy fz tx ty tz), the "
+        "configuration's port has 6 (1 bad row of 1210; --bad-rows skip drops bad rows and reports their count)")
+    data = load_data(root, config, bad_rows="skip")
+    assert data.n_samples == clean.n_samples and np.array_equal(data.t, clean.t)
+    np.testing.assert_allclose(data.ft["r_arm_ft"], clean.ft["r_arm_ft"], atol=1e-5)
+    np.testing.assert_array_equal(data.q, clean.q)
+    assert data.meta["bad_rows"] == {"policy": "skip", "count": 1, "rows_read": 1210, "kinds": {"column_count": 1},
+                                     "first": ["icub/right_arm/analog:o/data.log line 301"]}
+    assert data.meta["yarp"]["ports"]["icub/right_arm/analog:o"]["dropped_bad_lines"] == 1
+    assert data.meta["yarp"]["ports"]["icub/right_arm/analog:o"]["messages"] == 609
+
+
+def test_every_kind_of_bad_line_in_every_port_is_counted_at_once(tmp_path: Path) -> None:
+    config = _config(tmp_path)
+    root = _dumper(tmp_path)
+    state, ft = root / "icub/right_arm/stateExt:o/data.log", root / "icub/right_arm/analog:o/data.log"
+    _damage_lines(state, {100: "", 200: "300 -1.5 (" + "1 " * 9 + ") [ok]"})
+    _damage_lines(ft, {50: "150 1457614036.75 1 2 3 4 5 nan", 400: "500 1457614040.3 1 2 3 4 5 1e300",
+                       450: "550 1457614040.8 1 2 3 4 x 6"})
+    with pytest.raises(DataError, match=r": 5 bad rows of 1210: 1 empty, 1 with a cell that is not a number, 1 with a "
+                                        r"non-finite value, 1 with a value beyond ±1e\+06, 1 with a negative time; at "
+                                        r"icub/right_arm/stateExt:o/data.log line 100, .*line 200, "
+                                        r"icub/right_arm/analog:o/data.log line 50, .*line 400, .*line 450; the first: "
+                                        r"icub/right_arm/stateExt:o/data.log line 100: a blank line between messages"):
+        load_data(root, config)
+    data = load_data(root, config, bad_rows="skip")
+    assert data.meta["bad_rows"]["count"] == 5 and np.degrees(data.q).max() < 200
+
+
+def test_skipped_lines_that_leave_a_port_silent_are_refused_as_the_silence(tmp_path: Path) -> None:
+    config = _config(tmp_path)
+    root = _dumper(tmp_path)
+    _damage_lines(root / "icub/right_arm/stateExt:o/data.log", {k: "garbage" for k in range(300, 320)})
+    with pytest.raises(DataError, match=r"port icub/right_arm/stateExt:o is silent for 0\.2\d\d s from t = "):
+        load_data(root, config, bad_rows="skip")
+
+
 @pytest.mark.parametrize(
     "yarp, message",
     [

@@ -220,8 +220,9 @@ def window_args(sp: argparse.ArgumentParser) -> None:
     sp.add_argument("--to", dest="t_to", type=finite_float, metavar="S", help="use the data up to this time (s)")
     sp.add_argument("--bad-rows", choices=BAD_ROW_POLICIES, default=DEFAULT_POLICY,
                     help="a log's bad rows (cut short, wrong field count, not a number, non-finite, beyond ±1e6, "
-                    "time negative or not increasing): refuse the run naming them (default), or skip them and "
-                    "report how many were dropped (in the output, --json and the model file)")
+                    "time negative or not increasing; a candump line that is no frame; a YARP port's bad line): "
+                    "refuse the run naming them (default), or skip them and report how many were dropped (in the "
+                    "output, --json and the model file)")
 
 
 Window = tuple[float | None, float | None]

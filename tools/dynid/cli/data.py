@@ -64,7 +64,7 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
     if yarp:  # what aligning the ports did (dynid.io.yarp)
         print(f"  yarp ports on one {yarp['rate_hz']:g} Hz time base (time 0 = Unix {yarp['origin_unix_s']:.3f} s):")
         for port, p in yarp["ports"].items():
-            dropped = p["dropped_not_increasing"] + p["dropped_cut_last_line"]
+            dropped = p["dropped_not_increasing"] + p["dropped_cut_last_line"] + p.get("dropped_bad_lines", 0)
             print(f"    {port}: {p['messages']} messages, every {1e3 * p['median_interval_s']:.1f} ms (longest "
                   f"{1e3 * p['max_interval_s']:.1f} ms)" + (f", {dropped} dropped" if dropped else ""))
     return {

@@ -12,7 +12,16 @@ positions. An `analog:o` payload is the sensor's six values. Every port has its 
   invents nor hides a silence: a port silent for longer than `max_gap` inside the span is refused, naming the
   port, the time and the silence;
 - a message whose stamp does not increase (a port re-sending) is dropped and counted; a last line cut short (the
-  dumper stopped mid-write) is dropped and counted; any other malformed line is refused with its file and line.
+  dumper stopped mid-write) is dropped and counted;
+- any other line that is no message of the port is a bad row (dynid.io.bad_rows: `empty`, `column_count` for a
+  missing field or another number of values than the port has, `not_a_number`, `non_finite`, `time_negative` for a
+  negative stamp, `out_of_range` for a value beyond ±1e6 in the project's units), found in every port at once.
+  `bad_rows="refuse"` (the default) refuses the folder in one line naming the port's file and line; `"skip"` drops
+  the line. A line is one message of one port, so skipping it leaves that port one message fewer: its neighbours are
+  interpolated across the gap, as across any interval of its clock, and every sample of the grid is kept (the other
+  ports' messages are untouched); dropped lines that leave the port silent for longer than `max_gap` inside the span
+  are refused as that silence. The count is in lines: `meta["bad_rows"]`'s `rows_read` is the configured ports'
+  lines, its rows are named `PORT/data.log line K`.
 
 What was done is recorded in the dataset's `meta["yarp"]`: the time origin (Unix s) and, per port, the messages
 read, dropped, the median and largest interval.
@@ -32,6 +41,7 @@ from ..config.robot_config import RobotConfig
 from ..config.yarp_ports import YarpPort
 from ..errors import DataError
 from .align import Stream, keep_increasing, on_grid, uniform_grid
+from .bad_rows import DEFAULT_POLICY, KINDS, MAX_ABS_VALUE, SHOW_LINES, BadRows, Malformed, apply_policy
 from .csv_format import check_columns, table_dataset
 from .dataset import FT_CHANNELS, Dataset
 
@@ -49,6 +59,8 @@ class _PortLog:
     values: np.ndarray  # (M, K) in the project's units
     dropped_stale: int
     dropped_cut: int
+    bad: list[Malformed]  # its lines that are no message (0-based line numbers), refused or dropped by the policy
+    lines: int  # lines in its data.log
 
 
 def _read_port(root: Path, spec: YarpPort) -> _PortLog:
@@ -67,51 +79,59 @@ def _read_port(root: Path, spec: YarpPort) -> _PortLog:
     width = len(spec.joints) if spec.joints else 6
     stamps: list[float] = []
     rows: list[list[float]] = []
+    bad: list[Malformed] = []
     cut = 0
+    scale = np.asarray(spec.scale)
     for k, line in enumerate(lines):
         parsed = _parse_line(line, bool(spec.joints), width)
-        if isinstance(parsed, str):
+        if not isinstance(parsed[0], str) and np.any(np.abs(np.asarray(parsed[1]) * scale) > MAX_ABS_VALUE):
+            parsed = ("out_of_range", f"a value beyond ±{MAX_ABS_VALUE:g} in the project's units (N, Nm, rad), which "
+                                      "no sensor reads: a corrupt value")
+        if isinstance(parsed[0], str):
             if k == len(lines) - 1 and not text.endswith("\n"):
                 cut += 1  # the dumper stopped mid-line
                 continue
-            raise DataError(f"{path}: line {k + 1}: {parsed}")
+            bad.append(Malformed(k, parsed[0], f"{spec.port}/data.log line {k + 1}: {parsed[1]}"))
+            continue
         stamps.append(parsed[0])
         rows.append(parsed[1])
-    if len(stamps) < 2:
-        raise DataError(f"{path}: {len(stamps)} message(s): a port needs at least two")
     t = np.asarray(stamps)
-    values = np.asarray(rows) * np.asarray(spec.scale)
+    values = np.asarray(rows, dtype=float).reshape(-1, width) * scale
     keep = keep_increasing(t)  # drop messages that do not move the port's clock forward
-    return _PortLog(t[keep], values[keep], int((~keep).sum()), cut)
+    return _PortLog(t[keep], values[keep], int((~keep).sum()), cut, bad, len(lines))
 
 
-def _parse_line(line: str, state: bool, width: int) -> tuple[float, list[float]] | str:
-    """`(stamp, values)` of one message, or what is wrong with it."""
+def _parse_line(line: str, state: bool, width: int) -> tuple[float, list[float]] | tuple[str, str]:
+    """`(stamp, values)` of one message, or the bad-row kind (dynid.io.bad_rows) and what is wrong with it."""
     head = line.split(None, 2)
     if len(head) < 3:
-        return "expected '<sequence> <stamp> <payload>'"
+        if not line.strip():
+            return "empty", "a blank line between messages"
+        return "column_count", "expected '<sequence> <stamp> <payload>'"
     try:
         stamp = float(head[1])
     except ValueError:
-        return f"the stamp {head[1][:40]!r} is not a number"
-    if not np.isfinite(stamp) or stamp < 0:
-        return f"the stamp {head[1][:40]!r} is not a time"
+        return "not_a_number", f"the stamp {head[1][:40]!r} is not a number"
+    if not np.isfinite(stamp):
+        return "non_finite", f"the stamp {head[1][:40]!r} is not a time"
+    if stamp < 0:
+        return "time_negative", f"the stamp {head[1][:40]!r} is not a time"
     payload = head[2]
     if state:
         groups = _GROUP.findall(payload)
         if not groups:
-            return "no parenthesised group: not a stateExt:o message"
+            return "column_count", "no parenthesised group: not a stateExt:o message"
         payload = groups[0]
     cells = payload.split()
     if len(cells) != width:
         what = "joint positions" if state else "values (an F/T sensor's fx fy fz tx ty tz)"
-        return f"{len(cells)} {what}, the configuration's port has {width}"
+        return "column_count", f"{len(cells)} {what}, the configuration's port has {width}"
     try:
         values = [float(c) for c in cells]
     except ValueError:
-        return f"{payload.strip()[:60]!r} holds a value that is not a number"
+        return "not_a_number", f"{payload.strip()[:60]!r} holds a value that is not a number"
     if not all(np.isfinite(values)):
-        return "a value is not finite"
+        return "non_finite", "a value is not finite"
     return stamp, values
 
 
@@ -124,8 +144,24 @@ def _first_stamp(path: Path) -> float | None:
         return None
 
 
+def _bad_lines(root: Path, layout, logs: dict[str, _PortLog], policy: str) -> dict | None:
+    """The ports' bad lines refused (one line naming the first few) or, with `skip`, what `meta["bad_rows"]` records;
+    None when every line is a message. Lines are numbered over the ports in the configuration's order."""
+    rows, kinds, labels, first, total = [], [], {}, "", 0
+    for spec in layout.ports:
+        log = logs[spec.port]
+        for m in log.bad:
+            rows.append(total + m.row)
+            kinds.append(m.kind)
+            labels[total + m.row] = f"{spec.port}/data.log line {m.row + 1}"
+            first = first or m.detail
+        total += log.lines
+    found = BadRows(np.asarray(rows, np.int64), tuple(kinds), first, total) if rows else None
+    return apply_policy(found, np.ones(1, bool), policy, str(root), lambda i: labels[i])
+
+
 def read_yarp(path: str | Path, config: RobotConfig, joint_limits=None, require_all: bool = True,
-              bad_rows: str = "refuse") -> Dataset:
+              bad_rows: str = DEFAULT_POLICY) -> Dataset:
     """Import a yarpdatadumper folder described by `config.yarp` as a `Dataset` (module docstring)."""
     root = Path(path)
     layout = config.yarp
@@ -135,6 +171,12 @@ def read_yarp(path: str | Path, config: RobotConfig, joint_limits=None, require_
             "ports (docs/formats.md, Robot configuration)"
         )
     logs = {spec.port: _read_port(root, spec) for spec in layout.ports}
+    dropped = _bad_lines(root, layout, logs, bad_rows)  # refused here by default
+    for spec in layout.ports:
+        if logs[spec.port].stamps.size < 2:
+            n = logs[spec.port].stamps.size
+            raise DataError(f"{root / spec.port / 'data.log'}: {n} message{'s' * (n != 1)}"
+                            f"{' left' if logs[spec.port].bad else ''}: a port needs at least two")
     origin_candidates = [s for s in (_first_stamp(p) for p in root.glob("**/data.log")) if s is not None]
     origin = min([*origin_candidates, *(log.stamps[0] for log in logs.values())])
     streams = [Stream(port, log.stamps, log.values) for port, log in logs.items()]
@@ -160,6 +202,14 @@ def read_yarp(path: str | Path, config: RobotConfig, joint_limits=None, require_
         root, b"", names, columns, data, config, joint_limits, "yarp dumper", lambda i: f"sample {i + 1}",
         bad_rows=bad_rows)
     dataset.meta["source_sha256"] = digest.hexdigest()
+    if dropped is not None:  # the ports' lines skipped; the grid's own rows were checked by table_dataset
+        samples = dataset.meta.get("bad_rows")
+        if samples:  # grid samples dropped too (not expected: the lines' values are checked, the grid's t increases)
+            kinds = {k: dropped["kinds"].get(k, 0) + samples["kinds"].get(k, 0) for k in KINDS
+                     if k in dropped["kinds"] or k in samples["kinds"]}
+            dropped = {**dropped, "count": dropped["count"] + samples["count"], "kinds": kinds,
+                       "first": (dropped["first"] + samples["first"])[:SHOW_LINES]}
+        dataset.meta["bad_rows"] = dropped
     dataset.meta["yarp"] = {
         "origin_unix_s": float(origin),
         "rate_hz": layout.rate,
@@ -168,6 +218,7 @@ def read_yarp(path: str | Path, config: RobotConfig, joint_limits=None, require_
                 "messages": int(logs[spec.port].stamps.size),
                 "dropped_not_increasing": logs[spec.port].dropped_stale,
                 "dropped_cut_last_line": logs[spec.port].dropped_cut,
+                "dropped_bad_lines": len(logs[spec.port].bad) if dropped is not None else 0,
                 "first_s": float(logs[spec.port].stamps[0]),
                 "median_interval_s": float(np.median(np.diff(logs[spec.port].stamps))),
                 "max_interval_s": float(np.max(np.diff(logs[spec.port].stamps))),
