@@ -6,13 +6,14 @@ checked; the ports tick at ~100 Hz with their own jitter, as the iCub's do.
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from dynid.config.robot_config import load_config
-from dynid.errors import ConfigError, DataError
+from dynid.errors import ConfigError, DataError, DataNote
 from dynid.io.load import load_data
 
 ARM = ["r_shoulder_pitch", "r_shoulder_roll", "r_shoulder_yaw", "r_elbow", "r_wrist_prosup", "r_wrist_pitch", "r_wrist_yaw"]
@@ -187,11 +188,69 @@ def test_skipped_lines_that_leave_a_port_silent_are_refused_as_the_silence(tmp_p
         load_data(root, config, bad_rows="skip")
 
 
+def _keep_lines(path: Path, lines: slice) -> None:
+    path.write_text("".join(line + "\n" for line in path.read_text().splitlines()[lines]))
+
+
+def test_a_port_that_ends_long_before_the_others_is_cut_short_refused_or_skipped_with_a_note(tmp_path: Path) -> None:
+    """A port's log cut in half (the others run 3 s longer, more than yarp.max_skew): the run would silently end
+    where it does. Refused by default naming the port and where it ends against the others, as a folder of files
+    refuses a file that ends before the others; with skip the run ends there, the others' messages after it counted as
+    cut short, and a note names the port."""
+    config = _config(tmp_path)
+    clean = load_data(_dumper(tmp_path), config)
+    root = _dumper(tmp_path / "cut")
+    _keep_lines(root / "icub/right_arm/analog:o/data.log", slice(0, 300))
+    with pytest.raises(DataError, match=r"^\S+/cut/dump: (\d+) bad rows of 900: \1 cut short; at "
+                                        r"icub/right_arm/stateExt:o/data.log line \d+, line \d+, .*; the first: "
+                                        r"icub/right_arm/analog:o/data.log ends at t = 3\.\d{3} s, 3\.\d{3} s before "
+                                        r"icub/right_arm/stateExt:o/data.log \(6\.\d{3} s\), by more than the 2 s the "
+                                        r"ports' ends may differ \(yarp.max_skew\): the \1 messages the other ports hold "
+                                        r"after it are cut short \(--bad-rows skip"):
+        load_data(root, config)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", DataNote)
+        data = load_data(root, config, bad_rows="skip")
+    notes = [str(w.message) for w in caught if issubclass(w.category, DataNote)]
+    assert len(notes) == 1 and "icub/right_arm/analog:o/data.log ends at t = 3." in notes[0] and "the run ends there" \
+        in notes[0]
+    ports = data.meta["yarp"]["ports"]
+    assert data.meta["bad_rows"]["kinds"] == {"cut_short": ports["icub/right_arm/stateExt:o"]["cut_short"]} != {}
+    assert data.t[-1] <= ports["icub/right_arm/analog:o"]["last_s"] < data.t[-1] + 0.01
+    np.testing.assert_array_equal(data.q, clean.q[: data.n_samples])  # the same grid, shorter
+
+
+def test_a_port_that_starts_long_after_the_others_is_cut_short_too(tmp_path: Path) -> None:
+    config = _config(tmp_path)
+    root = _dumper(tmp_path)
+    _keep_lines(root / "icub/right_arm/stateExt:o/data.log", slice(300, None))
+    with pytest.raises(DataError, match=r"icub/right_arm/stateExt:o/data.log starts at t = 3\.\d{3} s, 3\.\d{3} s after "
+                                        r"icub/right_arm/analog:o/data.log \(0\.\d{3} s\), by more than the 2 s the "
+                                        r"ports' starts may differ"):
+        load_data(root, config)
+    with pytest.warns(DataNote, match="the run starts there"):
+        assert load_data(root, config, bad_rows="skip").t[0] > 3.0
+
+
+def test_ports_that_start_and_stop_within_max_skew_are_cut_to_the_common_span_as_ever(tmp_path: Path) -> None:
+    """The dumpers start and stop one after another (the iCub leg's ports end up to 1.24 s apart): the run is their
+    common span, no bad row, no note; a configuration that allows less skew refuses the same folder."""
+    root = _dumper(tmp_path)
+    _keep_lines(root / "icub/right_arm/analog:o/data.log", slice(0, 560))  # 0.5 s before the other port's end
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        data = load_data(root, _config(tmp_path))
+    assert "bad_rows" not in data.meta and data.meta["yarp"]["ports"]["icub/right_arm/stateExt:o"]["cut_short"] == 0
+    with pytest.raises(DataError, match=r"by more than the 0.2 s the ports' ends may differ \(yarp.max_skew\)"):
+        load_data(root, _config(tmp_path, "  max_skew: 0.2\n" + PORTS))
+
+
 @pytest.mark.parametrize(
     "yarp, message",
     [
         ("  ports: []", r"field 'yarp.ports' must be a list"),
         ("  rate: 0\n" + PORTS, r"field 'yarp.rate' must be a number from 1"),
+        ("  max_skew: -1\n" + PORTS, r"field 'yarp.max_skew' must be a number from 0 to 3600, got -1"),
         ("  ports:\n    - {port: a/b, joints: [r_elbow], sensor: r_arm_ft}", r"either 'joints'.*or 'sensor'"),
         ("  ports:\n    - {port: a/b, joints: [nope]}", r"names 'nope', which is not in the configuration's 'joints'"),
         ("  ports:\n    - {port: ../x, sensor: r_arm_ft}", r"'yarp.ports\[0\].port' must be the port's folder"),

@@ -18,7 +18,7 @@ from threadpoolctl import threadpool_limits
 
 from ..config.robot_config import DEFAULT_ROBOT, RobotConfig, load_config
 from ..errors import EXIT_BAD_INPUT, InputError
-from ..io.bad_rows import DEFAULT_POLICY, KINDS
+from ..io.bad_rows import DEFAULT_POLICY, KINDS, join_labels
 from ..io.bad_rows import POLICIES as BAD_ROW_POLICIES
 from ..io.dataset import atomic_write
 from ..io.run_paths import expand
@@ -317,7 +317,7 @@ def skipped_rows(label: str, meta: dict[str, Any]) -> dict[str, Any] | None:
         return None
     kinds = ", ".join(f"{n} {KINDS[k]}" for k, n in dropped["kinds"].items())
     print(f"  {label}: skipped {plural(dropped['count'], 'bad row')} of {dropped['rows_read']} ({kinds}; first at "
-          f"{', '.join(dropped['first'])})")
+          f"{join_labels(dropped['first'])})")
     return dropped
 
 

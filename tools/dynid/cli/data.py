@@ -65,8 +65,10 @@ def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
         print(f"  yarp ports on one {yarp['rate_hz']:g} Hz time base (time 0 = Unix {yarp['origin_unix_s']:.3f} s):")
         for port, p in yarp["ports"].items():
             dropped = p["dropped_not_increasing"] + p["dropped_cut_last_line"] + p.get("dropped_bad_lines", 0)
-            print(f"    {port}: {p['messages']} messages, every {1e3 * p['median_interval_s']:.1f} ms (longest "
-                  f"{1e3 * p['max_interval_s']:.1f} ms)" + (f", {dropped} dropped" if dropped else ""))
+            print(f"    {port}: {p['messages']} messages from {p['first_s']:.3f} s to {p['last_s']:.3f} s, every "
+                  f"{1e3 * p['median_interval_s']:.1f} ms (longest {1e3 * p['max_interval_s']:.1f} ms)"
+                  + (f", {dropped} dropped" if dropped else "")
+                  + (f", {p['cut_short']} cut short (beyond another port's start or end)" if p.get("cut_short") else ""))
     return {
         "robot": config.name,
         "samples": dataset.n_samples,

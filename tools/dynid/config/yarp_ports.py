@@ -7,6 +7,8 @@ names the ports to read and what each holds:
 yarp:
   rate: 100            # Hz: the common time base the ports are interpolated onto (default: 100)
   max_gap: 0.1         # s: a longer silence of a port inside the run is refused (default: 0.1)
+  max_skew: 2.0        # s: how far the ports' first (and last) stamps may differ, the dumpers started and stopped one
+                       #    after another; a port that starts later or ends sooner cuts the run short (default: 2)
   ports:
     - {port: icub/right_leg/stateExt:o, joints: [r_hip_pitch, ..., r_ankle_roll]}   # "_" skips a port's joint
     - {port: icub/right_leg/analog:o, sensor: r_leg_ft}
@@ -40,6 +42,7 @@ class YarpLayout:
     ports: tuple[YarpPort, ...]
     rate: float = 100.0  # Hz
     max_gap: float = 0.1  # s
+    max_skew: float = 2.0  # s
 
 
 def parse_yarp(robot: str, value: Any, joints: tuple[str, ...], sensors: tuple[str, ...]) -> YarpLayout | None:
@@ -52,14 +55,15 @@ def parse_yarp(robot: str, value: Any, joints: tuple[str, ...], sensors: tuple[s
         return f"{robot}: field 'yarp.{key}'"
 
     if not isinstance(value, dict):
-        raise ConfigError(f"{where} must be a mapping with 'ports' (and optionally 'rate', 'max_gap')")
-    unknown = sorted(set(value) - {"ports", "rate", "max_gap"})
+        raise ConfigError(f"{where} must be a mapping with 'ports' (and optionally 'rate', 'max_gap', 'max_skew')")
+    unknown = sorted(set(value) - {"ports", "rate", "max_gap", "max_skew"})
     if unknown:
-        raise ConfigError(f"{where} has an unknown key '{unknown[0]}' (known: ports, rate, max_gap)")
+        raise ConfigError(f"{where} has an unknown key '{unknown[0]}' (known: ports, rate, max_gap, max_skew)")
     rate = _number(value.get("rate", 100.0), fld("rate"), 1.0, 100000.0)
     max_gap = _number(value.get("max_gap", 0.1), fld("max_gap"), 1e-4, 60.0)
     if max_gap < 1.0 / rate:
         raise ConfigError(f"{fld('max_gap')} ({max_gap:g} s) must be at least one period of 'rate' ({1 / rate:g} s)")
+    max_skew = _number(value.get("max_skew", 2.0), fld("max_skew"), 0.0, 3600.0)
     ports_raw = value.get("ports")
     if not isinstance(ports_raw, list) or not ports_raw:
         raise ConfigError(f"{fld('ports')} must be a list of ports, each with 'port' and 'joints' or 'sensor'")
@@ -119,7 +123,7 @@ def parse_yarp(robot: str, value: Any, joints: tuple[str, ...], sensors: tuple[s
     missing = [j for j in joints if j not in covered_joints]
     if missing:
         raise ConfigError(f"{fld('ports')} gives no port for the joint '{missing[0]}'")
-    return YarpLayout(tuple(ports), rate, max_gap)
+    return YarpLayout(tuple(ports), rate, max_gap, max_skew)
 
 
 def _number(value: Any, where: str, lo: float, hi: float) -> float:

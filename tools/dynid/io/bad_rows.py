@@ -11,7 +11,9 @@ A row is bad, and counted under the first of these kinds that applies:
 ==================  ===========================================================================================
 ``cut_short``       the file's last line, with no line end, with fewer fields than a row has (the logger stopped; a
                     candump log's: no frame line); in a folder of files, the samples a file lacks where it ends
-                    before the others, or a partial last sample of a one-value-a-line file (dynid.io.file_set)
+                    before the others, or a partial last sample of a one-value-a-line file (dynid.io.file_set); in a
+                    YARP folder, the other ports' messages beyond a port that starts or ends more than `max_skew`
+                    after or before them (dynid.io.yarp)
 ``empty``           a blank line between rows
 ``column_count``    another number of fields than a row has
 ``not_a_number``    a cell that is not a decimal number
@@ -98,10 +100,20 @@ class BadRows:
             return DataError(f"{where}{self.first} (1 bad row of {self.total}; --bad-rows skip drops bad rows and "
                              "reports their count)")
         kinds = ", ".join(f"{n} {KINDS[k]}" for k, n in self.counts().items())
-        shown = ", ".join(label(int(r)) for r in self.rows[:SHOW_LINES]) + (", ..." if self.count > SHOW_LINES else "")
+        shown = join_labels([label(int(r)) for r in self.rows[:SHOW_LINES]]) + (", ..." if self.count > SHOW_LINES else "")
         every = " (every row)" if self.count == self.total else ""
         return DataError(f"{where}{self.count} bad rows of {self.total}{every}: {kinds}; at {shown}; the first: "
                          f"{self.first} (--bad-rows skip drops them and reports the count)")
+
+
+def join_labels(labels: Sequence[str]) -> str:
+    """Rows named one after another, a file's name said once: "a.log line 3, line 4, b.log line 9"."""
+    shown, before = [], None
+    for label in labels:
+        prefix, sep, rest = label.rpartition(" line ")
+        shown.append(f"line {rest}" if sep and prefix == before else label)
+        before = prefix if sep else None
+    return ", ".join(shown)
 
 
 def find_bad_rows(data: np.ndarray, rows: np.ndarray, names: Sequence[str], kinds: Sequence[str], total: int,

@@ -7,6 +7,13 @@ positions. An `analog:o` payload is the sensor's six values. Every port has its 
 
 - the run's time origin is the earliest stamp of any port in the folder (so a window `--from/--to` means the same
   seconds whatever the configuration reads), and the common span is where every configured port has data;
+- the dumpers start and stop one after another, so the ports' first stamps, and their last, differ: by up to
+  `max_skew` (default 2 s; the iCub leg's run: 0.25 s and 1.24 s) the run is cut to the common span as a matter of
+  course. A port that starts later or ends sooner than that (its log cut short, its dumper stopped early) would cut
+  the run short, as a file that ends before the others cuts a folder of files (dynid.io.file_set): the other ports'
+  messages beyond its first or last stamp are `cut_short` bad rows, refused by default in one line that names the
+  port and where it starts or ends against the others, dropped with `bad_rows="skip"` (the grid then spans the
+  common span, as ever) with a DataNote naming the port;
 - each channel is interpolated linearly onto a uniform grid at the configured `rate` over that span. Linear
   interpolation between two messages 10 ms apart moves no value by more than their difference, and it neither
   invents nor hides a silence: a port silent for longer than `max_gap` inside the span is refused, naming the
@@ -31,6 +38,7 @@ from __future__ import annotations
 
 import hashlib
 import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -39,7 +47,7 @@ import numpy as np
 from ..config.log_columns import SKIP
 from ..config.robot_config import RobotConfig
 from ..config.yarp_ports import YarpPort
-from ..errors import DataError
+from ..errors import DataError, DataNote
 from .align import Stream, keep_increasing, on_grid, uniform_grid
 from .bad_rows import DEFAULT_POLICY, KINDS, MAX_ABS_VALUE, SHOW_LINES, BadRows, Malformed, apply_policy
 from .csv_format import check_columns, table_dataset
@@ -61,6 +69,7 @@ class _PortLog:
     dropped_cut: int
     bad: list[Malformed]  # its lines that are no message (0-based line numbers), refused or dropped by the policy
     lines: int  # lines in its data.log
+    line_of: np.ndarray  # (M,) the 0-based line of each message kept
 
 
 def _read_port(root: Path, spec: YarpPort) -> _PortLog:
@@ -79,6 +88,7 @@ def _read_port(root: Path, spec: YarpPort) -> _PortLog:
     width = len(spec.joints) if spec.joints else 6
     stamps: list[float] = []
     rows: list[list[float]] = []
+    line_of: list[int] = []
     bad: list[Malformed] = []
     cut = 0
     scale = np.asarray(spec.scale)
@@ -95,10 +105,11 @@ def _read_port(root: Path, spec: YarpPort) -> _PortLog:
             continue
         stamps.append(parsed[0])
         rows.append(parsed[1])
+        line_of.append(k)
     t = np.asarray(stamps)
     values = np.asarray(rows, dtype=float).reshape(-1, width) * scale
     keep = keep_increasing(t)  # drop messages that do not move the port's clock forward
-    return _PortLog(t[keep], values[keep], int((~keep).sum()), cut, bad, len(lines))
+    return _PortLog(t[keep], values[keep], int((~keep).sum()), cut, bad, len(lines), np.asarray(line_of)[keep])
 
 
 def _parse_line(line: str, state: bool, width: int) -> tuple[float, list[float]] | tuple[str, str]:
@@ -144,19 +155,54 @@ def _first_stamp(path: Path) -> float | None:
         return None
 
 
-def _bad_lines(root: Path, layout, logs: dict[str, _PortLog], policy: str) -> dict | None:
-    """The ports' bad lines refused (one line naming the first few) or, with `skip`, what `meta["bad_rows"]` records;
-    None when every line is a message. Lines are numbered over the ports in the configuration's order."""
-    rows, kinds, labels, first, total = [], [], {}, "", 0
+def _cut_short(logs: dict[str, _PortLog], origin: float, max_skew: float) -> tuple[dict[str, list[Malformed]], list[str]]:
+    """Per port, its messages before the latest first stamp or after the earliest last stamp of the ports, where the
+    ports' starts or ends differ by more than `max_skew` (module docstring): `cut_short` bad rows; and what happened,
+    in words, for a note."""
+    cut: dict[str, list[Malformed]] = {port: [] for port in logs}
+    said: list[str] = []
+    firsts = {port: float(log.stamps[0]) for port, log in logs.items()}
+    lasts = {port: float(log.stamps[-1]) for port, log in logs.items()}
+    for end, stamps in (("start", firsts), ("end", lasts)):
+        late, early = (max, min) if end == "start" else (min, max)
+        short, other = late(stamps, key=stamps.get), early(stamps, key=stamps.get)
+        skew = abs(stamps[short] - stamps[other])
+        if skew <= max_skew:
+            continue
+        at = stamps[short]
+        lost = {port: np.flatnonzero(log.stamps < at if end == "start" else log.stamps > at)
+                for port, log in logs.items()}
+        n = sum(k.size for k in lost.values())
+        what = (f"{short}/data.log {'starts' if end == 'start' else 'ends'} at t = {at - origin:.3f} s, {skew:.3f} s "
+                f"{'after' if end == 'start' else 'before'} {other}/data.log ({stamps[other] - origin:.3f} s), by more "
+                f"than the {max_skew:g} s the ports' {end}s may differ (yarp.max_skew)")
+        said.append(f"{what}: the run {'starts' if end == 'start' else 'ends'} there")
+        for port, k in lost.items():
+            seen = {m.row for m in cut[port]}  # ports that share no span at all: a message before one, after another
+            cut[port] += [Malformed(int(line), "cut_short", f"{what}: the {n} messages the other ports hold "
+                                    f"{'before' if end == 'start' else 'after'} it are cut short")
+                          for line in logs[port].line_of[k] if int(line) not in seen]
+    return cut, said
+
+
+def _bad_lines(root: Path, layout, logs: dict[str, _PortLog], cut: dict[str, list[Malformed]],
+               policy: str) -> dict | None:
+    """The ports' bad lines and messages cut short refused (one line naming the first few) or, with `skip`, what
+    `meta["bad_rows"]` records; None when there are none. Lines are numbered over the ports in the configuration's
+    order."""
+    rows, kinds, labels, details, total = [], [], {}, {}, 0
     for spec in layout.ports:
         log = logs[spec.port]
-        for m in log.bad:
+        for m in [*log.bad, *cut[spec.port]]:
             rows.append(total + m.row)
             kinds.append(m.kind)
             labels[total + m.row] = f"{spec.port}/data.log line {m.row + 1}"
-            first = first or m.detail
+            details[total + m.row] = m.detail
         total += log.lines
-    found = BadRows(np.asarray(rows, np.int64), tuple(kinds), first, total) if rows else None
+    if not rows:
+        return apply_policy(None, np.ones(1, bool), policy, str(root), str)
+    order = np.argsort(rows, kind="stable")
+    found = BadRows(np.asarray(rows, np.int64)[order], tuple(kinds[i] for i in order), details[rows[order[0]]], total)
     return apply_policy(found, np.ones(1, bool), policy, str(root), lambda i: labels[i])
 
 
@@ -171,14 +217,18 @@ def read_yarp(path: str | Path, config: RobotConfig, joint_limits=None, require_
             "ports (docs/formats.md, Robot configuration)"
         )
     logs = {spec.port: _read_port(root, spec) for spec in layout.ports}
-    dropped = _bad_lines(root, layout, logs, bad_rows)  # refused here by default
     for spec in layout.ports:
         if logs[spec.port].stamps.size < 2:
+            _bad_lines(root, layout, logs, {port: [] for port in logs}, bad_rows)  # its bad lines, refused by default
             n = logs[spec.port].stamps.size
             raise DataError(f"{root / spec.port / 'data.log'}: {n} message{'s' * (n != 1)}"
                             f"{' left' if logs[spec.port].bad else ''}: a port needs at least two")
     origin_candidates = [s for s in (_first_stamp(p) for p in root.glob("**/data.log")) if s is not None]
     origin = min([*origin_candidates, *(log.stamps[0] for log in logs.values())])
+    cut, said = _cut_short(logs, origin, layout.max_skew)
+    dropped = _bad_lines(root, layout, logs, cut, bad_rows)  # bad lines and a port cut short: refused by default
+    for note in said:  # skipped: the run is shorter than its ports' logs, and why
+        warnings.warn(DataNote(f"{root}: {note} (--bad-rows skip)"), stacklevel=3)
     streams = [Stream(port, log.stamps, log.values) for port, log in logs.items()]
     grid = uniform_grid(str(root), streams, origin, layout.rate, layout.max_gap, "port", "yarp.max_gap")
     for log in logs.values():
@@ -220,6 +270,8 @@ def read_yarp(path: str | Path, config: RobotConfig, joint_limits=None, require_
                 "dropped_cut_last_line": logs[spec.port].dropped_cut,
                 "dropped_bad_lines": len(logs[spec.port].bad) if dropped is not None else 0,
                 "first_s": float(logs[spec.port].stamps[0]),
+                "last_s": float(logs[spec.port].stamps[-1]),
+                "cut_short": len(cut[spec.port]),
                 "median_interval_s": float(np.median(np.diff(logs[spec.port].stamps))),
                 "max_interval_s": float(np.max(np.diff(logs[spec.port].stamps))),
             }
