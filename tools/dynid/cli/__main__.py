@@ -1,4 +1,4 @@
-"""`python -m dynid.cli.main`: the same as the `dynid` command."""
+"""`python -m dynid.cli`: the same as the `dynid` command."""
 
 import sys
 

@@ -1,4 +1,4 @@
-"""Every `dynid` command: the module of dynid.cli.main that implements it, and its one-line help.
+"""Every `dynid` command: the module of dynid.cli that implements it, and its one-line help.
 
 The entry point builds only the parser of the command it runs, so `dynid fit` does not load what `dynid spy`
 needs (and the reverse); `dynid --help` lists them all from this table.
@@ -10,7 +10,7 @@ from typing import NamedTuple
 
 
 class Command(NamedTuple):
-    group: str  # dynid.cli.main.<group> implements it (its add_commands adds the parser)
+    group: str  # dynid.cli.<group> implements it (its add_commands adds the parser)
     help: str
 
 
