@@ -15,18 +15,19 @@ cluster that fails raises `ClusterError`, one line and exit code 3: a task whose
 when the fit waits for workers to come back), the scheduler gone. A worker that dies once is replaced (its nanny
 restarts it) or its tasks move to the others: the fit goes on, with the same result.
 
-Layer: beside errors and progress; `distributed` is imported only when a cluster is asked for.
+Layer: above errors, progress and interrupt; `distributed` is imported only when a cluster is asked for. Ctrl-C:
+a local cluster's workers never get it (they start with SIGINT blocked), this process answers it and closes the
+cluster; one that comes while the cluster starts is held and delivered once it is up (dynid.interrupt).
 """
 
 from __future__ import annotations
 
 import contextlib
-import signal
-import threading
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 from .errors import InputError
+from .interrupt import sigint_held
 from .progress import RunProgress
 
 CONNECT_TIMEOUT_S = 20.0
@@ -39,25 +40,12 @@ class ClusterError(InputError):
     exit_code = 3
 
 
-@contextlib.contextmanager
-def _workers_ignore_sigint():
-    """Start processes with Ctrl-C ignored (an ignored signal stays ignored across exec, and Python then installs no
-    handler of its own): the terminal's SIGINT reaches the whole process group, and the workers each printed their
-    KeyboardInterrupt traceback; this process alone handles it now, and closing the cluster ends them."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-
-
 class DaskCluster:
     """Tasks on a Dask cluster: a new `LocalCluster` of `workers` processes, or the one at `scheduler`."""
 
     def __init__(self, workers: int | None = None, scheduler: str | None = None) -> None:
+        from multiprocessing import resource_tracker
+
         try:
             import dask
             from distributed import Client, LocalCluster
@@ -73,17 +61,27 @@ class DaskCluster:
                 # One thread a worker: the tasks are numpy and Pinocchio loops that hold the GIL between calls
                 # Tasks wait for a worker no longer than this (a cluster whose every worker died stops the fit)
                 timeouts = {"distributed.scheduler.no-workers-timeout": NO_WORKERS_TIMEOUT}
-                with dask.config.set(timeouts), _workers_ignore_sigint():
+                # The workers start with SIGINT blocked (they inherit it: dynid.interrupt): the terminal's Ctrl-C
+                # reaches the whole process group, and each worker printed its KeyboardInterrupt traceback; this
+                # process alone answers it, and closing the cluster ends them. A Ctrl-C while they start is held, not
+                # lost, and delivered once the cluster is up (ignored here, it was lost: the fit ran to its end).
+                # multiprocessing's resource tracker is started before: starting it unblocks SIGINT in the thread
+                # that does (CPython's resource_tracker.ensure_running), which would be the cluster's IO loop, the
+                # thread its workers are started from.
+                resource_tracker.ensure_running()
+                with dask.config.set(timeouts), sigint_held(children=True):
                     # ":0": the scheduler's HTTP server on a free port (8787 may be another cluster's)
                     self._local = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                                dashboard_address=":0", silence_logs=50)
                 self.client = Client(self._local, set_as_default=False)
+            self.workers = len(self.client.scheduler_info().get("workers", {}))
         except (OSError, TimeoutError, ValueError) as e:
             self.close()
             where = f"--scheduler {scheduler}" if scheduler else f"--workers {workers}"
             raise ClusterError(f"{where}: no Dask cluster there ({type(e).__name__}: {e})") from None
-        info = self.client.scheduler_info()
-        self.workers = len(info.get("workers", {}))
+        except BaseException:  # Ctrl-C (held over the start, delivered here): the workers end with the cluster
+            self.close()
+            raise
         if self.workers == 0:
             self.close()
             raise ClusterError(f"{self.name} has no worker")

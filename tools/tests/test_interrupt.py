@@ -66,3 +66,112 @@ def test_the_entry_points_module_imports_the_standard_library_only() -> None:
     done = driver("import sys, dynid.cli; print(sorted(m for m in ('numpy', 'yaml', 'dynid.cli.app', 'dynid.config') "
                   "if m in sys.modules))")
     assert done.returncode == 0 and done.stdout == "[]\n", done.stderr
+
+
+@pytest.fixture(scope="module")
+def short_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A 3 s identification run of the default arm: enough for a command to start its work."""
+    from dynid.config.robot_config import load_config
+    from dynid.simulation import SimulationSettings, simulate
+    from dynid.simulation.output import write_simulation
+
+    out = tmp_path_factory.mktemp("interrupt") / "run"
+    write_simulation(simulate(load_config("icub_right_arm"), SimulationSettings(duration=3.0, seed=0)), out)
+    return out
+
+
+# `dynid fit --workers 2` with Ctrl-C while its LocalCluster starts: to this process alone as the workers are about
+# to start ("starting"), or to the whole process group, workers included, once they run but before the start-up
+# returns ("started"; what a terminal does). It prints whether the workers hold SIGINT blocked.
+INTERRUPT_CLUSTER_START = """
+import os, signal, sys
+import distributed
+
+when, *argv = sys.argv[1:]
+Real = distributed.LocalCluster
+
+
+def workers_block_sigint():
+    me = os.getpid()
+    kids = [int(k) for t in os.listdir(f"/proc/{me}/task") for k in open(f"/proc/{me}/task/{t}/children").read().split()]
+    workers = [k for k in kids if b"multiprocessing.spawn" in open(f"/proc/{k}/cmdline", "rb").read()]
+    masks = [int(line.split()[1], 16) for k in workers for line in open(f"/proc/{k}/status") if line.startswith("SigBlk")]
+    return bool(workers) and all(m & (1 << (signal.SIGINT - 1)) for m in masks)
+
+
+class Interrupted(Real):
+    def __init__(self, *args, **kwargs):
+        if when == "starting":
+            os.kill(os.getpid(), signal.SIGINT)
+        super().__init__(*args, **kwargs)
+        if when == "started":
+            print(f"workers block SIGINT: {workers_block_sigint()}", flush=True)
+            os.killpg(0, signal.SIGINT)
+
+
+distributed.LocalCluster = Interrupted
+from dynid.cli import main
+
+sys.exit(main(argv))
+"""
+
+
+@pytest.mark.parametrize("when", ["starting", "started"])
+def test_ctrl_c_while_a_local_cluster_starts_stops_the_fit(when: str, short_run: Path, tmp_path: Path) -> None:
+    """The workers used to start with SIGINT ignored, this process's own disposition too for the start-up (1-2 s): a
+    Ctrl-C then was lost, and the fit ran on, wrote its model and --json and exited 0. It is held now, and delivered
+    when the cluster is up: the fit stops, nothing written, one line; the workers, started with SIGINT blocked, print
+    nothing."""
+    done = driver(INTERRUPT_CLUSTER_START, when, "fit", "--data", str(short_run), "--workers", "2",
+                  "--out", "m.json", "--json", "r.json", cwd=tmp_path)
+    assert (done.returncode, done.stderr) == (130, "dynid fit: interrupted\n"), done.stderr
+    if when == "started":
+        assert done.stdout == "workers block SIGINT: True\n"
+    assert list(tmp_path.iterdir()) == []
+
+
+HELD_AND_SWALLOWED = """
+import os, signal, time
+from dynid.interrupt import interruptible, requested, sigint_held
+
+
+class Dropped:
+    def __del__(self):  # Python cannot raise from here: a KeyboardInterrupt in it is printed and dropped
+        os.kill(os.getpid(), signal.SIGINT)
+        len("the handler runs at a call")
+
+
+with interruptible():
+    steps = []
+    try:
+        with sigint_held():
+            os.kill(os.getpid(), signal.SIGINT)
+            steps.append("held")
+    except KeyboardInterrupt:
+        steps.append("delivered")
+    try:
+        Dropped()
+        for _ in range(1000):  # within 10 s
+            time.sleep(0.01)
+        steps.append("swallowed")
+    except KeyboardInterrupt:
+        steps.append("delivered again")
+    print(*steps, requested())
+print(signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+try:
+    with interruptible():
+        Dropped()
+    print("ended without a word")
+except KeyboardInterrupt:
+    print("ended as interrupted")
+"""
+
+
+def test_a_ctrl_c_is_held_over_a_step_and_never_swallowed() -> None:
+    """sigint_held delivers the Ctrl-C that came during the step once the step is over; one whose KeyboardInterrupt
+    Python swallowed (raised inside a __del__ or a weakref callback, as during imports and a Dask cluster's start)
+    is delivered again at the next opportunity, or when the block ends; Python's own handler is back after
+    interruptible()."""
+    done = driver(HELD_AND_SWALLOWED)
+    expected = "held delivered delivered again True\nTrue\nended as interrupted\n"
+    assert (done.stdout, done.stderr) == (expected, ""), done.stderr

@@ -6,7 +6,7 @@ kind ends with exit code 2 and one line on stderr naming the problem; Ctrl-C wit
 interrupted", and exit code 130. `--json FILE` writes the command's result for machines ('-' for stdout); its fields
 are documented in docs/formats.md. The cli may import every layer below it; nothing imports the cli.
 
-This module is kept light (the standard library only): the `dynid` console script imports it before it calls
+This module is kept light (the standard library and dynid.interrupt only): the `dynid` console script imports it before it calls
 `main`, and a Ctrl-C in an import made here would end the command with a traceback. The command line itself
 (dynid.cli.app: numpy, the configurations, the command's group, 0.5 s and more) is imported inside `main`, where
 Ctrl-C is handled from its first line.
@@ -17,6 +17,8 @@ from __future__ import annotations
 import sys
 from typing import Any
 
+from ..interrupt import interruptible
+
 __all__ = ["build_parser", "main"]
 
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a program that SIGINT ended
@@ -26,9 +28,10 @@ def main(argv: list[str] | None = None) -> int:
     """`dynid ARGV`: the exit code (the console script's and `python -m dynid`'s entry point)."""
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
-        from .app import run  # the heavy imports, under the same protection as the command
+        with interruptible():  # a Ctrl-C is never swallowed, and no output is put in place after one
+            from .app import run  # the heavy imports, under the same protection as the command
 
-        return run(argv)
+            return run(argv)
     except KeyboardInterrupt:
         command = next((a for a in argv if not a.startswith("-")), None)
         sys.stderr.write(f"dynid{' ' + command if command else ''}: interrupted\n")
