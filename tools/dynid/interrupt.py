@@ -6,9 +6,11 @@ records that it came (`requested`). Python drops an exception raised inside a we
 cannot raise: it prints "Exception ignored in ..." and goes on), and the handler runs inside one whenever the main
 thread happens to be there, as it often is while modules are imported or a Dask cluster starts: such a Ctrl-C was
 lost, and the command ran to its end. It is delivered again now, as soon as the main thread is out of the callback,
-and a block that ends without it having been raised again ends with KeyboardInterrupt.
+and a block that ends without it having been raised again ends with KeyboardInterrupt; a command's outputs are not
+put in place once a Ctrl-C came (dynid.outputs asks `requested`).
 
-Some steps must not be cut in half: starting a Dask cluster's worker processes (dynid.cluster). `sigint_held` holds
+Some steps must not be cut in half: putting a command's outputs in place or removing its temporary files
+(dynid.outputs), starting a Dask cluster's worker processes (dynid.cluster). `sigint_held` holds
 the signal over such a step: one that comes meanwhile is recorded, not lost, and delivered as soon as the step
 ends, the way the handler it replaced would have (KeyboardInterrupt).
 
@@ -98,7 +100,8 @@ def interruptible() -> Iterator[None]:
         except KeyboardInterrupt:  # one that came just now, run before the handler was replaced: replace it still
             signal.signal(signal.SIGINT, signal.default_int_handler)
             raise
-        if _dropped and not isinstance(sys.exc_info()[1], KeyboardInterrupt):
+        dropped, _requested, _dropped = _dropped, False, False
+        if dropped and not isinstance(sys.exc_info()[1], KeyboardInterrupt):
             raise KeyboardInterrupt  # a Ctrl-C came and was dropped: the command ends as interrupted all the same
 
 

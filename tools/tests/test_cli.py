@@ -175,3 +175,65 @@ def test_an_unwritable_output_directory_is_refused_before_any_work(tmp_path: Pat
     with pytest.raises(InputError, match=r"cannot write '.*/ro/r\.json' \(--json\): the directory .*/ro is not writable"):
         check_outputs(args)
     check_outputs(argparse.Namespace(command="fit", out=str(tmp_path / "m.json"), json=str(tmp_path / "r.json")))
+
+
+# Every command that writes, with --json where nothing can be created (/proc: os.access says yes for root) and inputs
+# that do not exist: the output is refused first, before any work, and named by its option.
+WRITERS = {
+    "fit": ["--data", "missing.csv", "--out", "m.json"],
+    "validate": ["--model", "missing.json", "--data", "missing.csv"],
+    "detect": ["--model", "missing.json", "--data", "missing.csv"],
+    "export": ["--model", "missing.json", "--out", "x.dcoef"],
+    "simulate": ["--out", "sim"],
+    "excite": ["--duration", "10", "--out", "t.csv"],
+    "play": ["--data", "missing.csv", "--sink", "candump:p.log"],
+    "gaps": ["--data", "missing.csv", "--out", "g.json", "--figures", "figs"],
+    "fleet": ["--data", "missing", "--out", "fleet"],
+    "report": ["--model", "missing.json", "--validation", "missing.csv", "--out", "r.html"],
+    "import": ["--data", "missing.csv", "--out", "d.npz"],
+    "structure": [],
+}
+
+
+@pytest.mark.parametrize("command", WRITERS)
+def test_an_output_nothing_can_be_created_at_is_refused_before_any_work(command: str, tmp_path: Path) -> None:
+    """`fit --out f.json --json /proc/r.json` passed the check (os.access), ran, wrote f.json and then failed on the
+    --json without saying it was the --json. The check creates (and removes) a file where each output will go."""
+    from tests.hostile.run import run_dynid
+
+    def dynid(*args: str) -> subprocess.CompletedProcess:  # conftest's, in tmp_path
+        done = run_dynid(list(args), tmp_path)
+        return subprocess.CompletedProcess(args, done.code, done.stdout, done.stderr)
+
+    done = dynid(command, *WRITERS[command], "--json", "/proc/dynid-result.json")
+    assert_one_line_error(done, "cannot write '/proc/dynid-result.json' (--json): no file can be created in /proc")
+    assert list(tmp_path.iterdir()) == []
+    if command in ("fit", "simulate", "import"):
+        out = "/proc/dynid-out" + ("" if command == "simulate" else ".x")
+        done = dynid(command, *[out if a == WRITERS[command][-1] else a for a in WRITERS[command]])
+        assert_one_line_error(done, f"'{out}' (--out)", "can be created in /proc")
+
+
+def test_an_output_that_fails_late_leaves_none_behind(tmp_path: Path, monkeypatch) -> None:
+    """A write that fails after the check all the same (a full disk): the command's other outputs, written before it,
+    are not left behind, nor any temporary file, and the message names the output by its option."""
+    import errno
+
+    import dynid.cli.common
+    from dynid.cli import main
+
+    real = dynid.cli.common.atomic_write
+
+    def full_disk(path, write):  # noqa: ANN001 - atomic_write's arguments
+        def fail(f) -> None:  # noqa: ANN001
+            raise OSError(errno.ENOSPC, "No space left on device")
+        real(path, fail)
+
+    monkeypatch.setattr(dynid.cli.common, "atomic_write", full_disk)  # write_json's
+    csv = write_csv(tmp_path / "run.csv", icub_columns())
+    out, result = tmp_path / "run.npz", tmp_path / "import.json"
+    (tmp_path / "run.npz").write_bytes(b"an earlier import")
+    code = main(["import", "--data", str(csv), "--out", str(out), "--json", str(result)])
+    assert code == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv", "run.npz"]
+    assert out.read_bytes() == b"an earlier import"  # the file the import would have replaced is left as it was

@@ -33,6 +33,9 @@ def main(argv: list[str] | None = None) -> int:
 
             return run(argv)
     except KeyboardInterrupt:
+        outputs = sys.modules.get("dynid.outputs")  # not loaded: the command staged nothing
+        if outputs is not None:
+            outputs.discard_unfinished()
         command = next((a for a in argv if not a.startswith("-")), None)
         sys.stderr.write(f"dynid{' ' + command if command else ''}: interrupted\n")
         return EXIT_INTERRUPTED

@@ -20,6 +20,7 @@ from collections.abc import Callable
 
 from ..config.robot_config import bundled_configs
 from ..errors import EXIT_BAD_INPUT, DataNote, InputError
+from ..outputs import staged
 from ..version import __version__
 from .commands import COMMANDS
 from .common import Parser, check_outputs, split_data_windows, write_json
@@ -90,13 +91,16 @@ def run(argv: list[str]) -> int:
     # With --json -, stdout carries the JSON alone: the human report goes to stderr.
     human = contextlib.redirect_stdout(sys.stderr) if json_target == "-" else contextlib.nullcontext()
     try:
-        split_data_windows(args)
-        check_outputs(args)
-        with human, warnings.catch_warnings():
-            warnings.simplefilter("always", DataNote)
-            warnings.showwarning = _notes(args.command, warnings.showwarning)
-            result = args.func(args)
-        write_json(result, json_target)
+        # The command's outputs (--json's too) are put in place together when it succeeds; when it fails, or is
+        # interrupted, none is (dynid.outputs).
+        with staged():
+            split_data_windows(args)
+            check_outputs(args)
+            with human, warnings.catch_warnings():
+                warnings.simplefilter("always", DataNote)
+                warnings.showwarning = _notes(args.command, warnings.showwarning)
+                result = args.func(args)
+            write_json(result, json_target)
     except InputError as e:
         sys.stderr.write(f"dynid {args.command}: error: {e}\n")
         return e.exit_code

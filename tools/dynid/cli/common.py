@@ -20,8 +20,8 @@ from ..config.robot_config import DEFAULT_ROBOT, RobotConfig, load_config
 from ..errors import EXIT_BAD_INPUT, InputError
 from ..io.bad_rows import DEFAULT_POLICY, KINDS, join_labels
 from ..io.bad_rows import POLICIES as BAD_ROW_POLICIES
-from ..io.dataset import atomic_write
 from ..io.run_paths import expand
+from ..outputs import atomic_write, label, probe
 from ..robot.regressors.stack import DEFAULT_MIN_SPEED
 
 
@@ -49,7 +49,7 @@ def write_json(result: dict[str, Any], target: str | None) -> None:
     atomic_write(Path(target), lambda f: f.write(text.encode()))
 
 
-# Where a command writes: files (atomically, by dynid.io.dataset.atomic_write) and the two directories.
+# Where a command writes: files (atomically, by dynid.outputs.atomic_write) and the directories.
 OUTPUT_OPTIONS: tuple[str, ...] = ("out", "json", "figures")
 DIRECTORY_OUTPUTS: frozenset[tuple[str, str]] = frozenset({("simulate", "out"), ("gaps", "figures"), ("fleet", "out")})
 INPUT_OPTIONS: tuple[str, ...] = ("data", "model", "validation", "contact", "truth", "trajectory")
@@ -61,8 +61,11 @@ def check_outputs(args: argparse.Namespace, extra: dict[str, str] | None = None)
     outputs on one file, an output on one of the command's inputs. Without this a fit ran a minute before its --out
     was refused (or wrote its model and then failed on --json into a read-only folder), an import wrote its
     dataset and then failed on --json (exit 2 with the dataset left behind), and `import --data x.csv --out x.csv`
-    replaced the CSV by the dataset. `extra` names outputs of a command's own (option or description -> path),
-    checked the same way."""
+    replaced the CSV by the dataset. Writable means a file can be created there: one is (dynid.outputs.probe), as the
+    output's temporary file will be; os.access says yes for root anywhere (/proc, a read-only mount), and `fit --json
+    /proc/r.json` was found only after the fit. Each output is named for the messages of a write that fails later
+    all the same (a full disk), which leaves none of the command's outputs behind (dynid.outputs.staged). `extra`
+    names outputs of a command's own (option or description -> path), checked the same way."""
     command = getattr(args, "command", "")
     seen: dict[str, str] = {}
     inputs: dict[str, str] = {}
@@ -79,9 +82,13 @@ def check_outputs(args: argparse.Namespace, extra: dict[str, str] | None = None)
         if (command, option) in DIRECTORY_OUTPUTS:
             if path.exists() and not path.is_dir():
                 raise InputError(f"cannot write to '{value}' (--{option}): it exists and is not a directory")
-            where = path if path.exists() else path.parent
+            # the directory itself, or the nearest that exists, in which it (and its missing parents) will be made
+            where = next((p for p in (path, *path.parents) if p.exists()), Path("."))
             if where.is_dir() and not os.access(where, os.W_OK | os.X_OK):
                 raise InputError(f"cannot write to '{value}' (--{option}): {where} is not writable")
+            why = probe(where, as_directory=where != path) if where.is_dir() else None
+            if why:
+                raise InputError(f"cannot write to '{value}' (--{option}): nothing can be created in {where} ({why})")
         elif not path.name:
             raise InputError(f"cannot write '{value}' (--{option}): not a file name")
         elif not path.parent.is_dir():
@@ -90,6 +97,9 @@ def check_outputs(args: argparse.Namespace, extra: dict[str, str] | None = None)
             raise InputError(f"cannot write '{value}' (--{option}): it exists and is not a regular file")
         elif not os.access(path.parent, os.W_OK | os.X_OK):  # outputs are written beside, then renamed into place
             raise InputError(f"cannot write '{value}' (--{option}): the directory {path.parent} is not writable")
+        elif why := probe(path.parent):
+            raise InputError(f"cannot write '{value}' (--{option}): no file can be created in {path.parent} ({why})")
+        label(value, f"--{option}")
         real = os.path.realpath(value)
         if real in inputs:
             raise InputError(f"cannot write '{value}' (--{option}): it is the input --{inputs[real]}")

@@ -31,22 +31,20 @@ Rows in messages are 1-based sample numbers.
 
 from __future__ import annotations
 
-import contextlib
 import inspect
 import json
 import math
-import os
-import tempfile
 import zipfile
 import zlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, BinaryIO
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..errors import DataError
+from ..outputs import atomic_write  # re-exported: where the writers have always imported it from
 from .derivatives import estimate_derivatives
 
 if TYPE_CHECKING:
@@ -390,38 +388,6 @@ def contact_episodes(contact: np.ndarray) -> list[tuple[int, int]]:
     """[start, stop) sample ranges where the skin's ground truth (or any mask) is non-zero."""
     edges = np.flatnonzero(np.diff(np.r_[0, (np.asarray(contact) != 0).astype(np.int8), 0]))
     return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
-
-
-def atomic_write(path: str | Path, write: Callable[[BinaryIO], None]) -> None:
-    """Write a file through `write(binary_file)` so that `path` is either the old file or the complete new one.
-
-    The data goes to a temporary file in the same directory (same file system, so `os.replace` is atomic),
-    is flushed to disk, then replaces `path`. On any failure the temporary file is removed.
-    """
-    path = Path(path)
-    if not path.name or not path.parent.is_dir():
-        raise DataError(f"cannot write '{path}': the directory {path.parent} does not exist")
-    if path.exists() and not path.is_file():  # never replace a directory, a device or a pipe
-        raise DataError(f"cannot write '{path}': it exists and is not a regular file")
-    try:
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    except OSError as e:
-        raise DataError(f"cannot write '{path}': {e.strerror}") from None
-    try:
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-            f.flush()
-            os.fsync(f.fileno())
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file the usual permissions
-        os.replace(tmp, path)
-    except BaseException as e:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        if isinstance(e, OSError):
-            raise DataError(f"cannot write '{path}': {e.strerror or e}") from None
-        raise
 
 
 def check_units(

@@ -20,6 +20,7 @@ from matplotlib.figure import Figure
 
 from ..errors import DataError
 from ..io.dataset import atomic_write
+from ..outputs import output_dir
 from . import html as H
 from .figures import png
 
@@ -132,8 +133,7 @@ def build(result: dict) -> list[tuple[str, str, Figure]]:
 
 def write_figures(result: dict, directory: str) -> list[str]:
     """PNGs, gaps.json and figures.json (file -> caption, channel) into DIR, each written atomically."""
-    d = Path(directory)
-    d.mkdir(parents=True, exist_ok=True)
+    d = output_dir(directory)
     index: list[dict[str, Any]] = []
     for name, caption, fig in build(result):
         data = png(fig)

@@ -12,19 +12,16 @@
 DIR is new, empty, or the output of an earlier `dynid simulate`, whose four files are replaced (as `fit --out`
 replaces a model file; anything else in it is left as it is). A directory holding anything else is refused
 (`check_output_dir`): a recorded run's `data.csv` would be overwritten, and a YARP or logger folder given a
-`dataset.npz` would read as the simulated run from then on. The files are written into a temporary directory, beside
-a new DIR and then renamed to it, or inside an existing one and then moved up, `dataset.npz` last (the earlier
-run's removed first): a failure while writing leaves DIR as it was, and a run without its `dataset.npz` is not a
-run. Any dynid command that takes DATA accepts the directory and reads its dataset.npz.
+`dataset.npz` would read as the simulated run from then on. Each file is written atomically, `dataset.npz` last (a
+run without it is not a run); within a `dynid` command all are put in place together at its end, and a command that
+fails or is interrupted leaves DIR as it was (dynid.outputs). Any dynid command that takes DATA accepts the
+directory and reads its dataset.npz.
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
-import os
-import shutil
-import tempfile
 from pathlib import Path
 from typing import BinaryIO
 
@@ -33,6 +30,7 @@ import numpy as np
 from ..errors import DataError
 from ..io.csv_format import write_csv
 from ..io.dataset import SIMULATION_DATASET, atomic_write
+from ..outputs import output_dir
 from .experiment import Simulation
 
 FILES = {"dataset": SIMULATION_DATASET, "csv": "data.csv", "truth": "truth.json", "truth_signals": "truth.npz"}
@@ -73,33 +71,7 @@ def check_output_dir(out_dir: str | Path) -> None:
 def write_simulation(sim: Simulation, out_dir: str | Path) -> dict[str, str]:
     out = Path(out_dir)
     check_output_dir(out)
-    fresh = not out.exists()
-    try:  # the files are written beside DIR when it is new (then renamed to it), else inside it (then moved up)
-        if fresh:
-            out.parent.mkdir(parents=True, exist_ok=True)
-        work = Path(tempfile.mkdtemp(dir=out.parent if fresh else out, prefix=f".{out.name}.", suffix=".tmp"))
-    except OSError as e:
-        raise DataError(f"cannot create the output directory '{out}': {e.strerror or e}") from None
-    try:
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(work, 0o777 & ~umask)  # mkdtemp makes 0700; DIR gets a new directory's usual permissions
-        _write_files(sim, work)
-        if fresh:
-            os.replace(work, out)  # one rename: DIR appears complete
-        else:  # an empty DIR or an earlier run's: its dataset goes first, the new one comes last
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(out / SIMULATION_DATASET)
-            for name in sorted(FILES.values(), key=lambda n: n == SIMULATION_DATASET):
-                os.replace(work / name, out / name)
-    except OSError as e:
-        raise DataError(f"cannot write to '{out}': {e.strerror or e}") from None
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
-    return {key: str(out / name) for key, name in FILES.items()}
-
-
-def _write_files(sim: Simulation, out: Path) -> None:
+    output_dir(out)  # removed again, with its parents made, if the command fails (dynid.outputs)
     paths = {key: out / name for key, name in FILES.items()}
     sim.truth_signals.save(paths["truth_signals"])
     text = json.dumps(sim.truth, indent=1, allow_nan=False).encode() + b"\n"
@@ -109,4 +81,5 @@ def _write_files(sim: Simulation, out: Path) -> None:
 
     atomic_write(paths["truth"], write)
     write_csv(sim.dataset, paths["csv"])
-    sim.dataset.save(paths["dataset"])
+    sim.dataset.save(paths["dataset"])  # last: its presence means the run completed
+    return {key: str(p) for key, p in paths.items()}
