@@ -10,7 +10,10 @@ left behind; `dynid fleet` interrupted left the robots' models without the page.
 (dynid.interrupt.requested), even one that something swallowed, nothing is put in place.
 
 `output_dir` makes an output directory; in a staged command, the directories it made are removed again (when
-empty) if the command fails. `probe` creates and removes a temporary file where an output will be written: the check
+empty) if the command fails. `written_by` hands another program (`boards`, writing `dynid play`'s candump log) a
+path to write an output at, in a directory of its own beside the output: the program's own temporary files stay
+in there (boards killed by the Ctrl-C left its p.log.XXXXXX beside the log), and it is removed whatever happens.
+`probe` creates and removes a temporary file where an output will be written: the check
 before any work (dynid.cli.common.check_outputs) that it can be written at all (os.access says yes for root
 anywhere: /proc, a read-only mount).
 
@@ -176,6 +179,38 @@ def atomic_write(path: str | Path, write: Callable[[BinaryIO], None]) -> None:
     except BaseException as e:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
+        if isinstance(e, OSError):
+            raise DataError(f"cannot write {_named(path, s)}: {e.strerror or e}") from None
+        raise
+
+
+@contextlib.contextmanager
+def written_by(path: str | Path) -> Iterator[Path]:
+    """A path at which another program writes the output `path`: a file in a new directory beside it, put in place
+    as atomic_write's are when the block ends without an exception (at the command's end, in a staged command).
+    Whatever the program leaves in that directory (its own temporary files, if it is killed) goes with it."""
+    path = Path(path)
+    s = _active()
+    _check_target(path, s)
+    try:
+        with sigint_held():
+            d = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp"))
+            if s is not None:
+                s.temporaries.append(d)
+    except OSError as e:
+        raise DataError(f"cannot write {_named(path, s)}: {e.strerror or e}") from None
+    inner = d / path.name
+    try:
+        yield inner
+        if not inner.is_file():
+            raise DataError(f"cannot write {_named(path, s)}: nothing was written")
+        if s is not None:
+            s.ready.append((inner, path))
+        else:
+            os.replace(inner, path)
+            shutil.rmtree(d, ignore_errors=True)
+    except BaseException as e:
+        shutil.rmtree(d, ignore_errors=True)
         if isinstance(e, OSError):
             raise DataError(f"cannot write {_named(path, s)}: {e.strerror or e}") from None
         raise

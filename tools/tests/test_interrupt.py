@@ -7,8 +7,10 @@ called), never after a sleep: a driver script runs the command with a hook at th
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -175,3 +177,30 @@ def test_a_ctrl_c_is_held_over_a_step_and_never_swallowed() -> None:
     done = driver(HELD_AND_SWALLOWED)
     expected = "held delivered delivered again True\nTrue\nended as interrupted\n"
     assert (done.stdout, done.stderr) == (expected, ""), done.stderr
+
+
+@pytest.mark.parametrize("to", ["group", "process"])
+def test_ctrl_c_while_play_writes_a_candump_log_leaves_nothing(to: str, short_run: Path, tmp_path: Path) -> None:
+    """`dynid play --realtime --sink candump:p.log` stopped once boards is writing (its temporary file, p.log.XXXXXX,
+    exists): boards, stopped by the terminal's SIGINT or killed by subprocess.run, left that file behind (mode 600).
+    It writes in a directory of dynid's own now (dynid.outputs.written_by), removed with whatever is in it."""
+    from dynid.export.player import BOARDS
+
+    if not BOARDS.is_file():
+        pytest.skip(f"{BOARDS} is not built (scripts/setup)")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(TOOLS), os.environ.get("PYTHONPATH", "")])}
+    p = subprocess.Popen([sys.executable, "-m", "dynid", "play", "--data", str(short_run), "--sink", "candump:p.log",
+                          "--realtime", "--json", "p.json"], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not any(f.is_file() for f in tmp_path.rglob("p.log.*")):  # boards's: the log being written
+            assert p.poll() is None and time.monotonic() < deadline, p.communicate()
+            time.sleep(0.01)
+        (os.killpg if to == "group" else os.kill)(p.pid, signal.SIGINT)
+        out, err = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert (p.returncode, err) == (130, "dynid play: interrupted\n"), err
+    assert [f.name for f in tmp_path.rglob("*")] == []

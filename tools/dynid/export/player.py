@@ -18,6 +18,7 @@ one sample's frames (it sends them between its earliest offset and the clock fra
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import subprocess
 import tempfile
@@ -31,6 +32,7 @@ from ..config.robot_config import RobotConfig
 from ..errors import DataError, InputError
 from ..io.candump import target_values
 from ..io.dataset import Dataset
+from ..outputs import written_by
 from .monitor_config import check_capacity, monitor_config_text
 
 BOARDS = Path(__file__).resolve().parents[3] / "build" / "firmware_like" / "boards"
@@ -136,25 +138,36 @@ def play_run(config: RobotConfig, data: Dataset, sink: str, realtime: bool = Fal
         data = replace(data, t=data.t[0] + np.arange(data.n_samples) * nominal)
     else:
         drift = clock_drift(data.t, period)
-    with tempfile.TemporaryDirectory(prefix="dynid-play-") as tmp:
+    kind, _, where = sink.partition(":")
+    # candump:- streams the log to our standard output (boards then puts its summary on stderr)
+    to_stdout = sink == "candump:-"
+    with contextlib.ExitStack() as stack:
+        tmp = stack.enter_context(tempfile.TemporaryDirectory(prefix="dynid-play-"))
+        # A candump log is written by boards at a path of our own beside it, moved into place when boards is done
+        # (at the command's end: dynid.outputs): boards's own temporary file stays in there, removed with it,
+        # when boards is stopped (Ctrl-C reaches it too; a SIGKILL from subprocess.run) or fails.
+        log = None if kind != "candump" or to_stdout else stack.enter_context(written_by(where))
         conf, csv = Path(tmp) / "monitor.conf", Path(tmp) / "data.csv"
         conf.write_text(monitor_config_text(config))
         csv.write_text(player_csv(data, bus, config.name))
-        args = [str(BOARDS), "--config", str(conf), "--data", str(csv), "--sink", sink, "--encoder", encoder,
-                "--strain-sat", long_form]
+        args = [str(BOARDS), "--config", str(conf), "--data", str(csv), "--sink", sink if log is None else
+                f"candump:{log}", "--encoder", encoder, "--strain-sat", long_form]
         if realtime:
             args.append("--realtime")
         if t0 is not None:
             args += ["--t0", repr(float(t0))]
-        # candump:- streams the log to our standard output (boards then puts its summary on stderr)
-        to_stdout = sink == "candump:-"
         done = subprocess.run(args, stdout=None if to_stdout else subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    text = done.stderr if to_stdout else done.stdout
-    if done.returncode < 0:  # e.g. SIGPIPE: whatever read `candump:-` went away
-        raise DataError(f"boards was stopped by signal {-done.returncode} ({signal.Signals(-done.returncode).name})")
-    if done.returncode != 0:
-        why = (done.stderr.strip().splitlines() or [f"boards exited {done.returncode}"])[0]
-        raise DataError(why.removeprefix("boards: error: "))
+        text = done.stderr if to_stdout else done.stdout
+        if log is not None:  # boards names the path it was given: the user's
+            text, stderr = (t.replace(str(log), where) for t in (text, done.stderr))
+        else:
+            stderr = done.stderr
+        if done.returncode < 0:  # e.g. SIGPIPE: whatever read `candump:-` went away
+            raise DataError(f"boards was stopped by signal {-done.returncode} "
+                            f"({signal.Signals(-done.returncode).name})")
+        if done.returncode != 0:
+            why = (stderr.strip().splitlines() or [f"boards exited {done.returncode}"])[0]
+            raise DataError(why.removeprefix("boards: error: "))
     samples = frames = 0
     load: dict[str, float] = {}
     for line in text.splitlines():
