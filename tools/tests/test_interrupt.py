@@ -204,3 +204,41 @@ def test_ctrl_c_while_play_writes_a_candump_log_leaves_nothing(to: str, short_ru
             p.kill()
     assert (p.returncode, err) == (130, "dynid play: interrupted\n"), err
     assert [f.name for f in tmp_path.rglob("*")] == []
+
+
+# `dynid fleet` with Ctrl-C (to the whole group) as its page is drawn: every robot's model fitted and written by then.
+INTERRUPT_FLEET_PAGE = """
+import os, signal, sys
+import dynid.cli.fleet
+
+draw = dynid.cli.fleet.page
+
+
+def page(*args, **kwargs):
+    os.killpg(0, signal.SIGINT)
+    return draw(*args, **kwargs)
+
+
+dynid.cli.fleet.page = page
+from dynid.cli import main
+
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_ctrl_c_in_fleet_leaves_no_model_without_its_page(tmp_path: Path) -> None:
+    """Interrupted once its models were written, `dynid fleet` left OUT/models/*.json without fleet.html or the --json
+    (exit 130). A command's outputs are put in place together when it succeeds now (dynid.outputs), OUT included."""
+    from dynid.config.robot_config import load_config
+    from dynid.simulation import SimulationSettings, simulate
+    from dynid.simulation.output import write_simulation
+
+    config = load_config("icub_right_arm")
+    for i in range(3):  # three robots, a folder each; 15 s runs: enough for each robot's fit
+        sim = simulate(config, SimulationSettings(duration=15.0, seed=i, robot_seed=i))
+        write_simulation(sim, tmp_path / "runs" / f"arm{i}" / "run")
+    done = driver(INTERRUPT_FLEET_PAGE, "fleet", "--data", "runs", "--out", "out", "--blocks", "2",
+                  "--estimator", "ols", "--json", "fleet.json", cwd=tmp_path)
+    assert (done.returncode, done.stderr) == (130, "dynid fleet: interrupted\n"), done.stderr
+    assert "[3/3] arm2" in done.stdout  # every robot was fitted
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["runs"]

@@ -16,6 +16,7 @@ from ..identify.runs import RunRef, stream_run
 from ..io.dataset import atomic_write
 from ..io.file_set import holds_file_set
 from ..io.run_paths import expand_named
+from ..outputs import output_dir
 from ..pipeline import IdentifySettings, identify
 from ..report.fleet import compare, page
 from ..robot.model import RobotModel
@@ -63,8 +64,9 @@ def cmd_fleet(args: argparse.Namespace) -> dict[str, Any]:
             cluster.close()
     kinds = {name: LAYOUT_KINDS[b.kind] for b in model.layout.blocks if b.kind in LAYOUT_KINDS for name in b.names}
     result = compare(models, kinds)
-    out.mkdir(exist_ok=True)
-    (out / "models").mkdir(exist_ok=True)
+    # DIR, DIR/models/ROBOT.json and DIR/fleet.html appear together, with --json, when the command succeeds: a
+    # Ctrl-C or a model refused on saving left the models written before it, without the page (dynid.outputs)
+    output_dir(out / "models")
     for robot, m in models.items():
         m.save(out / "models" / f"{files[robot]}.json")
     text = page(result, config.name)
