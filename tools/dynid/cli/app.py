@@ -93,7 +93,8 @@ def run(argv: list[str]) -> int:
     try:
         # The command's outputs (--json's too) are put in place together when it succeeds; when it fails, or is
         # interrupted, none is (dynid.outputs).
-        with staged():
+        stage = None
+        with staged() as stage:
             split_data_windows(args)
             check_outputs(args)
             with human, warnings.catch_warnings():
@@ -109,6 +110,9 @@ def run(argv: list[str]) -> int:
             # The reader of stdout closed it (`dynid spy | head -1`): what it wanted was written. Stop as a tool killed
             # by SIGPIPE would, without a message, and keep the interpreter's final flush off the closed pipe.
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            if stage is not None and stage.ready:  # the command did not end: its outputs were not put in place
+                sys.stderr.write(f"dynid {args.command}: standard output closed before the command ended: "
+                                 f"{', '.join(sorted({str(path) for _, path in stage.ready}))} not written\n")
             return 128 + signal.SIGPIPE
         sys.stderr.write(f"dynid {args.command}: error: {e.strerror or e}\n")  # another pipe than stdout
         return EXIT_BAD_INPUT
