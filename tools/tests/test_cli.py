@@ -77,6 +77,20 @@ def test_import_then_structure(tmp_path: Path) -> None:
     assert len(result["parameters"]) == 118 and result["rank"] == 81
 
 
+def test_an_import_whose_reader_closes_stdout_says_what_it_did_not_write(tmp_path: Path) -> None:
+    """Outputs are put in place when a command succeeds; one whose standard output is closed first (`| head -0`)
+    writes none, and says so in one line (a reader of stdout alone, as spy's, ends quietly: test_lcm_deploy)."""
+    csv = write_csv(tmp_path / "run.csv", icub_columns())
+    out = tmp_path / "run.npz"
+    p = subprocess.Popen([sys.executable, "-m", "dynid.cli", "import", "--data", str(csv), "--out", str(out)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    p.stdout.close()  # the reader is gone before the command prints its report
+    err = p.stderr.read()
+    assert p.wait(timeout=120) == 141 and not out.exists()
+    assert err.strip().splitlines() == [f"dynid import: standard output closed before the command ended: {out} not "
+                                        "written"], err
+
+
 def test_structure_reports_the_rank() -> None:
     p = run("structure", "--combinations")
     assert p.returncode == 0, p.stderr
