@@ -78,7 +78,7 @@ def _unraisable(previous: Callable[[Any], None]) -> Callable[[Any], None]:
 @contextlib.contextmanager
 def interruptible() -> Iterator[None]:
     """Ctrl-C as KeyboardInterrupt, recorded, and never swallowed (see the module's docstring), for the block; a
-    no-op off the main thread, and where SIGINT is ignored (nohup, a background job) or has a handler of its own."""
+    no-op off the main thread, and where SIGINT is ignored (a job started in the background) or has a handler of its own."""
     global _open, _requested, _dropped
     if (threading.current_thread() is not threading.main_thread()
             or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):

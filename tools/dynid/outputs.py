@@ -47,33 +47,42 @@ class Staging:
     closed: bool = False
 
     def commit(self) -> None:
-        """Put every output in place, in the order written; should a rename fail (rare: the same directory as the
-        temporary file made before), the outputs put in place before it are removed again (those that replaced
-        a file are gone with it) and the rest discarded."""
+        """Put every output in place, in the order written. Each file an output replaces is first linked to a backup
+        beside it: should a rename fail (rare: the same directory as the temporary file made before), the outputs
+        put in place are taken back and the files they replaced restored, and the rest discarded."""
         with sigint_held():
-            if self.closed:
+            if self.closed or self.pid != os.getpid():  # a forked child never commits its parent's outputs
                 return
             if self.ready and requested():  # a Ctrl-C came and was swallowed somewhere: the command was interrupted
                 self.discard()
                 raise KeyboardInterrupt
-            placed: list[Path] = []
+            placed: list[tuple[Path, Path | None]] = []  # (output, the backup of the file it replaced)
+            failed = None
             try:
-                for tmp, path in self.ready:
-                    os.replace(tmp, path)
-                    placed.append(path)
+                for tmp, failed in self.ready:
+                    backup = None
+                    if failed.is_file():
+                        backup = failed.with_name(f".{failed.name}.{os.getpid()}.bak")
+                        os.link(failed, backup)
+                        self.temporaries.append(backup)
+                    os.replace(tmp, failed)
+                    placed.append((failed, backup))
             except OSError as e:
-                for path in placed:
+                for output, backup in reversed(placed):
                     with contextlib.suppress(OSError):
-                        path.unlink()
+                        if backup is None:
+                            output.unlink()
+                        else:
+                            os.replace(backup, output)
                 self.discard()
-                raise DataError(f"cannot write {_named(path, self)}: {e.strerror or e}") from None
+                raise DataError(f"cannot write {_named(failed, self)}: {e.strerror or e}") from None
             self._remove_temporaries()
             self.closed = True
 
     def discard(self) -> None:
         """Remove every temporary file and directory, and the output directories made (when empty)."""
         with sigint_held():
-            if self.closed:
+            if self.closed or self.pid != os.getpid():
                 return
             self._remove_temporaries()
             for d in reversed(self.made):

@@ -235,6 +235,17 @@ def test_an_lcm_url_liblcm_cannot_open_is_a_configuration_error(url: str, why: s
         assert not out.exists()
 
 
+@pytest.mark.parametrize("url", ["file:///tmp/my runs/e.lcmlog?mode=w", "file:///tmp/run#3.lcmlog?mode=w",
+                                 "udpm://239.255.76.67:7667?ttl=0&x=\nstale_ms 1"])
+def test_an_lcm_url_the_configuration_cannot_carry_is_refused(url: str, tmp_path: Path) -> None:
+    """The configuration is whitespace-separated tokens with # comments: rt_monitor would read such a URL as another
+    (a review found all three written with exit 0; the newline injected a configuration line)."""
+    out = tmp_path / "arm.conf"
+    done = run(DYNID, "export", "--robot", "icub_right_arm", "--monitor-config", out, "--lcm-url", url)
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert "cannot hold whitespace, '#' or control characters" in done.stderr and not out.exists()
+
+
 # ---- a robot that is no iCub, end to end -----------------------------------------------------------------
 
 

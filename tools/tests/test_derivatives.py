@@ -100,8 +100,9 @@ def test_uniform_steps_are_savgol_filter(uniform, window, polyorder):
 
 @pytest.mark.parametrize("window", [31, 201])
 def test_the_fft_interior_is_the_direct_correlation(uniform, window):
-    """`fft=True` (the IV instruments' long window) gives the direct path's numbers to rounding, edges included, and
-    sums the same windows (a one-sample shift would be 1e-3 of scale here)."""
+    """`fft=True` (the IV instruments' long window) gives the direct path's numbers to rounding on the interior, which
+    it correlates by FFT (both paths fit the edges the same way), and sums the same windows (a one-sample shift fails
+    at 0.2)."""
     t, q, _, _ = uniform
     q = q + 5.0  # an offset: FFT rounding scales with the data, not with the output
     direct = SavitzkyGolay(window_s=window * DT)(t, q)

@@ -194,3 +194,18 @@ def test_the_papers_rows_only_on_the_papers_arm() -> None:
     assert "paper" in H.table_ii(v, dict(PAPER)) and "paper" not in H.table_ii(v, None)
     assert "real iCub arm" in H.detection(det, det, dict(PAPER), 0.99)
     assert "real iCub arm" not in H.detection(det, det, None, 0.99)
+
+
+def test_a_headerless_log_may_stop_after_one_sensor_of_two() -> None:
+    """Groups are a kind's consecutive columns, an F/T sensor's six its own: a log that stops after the first of two
+    sensors stops at a group's end (a review found ft.left.* and ft.right.* taken as one group, and refused)."""
+    from types import SimpleNamespace
+
+    from dynid.io.headerless import check_group_end
+
+    names = ["t"] + [f"ft.{s}.{c}" for s in ("left", "right") for c in ("fx", "fy", "fz", "tx", "ty", "tz")]
+    config = SimpleNamespace(columns=[SimpleNamespace(name=n) for n in names + ["q.a", "q.b"]], name="two")
+    for width in (1, 7, 13, 15):
+        check_group_end(Path("log.csv"), config, width)  # type: ignore[arg-type]
+    with pytest.raises(DataError, match=r"inside the configuration two's ft\.right\.\* columns \(3 of 6\)"):
+        check_group_end(Path("log.csv"), config, 10)  # type: ignore[arg-type]

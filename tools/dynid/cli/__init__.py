@@ -1,7 +1,8 @@
 """The `dynid` command line (docs/design.md §7): one thin module per command group (parse, call the library,
 print), and `main`, the entry point.
 
-Every command takes `--robot` (a configuration file or a bundled name; default icub_right_arm). Bad input of any
+A command that starts from a robot takes `--robot` (a configuration file or a bundled name; default icub_right_arm;
+one that reads a model takes the model's robot). Bad input of any
 kind ends with exit code 2 and one line on stderr naming the problem; Ctrl-C with one line, "dynid COMMAND:
 interrupted", and exit code 130. `--json FILE` writes the command's result for machines ('-' for stdout); its fields
 are documented in docs/formats.md. The cli may import every layer below it; nothing imports the cli.

@@ -84,10 +84,11 @@ def check_outputs(args: argparse.Namespace, extra: dict[str, str] | None = None)
                 raise InputError(f"cannot write to '{value}' (--{option}): it exists and is not a directory")
             # the directory itself, or the nearest that exists, in which it (and its missing parents) will be made
             where = next((p for p in (path, *path.parents) if p.exists()), Path("."))
-            if where.is_dir() and not os.access(where, os.W_OK | os.X_OK):
+            if not where.is_dir():  # a file where a parent directory must be made
+                raise InputError(f"cannot write to '{value}' (--{option}): {where} is not a directory")
+            if not os.access(where, os.W_OK | os.X_OK):
                 raise InputError(f"cannot write to '{value}' (--{option}): {where} is not writable")
-            why = probe(where, as_directory=where != path) if where.is_dir() else None
-            if why:
+            if why := probe(where, as_directory=where != path):
                 raise InputError(f"cannot write to '{value}' (--{option}): nothing can be created in {where} ({why})")
         elif not path.name:
             raise InputError(f"cannot write '{value}' (--{option}): not a file name")

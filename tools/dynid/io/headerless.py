@@ -45,9 +45,15 @@ _WIDTH_LINES = 200
 
 
 def _groups(config: RobotConfig) -> list[str]:
-    """Each listed column's group: the kind before its first dot (q, velocity, current, …); a skipped column is a
-    group of its own."""
-    return [f"{SKIP}{i}" if c.name == SKIP else c.name.split(".", 1)[0] for i, c in enumerate(config.columns)]
+    """Each listed column's group: its kind before the first dot (q, velocity, current, …), an F/T sensor's six its
+    own (ft.<sensor>); a skipped column is a group of its own."""
+    def group(i: int, name: str) -> str:
+        if name == SKIP:
+            return f"{SKIP}{i}"
+        kind, _, rest = name.partition(".")
+        return f"ft.{rest.partition('.')[0]}" if kind == "ft" else kind
+
+    return [group(i, c.name) for i, c in enumerate(config.columns)]
 
 
 def check_group_end(path: Path, config: RobotConfig, width: int) -> None:
@@ -59,11 +65,16 @@ def check_group_end(path: Path, config: RobotConfig, width: int) -> None:
     if width >= len(groups) or groups[width - 1] != groups[width]:
         return
     group = groups[width]
-    size = groups.count(group)
+    first = width - 1
+    while first > 0 and groups[first - 1] == group:
+        first -= 1
+    last = width
+    while last + 1 < len(groups) and groups[last + 1] == group:
+        last += 1
     ends = [i for i in range(1, len(groups) + 1) if i == len(groups) or groups[i - 1] != groups[i]]
     raise DataError(
         f"{path}: the rows have {width} fields, which ends inside the configuration {config.name}'s {group}.* "
-        f"columns ({width - groups.index(group)} of {size}): a column is missing or extra, and the columns after it "
+        f"columns ({width - first} of {last - first + 1}): a column is missing or extra, and the columns after it "
         f"would be read shifted (the groups of its columns end at field {', '.join(map(str, ends[:-1]))} and "
         f"{ends[-1]})"
     )

@@ -99,7 +99,7 @@ def check_wrenches(dataset: Dataset, config: RobotConfig, where: str = "", heade
             raise DataError(
                 f"{where}ft.{s.name}'s forces swing by {peak:.4g} N (99th percentile about their medians), "
                 f"{peak / weight:.3g} times the weight of the whole robot ({mass:.3g} kg in its URDF), which no load "
-                f"of the robot explains: forces in mN? (N expected){declare}")
+                f"of the robot explains: forces in mN? (N expected; or is a payload missing from the URDF?){declare}")
         rms_force = float(np.sqrt(np.mean(force**2)))
         if not rms_force > 0:
             continue  # forces that never move: no lever to measure
@@ -110,4 +110,4 @@ def check_wrenches(dataset: Dataset, config: RobotConfig, where: str = "", heade
                 f"{where}ft.{s.name}'s torques are {lever:.3g} m times its forces (RMS about their medians: a lever "
                 f"arm), beyond the {limit:.3g} m allowed where the chain beyond the sensor reaches "
                 f"{reach[s.joint]:.3g} m: torques in N·mm, or forces in kN? (N·m and N expected; or are the force "
-                f"and torque columns swapped?){declare}")
+                f"and torque columns swapped, or is a tool beyond the sensor missing from the URDF?){declare}")

@@ -25,8 +25,6 @@ import json
 from pathlib import Path
 from typing import BinaryIO
 
-import numpy as np
-
 from ..errors import DataError
 from ..io.csv_format import write_csv
 from ..io.dataset import SIMULATION_DATASET, atomic_write
@@ -35,17 +33,13 @@ from .experiment import Simulation
 
 FILES = {"dataset": SIMULATION_DATASET, "csv": "data.csv", "truth": "truth.json", "truth_signals": "truth.npz"}
 TRUTH_FORMAT = "dynid-truth"  # truth.json's "format" (experiment.py)
-SIMULATED_SOURCE = "dynid simulate"  # how the dataset's meta "source" starts (experiment.py)
 
 
 def is_simulation_dir(out: Path) -> bool:
-    """Whether `out` holds an earlier `dynid simulate` output: its truth.json or its dataset.npz says so."""
+    """Whether `out` holds an earlier `dynid simulate` output: its truth.json says so (a dataset.npz alone does not:
+    `import --out DIR/dataset.npz` of a simulated run would make any folder look like one)."""
     with contextlib.suppress(OSError, ValueError, KeyError, TypeError, AttributeError):
-        if json.loads((out / FILES["truth"]).read_text(encoding="utf-8")).get("format") == TRUTH_FORMAT:
-            return True
-    with contextlib.suppress(OSError, ValueError, KeyError, TypeError, AttributeError):
-        with np.load(out / SIMULATION_DATASET, allow_pickle=False) as members:  # the meta member alone is read
-            return str(json.loads(str(members["meta"])).get("source", "")).startswith(SIMULATED_SOURCE)
+        return json.loads((out / FILES["truth"]).read_text(encoding="utf-8")).get("format") == TRUTH_FORMAT
     return False
 
 

@@ -1,0 +1,56 @@
+"""dynid.outputs: a command's outputs put in place together when it succeeds, none when it fails, and the files they
+would have replaced as they were (the commands' end-to-end cases: test_cli.py, test_interrupt.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from dynid.errors import DataError
+from dynid.outputs import atomic_write, output_dir, staged
+
+
+def text(data: bytes):  # noqa: ANN201 - atomic_write's writer
+    return lambda f: f.write(data)
+
+
+def test_outputs_appear_together_at_the_end(tmp_path: Path) -> None:
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    with staged():
+        atomic_write(a, text(b"A"))
+        assert not a.exists()  # staged: not yet in place
+        with staged():  # a nested block joins the command's staging
+            atomic_write(b, text(b"B"))
+        assert not b.exists()
+    assert a.read_bytes() == b"A" and b.read_bytes() == b"B"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "b.json"]  # no temporary file left
+
+
+def test_a_failing_command_leaves_nothing_and_the_old_files(tmp_path: Path) -> None:
+    old = tmp_path / "model.json"
+    old.write_bytes(b"OLD")
+    with pytest.raises(RuntimeError), staged():
+        atomic_write(old, text(b"NEW"))
+        output_dir(tmp_path / "figures" / "deep")
+        atomic_write(tmp_path / "figures" / "deep" / "f.png", text(b"PNG"))
+        raise RuntimeError("the command fails after writing")
+    assert old.read_bytes() == b"OLD" and [p.name for p in tmp_path.iterdir()] == ["model.json"]
+
+
+def test_a_rename_that_fails_at_the_end_restores_what_was_replaced_and_names_its_output(tmp_path: Path) -> None:
+    """A review found the rollback unlinking the first output after it had replaced the user's file (the old model
+    lost) and naming the wrong output."""
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    a.write_bytes(b"OLD MODEL")
+    with pytest.raises(DataError, match=r"cannot write '.*b\.json': Is a directory"), staged():
+        atomic_write(a, text(b"NEW A"))
+        atomic_write(b, text(b"NEW B"))
+        b.mkdir()  # b.json becomes a directory before the end: its rename fails after a.json's succeeded
+    assert a.read_bytes() == b"OLD MODEL"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "b.json"] and b.is_dir()
+
+
+def test_unstaged_writes_are_in_place_at_once(tmp_path: Path) -> None:
+    atomic_write(tmp_path / "x", text(b"X"))
+    assert (tmp_path / "x").read_bytes() == b"X" and [p.name for p in tmp_path.iterdir()] == ["x"]
