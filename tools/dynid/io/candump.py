@@ -56,16 +56,23 @@ _LINE = re.compile(_STAMP + rb"([0-9A-Fa-f]{3})#((?:[0-9A-Fa-f]{2}){0,8})[ \t\r]
 _OTHER = re.compile(_STAMP + rb"(?:[0-9A-Fa-f]{8}#(?:[Rr][0-8]?|(?:[0-9A-Fa-f]{2}){0,8})|[0-9A-Fa-f]{3}#[Rr][0-8]?)"
                     rb"[ \t\r]*$", re.M)
 _FD = re.compile(_STAMP + rb"[0-9A-Fa-f]+##")
+_CONTENT = re.compile(rb"^(?=[ \t\r\x0b\x0c]*[^ \t\r\n\x0b\x0c#])", re.M)  # a line not blank nor a comment: b"" each
 SHOW_CHARS = 60  # of a bad line, in its refusal
 
 
 def _bad_lines(text: bytes, frames: int) -> tuple[list[Malformed], int]:
     """The lines of the log that are neither a frame (`frames` of them matched `_LINE`), another frame (`_OTHER`),
     blank nor a `#` comment, each a `Malformed` of its 0-based line number; and how many lines are not blank."""
+    # The clean log, the usual case, told without splitting it into lines (a list of them is twice a long log): every
+    # line a frame (a count of line ends), else every line not blank nor a comment a frame or another frame's
+    lines_in_text = text.count(b"\n") + (0 if not text or text.endswith(b"\n") else 1)
+    if lines_in_text == frames:
+        return [], frames
+    content_lines = len(_CONTENT.findall(text))
+    if content_lines == frames + len(_OTHER.findall(text)):
+        return [], content_lines
     lines = text.split(b"\n")
     content = [k for k, line in enumerate(lines) if line.strip() and not line.lstrip().startswith(b"#")]
-    if len(content) == frames + len(_OTHER.findall(text)):
-        return [], len(content)
     cut = len(lines) - 1 if not text.endswith(b"\n") else -1  # a last line with no line end: the logger stopped
     bad = []
     for k in content:
