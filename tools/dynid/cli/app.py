@@ -16,6 +16,7 @@ import signal
 import sys
 import warnings
 import xml.etree.ElementTree as ET
+from typing import TextIO
 from collections.abc import Callable
 
 from ..config.robot_config import bundled_configs
@@ -66,7 +67,7 @@ def _notes(command: str, default: Callable[..., None]) -> Callable[..., None]:
     return show
 
 
-def _reader_gone(stream) -> bool:
+def _reader_gone(stream: TextIO) -> bool:
     """Whether `stream` is a pipe whose reading end is closed (poll reports an error on the writing end)."""
     try:
         poll = select.poll()

@@ -41,12 +41,13 @@ import re
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ..config.log_columns import SKIP
 from ..config.robot_config import RobotConfig
-from ..config.yarp_ports import YarpPort
+from ..config.yarp_ports import YarpLayout, YarpPort
 from ..errors import DataError, DataNote
 from .align import Stream, keep_increasing, on_grid, uniform_grid
 from .bad_rows import DEFAULT_POLICY, KINDS, MAX_ABS_VALUE, SHOW_LINES, BadRows, Malformed, apply_policy
@@ -185,8 +186,8 @@ def _cut_short(logs: dict[str, _PortLog], origin: float, max_skew: float) -> tup
     return cut, said
 
 
-def _bad_lines(root: Path, layout, logs: dict[str, _PortLog], cut: dict[str, list[Malformed]],
-               policy: str) -> dict | None:
+def _bad_lines(root: Path, layout: YarpLayout, logs: dict[str, _PortLog], cut: dict[str, list[Malformed]],
+               policy: str) -> dict[str, Any] | None:
     """The ports' bad lines and messages cut short refused (one line naming the first few) or, with `skip`, what
     `meta["bad_rows"]` records; None when there are none. Lines are numbered over the ports in the configuration's
     order."""
