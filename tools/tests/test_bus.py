@@ -195,7 +195,9 @@ def test_an_lcm_log_the_monitor_would_open_for_reading_is_refused(url: str, fixe
 
 
 # URLs liblcm cannot open as the monitor's LCM (URL, the reason's start; None: fine). Found by a walkthrough: export
-# wrote `lcm_url bogus` and rt_monitor then failed with exit 1, not as a configuration error.
+# wrote `lcm_url bogus` and rt_monitor then failed with exit 1, not as a configuration error. Nothing here reaches the
+# network: rt_monitor runs only on the refused URLs, which it refuses before LCM is opened; the good ones (multicast
+# among them) are judged by the Python rule alone.
 BAD_LCM_URLS = [
     ("bogus", "no LCM provider 'bogus'"),
     ("udp://239.255.76.67:7667", "no LCM provider 'udp'"),
@@ -221,7 +223,7 @@ def test_an_lcm_url_liblcm_cannot_open_is_a_configuration_error(url: str, why: s
     good URL is not run here: the monitor would open it)."""
     assert lcm_url_problem(url).startswith(why) if why else lcm_url_problem(url) == ""
     if why is None:
-        return
+        return  # never opened: a good udpm URL would join a multicast group on the host network
     coef, conf = arm_monitor
     done = run(ROOT / "build/rt_monitor/rt_monitor", "--model", coef, "--config", conf, "--replay", "/dev/null",
                "--lcm-url", url)
