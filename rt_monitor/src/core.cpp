@@ -141,6 +141,7 @@ void Core::reset() noexcept {
                                                  : c_.window;
     ring_rows_ = window_ + 1;  // one more: the sample leaving the filter's window is still there for the moments
     observing_ = false;
+    observer_all_rest_ = false;
     r_.setZero();
     inputs_.setZero();
     out_ = Output{};
@@ -311,7 +312,8 @@ const Output& Core::step(const double* q, const double* dq, const double* y) noe
 void Core::combine(const double* q, const double* dq, const double* y) noexcept {
     // Both residuals, each from its own window's start (as each alone would run: the observer from the sample its q̇
     // window fills, the filter from the sample its window fills), then s = (T²_o/T²_o,α + T²/T²_α)/κ on the
-    // samples where both have run (dynid.detect.combined, its monitor pairing).
+    // samples where both have run, T²_o/T²_o,α alone where every row rests (dynid.detect.combined, its monitor
+    // pairing).
     double observer_threshold = 0;
     if (count_ >= c_.velocity_window) observer_threshold = observe(q, dq, y);
     if (count_ >= c_.window) {
@@ -322,7 +324,9 @@ void Core::combine(const double* q, const double* dq, const double* y) noexcept 
     if (!out_.ready) return;
     out_.observer_ratio = out_.p.t2 / observer_threshold;
     out_.acceleration_ratio = acc_.p.t2 / c_.threshold;
-    out_.p.t2 = (out_.observer_ratio + out_.acceleration_ratio) / c_.combined_scale;
+    // Where every row rests the observer's own test (its rest threshold) alone: κ is the sum's level where a row moves
+    out_.p.t2 = observer_all_rest_ ? out_.observer_ratio
+                                   : (out_.observer_ratio + out_.acceleration_ratio) / c_.combined_scale;
     out_.t2_alpha = 1.0;
     detect(1.0, c_.observer_ft_threshold);
 }
@@ -455,6 +459,7 @@ double Core::observe(const double* q, const double* measured_dq, const double* y
     }
     isolate(out_, out_.r, observer_isolation_);
     for (int k = 0; k < c_.n_sensors; ++k) out_.wrench[k] = out_.r.segment<6>(6 * k);
+    observer_all_rest_ = all_rest;
     return all_rest ? c_.observer_rest_threshold : c_.observer_threshold;
 }
 

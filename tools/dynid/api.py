@@ -322,12 +322,17 @@ class ContactDetector(BaseEstimator):
 
     def _combined_statistic(self, X: Data) -> tuple[Dataset, np.ndarray]:
         det = self._combined_detector()
-        ds, momentum = self._momentum_statistic(X)
+        ds, momentum, all_rest = self._momentum_statistic_and_rest(X)
         ev = self.model._evaluated(X)
         acceleration = self._detector()
-        return ds, det.statistic(momentum, acceleration.t2(ev.model, ev.e, ev.signals.dq) / acceleration.threshold)
+        return ds, det.statistic(momentum, acceleration.t2(ev.model, ev.e, ev.signals.dq) / acceleration.threshold,
+                                 all_rest)
 
     def _momentum_statistic(self, X: Data) -> tuple[Dataset, np.ndarray]:
+        return self._momentum_statistic_and_rest(X)[:2]
+
+    def _momentum_statistic_and_rest(self, X: Data) -> tuple[Dataset, np.ndarray, np.ndarray]:
+        """The run, the momentum detector's statistic and where every row rests."""
         identified = self.model.model_
         robot = identified.robot_model
         det = self._momentum_detector()
@@ -335,7 +340,7 @@ class ContactDetector(BaseEstimator):
         band = friction_band(robot, identified.phi, identified.base, det.band_sigmas)
         res = run_residuals(robot, identified.phi, ds, det.bandwidth_hz, det.min_speed, band,
                             identified.supply_tracking, det.velocity_window_s)
-        return ds, det.statistic(res.e, res.at_rest)
+        return ds, det.statistic(res.e, res.at_rest), res.at_rest.all(axis=1)
 
     def fit(self, X: Data | Sequence[Data], y: None = None) -> ContactDetector:
         """Recalibrate Λ and T²_α on contact-free runs, with the offline derivatives and supply estimate (the

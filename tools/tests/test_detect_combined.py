@@ -40,9 +40,10 @@ def test_kappa_holds_alpha_on_new_samples_of_the_same_law() -> None:
         b = np.sum((shared + 0.7 * rng.standard_normal((n, 4))) ** 2 * rng.exponential(1.0, (n, 1)), axis=1)
         return a / np.quantile(a, ALPHA), b / np.quantile(b, ALPHA)
 
-    det = combined_detector(*pair(200_000), ALPHA)
+    moving = np.zeros(200_000, dtype=bool)
+    det = combined_detector(*pair(200_000), moving, ALPHA)
     m, c = pair(200_000)
-    fpr = float(np.mean(det.statistic(m, c) > 1))
+    fpr = float(np.mean(det.statistic(m, c, moving) > 1))
     assert abs(fpr - (1 - ALPHA)) < 0.001
     assert 1.0 < det.scale < 2.0
     # another α from the kept quantiles, and the section's round trip
@@ -50,7 +51,25 @@ def test_kappa_holds_alpha_on_new_samples_of_the_same_law() -> None:
     assert other is not None and other.scale > det.scale
     assert CombinedDetector.of(CombinedCalibration.from_json(det.section().to_json())).scale == det.scale
     with pytest.raises(DataError, match="too few"):
-        combined_detector(m[:50], c[:50], ALPHA)
+        combined_detector(m[:50], c[:50], moving[:50], ALPHA)
+
+
+def test_where_every_row_rests_the_observer_decides_alone() -> None:
+    """Where every row rests the acceleration residuals carry nothing (they leave resting rows out) and the observer's
+    statistic is over its own rest threshold: s is that statistic, not the sum over κ. κ is the sum's level where a
+    row moves, so resting samples (zeros on contact-free runs) do not lower it."""
+    rng = np.random.default_rng(5)
+    n = 20_000
+    m, c = rng.chisquare(4, n) / 13.3, rng.chisquare(4, n) / 13.3
+    rest = np.zeros(n, dtype=bool)
+    rest[: n // 2] = True
+    m[rest], c[rest] = 0.0, 0.0  # contact-free and resting: the band holds everything
+    det = combined_detector(m, c, rest, ALPHA)
+    assert det.scale == pytest.approx(np.quantile(m[~rest] + c[~rest], ALPHA))
+    assert det.scale > np.quantile(m + c, ALPHA)  # the resting zeros would have lowered it
+    push = np.array([1.2, 1.2])  # a push on a resting arm, above the observer's rest threshold, below κ
+    s = det.statistic(push, np.zeros(2), np.array([True, False]))
+    assert s[0] == 1.2 and s[1] == pytest.approx(1.2 / det.scale) and s[1] < 1
 
 
 def test_the_fit_keeps_kappa_and_detect_uses_it(default_model: Path) -> None:

@@ -63,7 +63,7 @@ def test_core_combined_is_dynids_sample_by_sample(exported: Path, default_model:
     first = max(c.window, c.velocity_window) - 1
     acceleration = np.full(n, np.nan)
     acceleration[first:] = det_c.t2(model, e[first:], dq[first:]) / c.threshold
-    ours = (observer + acceleration) / c.combined_scale
+    ours = np.where(res.at_rest.all(axis=1), observer, (observer + acceleration) / c.combined_scale)
 
     core = core_stream(exported, raw_samples(ds, c), tmp_path, "combined")
     assert np.argmax(core["ready"]) == first and core["ready"][first:].all()

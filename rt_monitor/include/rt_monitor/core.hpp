@@ -53,8 +53,9 @@ struct Output {
     VecJ tau_ext = VecJ::Zero();
     int joint = -1;
     // The combined detector: each residual's T² over its own T²_α (the observer's at this sample, the acceleration
-    // residuals' at sample k − lag); p.t2 is then their sum over combined_scale, s, and the threshold 1. Everything
-    // else above is the observer's. Zero with one residual.
+    // residuals' at sample k − lag); p.t2 is then their sum over combined_scale, s, and the threshold 1; where every
+    // row rests, the observer's ratio alone (its rest threshold; the acceleration residuals leave resting rows out).
+    // Everything else above is the observer's. Zero with one residual.
     double observer_ratio = 0, acceleration_ratio = 0;
 };
 
@@ -151,6 +152,7 @@ private:
     // low-passed inputs of the tracked channels.
     double decay_ = 0;
     bool observing_ = false;
+    bool observer_all_rest_ = false;  // every row rested at the observer's last sample
     VecO r_ = VecO::Zero(), inputs_ = VecO::Zero();
     VecJ p_prev_ = VecJ::Zero();
     std::array<Vec6, kMaxSensors> ps_prev_{};

@@ -9,10 +9,13 @@ motor rows, which alone carry a contact before the sensor; the acceleration resi
 
 (T²_m,α the observer's rest threshold where every row rests, as its own statistic takes it.) κ is the α-quantile of
 the sum on contact-free residuals the fit did not see (each time block of the fit's own runs through the Φ fitted
-without it, as each detector's own calibration), paired sample by sample: its per-sample false-positive rate there
-is 1 − α. Measured against an OR of the two at a common level, a per-row choice (the observer's F/T channels, the
-acceleration residuals' motor channels) and one T² over both residual vectors with their joint covariance, the sum
-finds the most proximal contacts at the lowest false-positive rate (tools/benchmarks/combined_detector.py).
+without it, as each detector's own calibration), paired sample by sample, over the samples where some row moves: its
+per-sample false-positive rate there is 1 − α. Where every row rests (a robot without F/T rows holding still) the
+acceleration residuals carry nothing (they leave resting rows out) and the observer's own test decides alone, s =
+T²_m / T²_m,α: dividing it by κ made the combined detector less sensitive than the observer on a resting arm.
+Measured against an OR of the two at a common level, a per-row choice (the observer's F/T channels, the acceleration
+residuals' motor channels) and one T² over both residual vectors with their joint covariance, the sum finds the most
+proximal contacts at the lowest false-positive rate (tools/benchmarks/combined_detector.py).
 """
 
 from __future__ import annotations
@@ -40,9 +43,11 @@ class CombinedDetector:
     samples: int  # paired calibration samples
     quantiles: Quantiles  # of that sum (κ at another α without a recalibration)
 
-    def statistic(self, momentum: np.ndarray, acceleration: np.ndarray) -> np.ndarray:
-        """s per sample from the two normalised statistics (T²/T²_α each): a contact above 1."""
-        return (momentum + acceleration) / self.scale
+    def statistic(self, momentum: np.ndarray, acceleration: np.ndarray, all_rest: np.ndarray) -> np.ndarray:
+        """s per sample from the two normalised statistics (T²/T²_α each): a contact above 1. Where every row rests
+        (`all_rest`, the observer's own test: its rest threshold) the momentum statistic alone: the acceleration
+        residuals leave resting rows out, and κ is the level of the sum where something moves."""
+        return np.where(all_rest, momentum, (momentum + acceleration) / self.scale)
 
     def at(self, alpha: float) -> CombinedDetector | None:
         """The same calibration at another α (its quantiles); None outside their levels."""
@@ -64,13 +69,17 @@ class CombinedDetector:
         return cls(s.scale, s.alpha, s.calibration_samples, s.quantiles)
 
 
-def combined_detector(momentum: np.ndarray, acceleration: np.ndarray, alpha: float) -> CombinedDetector:
-    """κ from the two normalised statistics on the same contact-free samples."""
-    if momentum.shape != acceleration.shape:
-        raise ValueError("the two statistics must be of the same samples")
-    if momentum.size < 100:
-        raise DataError(f"{momentum.size} paired calibration samples for the combined detector: too few")
-    both = momentum + acceleration
+def combined_detector(momentum: np.ndarray, acceleration: np.ndarray, all_rest: np.ndarray,
+                      alpha: float) -> CombinedDetector:
+    """κ from the two normalised statistics on the same contact-free samples, over those where some row moves (where
+    every row rests the statistic is the observer's own, `CombinedDetector.statistic`)."""
+    if not (momentum.shape == acceleration.shape == all_rest.shape):
+        raise ValueError("the two statistics and the rest flags must be of the same samples")
+    moving = ~np.asarray(all_rest, dtype=bool)
+    if moving.sum() < 100:
+        raise DataError(f"{int(moving.sum())} paired calibration samples with a moving row for the combined detector: "
+                        "too few")
+    both = momentum[moving] + acceleration[moving]
     return CombinedDetector(float(np.quantile(both, alpha)), alpha, int(both.size),
                             Quantiles(QUANTILE_LEVELS.copy(), np.quantile(both, QUANTILE_LEVELS)))
 
@@ -138,7 +147,7 @@ def paired_statistics(identified, det_m: MomentumDetector, det_c: Detector, data
     keep = np.all(np.isfinite(e_c), axis=1)  # the monitor's acceleration residuals start a filter window later
     e_m, rest, e_c, active = e_m[keep], rest[keep], e_c[keep], active[keep]
     stat_c = np.sum(np.where(active, e_c**2 / det_c.variance, 0.0), axis=1) / det_c.threshold
-    out = {"m": det_m.statistic(e_m, rest), "c": stat_c}
+    out = {"m": det_m.statistic(e_m, rest), "c": stat_c, "rest": rest.all(axis=1)}
     if with_residuals:
         out.update(e_m=e_m, e_c=e_c, active=active)
     return out
@@ -150,7 +159,7 @@ def calibrate_combined(identified, det_m: MomentumDetector, det_c: Detector, dat
     """κ at det_m's α on the paired statistics of `paired_statistics`."""
     pair = paired_statistics(identified, det_m, det_c, datasets, folds, measured, est,
                              momentum_samples=momentum_samples)
-    return combined_detector(pair["m"], pair["c"], det_m.alpha)
+    return combined_detector(pair["m"], pair["c"], pair["rest"], det_m.alpha)
 
 
 def stored_combined(identified, alpha: float) -> CombinedDetector | None:
@@ -180,7 +189,8 @@ def combined_detection(identified, dataset, momentum, acceleration_t2: np.ndarra
     from .momentum_t2 import contact_events
     from .t2 import score_with_delays
 
-    stat = detector.statistic(momentum.statistic, acceleration_t2 / det_c.threshold)
+    stat = detector.statistic(momentum.statistic, acceleration_t2 / det_c.threshold,
+                              momentum.residuals.at_rest.all(axis=1))
     result = score_with_delays(dataset.t, stat, 1.0, dataset.contact, side, shift_s)
     result["threshold"] = detector.scale
     result["statistic"] = detector.as_dict()["statistic"]
@@ -199,7 +209,10 @@ def fit_combined(identified, datasets: Sequence) -> Callable[[MomentumDetector, 
         det_c = Detector.of(identified.detector.calibrated)
         if det_c.alpha != det_m.alpha:
             return None
-        return calibrate_combined(identified, det_m, det_c, datasets, identified.folds,
-                                  momentum_samples=samples).section()
+        try:
+            return calibrate_combined(identified, det_m, det_c, datasets, identified.folds,
+                                      momentum_samples=samples).section()
+        except DataError:  # too few samples with a moving row: the observer is kept, without a combined level
+            return None
 
     return combine

@@ -202,7 +202,7 @@ def momentum_detector(model: RobotModel, e: np.ndarray, rest: np.ndarray, tau: n
 # The calibration made once, at fit time, and kept in the model file's `observer` section (docs/formats.md): `detect`
 # and `export` read it instead of running the observer over the identification runs again. Bumped whenever the
 # calibration's procedure changes (a stored one of another version is recomputed, as a file without one is).
-OBSERVER_VERSION = 2  # 2: cross-validated over the fit's time blocks (the model's `folds`); 1: in-sample
+OBSERVER_VERSION = 3  # 3: the combined level over samples with a moving row; 2: cross-validated over the fit's time blocks (the model's `folds`); 1: in-sample
 
 
 class ObserverCalibrations:

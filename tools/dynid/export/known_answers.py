@@ -134,7 +134,7 @@ def answers(identified, c: coefficients_t, ds: Dataset, effects: Sequence = ()) 
     elif c.residual == 1:
         out[first:] = np.column_stack([ratio_o, shares_o])[first:]
     else:
-        s = (ratio_o + ratio_a) / c.combined_scale
+        s = np.where(at_rest == 1, ratio_o, (ratio_o + ratio_a) / c.combined_scale)  # dynid.detect.combined
         out[first:] = np.column_stack([s, ratio_o, ratio_a, shares_o, shares_a])[first:]
     return out, edge
 
