@@ -12,8 +12,6 @@ from __future__ import annotations
 
 import importlib
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -180,8 +178,7 @@ def short_runs(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
 
 def validation_residual(model: Path, validation: Path) -> tuple[float, dict]:
     """The weighted validation residual: the mean over output channels of (RMS of e / the channel's noise)²."""
-    done = subprocess.run([sys.executable, "-m", "dynid.cli", "validate", "--model", str(model), "--data",
-                           str(validation), "--json", "-"], capture_output=True, text=True, timeout=600)
+    done = dynid("validate", "--model", str(model), "--data", str(validation), "--json", "-")
     assert done.returncode == 0, done.stderr
     result = json.loads(done.stdout)
     ratios = [c["ratio_to_noise"] for c in result["channels"].values()]
