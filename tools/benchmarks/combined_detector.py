@@ -33,7 +33,7 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tools"))
 
 from dynid.detect.combined import acceleration_statistic, paired_statistics  # noqa: E402
-from dynid.detect.momentum_t2 import calibration_runs  # noqa: E402
+from dynid.detect.momentum_t2 import calibrate_momentum, calibration_runs  # noqa: E402
 from dynid.detect.evaluation import detectors  # noqa: E402
 from dynid.detect.momentum_t2 import momentum_detection, stored_detector  # noqa: E402
 from dynid.detect.momentum import VELOCITY_WINDOW_S  # noqa: E402
@@ -47,7 +47,8 @@ def run_statistics(identified, path: str, det_c, det_m) -> dict:
     ev = evaluate(path, path, identified=identified)
     mom = momentum_detection(identified, ev.dataset, None, ALPHA, detector=det_m)
     stat_c = acceleration_statistic(ev.model, det_c, ev.e, ev.signals.dq)
-    return {"m": mom.statistic, "c": stat_c, "e_m": mom.residuals.e, "e_c": ev.e,
+    return {"m": mom.statistic, "c": stat_c, "rest": mom.residuals.at_rest.all(axis=1), "e_m": mom.residuals.e,
+            "e_c": ev.e,
             "active": det_c.active(ev.model, ev.signals.dq),
             "contact": ev.dataset.contact, "side": ev.dataset.extra.get("skin.side")}
 
@@ -75,14 +76,16 @@ def rules(cal: dict, det_c, det_m, alpha: float, ft: np.ndarray) -> dict:
 
     joint_threshold = float(np.quantile(joint_t2(cal), alpha))
     rows_threshold = float(np.quantile(rows_t2(cal), alpha))
-    stacked_threshold = float(np.quantile(cal["m"] + cal["c"], alpha))
+    # the default: over the samples where a row moves; where every row rests the observer's own test (combined.py)
+    moving = ~cal["rest"]
+    stacked_threshold = float(np.quantile(cal["m"][moving] + cal["c"][moving], alpha))
     print(f"union κ = {kappa:.4f}; bonferroni: momentum ×{q_m:.3f}, calibrated ×{q_c:.3f}; rows T²_α "
           f"{rows_threshold:.4g}; sum κ {stacked_threshold:.4g}; {cal['m'].size} paired samples")
     return {"momentum": lambda s: s["m"] > 1, "calibrated": lambda s: s["c"] > 1,
             "union": lambda s: np.maximum(s["m"], s["c"]) > kappa,
             "bonferroni": lambda s: (s["m"] > q_m) | (s["c"] > q_c),
             "rows": lambda s: rows_t2(s) > rows_threshold,
-            "sum (default)": lambda s: s["m"] + s["c"] > stacked_threshold,
+            "sum (default)": lambda s: np.where(s["rest"], s["m"], (s["m"] + s["c"]) / stacked_threshold) > 1,
             "joint": lambda s: joint_t2(s) > joint_threshold}
 
 
@@ -97,9 +100,12 @@ def main() -> None:
         monitor(Path(args.coef), Path(args.contact), [Path(v) for v in args.validation])
         return
     identified = load_model(args.model)
-    det_m = stored_detector(identified, "detect", ALPHA, 15.0, VELOCITY_WINDOW_S)
     det_c = detectors(identified, ALPHA, "dim")["calibrated"]
     runs, _ = calibration_runs(identified, None)
+    # the fit's stored calibration where it is current, else calibrated here as `dynid detect` would (an older file)
+    det_m = stored_detector(identified, "detect", ALPHA, 15.0, VELOCITY_WINDOW_S) or calibrate_momentum(
+        identified.robot_model, identified.phi, identified.base, runs, ALPHA, identified.min_speed,
+        tracking=identified.supply_tracking, folds=identified.folds)
     cal = paired_statistics(identified, det_m, det_c, runs, identified.folds, with_residuals=True)
     cal["quantiles_c"] = identified.detector.calibrated_t2_quantiles
     ft = np.array([o.kind == "ft" for o in output_channels(identified.robot_model)])
