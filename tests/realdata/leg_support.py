@@ -2,10 +2,10 @@
 
 The run's README gives the right foot lifted at about 13.1 s and put down at about 65.6 s. The stance (left) foot's
 vertical force says more: on one foot it carries the robot's weight, steady to a fraction of a newton once the swing's
-dynamics are smoothed out (its 0.5 s rolling median: robust σ 0.34 N over 14–58 s), and it unloads, steadily, once the
-right foot takes part of the weight. That starts well before the put-down's impact: 24 N are off the stance foot
-between 62.3 s and 65.3 s, while the right foot's own sensor gains about as much. The swing without ground contact ends
-there (docs/detection.md#out-of-sample).
+dynamics are smoothed out (its 0.5 s rolling median: robust σ 0.38 N over 14–58 s), and it unloads, steadily, once the
+right foot takes part of the weight. That starts well before the put-down's impact: 23 N are off the stance foot
+between 62.42 s and 65.3 s, while the right foot's own sensor moves by about as much. The swing without ground contact
+ends there (docs/detection.md#out-of-sample).
 
     python tests/realdata/leg_support.py [RUN_FOLDER]
 

@@ -33,7 +33,9 @@ RT_MONITOR = ROOT / "build" / "rt_monitor" / "rt_monitor"
 RT_EVAL = ROOT / "build" / "rt_monitor" / "rt_eval"
 DYNID = Path(sys.executable).with_name("dynid")
 T0_US = 1_700_000_000_000_000  # dynid play's default first stamp
-PUSHES_FOUND = 4  # measured 4 of 4, no onset outside them (fitted on the 14-harmonic run alone: 3 of 4)
+# measured 4 of 4, no onset outside them (fitted on the 14-harmonic run alone: 3 of 4); the first push is the weakest,
+# its peak 1.13 times the level offline: far from rounding, near enough that a refit on other data may lose it
+PUSHES_FOUND = 4
 
 UR10E_EXCITATION = tuple(f"ur10e_mamedov/identification/ur-{name}.csv" for name in (
     "20_02_19_14harm50sec", "20_02_12-50sec_12harm", "20_02_10-30sec_12harm", "20_02_05-20sec_8harm"))
@@ -137,7 +139,9 @@ def test_a_real_run_through_the_monitor_is_the_core_on_the_decoded_samples(robot
         got = out[:, cols["t2"]]
         both = np.isfinite(expected[:, 0]) & np.isfinite(got) & ~edge
         assert both.sum() > 0.9 * n
-        assert np.all(np.abs(got[both] - expected[both, 0]) <= 1e-9 * np.maximum(np.abs(expected[both, 0]), 1e-3))
+        # the tolerance the monitor's own known-answer check takes (rt_monitor/src/known_answers.cpp)
+        scale = np.maximum(np.abs(got[both]), np.abs(expected[both, 0]))
+        assert np.all(np.abs(got[both] - expected[both, 0]) <= 1e-6 * scale + 1e-9)
 
     if robot == "icub_right_leg_standing":  # the right foot put down at about 65.6 s, until the run's end
         t_run = load_data(paths[eval_source], config).t

@@ -63,8 +63,11 @@ class Staging:
                     backup = None
                     if failed.is_file():
                         backup = failed.with_name(f".{failed.name}.{os.getpid()}.bak")
-                        os.link(failed, backup)
-                        self.temporaries.append(backup)
+                        try:
+                            os.link(failed, backup)
+                            self.temporaries.append(backup)
+                        except OSError:  # no hard links here (vfat, some network mounts): replaced without one
+                            backup = None
                     os.replace(tmp, failed)
                     placed.append((failed, backup))
             except OSError as e:

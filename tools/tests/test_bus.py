@@ -12,7 +12,9 @@
 
 from __future__ import annotations
 
+import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -176,8 +178,15 @@ def test_an_lcm_log_the_monitor_would_open_for_reading_is_refused(url: str, fixe
     url, fixed = url.format(d=tmp_path), fixed and fixed.format(d=tmp_path)
     assert url_for_writing(url) == fixed
     coef, conf = arm_monitor
-    done = run(ROOT / "build/rt_monitor/rt_monitor", "--model", coef, "--config", conf, "--replay", "/dev/null",
-               "--lcm-url", url)
+    # A udp URL runs in a network namespace of its own (`unshare --net`: lo only, down), so that a monitor that failed
+    # to refuse it could not reach the host's network either; without that (not root), only the Python rule is held.
+    isolate: list[str] = []
+    if url.startswith("udp"):
+        if os.geteuid() != 0 or not shutil.which("unshare"):
+            pytest.skip("a udp URL is given to rt_monitor only inside a network namespace (needs root and unshare)")
+        isolate = ["unshare", "--net"]
+    done = run(*isolate, ROOT / "build/rt_monitor/rt_monitor", "--model", coef, "--config", conf, "--replay",
+               "/dev/null", "--lcm-url", url)
     if fixed is None:  # LCM opened, the run started (and, on an empty replay, ends evaluating no sample: exit 6)
         assert "rt_monitor: running: replay of /dev/null" in done.stderr and "reading" not in done.stderr, done.stderr
         return
@@ -196,8 +205,8 @@ def test_an_lcm_log_the_monitor_would_open_for_reading_is_refused(url: str, fixe
 
 # URLs liblcm cannot open as the monitor's LCM (URL, the reason's start; None: fine). Found by a walkthrough: export
 # wrote `lcm_url bogus` and rt_monitor then failed with exit 1, not as a configuration error. Nothing here reaches the
-# network: rt_monitor runs only on the refused URLs, which it refuses before LCM is opened; the good ones (multicast
-# among them) are judged by the Python rule alone.
+# network: rt_monitor runs only on the refused URLs, which it refuses before LCM is opened, and the udp ones inside a
+# network namespace of their own besides; the good ones (multicast among them) are judged by the Python rule alone.
 BAD_LCM_URLS = [
     ("bogus", "no LCM provider 'bogus'"),
     ("udp://239.255.76.67:7667", "no LCM provider 'udp'"),
@@ -225,8 +234,15 @@ def test_an_lcm_url_liblcm_cannot_open_is_a_configuration_error(url: str, why: s
     if why is None:
         return  # never opened: a good udpm URL would join a multicast group on the host network
     coef, conf = arm_monitor
-    done = run(ROOT / "build/rt_monitor/rt_monitor", "--model", coef, "--config", conf, "--replay", "/dev/null",
-               "--lcm-url", url)
+    # A udp URL runs in a network namespace of its own (`unshare --net`: lo only, down), so that a monitor that failed
+    # to refuse it could not reach the host's network either; without that (not root), only the Python rule is held.
+    isolate: list[str] = []
+    if url.startswith("udp"):
+        if os.geteuid() != 0 or not shutil.which("unshare"):
+            pytest.skip("a udp URL is given to rt_monitor only inside a network namespace (needs root and unshare)")
+        isolate = ["unshare", "--net"]
+    done = run(*isolate, ROOT / "build/rt_monitor/rt_monitor", "--model", coef, "--config", conf, "--replay",
+               "/dev/null", "--lcm-url", url)
     assert done.returncode == 2 and done.stderr.strip().splitlines() == [
         f"rt_monitor: error: LCM URL '{url}': {lcm_url_problem(url)}"], done.stderr
     if url == BAD_LCM_URLS[0][0]:  # the command line's refusal once: a process costs a second

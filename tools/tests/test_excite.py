@@ -200,6 +200,12 @@ def test_simulate_refuses_a_trajectory_without_velocities_or_beyond_the_limits(t
     r = dynid("simulate", "--trajectory", str(tmp_path / "out.csv"), "--out", str(tmp_path / "run"))
     assert r.returncode == 2 and "limits" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert not (tmp_path / "run").exists()
+    # a single row (no time step to judge its dq by: a traceback until the check returned "not judged")
+    one = ",".join(repr(float(v)) for v in [0.0, *mid, *np.zeros(7)])
+    (tmp_path / "one.csv").write_text(f"{header2}\n{one}\n")
+    r = dynid("simulate", "--trajectory", str(tmp_path / "one.csv"), "--out", str(tmp_path / "run"))
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr, r.stderr
+    assert not (tmp_path / "run").exists()
 
 
 def _sway(dq_of: Callable = lambda t, dq: dq) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -51,6 +51,24 @@ def test_a_rename_that_fails_at_the_end_restores_what_was_replaced_and_names_its
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "b.json"] and b.is_dir()
 
 
+def test_a_file_system_without_hard_links_still_takes_the_outputs(tmp_path: Path,
+                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """The backup of a replaced file is a hard link; where the file system has none (vfat, some network mounts) the
+    command's outputs still replace the old files, without a backup, instead of failing after all its work."""
+    import os
+
+    old = tmp_path / "model.json"
+    old.write_bytes(b"OLD")
+
+    def no_links(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+        raise PermissionError(1, "Operation not permitted")
+
+    monkeypatch.setattr(os, "link", no_links)
+    with staged():
+        atomic_write(old, text(b"NEW"))
+    assert old.read_bytes() == b"NEW" and [p.name for p in tmp_path.iterdir()] == ["model.json"]
+
+
 def test_unstaged_writes_are_in_place_at_once(tmp_path: Path) -> None:
     atomic_write(tmp_path / "x", text(b"X"))
     assert (tmp_path / "x").read_bytes() == b"X" and [p.name for p in tmp_path.iterdir()] == ["x"]

@@ -215,7 +215,8 @@ def test_a_port_that_ends_long_before_the_others_is_cut_short_refused_or_skipped
     assert len(notes) == 1 and "icub/right_arm/analog:o/data.log ends at t = 3." in notes[0] and "the run ends there" \
         in notes[0]
     ports = data.meta["yarp"]["ports"]
-    assert data.meta["bad_rows"]["kinds"] == {"cut_short": ports["icub/right_arm/stateExt:o"]["cut_short"]} != {}
+    assert ports["icub/right_arm/stateExt:o"]["cut_short"] > 0
+    assert data.meta["bad_rows"]["kinds"] == {"cut_short": ports["icub/right_arm/stateExt:o"]["cut_short"]}
     assert data.t[-1] <= ports["icub/right_arm/analog:o"]["last_s"] < data.t[-1] + 0.01
     np.testing.assert_array_equal(data.q, clean.q[: data.n_samples])  # the same grid, shorter
 

@@ -47,7 +47,7 @@ class CombinedDetector:
         """s per sample from the two normalised statistics (T²/T²_α each): a contact above 1. Where every row rests
         (`all_rest`, the observer's own test: its rest threshold) the momentum statistic alone: the acceleration
         residuals leave resting rows out, and κ is the level of the sum where something moves."""
-        return np.where(all_rest, momentum, (momentum + acceleration) / self.scale)
+        return combined_statistic(momentum, acceleration, all_rest, self.scale)
 
     def at(self, alpha: float) -> CombinedDetector | None:
         """The same calibration at another α (its quantiles); None outside their levels."""
@@ -69,6 +69,16 @@ class CombinedDetector:
         return cls(s.scale, s.alpha, s.calibration_samples, s.quantiles)
 
 
+class TooFewMoving(DataError):
+    """Too few calibration samples with a moving row to set κ (a run that mostly rests)."""
+
+
+def combined_statistic(momentum: np.ndarray, acceleration: np.ndarray, all_rest: np.ndarray,
+                       scale: float) -> np.ndarray:
+    """s from the normalised statistics: their sum over κ (`scale`), the observer's alone where every row rests."""
+    return np.where(all_rest, momentum, (momentum + acceleration) / scale)
+
+
 def combined_detector(momentum: np.ndarray, acceleration: np.ndarray, all_rest: np.ndarray,
                       alpha: float) -> CombinedDetector:
     """κ from the two normalised statistics on the same contact-free samples, over those where some row moves (where
@@ -77,8 +87,8 @@ def combined_detector(momentum: np.ndarray, acceleration: np.ndarray, all_rest: 
         raise ValueError("the two statistics and the rest flags must be of the same samples")
     moving = ~np.asarray(all_rest, dtype=bool)
     if moving.sum() < 100:
-        raise DataError(f"{int(moving.sum())} paired calibration samples with a moving row for the combined detector: "
-                        "too few")
+        raise TooFewMoving(f"{int(moving.sum())} paired calibration samples with a moving row for the combined "
+                           "detector: too few")
     both = momentum[moving] + acceleration[moving]
     return CombinedDetector(float(np.quantile(both, alpha)), alpha, int(both.size),
                             Quantiles(QUANTILE_LEVELS.copy(), np.quantile(both, QUANTILE_LEVELS)))
@@ -212,7 +222,7 @@ def fit_combined(identified, datasets: Sequence) -> Callable[[MomentumDetector, 
         try:
             return calibrate_combined(identified, det_m, det_c, datasets, identified.folds,
                                       momentum_samples=samples).section()
-        except DataError:  # too few samples with a moving row: the observer is kept, without a combined level
+        except TooFewMoving:  # the observer is kept, without a combined level
             return None
 
     return combine

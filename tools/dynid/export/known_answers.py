@@ -20,6 +20,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ..detect.combined import combined_statistic
 from ..detect.momentum import causal_velocity, momentum_residuals, robot_velocity
 from ..detect.online import FixedLagSavitzkyGolay, online_signals, online_times, raw_signals
 from ..errors import DataError
@@ -134,7 +135,7 @@ def answers(identified, c: coefficients_t, ds: Dataset, effects: Sequence = ()) 
     elif c.residual == 1:
         out[first:] = np.column_stack([ratio_o, shares_o])[first:]
     else:
-        s = np.where(at_rest == 1, ratio_o, (ratio_o + ratio_a) / c.combined_scale)  # dynid.detect.combined
+        s = combined_statistic(ratio_o, ratio_a, at_rest == 1, c.combined_scale)
         out[first:] = np.column_stack([s, ratio_o, ratio_a, shares_o, shares_a])[first:]
     return out, edge
 

@@ -213,7 +213,10 @@ def velocity_agreement(t: np.ndarray, q: np.ndarray, v: np.ndarray, rest: str = 
     under 20 stretches or a joint at rest: at rest by q alone for a log (``rest="q"``: a still joint's velocity is
     noise on both sides), or by both q and v for a computed reference (``rest="both"``: it has no noise, so a still q
     under a moving v is judged too)."""
-    n = max(5, int(round(VELOCITY_CHECK_S / float(np.median(np.diff(t))))))
+    step = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    if not step > 0:
+        return [None] * q.shape[1]  # fewer than two samples, or no time between them: nothing to judge
+    n = max(5, int(round(VELOCITY_CHECK_S / step)))
     edges = np.arange(0, t.size, n)
     if edges.size < 20:
         return [None] * q.shape[1]  # too short a run to judge
