@@ -61,32 +61,42 @@ def columns_on(E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _bordered_solve(Ginv: np.ndarray, B: np.ndarray, C: np.ndarray, gd: np.ndarray, ge: np.ndarray) -> np.ndarray:
     """Least squares of the normal equations [[G, B], [Bᵀ, C]] x = [gd, ge] whose leading d×d block G has the
     (cached) pseudo-inverse Ginv: a Schur complement on the K candidate columns, K small, instead of a new (d + K)
-    solve. Candidate directions the design already spans (Schur complement ~ 0 against their own scale) get 0."""
+    solve. Candidate directions the design already spans (Schur complement ~ 0 against their own scale) get 0.
+    Leading dimensions of every argument are a batch (each held-out block's solve at once)."""
     GiB = Ginv @ B
-    S = C - B.T @ GiB
+    S = C - np.swapaxes(B, -1, -2) @ GiB
     s, V = np.linalg.eigh(S)
-    keep = s > SPAN_TOL * max(float(np.abs(np.diag(C)).max()), 1e-300)
-    th = V[:, keep] @ ((V[:, keep].T @ (ge - GiB.T @ gd)) / s[keep])
-    return np.concatenate([Ginv @ gd - GiB @ th, th])
+    scale = np.abs(np.diagonal(C, axis1=-2, axis2=-1)).max(axis=-1, keepdims=True)
+    keep = s > SPAN_TOL * np.maximum(scale, 1e-300)
+    rhs = ge - _matvec(np.swapaxes(GiB, -1, -2), gd)
+    proj = _matvec(np.swapaxes(V, -1, -2), rhs)
+    th = _matvec(V, np.divide(proj, s, out=np.zeros_like(proj), where=keep))
+    return np.concatenate([_matvec(Ginv, gd) - _matvec(GiB, th), th], axis=-1)
+
+
+def _matvec(M: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """M v over leading batch dimensions: M (..., m, k), v (..., k) -> (..., m)."""
+    return (M @ v[..., None])[..., 0]
 
 
 def _quadratic(M: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """(r,) uᵀ M_c v for each of the r matrices M_c of M (r, m, k), as one matrix-vector product."""
-    r, m, k = M.shape
-    return (M.reshape(r * m, k) @ v).reshape(r, m) @ u
+    """(..., r) uᵀ M_c v for each of the r matrices M_c of M (..., r, m, k), as one matrix-vector product."""
+    *lead, r, m, k = M.shape
+    return _matvec(_matvec(M.reshape(*lead, r * m, k), v).reshape(*lead, r, m), u)
 
 
 def _sse(G: np.ndarray, g: np.ndarray, yy: np.ndarray, x: np.ndarray,
          extra: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Per channel, the SSE (y − [D E] x)ᵀ(y − [D E] x) from the normal statistics: G (r, d, d), g (r, d), yy (r,)
-    of D, and `extra` = (DᵀE (r, d, K), EᵀE (r, K, K), Eᵀy (r, K)) of the candidate columns E, if any."""
+    of D, and `extra` = (DᵀE (r, d, K), EᵀE (r, K, K), Eᵀy (r, K)) of the candidate columns E, if any; leading
+    dimensions (of x too) are a batch."""
     d = G.shape[-1]
-    xd = x[:d]
-    sse = _quadratic(G, xd, xd) - 2 * (g @ xd) + yy
+    xd = x[..., :d]
+    sse = _quadratic(G, xd, xd) - 2 * _matvec(g, xd) + yy
     if extra is not None:
         DE, EE, Ey = extra
-        xe = x[d:]
-        sse += 2 * _quadratic(DE, xd, xe) + _quadratic(EE, xe, xe) - 2 * (Ey @ xe)
+        xe = x[..., d:]
+        sse += 2 * _quadratic(DE, xd, xe) + _quadratic(EE, xe, xe) - 2 * _matvec(Ey, xe)
     return sse
 
 
@@ -165,11 +175,13 @@ class Design:
     def _cross_products(self, Es: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
         """`cross` of each E. Per channel, the columns of every candidate on it side by side, one product with [D y]
         per block: these products are bound by reading D (a candidate has 1-6 columns), so D is read once for all
-        of them rather than once for each."""
+        of them rather than once for each. Each candidate's EᵀE per block comes from one batched product per width:
+        a round holds hundreds of candidates, and a product each (block by block) was mostly Python's overhead."""
         B, r, d = self.n_blocks, self.D.shape[1], self.D.shape[2]
         touched = [columns_on(E) for E in Es]
         widths = [E.shape[2] for E in Es]
         stats = [(np.zeros((B, r, d, K)), np.zeros((B, r, K, K)), np.zeros((B, r, K))) for K in widths]
+        blocks = [self._block(b) for b in range(B)]
         for c in range(r):
             on = [i for i, (active, _) in enumerate(touched) if c in active]  # a candidate touches few channels
             if not on:
@@ -177,16 +189,22 @@ class Design:
             columns = np.concatenate([Es[i][:, c] for i in on], axis=1)  # (N, ΣK), contiguous
             ends = np.cumsum([widths[i] for i in on])
             starts = ends - [widths[i] for i in on]
-            for b in range(B):
-                sel = self._block(b)
-                M = self._Dy[c, sel].T @ columns[sel]  # (d + 1, ΣK): D'E and y'E of all of them at once
-                for i, lo, hi in zip(on, starts, ends):
-                    DE, EE, Ey = stats[i]
-                    DE[b, c], Ey[b, c] = M[:d, lo:hi], M[d, lo:hi]
-                    Ec = columns[sel, lo:hi]
-                    EE[b, c] = Ec.T @ Ec
-        return [(DE / np.outer(self.scale, e), EE / np.outer(e, e), Ey / e, e)
-                for (_, e), (DE, EE, Ey) in zip(touched, stats)]
+            # (B, d + 1, ΣK): D'E and y'E of all of them at once, block by block
+            M = np.stack([self._Dy[c, sel].T @ columns[sel] for sel in blocks])
+            for i, lo, hi in zip(on, starts, ends):
+                DE, _, Ey = stats[i]
+                DE[:, c], Ey[:, c] = M[:, :d, lo:hi], M[:, d, lo:hi]
+            for K in sorted({widths[i] for i in on}):  # E'E: the candidates of one width as one (m, N, K) stack
+                group = [(i, lo) for i, lo in zip(on, starts) if widths[i] == K]
+                cols = np.stack([columns[:, lo:lo + K] for _, lo in group])
+                EE = np.stack([cols[:, sel].transpose(0, 2, 1) @ cols[:, sel] for sel in blocks])  # (B, m, K, K)
+                for j, (i, _) in enumerate(group):
+                    stats[i][1][:, c] = EE[:, j]
+        for (_, e), (DE, EE, Ey) in zip(touched, stats):  # to unit-norm columns, in place
+            DE /= np.outer(self.scale, e)
+            EE /= np.outer(e, e)
+            Ey /= e
+        return [(DE, EE, Ey, e) for (_, e), (DE, EE, Ey) in zip(touched, stats)]
 
     def forget(self) -> None:
         """Drop what `cross_many` kept (and the candidates' columns it held)."""
@@ -202,21 +220,15 @@ class Design:
         return sub
 
     def cv_sse(self, E: np.ndarray | None) -> np.ndarray:
-        """(B, r) held-out SSE of each block and channel, fitting on the other blocks."""
-        out = np.zeros((self.n_blocks, self.D.shape[1]))
+        """(B, r) held-out SSE of each block and channel, fitting on the other blocks (every fold's solve at once)."""
         if E is None:
-            for b in range(self.n_blocks):
-                x = self.inv_folds[b] @ (self._g_all - self._g_block[b])
-                out[b] = _sse(self.G[b], self.g[b], self.yy[b], x)
-            return out
+            return _sse(self.G, self.g, self.yy, _matvec(self.inv_folds, self._g_all - self._g_block))
         DE, EE, Ey, _ = self.cross(E)
         DE_block, EE_block, Ey_block = DE.sum(axis=1), EE.sum(axis=1), Ey.sum(axis=1)
         DE_all, EE_all, Ey_all = DE_block.sum(axis=0), EE_block.sum(axis=0), Ey_block.sum(axis=0)
-        for b in range(self.n_blocks):
-            x = _bordered_solve(self.inv_folds[b], DE_all - DE_block[b], EE_all - EE_block[b],
-                                self._g_all - self._g_block[b], Ey_all - Ey_block[b])
-            out[b] = _sse(self.G[b], self.g[b], self.yy[b], x, (DE[b], EE[b], Ey[b]))
-        return out
+        x = _bordered_solve(self.inv_folds, DE_all - DE_block, EE_all - EE_block, self._g_all - self._g_block,
+                            Ey_all - Ey_block)
+        return _sse(self.G, self.g, self.yy, x, (DE, EE, Ey))
 
     def fit(self, E: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         """(x over all blocks in the columns' own units, in-sample SSE per channel)."""
