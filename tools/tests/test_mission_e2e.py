@@ -115,3 +115,18 @@ def test_every_distal_contact_found_and_no_event_without_contact(live: dict, pat
     assert s["false_onsets"] == len(false)
     assert s["episodes_visible"] >= len(distal) and not s["visible_missed_at"], \
         f"visible contacts missed at samples {s['visible_missed_at']}"
+
+
+def test_an_out_directory_no_lcm_url_can_name_is_refused_before_anything_runs(tmp_path: Path, capsys) -> None:
+    """The monitor's configuration names the LCM log under --out by a file:// URL, one whitespace-separated token:
+    a directory with a space is refused in one line, exit 2, before any program starts or anything is written."""
+    from dynid.export.mission import main
+
+    model, data = tmp_path / "model.dcoef", tmp_path / "run"
+    model.write_bytes(b"")  # never read: the refusal comes first
+    data.mkdir()
+    out = tmp_path / "mission out"
+    assert main(["--model", str(model), "--data", str(data), "--out", str(out), "--no-fifo"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--out" in err and "whitespace" in err, err
+    assert not out.exists()

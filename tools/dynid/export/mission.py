@@ -27,7 +27,7 @@ from pathlib import Path
 from ..config.robot_config import load_config
 from ..errors import DataError, InputError
 from . import monitor_log as contact_summary
-from .monitor_config import monitor_config_text
+from .monitor_config import fits_a_configuration, monitor_config_text
 
 ROOT = Path(__file__).resolve().parents[3]
 BOARDS = ROOT / "build" / "firmware_like" / "boards"
@@ -57,8 +57,11 @@ def play(coef: Path, data: Path, out: Path, robot: str = "icub_right_arm", realt
     for exe in (BOARDS, RT_MONITOR):
         if not exe.is_file():
             raise MissionError(f"{exe} is not built (run scripts/setup)")
-    out.mkdir(parents=True, exist_ok=True)
     final_log = out / "events.lcmlog"
+    if not fits_a_configuration(str(final_log)):  # before anything runs or is written
+        raise InputError(f"--out {str(out)!r}: the monitor's configuration names its LCM log there by a file:// URL, "
+                         "which cannot hold whitespace, '#' or control characters; choose a directory without them")
+    out.mkdir(parents=True, exist_ok=True)
     conf = out / "monitor.conf"
     config = load_config(robot)
     # AF_UNIX socket paths are limited to 108 bytes: the transport's directory is a short temporary one. The LCM

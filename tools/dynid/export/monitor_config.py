@@ -100,12 +100,17 @@ def lcm_url_problem(url: str) -> str:
     return ""
 
 
+def fits_a_configuration(token: str) -> bool:
+    """Whether `token` can be one value of the monitor's configuration: the file is whitespace-separated tokens with
+    # comments, so a URL holding whitespace, '#' or a control character would be read as something else."""
+    return not any(c.isspace() or c == "#" or not c.isprintable() for c in token)
+
+
 def monitor_config_text(config: RobotConfig, lcm_url: str | None = None) -> str:
     """The rt_monitor configuration (docs/formats.md, "rt_monitor configuration") for a robot configuration."""
     if lcm_url and (why := lcm_url_problem(lcm_url)):
         raise InputError(f"--lcm-url {lcm_url}: {why}")
-    if lcm_url and any(c.isspace() or c == "#" or not c.isprintable() for c in lcm_url):
-        # the configuration is whitespace-separated tokens with # comments: such a URL would be read as another
+    if lcm_url and not fits_a_configuration(lcm_url):
         raise InputError(f"--lcm-url {lcm_url!r}: a URL in the monitor's configuration cannot hold whitespace, '#' or "
                          "control characters (percent-encode them, or give the monitor --lcm-url)")
     if lcm_url and (fixed := url_for_writing(lcm_url)):
