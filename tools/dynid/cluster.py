@@ -23,10 +23,12 @@ cluster; one that comes while the cluster starts is held and delivered once it i
 from __future__ import annotations
 
 import contextlib
+import os
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
-from .errors import InputError
+from .errors import DataNote, InputError
 from .interrupt import sigint_held
 from .progress import RunProgress
 
@@ -136,7 +138,13 @@ def _failures(name: str) -> Iterator[None]:
 
 
 def executor(workers: int | None = None, scheduler: str | None = None) -> DaskCluster | None:
-    """The cluster the command line asks for (`--workers N`, `--scheduler ADDRESS`); None: in-process."""
+    """The cluster the command line asks for (`--workers N`, `--scheduler ADDRESS`); None: in-process. A local
+    cluster has at most one worker a CPU this process may run on: each worker is a process of its own that imports
+    dynid and holds its runs' blocks, and more of them than CPUs only share the CPUs and multiply the memory."""
+    if workers is not None and scheduler is None and workers > (cpus := len(os.sched_getaffinity(0))):
+        warnings.warn(DataNote(f"--workers {workers}: this process may run on {cpus} CPU{'s' * (cpus != 1)}; "
+                               f"{cpus} worker{'s' * (cpus != 1)} started"), stacklevel=2)
+        workers = cpus
     if scheduler is not None or workers is not None:
         return DaskCluster(workers, scheduler)
     return None

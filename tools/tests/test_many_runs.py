@@ -4,6 +4,8 @@ jackknife over runs, and the fit on a Dask LocalCluster equal to the serial one.
 from __future__ import annotations
 
 import json
+import os
+import warnings
 import zipfile
 from pathlib import Path
 
@@ -12,7 +14,7 @@ import pytest
 
 from conftest import dynid
 from dynid.config.robot_config import load_config
-from dynid.errors import DataError
+from dynid.errors import DataError, DataNote
 from dynid.identify.fit import FitSettings, SignalSource, fit, run_units
 from dynid.identify.runs import RunRef, stream_run
 from dynid.identify.statistics import accumulate
@@ -155,6 +157,8 @@ def test_data_takes_globs_folders_and_lists(runs: list[Path], tmp_path: Path) ->
 def test_a_local_cluster_of_two_workers_gives_the_serial_model(runs: list[Path], model: RobotModel,
                                                                tmp_path: Path) -> None:
     """`dynid fit --workers 2` (a Dask LocalCluster) against the in-process fit: the same model to 1e-10."""
+    if len(os.sched_getaffinity(0)) < 2:
+        pytest.skip("two workers need two CPUs: a local cluster has at most one worker a CPU (dynid.cluster.executor)")
     data = [arg for p in runs[:2] for arg in ("--data", str(p))] + ["--blocks", "4"]
     serial = dynid("fit", *data, "--out", str(tmp_path / "serial.json"))
     assert serial.returncode == 0, serial.stderr
@@ -176,6 +180,24 @@ def test_a_local_cluster_of_two_workers_gives_the_serial_model(runs: list[Path],
     done = dynid("fit", "--data", str(tmp_path / "bad.npz"), "--workers", "2", "--out", str(tmp_path / "bad.json"))
     assert done.returncode == 2 and "row 15001" in done.stderr and done.stderr.count("\n") == 1, done.stderr
     assert not (tmp_path / "bad.json").exists()
+
+
+def test_more_workers_than_cpus_start_one_a_cpu_with_a_note(monkeypatch) -> None:
+    """`--workers 64` on a machine of fewer CPUs: one worker a CPU, and a note that says so (64 processes, each
+    importing dynid and holding its blocks, only shared the CPUs and multiplied the memory)."""
+    import dynid.cluster
+
+    started: list[int | None] = []
+    monkeypatch.setattr(dynid.cluster, "DaskCluster", lambda workers, scheduler: started.append(workers))
+    cpus = len(os.sched_getaffinity(0))
+    with pytest.warns(DataNote, match=f"--workers 64: this process may run on {cpus} CPU"):
+        dynid.cluster.executor(64, None)
+    assert started == [cpus]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # within the CPUs, or a running cluster's own workers: as asked, no note
+        dynid.cluster.executor(cpus, None)
+        dynid.cluster.executor(None, "tcp://127.0.0.1:1")
+    assert started == [cpus, cpus, None]
 
 
 def test_a_scheduler_that_is_not_there_is_one_line(runs: list[Path], tmp_path: Path, monkeypatch) -> None:
