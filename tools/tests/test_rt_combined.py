@@ -15,6 +15,7 @@ from dynid.detect.momentum_t2 import BAND_SIGMAS, MomentumDetector
 from dynid.detect.online import FixedLagSavitzkyGolay, raw_signals
 from dynid.detect.t2 import Detector
 from dynid.export.coefficients import read_coefficients
+from dynid.export.known_answers import near_speed_edge
 from dynid.identify.model_file import load_model
 from dynid.identify.validation import load_run
 
@@ -67,7 +68,12 @@ def test_core_combined_is_dynids_sample_by_sample(exported: Path, default_model:
 
     core = core_stream(exported, raw_samples(ds, c), tmp_path, "combined")
     assert np.argmax(core["ready"]) == first and core["ready"][first:].all()
-    ready = core["ready"]
+    # A sample whose speed (either q̇ the core gates on) is within rounding of min_speed could rest on one side and
+    # move on the other (another CPU, another order of sums): left out, as the exported known answers leave it out.
+    edge = near_speed_edge(c, res.dq)
+    edge[first:] |= near_speed_edge(c, dq[first:])
+    ready = core["ready"] & ~edge
+    assert edge.sum() <= 0.001 * n, edge.sum()  # so that a shifted gate would still show
     np.testing.assert_allclose(core["t2"][ready], ours[ready], rtol=1e-6, atol=1e-9)
     assert np.array_equal(core["above"][ready], ours[ready] > 1) or \
         np.all(np.abs(ours[ready][core["above"][ready] != (ours[ready] > 1)] - 1) < 1e-6)  # never on a knife edge

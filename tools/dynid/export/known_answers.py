@@ -108,7 +108,7 @@ def answers(identified, c: coefficients_t, ds: Dataset, effects: Sequence = ()) 
         ratio_a, shares_a = np.full(n, np.nan), np.full((n, c.n_sensors), np.nan)
         ratio_a[c.window - 1 :] = t2 / c.threshold
         shares_a[c.window - 1 :] = _shares(c, z, c.ft_threshold)
-        edge[c.window - 1 :] |= _near_edge(c, sig.dq)
+        edge[c.window - 1 :] |= near_speed_edge(c, sig.dq)
     if c.residual in (1, 2):
         band = {("joint_friction", j): tuple(c.joint_band[i]) for i, j in enumerate(c.joint_names)}
         band.update({("motor_friction", m): tuple(c.motor_band[i]) for i, m in enumerate(c.motor_names)})
@@ -128,7 +128,7 @@ def answers(identified, c: coefficients_t, ds: Dataset, effects: Sequence = ()) 
         z = e**2 / np.asarray(c.observer_variance, float)
         ratio_o = z.sum(axis=1) / np.where(at_rest == 1, c.observer_rest_threshold, c.observer_threshold)
         shares_o = _shares(c, z, c.observer_ft_threshold)
-        edge[start:] |= _near_edge(c, dq[start:])
+        edge[start:] |= near_speed_edge(c, dq[start:])
     first = first_evaluated(c)
     if c.residual == 0:
         out[first:] = np.column_stack([ratio_a, shares_a])[first:]
@@ -149,7 +149,9 @@ def _speeds(c: coefficients_t, dq: np.ndarray) -> np.ndarray:
     return speeds
 
 
-def _near_edge(c: coefficients_t, dq: np.ndarray) -> np.ndarray:
+def near_speed_edge(c: coefficients_t, dq: np.ndarray) -> np.ndarray:
+    """(N,) True where a joint's or motor's speed is within VELOCITY_MARGIN of the gates' min_speed: a sample the
+    core and dynid could gate differently at rounding."""
     speeds = _speeds(c, dq)
     edge = np.abs(speeds - c.min_speed) < VELOCITY_MARGIN
     if c.min_speed == 0:  # no gates: the sign of a resting coordinate's friction is the edge
@@ -183,7 +185,7 @@ def _stretch(c: coefficients_t, datasets: Sequence[Dataset]) -> tuple[int, int, 
             continue
         edge, resting = np.zeros(n, dtype=bool), np.zeros((n, c.n_joints + c.n_motors), dtype=bool)
         for at, dq in _velocities(c, ds):
-            edge[at : at + dq.shape[0]] |= _near_edge(c, dq)
+            edge[at : at + dq.shape[0]] |= near_speed_edge(c, dq)
             resting[at : at + dq.shape[0]] |= _speeds(c, dq) < c.min_speed
         bad = np.concatenate([[0], np.cumsum(edge)])  # edges in [a, b): bad[b] - bad[a]
         for lo in range(0, max(n - first - 1, 1), CANDIDATE_STEP):
