@@ -108,3 +108,22 @@ def test_large_ft_offsets_pass_the_unit_check(default_experiments: dict, tmp_pat
     _short_run(default_experiments, lambda w: w + [400, -250, 300, 30, -20, 25]).save(tmp_path / "run.npz")
     done = dynid("structure", "--data", str(tmp_path / "run.npz"))
     assert done.returncode == 0, done.stderr
+
+
+def test_a_fit_on_samples_labelled_contact_says_so(default_experiments: dict, tmp_path: Path) -> None:
+    """The model has no contact: a run whose contact column labels samples (a contact run given to `fit` by
+    mistake) is fitted, with a note naming the share, streamed (a dataset file) or read whole (a CSV)."""
+    run = _short_run(default_experiments)
+    run.contact = np.zeros(run.n_samples, np.uint8)
+    run.contact[5000:6000] = 1  # 5 % of the 20 s
+    run.save(tmp_path / "run.npz")
+    write_csv(run, tmp_path / "run.csv")
+    for data in ("run.npz", "run.csv"):
+        done = dynid("fit", "--data", str(tmp_path / data), "--out", str(tmp_path / f"{data}.json"))
+        assert done.returncode == 0, done.stderr
+        notes = [line for line in done.stderr.splitlines() if "labelled contact" in line]
+        assert len(notes) == 1 and "5 % of the samples" in notes[0] and "--from/--to" in notes[0], done.stderr
+    run.contact[:] = 0  # labelled contact-free: no note
+    run.save(tmp_path / "free.npz")
+    done = dynid("fit", "--data", str(tmp_path / "free.npz"), "--out", str(tmp_path / "free.json"))
+    assert done.returncode == 0 and "labelled contact" not in done.stderr, done.stderr

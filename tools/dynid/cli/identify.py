@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import warnings
 from dataclasses import replace
 from typing import Any
 
@@ -14,7 +15,7 @@ from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S
 from ..detect.combined import calibrate_combined, combined_detection, stored_combined
 from ..detect.momentum_t2 import calibration_runs, momentum_detection, stored_detector, stored_in_sample
 from ..detect.t2 import ALPHA
-from ..errors import DataError, InputError
+from ..errors import DataError, DataNote, InputError
 from ..cluster import executor
 from ..identify.fit import (DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_INERTIA_ONLY, FitResult, FitSettings,
                             iv_settled)
@@ -26,6 +27,7 @@ from ..identify.blocks import validate_blocks
 from ..identify.transfer import format_why
 from ..identify.validation import evaluate, load_run, validation
 from ..io.dataset import contact_episodes
+from ..io.stream import DatasetFile
 from ..io.episodes import check_widening, episodes_in_data, episodes_mask, read_episodes
 from ..paper import PAPER, PAPER_ROBOT
 from ..pipeline import DetectorSettings, IdentifySettings, identify
@@ -80,6 +82,13 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         runs = [stream_run(ref, model) for ref in refs]  # every run checked before any work; a dataset file streamed
     except DataError as e:
         raise DataError(folder_of_runs_error(args, config, e)) from None
+    for ref, run in zip(refs, runs):  # the model has no contact: labelled contacts in its data bias it
+        share = run.contact_share() if isinstance(run, DatasetFile) else (
+            float(np.mean(run.contact != 0)) if run.contact is not None and run.n_samples else None)
+        if share:
+            warnings.warn(DataNote(f"{ref.path}: {100 * share:.3g} % of the samples are labelled contact (its contact "
+                                   "column); the fit takes them as contact-free: leave them out with --from/--to"),
+                          stacklevel=2)
     steps = known_steps(args.steps_from, model, args.workers or args.scheduler) if args.steps_from else []
     if steps:  # the fit with known F/T steps: the fit of the measurements with them taken out (in memory)
         runs = [without_ft_steps(model, load_run(ref.path, model, ref.window, ref.payload, ref.bad_rows), steps)
@@ -193,14 +202,14 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         print(f"  borderline: singular value(s) {', '.join(f'{v:.3g}' for v in edges['rank_cut'])} of the largest sit "
               f"on the rank cut {base.rtol:g} (left out of the rank)")
     print_consistent(result.consistent)
-    warnings = identified.plausibility or []
-    if warnings:
+    implausible = identified.plausibility or []
+    if implausible:
         why = ("--consistent pseudo-inertia lets a centre of mass leave its sphere"
                if args.consistent == PSEUDO_INERTIA_ONLY else
                "--consistent on keeps every body physical and friction dissipative; the data may not determine these "
                "bodies one by one")
-        print(f"  WARNING: {len(warnings)} physically implausible estimate(s) ({why}):")
-        for w in warnings:
+        print(f"  WARNING: {len(implausible)} physically implausible estimate(s) ({why}):")
+        for w in implausible:
             print(f"    {w['text']}")
     rms = np.sqrt(result.residual_variance[result.chosen])
     print("  residual RMS on the identification data (rows at rest left out) / channel noise:")
@@ -213,7 +222,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
             "estimators": {k: v.to_json() for k, v in identified.estimators.items()},
             "base": base_section(identified).to_json(), "residual_rms": dict(zip(identified.output_channels, rms.tolist())),
             "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed,
-            "plausibility": warnings, "consistent": result.consistent, "borderline": edges,
+            "plausibility": implausible, "consistent": result.consistent, "borderline": edges,
             **({"bad_rows": skipped} if skipped else {})}
 
 

@@ -159,6 +159,13 @@ class DatasetFile:
     def times(self, lo: int, hi: int) -> np.ndarray:
         return self._read("t", self.lo + lo, self.lo + hi)
 
+    def contact_share(self) -> float | None:
+        """The share of this window's samples labelled contact (the `contact` member, one byte a sample), None without
+        the member."""
+        if "contact" not in self._members or self.n_samples == 0:
+            return None
+        return float(np.count_nonzero(self._read("contact", self.lo, self.hi)) / self.n_samples)
+
     def median_step(self) -> float:
         """The median sample period of the first `HEAD_ROWS` rows (the whole log's, for a log sampled evenly)."""
         return float(np.median(np.diff(self.times(0, min(self.n_samples, HEAD_ROWS)))))
