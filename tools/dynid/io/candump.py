@@ -31,9 +31,7 @@ form, the iCub strain board's 7-byte variant, is sent for the whole run when one
 
 from __future__ import annotations
 
-import os
 import re
-import tempfile
 import warnings
 from pathlib import Path
 
@@ -44,7 +42,7 @@ from ..config.robot_config import RobotConfig
 from ..errors import DataError, DataNote
 from .bad_rows import DEFAULT_POLICY, BadRows, Malformed, apply_policy
 from .can_database import BusCodec, codec_of
-from .dataset import FT_CHANNELS, Dataset
+from .dataset import FT_CHANNELS, Dataset, atomic_write
 
 # A frame line. At most 12 digits of seconds (31 700 years), so that the stamp in µs fits int64; whole bytes of
 # payload only (an odd hex digit would shift every later frame's bytes). Fields are separated within the line.
@@ -382,16 +380,5 @@ def write_candump(data: Dataset, config: RobotConfig, path: str | Path, t0: floa
         times.append(stamps)
     order = np.argsort(np.concatenate(times), kind="stable")  # the send order breaks ties between equal stamps
     text = "\n".join(lines[i] for i in order) + "\n"
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp's 0600 is not what a log should be
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic_write(path, lambda f: f.write(text.encode()))
     return len(lines)

@@ -57,6 +57,7 @@ CHANNEL_FAMILIES: tuple[str, ...] = ("pwm", "current", "tau", "ft", "extra")
 
 _ZIP_MAGIC = b"PK\x03\x04"
 SIMULATION_DATASET = "dataset.npz"  # what a `dynid simulate` output directory holds for DATA
+TRUTH_FORMAT = "dynid-truth"  # its truth.json's "format"
 
 
 def _row(i: int) -> str:

@@ -19,7 +19,7 @@ import numpy as np
 from ..errors import DataError
 from ..identify.model_file import IdentifiedModel
 from ..identify.validation import cad_phi
-from ..io.dataset import beside_run
+from ..io.dataset import TRUTH_FORMAT, beside_run
 
 TRUTH_FILE = "truth.json"  # written by `dynid simulate` next to the data (dynid.simulation.output)
 
@@ -65,8 +65,8 @@ def read_truth(path: Path, robot: str) -> Truth:
         raise DataError(f"cannot read {path}: {e.strerror or e}") from None
     except (UnicodeDecodeError, json.JSONDecodeError):
         raise DataError(f"{path}: not a dynid truth file (not JSON)") from None
-    if not isinstance(data, dict) or data.get("format") != "dynid-truth" or not isinstance(data.get("parameters"), dict):
-        raise DataError(f"{path}: not a dynid truth file (no 'format: dynid-truth' with 'parameters')")
+    if not isinstance(data, dict) or data.get("format") != TRUTH_FORMAT or not isinstance(data.get("parameters"), dict):
+        raise DataError(f"{path}: not a dynid truth file (no 'format: {TRUTH_FORMAT}' with 'parameters')")
     if data.get("robot") != robot:
         raise DataError(f"{path} holds the truth of '{data.get('robot')}', not of the model's robot '{robot}'")
     params = {k: float(v) for k, v in data["parameters"].items() if isinstance(v, (int, float))}

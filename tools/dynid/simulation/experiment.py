@@ -21,7 +21,7 @@ import pinocchio as pin
 
 from ..config.robot_config import RobotConfig
 from ..errors import DataError, InputError
-from ..io.dataset import Dataset
+from ..io.dataset import TRUTH_FORMAT, Dataset
 from ..io.load import MIN_SAMPLES
 from ..progress import track
 from ..robot.model import RobotModel
@@ -369,7 +369,7 @@ def _simulate(config: RobotConfig, settings: SimulationSettings) -> Simulation:
     drive_u = U[:, pwm_motors]
     in_limits = np.all((Q >= limits[:, 0]) & (Q <= limits[:, 1]), axis=1)
     record = {
-        "format": "dynid-truth", "format_version": 1,
+        "format": TRUTH_FORMAT, "format_version": 1,
         "robot": config.name, "config_digest": config.digest, "kind": settings.kind,
         "duration_s": settings.seconds, "rate_hz": settings.rate_hz, "samples": n,
         "seed": settings.seed, "robot_seed": settings.robot_seed, "noise": settings.noise,

@@ -27,12 +27,11 @@ from typing import BinaryIO
 
 from ..errors import DataError
 from ..io.csv_format import write_csv
-from ..io.dataset import SIMULATION_DATASET, atomic_write
+from ..io.dataset import SIMULATION_DATASET, TRUTH_FORMAT, atomic_write
 from ..outputs import output_dir
 from .experiment import Simulation
 
 FILES = {"dataset": SIMULATION_DATASET, "csv": "data.csv", "truth": "truth.json", "truth_signals": "truth.npz"}
-TRUTH_FORMAT = "dynid-truth"  # truth.json's "format" (experiment.py)
 
 
 def is_simulation_dir(out: Path) -> bool:
