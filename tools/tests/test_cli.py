@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import dynid, dynid_executable
+
 from dynid.config.robot_config import load_config
 from dynid.robot.model import RobotModel
 
@@ -18,8 +20,7 @@ ICUB = load_config("icub_right_arm")
 LIMITS = RobotModel(ICUB).joint_limits
 
 
-def run(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True, timeout=120)
+run = dynid_executable  # real processes, as a user's shell runs them
 
 
 def icub_columns(n: int = 400, seed: int = 0) -> dict[str, np.ndarray]:
@@ -225,18 +226,12 @@ def test_an_output_nothing_can_be_created_at_is_refused_before_any_work(command:
     --json without saying it was the --json. The check creates (and removes) a file where each output will go."""
     if os.geteuid() != 0:  # permission bits refuse /proc to anyone else first, with their own message
         pytest.skip("as root only: for root os.access says yes in /proc, and the created file is the check")
-    from tests.hostile.run import run_dynid
-
-    def dynid(*args: str) -> subprocess.CompletedProcess:  # conftest's, in tmp_path
-        done = run_dynid(list(args), tmp_path)
-        return subprocess.CompletedProcess(args, done.code, done.stdout, done.stderr)
-
-    done = dynid(command, *WRITERS[command], "--json", "/proc/dynid-result.json")
+    done = dynid(command, *WRITERS[command], "--json", "/proc/dynid-result.json", cwd=tmp_path)
     assert_one_line_error(done, "cannot write '/proc/dynid-result.json' (--json): no file can be created in /proc")
     assert list(tmp_path.iterdir()) == []
     if command in ("fit", "simulate", "import"):
         out = "/proc/dynid-out" + ("" if command == "simulate" else ".x")
-        done = dynid(command, *[out if a == WRITERS[command][-1] else a for a in WRITERS[command]])
+        done = dynid(command, *[out if a == WRITERS[command][-1] else a for a in WRITERS[command]], cwd=tmp_path)
         assert_one_line_error(done, f"'{out}' (--out)", "can be created in /proc")
 
 
