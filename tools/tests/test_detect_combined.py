@@ -161,3 +161,34 @@ def test_the_api_runs_the_same_combined_detector(default_model: Path, default_ex
     for key in ("tpr", "fpr"):
         assert ours[key] == pytest.approx(cli[key], abs=1e-4), key
     assert ours["tpr_by_side"]["proximal"] == pytest.approx(cli["tpr_by_side"]["proximal"], abs=1e-4)
+
+
+def test_a_version_2_file_keeps_its_observer_and_calibrates_kappa_alone(default_model: Path, default_experiments: dict,
+                                                                       tmp_path: Path) -> None:
+    """Version 3 of the `observer` section changed only the combined level κ kept beside the observer's detectors: a
+    version-2 file's detectors are used (the observer's calibration, detect's slowest part, is not run again), its κ
+    (taken then over every sample) is not, and `detect` gives what the current file gives."""
+    from conftest import dynid
+
+    from dynid.detect.combined import stored_combined
+
+    raw = json.loads(default_model.read_text())
+    raw["observer"]["version"] = 2
+    raw["observer"]["detect"]["combined"]["scale"] *= 0.8  # an earlier rule's κ: must not be used
+    old = tmp_path / "v2.json"
+    old.write_text(json.dumps(raw))
+    identified = load_model(old)
+    assert stored_detector(identified, "detect", ALPHA, 15.0, VELOCITY_WINDOW_S) is not None
+    assert stored_combined(identified, ALPHA) is None
+    assert stored_combined(load_model(default_model), ALPHA) is not None
+    results = []
+    for model in (default_model, old):
+        out = tmp_path / f"{model.stem}.detect.json"
+        done = dynid("detect", "--model", str(model), "--data", str(default_experiments["validation"]), "--to", "20",
+                     "--json", str(out))
+        assert done.returncode == 0, done.stderr
+        results.append(json.loads(out.read_text())["variants"])
+    new, recalibrated = results
+    for name in ("combined", "momentum", "calibrated"):
+        assert recalibrated[name]["threshold"] == pytest.approx(new[name]["threshold"], rel=1e-9)
+        assert recalibrated[name]["fpr"] == pytest.approx(new[name]["fpr"], abs=1e-12)

@@ -174,10 +174,13 @@ def calibrate_combined(identified, det_m: MomentumDetector, det_c: Detector, dat
 
 def stored_combined(identified, alpha: float) -> CombinedDetector | None:
     """The combined detector the fit kept beside its `detect` observer entry, at `alpha`; None where it kept none.
-    Read after dynid.detect.momentum_t2.stored_detector accepted that entry (the same runs, settings and version)."""
+    Read after dynid.detect.momentum_t2.stored_detector accepted that entry (the same runs and settings); a level of
+    an earlier version (κ over every sample, before version 3) is not today's: None, and the caller calibrates it."""
+    from .momentum_t2 import OBSERVER_VERSION
+
     section = identified.observer
     entry = None if section is None else section.entry("detect")
-    if entry is None or entry.combined is None:
+    if entry is None or entry.combined is None or section.version != OBSERVER_VERSION:
         return None
     return CombinedDetector.of(entry.combined).at(alpha)
 
