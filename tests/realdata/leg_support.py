@@ -9,7 +9,7 @@ ends there (docs/detection.md#out-of-sample).
 
     python tests/realdata/leg_support.py [RUN_FOLDER]
 
-(the folder's time origin is dynid's: the earliest stamp of any of its ports, dynid.io.yarp)
+(the folder's time origin is dynid's: the earliest first stamp of its logs, dynid.io.yarp.first_stamps_origin)
 """
 
 from __future__ import annotations
@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from dynid.io.yarp import first_stamps_origin
+
 STANCE_PORT = Path("icub") / "left_foot" / "analog:o" / "data.log"  # sequence, stamp, fx fy fz tx ty tz
 SMOOTHING_S = 0.5
 SIGMAS = 6.0  # as the UR10e's model-free episode labels (shared/realdata/ur10e_mamedov/README.md)
@@ -26,15 +28,10 @@ QUIET = (14.0, 58.0)  # s: where the baseline and its spread are taken, single s
 DOUBLE_SUPPORT_S = 65.6  # the README's put-down
 
 
-def time_origin(folder: Path) -> float:
-    """dynid's time origin of a dumper folder: the earliest first stamp of its ports."""
-    return min(float(np.loadtxt(p, usecols=1, max_rows=1)) for p in folder.glob("**/data.log"))
-
-
 def stance_load(folder: Path) -> tuple[np.ndarray, np.ndarray]:
     """(t in dynid's seconds, the stance foot's fz smoothed by a rolling median of SMOOTHING_S)."""
     stamp, fz = np.loadtxt(folder / STANCE_PORT, usecols=(1, 4), unpack=True)
-    t = stamp - time_origin(folder)
+    t = stamp - first_stamps_origin(folder)
     half = max(1, int(round(SMOOTHING_S / np.median(np.diff(t)) / 2)))
     padded = np.pad(fz, half, mode="edge")
     smooth = np.median(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1), axis=1)

@@ -147,6 +147,13 @@ def _parse_line(line: str, state: bool, width: int) -> tuple[float, list[float]]
     return stamp, values
 
 
+def first_stamps_origin(root: Path) -> float | None:
+    """The earliest first stamp of any data.log under a dumper folder (its time origin, before the ports' bad lines are
+    read): None where no log has a readable first stamp."""
+    stamps = [s for s in (_first_stamp(p) for p in Path(root).glob("**/data.log")) if s is not None]
+    return min(stamps) if stamps else None
+
+
 def _first_stamp(path: Path) -> float | None:
     try:
         with open(path, "rb") as f:
@@ -224,8 +231,8 @@ def read_yarp(path: str | Path, config: RobotConfig, joint_limits=None, require_
             n = logs[spec.port].stamps.size
             raise DataError(f"{root / spec.port / 'data.log'}: {n} message{'s' * (n != 1)}"
                             f"{' left' if logs[spec.port].bad else ''}: a port needs at least two")
-    origin_candidates = [s for s in (_first_stamp(p) for p in root.glob("**/data.log")) if s is not None]
-    origin = min([*origin_candidates, *(log.stamps[0] for log in logs.values())])
+    first = first_stamps_origin(root)
+    origin = min([*([] if first is None else [first]), *(log.stamps[0] for log in logs.values())])
     cut, said = _cut_short(logs, origin, layout.max_skew)
     dropped = _bad_lines(root, layout, logs, cut, bad_rows)  # bad lines and a port cut short: refused by default
     for note in said:  # skipped: the run is shorter than its ports' logs, and why
