@@ -183,15 +183,15 @@ def test_a_local_cluster_of_two_workers_gives_the_serial_model(runs: list[Path],
 
 
 def test_more_workers_than_cpus_start_one_a_cpu_with_a_note(monkeypatch) -> None:
-    """`--workers 64` on a machine of fewer CPUs: one worker a CPU, and a note that says so (64 processes, each
+    """`--workers N` past this process's CPUs: one worker a CPU, and a note that says so (64 processes on 2 CPUs, each
     importing dynid and holding its blocks, only shared the CPUs and multiplied the memory)."""
     import dynid.cluster
 
     started: list[int | None] = []
     monkeypatch.setattr(dynid.cluster, "DaskCluster", lambda workers, scheduler: started.append(workers))
     cpus = len(os.sched_getaffinity(0))
-    with pytest.warns(DataNote, match=f"--workers 64: this process may run on {cpus} CPU"):
-        dynid.cluster.executor(64, None)
+    with pytest.warns(DataNote, match=f"--workers {cpus + 1}: this process may run on {cpus} CPU"):
+        dynid.cluster.executor(cpus + 1, None)
     assert started == [cpus]
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # within the CPUs, or a running cluster's own workers: as asked, no note
