@@ -178,14 +178,7 @@ def test_an_lcm_log_the_monitor_would_open_for_reading_is_refused(url: str, fixe
     url, fixed = url.format(d=tmp_path), fixed and fixed.format(d=tmp_path)
     assert url_for_writing(url) == fixed
     coef, conf = arm_monitor
-    # A udp URL runs in a network namespace of its own (`unshare --net`: lo only, down), so that a monitor that failed
-    # to refuse it could not reach the host's network either; without that (not root), only the Python rule is held.
-    isolate: list[str] = []
-    if url.startswith("udp"):
-        if os.geteuid() != 0 or not shutil.which("unshare"):
-            pytest.skip("a udp URL is given to rt_monitor only inside a network namespace (needs root and unshare)")
-        isolate = ["unshare", "--net"]
-    done = run(*isolate, ROOT / "build/rt_monitor/rt_monitor", "--model", coef, "--config", conf, "--replay",
+    done = run(*isolated(url), ROOT / "build/rt_monitor/rt_monitor", "--model", coef, "--config", conf, "--replay",
                "/dev/null", "--lcm-url", url)
     if fixed is None:  # LCM opened, the run started (and, on an empty replay, ends evaluating no sample: exit 6)
         assert "rt_monitor: running: replay of /dev/null" in done.stderr and "reading" not in done.stderr, done.stderr
@@ -201,6 +194,17 @@ def test_an_lcm_log_the_monitor_would_open_for_reading_is_refused(url: str, fixe
         f"dynid export: error: --lcm-url {url} opens its file for reading (LCM's default without mode=w or mode=a), "
         f"and the monitor writes: {fixed}"], done.stderr
     assert not out.exists() and not (tmp_path / "e.lcmlog").exists()
+
+
+def isolated(url: str) -> list[str]:
+    """The prefix rt_monitor runs under for `url`: a udp URL in a network namespace of its own (`unshare --net`: lo
+    only, down), so that a monitor that failed to refuse it could not reach the host's network either; without that
+    (not root), the test is skipped and only the Python rule is held."""
+    if not url.startswith("udp"):
+        return []
+    if os.geteuid() != 0 or not shutil.which("unshare"):
+        pytest.skip("a udp URL is given to rt_monitor only inside a network namespace (needs root and unshare)")
+    return ["unshare", "--net"]
 
 
 # URLs liblcm cannot open as the monitor's LCM (URL, the reason's start; None: fine). Found by a walkthrough: export
@@ -234,14 +238,7 @@ def test_an_lcm_url_liblcm_cannot_open_is_a_configuration_error(url: str, why: s
     if why is None:
         return  # never opened: a good udpm URL would join a multicast group on the host network
     coef, conf = arm_monitor
-    # A udp URL runs in a network namespace of its own (`unshare --net`: lo only, down), so that a monitor that failed
-    # to refuse it could not reach the host's network either; without that (not root), only the Python rule is held.
-    isolate: list[str] = []
-    if url.startswith("udp"):
-        if os.geteuid() != 0 or not shutil.which("unshare"):
-            pytest.skip("a udp URL is given to rt_monitor only inside a network namespace (needs root and unshare)")
-        isolate = ["unshare", "--net"]
-    done = run(*isolate, ROOT / "build/rt_monitor/rt_monitor", "--model", coef, "--config", conf, "--replay",
+    done = run(*isolated(url), ROOT / "build/rt_monitor/rt_monitor", "--model", coef, "--config", conf, "--replay",
                "/dev/null", "--lcm-url", url)
     assert done.returncode == 2 and done.stderr.strip().splitlines() == [
         f"rt_monitor: error: LCM URL '{url}': {lcm_url_problem(url)}"], done.stderr
