@@ -253,3 +253,46 @@ def test_sensor_wrenches_on_one_trajectory(monkeypatch: pytest.MonkeyPatch) -> N
         for s in r:
             close(g[s], r[s], per_sample_scale(r[s], wrench)[:, None])
     close(got[2], ref[2], per_sample_scale(ref[2], wrench)[:, None])
+
+
+def test_csv_text_is_reprs_byte_for_byte() -> None:
+    """dynid._kernels.csv_rows writes what the reference writes (repr of each float, str of each integer), byte for
+    byte: random bit patterns over every exponent, decimals of every scale, and repr's edges (its switch to the
+    exponent form at 1e-4 / 1e16, signed zero, subnormals, the largest double, nan and the infinities)."""
+    from dynid.io.csv_format import _rows_text
+
+    rng = np.random.default_rng(3)
+    bits = rng.integers(0, 2**64, size=200_000, dtype=np.uint64).view(np.float64)
+    scales = rng.standard_normal(100_000) * 10.0 ** rng.integers(-12, 22, 100_000)
+    edges = np.array([0.0, -0.0, 1e-4, 9.999999999999999e-05, 1e-5, 1e15, 1e16, 9999999999999998.0, 1e22, 0.1, 0.3,
+                      100.0, -2.5e-310, 5e-324, 1.7976931348623157e308, 2.0**53, np.nan, np.inf, -np.inf])
+    for values in (bits, scales, edges, np.round(scales, 4)):
+        block = values.reshape(-1, 4) if values.size % 4 == 0 else values.reshape(-1, 1)
+        columns = list(block.T)
+        assert kernels.native().csv_rows(block, [False] * block.shape[1]) == _rows_text(columns)
+    counts = rng.integers(-(2**53), 2**53, (1000, 2))
+    mixed = [counts[:, 0], rng.standard_normal(1000), counts[:, 1].astype(np.uint64) % 7]
+    assert kernels.native().csv_rows(np.column_stack(mixed).astype(float), [True, False, True]) == _rows_text(mixed)
+
+
+def test_csv_files_are_the_same_either_way(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """write_csv gives the same file through the kernel and the reference (the contact column as integers), which
+    reads back to the same values; booleans and integers past 2^53 are left to the reference."""
+    from dynid.io.csv_format import _compiled_rows, write_csv
+    from dynid.io.dataset import Dataset
+
+    rng = np.random.default_rng(4)
+    n = 3000
+    data = Dataset(t=np.arange(n) * 1e-3, joints=["a", "b"], q=rng.normal(0, 1, (n, 2)), pwm={"m0": rng.normal(0, 1, n)},
+                   contact=(rng.uniform(size=n) < 0.1).astype(np.uint8), extra={"x": rng.normal(0, 1e-6, n)})
+    assert _compiled_rows(data.columns()) is not None
+    write_csv(data, tmp_path / "compiled.csv")
+    monkeypatch.setenv("DYNID_KERNELS", "0")
+    assert _compiled_rows(data.columns()) is None
+    write_csv(data, tmp_path / "reference.csv")
+    assert (tmp_path / "compiled.csv").read_bytes() == (tmp_path / "reference.csv").read_bytes()
+    back = np.loadtxt(tmp_path / "compiled.csv", delimiter=",", skiprows=1)  # t, q.a, q.b, pwm.m0, contact, x
+    assert np.array_equal(back, np.column_stack([data.t, data.q, data.pwm["m0"], data.contact, data.extra["x"]]))
+    monkeypatch.setenv("DYNID_KERNELS", "1")
+    for odd in (np.ones(3, dtype=bool), np.array([0, 2**53 + 1, 0]), np.array([0, -(2**53) - 1, 0])):
+        assert _compiled_rows([("t", np.zeros(3)), ("odd", odd)]) is None

@@ -45,6 +45,7 @@ import numpy as np
 
 from ..config.robot_config import RobotConfig
 from ..errors import DataError
+from ..kernels import native
 from .bad_rows import DEFAULT_POLICY, Malformed, apply_policy, find_bad_rows
 from .dataset import FT_CHANNELS, Dataset, atomic_write, check_units
 
@@ -431,16 +432,32 @@ def write_csv(dataset: Dataset, path: str | Path) -> None:
         if any(ch in name for ch in ',"\n\r'):
             raise DataError(f"cannot write column '{name}' to CSV: names must not contain commas, quotes or newlines")
     header = ",".join(name for name, _ in columns) + "\n"
-    # repr of a Python float is the shortest text that reads back to the same float; ints stay ints.
-    fmt = [str if values.dtype.kind in "iub" else repr for _, values in columns]
+    rows = _compiled_rows(columns) or _rows_text
 
     def write(f: BinaryIO) -> None:
         f.write(header.encode())
         for start in range(0, dataset.n_samples, _WRITE_BLOCK):
-            block = [
-                list(map(to_text, values[start : start + _WRITE_BLOCK].tolist()))
-                for to_text, (_, values) in zip(fmt, columns, strict=True)
-            ]
-            f.write(("\n".join(map(",".join, zip(*block, strict=True))) + "\n").encode())
+            f.write(rows([values[start : start + _WRITE_BLOCK] for _, values in columns]))
 
     atomic_write(path, write)
+
+
+def _rows_text(block: Sequence[np.ndarray]) -> bytes:
+    """The CSV lines of one block of columns, the reference: repr of a Python float is the shortest text that reads
+    back to the same float; ints stay ints."""
+    text = [list(map(str if v.dtype.kind in "iub" else repr, v.tolist())) for v in block]
+    return ("\n".join(map(",".join, zip(*text, strict=True))) + "\n").encode()
+
+
+def _compiled_rows(columns: Sequence[tuple[str, np.ndarray]]) -> Callable[[Sequence[np.ndarray]], bytes] | None:
+    """The compiled kernel that writes `_rows_text`'s bytes (dynid._kernels.csv_rows: repr's digits and layout,
+    checked against it in tools/tests/test_kernels.py), where it can: no booleans (str writes True), integers
+    exact as doubles; else None."""
+    kernel = native()
+    kinds = [v.dtype.kind for _, v in columns]
+    if kernel is None or any(k not in "fiu" for k in kinds) or any(
+            k in "iu" and v.size and (v.max() > 2**53 or v.min() < -(2**53))
+            for k, (_, v) in zip(kinds, columns, strict=True)):
+        return None
+    integer = [k in "iu" for k in kinds]
+    return lambda block: kernel.csv_rows(np.column_stack(block).astype(np.float64, copy=False), integer)

@@ -11,11 +11,14 @@
 #include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
 
+#include <algorithm>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
 
 #include "bindings.hpp"
+#include "csv_text.hpp"
 #include "stack.hpp"
 
 namespace nb = nanobind;
@@ -217,6 +220,24 @@ NB_MODULE(_kernels, m) {
             nb::arg("threads") = 1,
             "b − A Φ_m of every sample's rows into e[m] (K, N, rows) for each row Φ_m of phi (K, columns): the rows "
             "built once for all K");
+
+    m.def(
+        "csv_rows",
+        [](CArray2 values, const std::vector<bool>& integer) {
+            const long n = static_cast<long>(values.shape(0)), m = static_cast<long>(values.shape(1));
+            if (integer.size() != static_cast<size_t>(m)) throw std::invalid_argument("integer: one flag per column");
+            const std::unique_ptr<bool[]> flags(new bool[size_t(m)]);
+            std::copy(integer.begin(), integer.end(), flags.get());
+            std::string text;
+            {
+                nb::gil_scoped_release release;
+                append_csv_rows(values.data(), n, m, flags.get(), text);
+            }
+            return nb::bytes(text.data(), text.size());
+        },
+        nb::arg("values"), nb::arg("integer"),
+        "The CSV lines of `values` (N, columns): each value as Python's repr(float) writes it, or as an integer "
+        "where `integer` says so (whole values of at most 2^53)");
 
     register_observer(m);
     register_plant(m);
