@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import re
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -58,9 +59,10 @@ _CONTENT = re.compile(rb"^(?=[ \t\r\x0b\x0c]*[^ \t\r\n\x0b\x0c#])", re.M)  # a l
 SHOW_CHARS = 60  # of a bad line, in its refusal
 
 
-def _bad_lines(text: bytes, frames: int) -> tuple[list[Malformed], int]:
-    """The lines of the log that are neither a frame (`frames` of them matched `_LINE`), another frame (`_OTHER`),
-    blank nor a `#` comment, each a `Malformed` of its 0-based line number; and how many lines are not blank."""
+def _bad_lines(text: bytes, frames: int, first_line: int = 0) -> tuple[list[Malformed], int]:
+    """The lines of the log (`text`, whose first line is the log's `first_line`, 0-based) that are neither a frame
+    (`frames` of them matched `_LINE`), another frame (`_OTHER`), blank nor a `#` comment, each a `Malformed` of
+    its 0-based line number; and how many lines are not blank."""
     # The clean log, the usual case, told without splitting it into lines (a list of them is twice a long log): every
     # line a frame (a count of line ends), else every line not blank nor a comment a frame or another frame's
     lines_in_text = text.count(b"\n") + (0 if not text or text.endswith(b"\n") else 1)
@@ -77,9 +79,11 @@ def _bad_lines(text: bytes, frames: int) -> tuple[list[Malformed], int]:
         line = lines[k]
         if _LINE.match(line) or _OTHER.match(line):
             continue
+        cut_short = k == cut
+        k += first_line
         shown = line.decode("utf-8", "backslashreplace").strip()
         shown = repr(shown if len(shown) <= SHOW_CHARS else shown[: SHOW_CHARS - 3] + "...")
-        if k == cut:
+        if cut_short:
             bad.append(Malformed(k, "cut_short", f"line {k + 1}, the last, has no line end and is no frame: {shown} "
                                  "(the log was cut short)"))
         elif _FD.match(line):
@@ -89,6 +93,73 @@ def _bad_lines(text: bytes, frames: int) -> tuple[list[Malformed], int]:
             bad.append(Malformed(k, "not_a_frame", f"line {k + 1} is no classic-CAN candump -L frame "
                                  f"'(SECONDS.MICROSECONDS) IFACE ID#HEXDATA': {shown}"))
     return bad, len(content)
+
+
+@dataclass(frozen=True)
+class _Frames:
+    """The log's frames in stamp order (stable: frames of one stamp in the log's order)."""
+    t_us: np.ndarray  # int64 stamps, µs
+    bus: np.ndarray  # index into `buses`
+    buses: list[str]  # the bus names seen (a name that is no UTF-8 kept by surrogateescape: no configured bus)
+    can_id: np.ndarray
+    dlc: np.ndarray
+    payload: np.ndarray  # (n, 8) uint8, zero past the DLC
+    bad: list[Malformed]  # the lines that are no frame
+    lines: int  # the log's lines that are not blank nor a comment
+
+
+_CHUNK = 16 << 20  # bytes of the log parsed at a time: the text of a whole log as Python objects is ~13 times its size
+
+
+def _read_frames(path: Path) -> _Frames:
+    """The frames of the log at `path`, read and parsed a chunk of whole lines at a time."""
+    parts: list[tuple[np.ndarray, ...]] = []
+    buses: dict[bytes, int] = {}
+    bad: list[Malformed] = []
+    lines = first_line = 0
+    carry = b""
+    try:
+        with open(path, "rb") as f:
+            while True:
+                block = f.read(_CHUNK)
+                text = carry + block
+                end = len(text) if not block else text.rfind(b"\n") + 1  # the file's end, or its last whole line
+                if block and end == 0:
+                    carry = text
+                    continue
+                text, carry = text[:end], text[end:]
+                if text:
+                    rows = _LINE.findall(text)
+                    chunk_bad, chunk_lines = _bad_lines(text, len(rows), first_line)
+                    bad += chunk_bad
+                    lines += chunk_lines
+                    first_line += text.count(b"\n")
+                    parts.append(_parse(rows, buses))
+                if not block:
+                    break
+    except OSError as e:
+        raise DataError(f"cannot read {path}: {e.strerror or e}") from None
+    t_us, bus, can_id, dlc, payload = (np.concatenate(a) for a in zip(*parts)) if parts else \
+        (np.zeros(0, np.int64), np.zeros(0, np.int32), np.zeros(0, np.int64), np.zeros(0, np.int64),
+         np.zeros((0, 8), np.uint8))
+    order = np.argsort(t_us, kind="stable")
+    return _Frames(t_us[order], bus[order], [b.decode("utf-8", "surrogateescape") for b in buses], can_id[order],
+                   dlc[order], payload[order], bad, lines)
+
+
+def _parse(rows: list[tuple[bytes, ...]], buses: dict[bytes, int]) -> tuple[np.ndarray, ...]:
+    """Stamps (µs), bus indices (`buses` grows by the names first seen), IDs, DLCs and payloads of `_LINE`'s matches."""
+    t_us = np.array([int(a) * 1_000_000 + int(b) for a, b, *_ in rows], np.int64)
+    bus = np.array([buses.setdefault(r[2], len(buses)) for r in rows], np.int32)
+    can_id = np.array([int(r[3], 16) for r in rows], np.int64)
+    hexes = [r[4] for r in rows]
+    dlc = np.array([len(h) // 2 for h in hexes], np.int64)
+    payload = np.zeros((len(rows), 8), np.uint8)
+    for n in np.unique(dlc):
+        sel = np.flatnonzero(dlc == n)
+        if n:
+            payload[sel, :n] = np.frombuffer(bytes.fromhex(b"".join(hexes[i] for i in sel).decode()), np.uint8).reshape(-1, n)
+    return t_us, bus, can_id, dlc, payload
 
 
 def _decode_rows(codec: BusCodec, frame: BusFrame, payload: np.ndarray, dlc: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
@@ -121,36 +192,22 @@ def read_candump(path: str | Path, config: RobotConfig, bad_rows: str = DEFAULT_
     if bus is None:
         raise DataError(f"{path}: the robot configuration {config.name} describes no CAN bus ('bus' or 'can')")
     codec = codec_of(bus, config.name)
-    try:
-        text = path.read_bytes()
-    except OSError as e:
-        raise DataError(f"cannot read {path}: {e.strerror or e}") from None
-    rows = _LINE.findall(text)
-    if not rows:
+    frames = _read_frames(path)
+    t_us, can_id, dlc, payload = frames.t_us, frames.can_id, frames.dlc, frames.payload
+    if not t_us.size:
         raise DataError(f"{path}: no classic-CAN candump -L frame in the file")
     # Lines that are no frame (garbage, a line cut short): bad rows, refused or dropped and counted as a CSV's are.
-    bad, total = _bad_lines(text, len(rows))
-    found = BadRows(np.array([m.row for m in bad], np.int64), tuple(m.kind for m in bad), bad[0].detail, total) \
-        if bad else None
+    bad = frames.bad
+    found = BadRows(np.array([m.row for m in bad], np.int64), tuple(m.kind for m in bad), bad[0].detail,
+                    frames.lines) if bad else None
     dropped = apply_policy(found, np.ones(1, bool), bad_rows, str(path), lambda k: f"line {k + 1}")
-    rows.sort(key=lambda r: int(r[0]) * 1_000_000 + int(r[1]))
-    t_us = np.array([int(a) * 1_000_000 + int(b) for a, b, *_ in rows], np.int64)
-    # A bus name that is no UTF-8 is no configured bus: its frames are skipped like those of any other bus.
-    bus_of = np.array([r[2].decode("utf-8", "surrogateescape") for r in rows])
-    can_id = np.array([int(r[3], 16) for r in rows], np.int64)
-    hexes = [r[4] for r in rows]
-    dlc = np.array([len(h) // 2 for h in hexes])
-    payload = np.zeros((len(rows), 8), np.uint8)
-    for n in np.unique(dlc):
-        sel = np.flatnonzero(dlc == n)
-        if n:
-            payload[sel, :n] = np.frombuffer(bytes.fromhex(b"".join(hexes[i] for i in sel).decode()), np.uint8).reshape(-1, n)
 
     # Per frame of the description: its rows (stamp order) and decoded values.
     got: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]] = {}
     for f in bus.frames:
         lengths = (f.dlc, f.long_dlc) if f.long_dlc else (f.dlc,)
-        sel = np.flatnonzero((bus_of == f.bus) & (can_id == f.id) & np.isin(dlc, lengths))
+        on_bus = frames.buses.index(f.bus) if f.bus in frames.buses else -1
+        sel = np.flatnonzero((frames.bus == on_bus) & (can_id == f.id) & np.isin(dlc, lengths))
         values, good = _decode_rows(codec, f, payload[sel], dlc[sel])
         got[f.name] = (sel[good], {k: v[good] for k, v in values.items()})
 
