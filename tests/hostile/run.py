@@ -51,11 +51,13 @@ class Outcome:
     seconds: float
 
 
-def _dynid_child(argv: list[str], cwd: str, out: str, err: str, unset: tuple[str, ...] = ()) -> None:
+def _dynid_child(argv: list[str], cwd: str, out: str, err: str, unset: tuple[str, ...] = (),
+                 setenv: tuple[tuple[str, str], ...] = ()) -> None:
     """In the forked child: the `dynid` entry point on argv, stdout and stderr (fds 1, 2) into files, without the
-    environment variables `unset`."""
+    environment variables `unset` and with those of `setenv`."""
     for name in unset:
         os.environ.pop(name, None)
+    os.environ.update(setenv)
     for fd, path in ((1, out), (2, err)):
         f = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         os.dup2(f, fd)
@@ -87,15 +89,19 @@ def _forkserver() -> Any:
     return _context
 
 
-def run_dynid(argv: list[str], cwd: Path, timeout: float = TIMEOUT_S, unset: tuple[str, ...] = ()) -> Outcome:
+def run_dynid(argv: list[str], cwd: Path, timeout: float = TIMEOUT_S, unset: tuple[str, ...] = (),
+              setenv: dict[str, str] | None = None) -> Outcome:
     """`dynid argv` in `cwd` as a process of its own, forked from the preloaded server; `unset`: environment
-    variables the command runs without."""
+    variables the command runs without; `setenv`: variables it runs with (the server's environment is the one it
+    started with, not the caller's of now)."""
+    pairs = tuple((setenv or {}).items())
     if os.environ.get("HOSTILE_SUBPROCESS") == "1":
-        return run_program(DYNID, argv, cwd, timeout, unset)
+        return run_program(DYNID, argv, cwd, timeout, unset, pairs)
     with tempfile.TemporaryDirectory(prefix="hostile-") as streams:  # beside no case's files: they stay untouched
         out, err = Path(streams) / "stdout", Path(streams) / "stderr"
         started = time.perf_counter()
-        child = _forkserver().Process(target=_dynid_child, args=(argv, str(cwd), str(out), str(err), tuple(unset)))
+        child = _forkserver().Process(target=_dynid_child,
+                                      args=(argv, str(cwd), str(out), str(err), tuple(unset), pairs))
         child.start()
         child.join(timeout)
         if child.exitcode is None:
@@ -114,8 +120,8 @@ def _text(path: Path) -> str:
 
 
 def run_program(path: Path, argv: list[str], cwd: Path, timeout: float = TIMEOUT_S,
-                unset: tuple[str, ...] = ()) -> Outcome:
-    env = {k: v for k, v in os.environ.items() if k not in unset}
+                unset: tuple[str, ...] = (), setenv: tuple[tuple[str, str], ...] = ()) -> Outcome:
+    env = {k: v for k, v in os.environ.items() if k not in unset} | dict(setenv)
     env.update(ASAN_OPTIONS="detect_leaks=1:abort_on_error=0", UBSAN_OPTIONS="print_stacktrace=1")
     started = time.perf_counter()
     done = subprocess.run([str(path), *argv], cwd=cwd, capture_output=True, timeout=timeout, env=env)

@@ -32,11 +32,12 @@ hypothesis_settings.load_profile("dynid-search" if os.environ.get("DYNID_HYPOTHE
 KINDS = ("identification", "validation", "contact")
 
 
-def dynid(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+def dynid(*args: str, cwd: Path | None = None, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
     """`dynid ARGS` as a process of its own, forked from a server that has imported dynid already (the hostile
     sweep's, tests/hostile/run.py): the executable's exit code, stdout and stderr, without an interpreter start and
-    dynid's imports per call (0.5-1.5 s each, some 160 calls a run). test_gaps holds it to the executable."""
-    done = run_dynid(list(args), Path.cwd() if cwd is None else cwd, timeout=900)
+    dynid's imports per call (0.5-1.5 s each, some 160 calls a run). test_gaps holds it to the executable. `env`:
+    environment variables set for the command."""
+    done = run_dynid([str(a) for a in args], Path.cwd() if cwd is None else cwd, timeout=900, setenv=env)
     return subprocess.CompletedProcess(["dynid", *args], done.code, done.stdout, done.stderr)
 
 

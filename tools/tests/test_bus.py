@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import dynid
 import yaml
 from test_rt_core import detector_columns, raw_samples, stream
 
@@ -35,7 +36,6 @@ from dynid.io.load import load_data
 
 ROOT = Path(__file__).resolve().parents[2]
 RT_MONITOR = ROOT / "build" / "rt_monitor" / "rt_monitor"
-DYNID = Path(sys.executable).with_name("dynid")
 T0_US = 1_700_000_000_000_000
 N = 1500  # 1.5 s at 1 kHz
 
@@ -165,8 +165,8 @@ def arm_monitor(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """(coefficient file, monitor configuration) of the default arm's CAD model."""
     root = tmp_path_factory.mktemp("lcm_url")
     coef, conf = root / "cad.dcoef", root / "arm.conf"
-    assert run(DYNID, "export", "--cad", "--out", coef).returncode == 0
-    assert run(DYNID, "export", "--robot", "icub_right_arm", "--monitor-config", conf).returncode == 0
+    assert dynid("export", "--cad", "--out", coef).returncode == 0
+    assert dynid("export", "--robot", "icub_right_arm", "--monitor-config", conf).returncode == 0
     return coef, conf
 
 
@@ -189,7 +189,7 @@ def test_an_lcm_log_the_monitor_would_open_for_reading_is_refused(url: str, fixe
     if url != LCM_URLS[0][0].format(d=tmp_path):
         return  # the command line's refusal once (url_for_writing gave the rest above): a process costs a second
     out = tmp_path / "arm.conf"
-    done = run(DYNID, "export", "--robot", "icub_right_arm", "--monitor-config", out, "--lcm-url", url)
+    done = dynid("export", "--robot", "icub_right_arm", "--monitor-config", out, "--lcm-url", url)
     assert done.returncode == 2 and done.stderr.strip().splitlines() == [
         f"dynid export: error: --lcm-url {url} opens its file for reading (LCM's default without mode=w or mode=a), "
         f"and the monitor writes: {fixed}"], done.stderr
@@ -244,7 +244,7 @@ def test_an_lcm_url_liblcm_cannot_open_is_a_configuration_error(url: str, why: s
         f"rt_monitor: error: LCM URL '{url}': {lcm_url_problem(url)}"], done.stderr
     if url == BAD_LCM_URLS[0][0]:  # the command line's refusal once: a process costs a second
         out = tmp_path / "arm.conf"
-        done = run(DYNID, "export", "--robot", "icub_right_arm", "--monitor-config", out, "--lcm-url", url)
+        done = dynid("export", "--robot", "icub_right_arm", "--monitor-config", out, "--lcm-url", url)
         assert done.returncode == 2 and done.stderr.strip().splitlines() == [
             f"dynid export: error: --lcm-url {url}: {lcm_url_problem(url)}"], done.stderr
         assert not out.exists()
@@ -256,7 +256,7 @@ def test_an_lcm_url_the_configuration_cannot_carry_is_refused(url: str, tmp_path
     """The configuration is whitespace-separated tokens with # comments: rt_monitor would read such a URL as another
     (a review found all three written with exit 0; the newline injected a configuration line)."""
     out = tmp_path / "arm.conf"
-    done = run(DYNID, "export", "--robot", "icub_right_arm", "--monitor-config", out, "--lcm-url", url)
+    done = dynid("export", "--robot", "icub_right_arm", "--monitor-config", out, "--lcm-url", url)
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert "cannot hold whitespace, '#' or control characters" in done.stderr and not out.exists()
 
@@ -277,13 +277,13 @@ def panda(tmp_path_factory: pytest.TempPathFactory) -> dict:
     data = Dataset(t=t, joints=config.joints, q=q, dq=dq, tau=tau, meta={"robot": "panda"})
     data.save(root / "run.npz")
     log, dbc, conf, coef = root / "run.log", root / "panda.dbc", root / "panda.conf", root / "panda.dcoef"
-    done = run(DYNID, "play", "--robot", "panda", "--data", root / "run.npz", "--sink", f"candump:{log}")
+    done = dynid("play", "--robot", "panda", "--data", root / "run.npz", "--sink", f"candump:{log}")
     assert done.returncode == 0, done.stderr
     assert "clamped" not in done.stdout  # every value within its signal's range
     lcm = root / "events.lcmlog"
     for args in (("--dbc", dbc, "--monitor-config", conf, "--lcm-url", f"file://{lcm}?mode=w"),
                  ("--cad", "--rate", "1000", "--out", coef)):
-        done = run(DYNID, "export", "--robot", "panda", *args)
+        done = dynid("export", "--robot", "panda", *args)
         assert done.returncode == 0, done.stderr
     return {"root": root, "config": config, "data": data, "log": log, "dbc": dbc, "conf": conf, "coef": coef,
             "lcm": lcm, "played": done}
@@ -395,7 +395,7 @@ def test_play_says_where_the_nominal_period_comes_from_and_that_a_jittered_log_l
     data = panda["data"].slice(0, 300)
     data.t = data.t + np.random.default_rng(0).uniform(-0.3e-3, 0.3e-3, data.n_samples)  # a jittered logger's stamps
     data.save(tmp_path / "jittered.npz")
-    done = run(DYNID, "play", "--robot", "panda", "--data", tmp_path / "jittered.npz", "--stamps", "nominal",
+    done = dynid("play", "--robot", "panda", "--data", tmp_path / "jittered.npz", "--stamps", "nominal",
                "--sink", f"candump:{tmp_path / 'j.log'}")
     assert done.returncode == 0, done.stderr
     assert "samples at stamps every 1 ms (the bus's period)" in done.stdout
@@ -408,7 +408,7 @@ def test_play_says_where_the_nominal_period_comes_from_and_that_a_jittered_log_l
     slow = panda["data"].slice(0, 300)
     slow.t = 2.0 * slow.t  # recorded at 500 Hz on the Panda's 1 kHz bus, on the dot
     slow.save(tmp_path / "slow.npz")
-    done = run(DYNID, "play", "--robot", "panda", "--data", tmp_path / "slow.npz", "--stamps", "nominal",
+    done = dynid("play", "--robot", "panda", "--data", tmp_path / "slow.npz", "--stamps", "nominal",
                "--sink", f"candump:{tmp_path / 's.log'}")
     assert done.returncode == 0, done.stderr
     assert "stamps every 2 ms (the run's median step: the bus's period, 1 ms, is not the run's)" in done.stdout
@@ -450,7 +450,7 @@ def test_play_names_recorded_stamps_that_drift_and_the_monitor_bridges_them(pand
     evaluated = {}
     for stamps in ("recorded", "nominal"):
         log = tmp_path / f"{stamps}.log"
-        done = run(DYNID, "play", "--robot", "panda", "--data", tmp_path / "drift.npz", "--sink", f"candump:{log}",
+        done = dynid("play", "--robot", "panda", "--data", tmp_path / "drift.npz", "--sink", f"candump:{log}",
                    "--stamps", stamps)
         assert done.returncode == 0, done.stderr
         assert ("note: the recorded steps are not whole periods of 1 ms" in done.stdout) == (stamps == "recorded")
@@ -467,7 +467,7 @@ def test_buses_that_share_an_id_get_a_dbc_each(tmp_path: Path) -> None:
     chains) are written as one DBC per bus, each decoding its bus."""
     robot = _robot(tmp_path, lambda b: [_frame(b, f"TPDO1_{n}").update(id=0x180 + n - 4) for n in (5, 6, 7)])
     out = tmp_path / "panda.dbc"
-    done = run(DYNID, "export", "--robot", robot, "--dbc", out, "--json", tmp_path / "e.json")
+    done = dynid("export", "--robot", robot, "--dbc", out, "--json", tmp_path / "e.json")
     assert done.returncode == 0, done.stderr
     assert not out.exists() and (tmp_path / "panda-can0.dbc").is_file() and (tmp_path / "panda-can1.dbc").is_file()
     import cantools

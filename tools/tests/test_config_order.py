@@ -11,15 +11,14 @@ from __future__ import annotations
 
 import struct
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from conftest import dynid
 
 ROOT = Path(__file__).resolve().parents[2]
 BOARDS = ROOT / "build" / "firmware_like" / "boards"
 RT_MONITOR = ROOT / "build" / "rt_monitor" / "rt_monitor"
-DYNID = Path(sys.executable).with_name("dynid")
 COEF = ROOT / "rt_monitor" / "tests" / "data" / "icub_cad.dcoef"
 CONF = ROOT / "rt_monitor" / "config" / "icub_right_arm.conf"
 
@@ -53,7 +52,7 @@ def shuffled(url: str) -> str:
 def log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A short simulated contact run through the board emulators, as a candump log."""
     root = tmp_path_factory.mktemp("order")
-    done = run(DYNID, "simulate", "--kind", "contact", "--duration", "2", "--out", root / "run")
+    done = dynid("simulate", "--kind", "contact", "--duration", "2", "--out", root / "run")
     assert done.returncode == 0, done.stderr
     (root / "ordered.conf").write_text(ordered("memq://"))
     done = run(BOARDS, "--config", root / "ordered.conf", "--data", root / "run", "--sink", f"candump:{root / 'run.log'}")

@@ -24,12 +24,12 @@ from pathlib import Path
 
 import cantools
 import pytest
+from conftest import dynid
 
 from dynid.config.robot_config import load_config
 
 ROOT = Path(__file__).resolve().parents[2]
 BOARDS = ROOT / "build" / "firmware_like" / "boards"
-DYNID = Path(sys.executable).with_name("dynid")
 DBC = ROOT / "firmware_like" / "icub_can.dbc"
 CONF = ROOT / "rt_monitor" / "config" / "icub_right_arm.conf"
 T0_US = 1_700_000_000_000_000  # boards' default --t0
@@ -83,7 +83,7 @@ def parse_decoded(text: str) -> list[dict]:
 def bus(tmp_path_factory: pytest.TempPathFactory) -> dict:
     root = tmp_path_factory.mktemp("dbc")
     # 8 s: the 4 s run has no contact, so its skin frames would all be zero.
-    done = run(DYNID, "simulate", "--kind", "contact", "--duration", "8", "--out", root / "run")
+    done = dynid("simulate", "--kind", "contact", "--duration", "8", "--out", root / "run")
     assert done.returncode == 0, done.stderr
     lines = (root / "run" / "data.csv").read_text().splitlines()
     csv = root / "data.csv"
@@ -203,7 +203,7 @@ def test_a_board_configured_with_its_flags_decodes_strictly(bus: dict, tmp_path:
                                  "full_scale: [200.0, 200.0, 200.0, 10.0, 10.0, 10.0], saturation_flags: true}")
                      .replace("urdf: {icub_models: iCubGenova04}", "urdf: {icub_models: iCubGenova04}"))
     dbc, conf, log = tmp_path / "flags.dbc", tmp_path / "flags.conf", tmp_path / "flags.log"
-    done = run(DYNID, "export", "--robot", robot, "--dbc", dbc, "--monitor-config", conf)
+    done = dynid("export", "--robot", robot, "--dbc", dbc, "--monitor-config", conf)
     assert done.returncode == 0, done.stderr
     assert run(BOARDS, "--config", conf, "--data", _saturated_csv(bus, tmp_path), "--sink", f"candump:{log}").returncode == 0
     frames = parse_decoded(cantools_decode(log, dbc=dbc).stdout)
@@ -229,7 +229,7 @@ def test_a_bus_the_monitor_cannot_hold_or_a_wrong_one_is_refused_before_writing(
         robot = tmp_path / f"{name}.yaml"
         robot.write_text(text)
         out = tmp_path / f"{name}.dbc"
-        done = run(DYNID, "export", "--robot", robot, "--dbc", out, "--monitor-config", tmp_path / f"{name}.conf")
+        done = dynid("export", "--robot", robot, "--dbc", out, "--monitor-config", tmp_path / f"{name}.conf")
         assert done.returncode == 2, done.stderr
         assert len(done.stderr.splitlines()) == 1 and want[name] in done.stderr, done.stderr
         assert not out.exists() and not (tmp_path / f"{name}.conf").exists()

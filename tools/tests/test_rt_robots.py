@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import dynid as forked_dynid
 from test_rt_core import RT_EVAL, read_matrix, rel_err, write_matrix
 
 from dynid.config.robot_config import load_config
@@ -42,8 +42,7 @@ ROBOTS = {
 
 
 def dynid(*args: str) -> subprocess.CompletedProcess:
-    env = {**os.environ, "DYNID_URDF_PATH": URDF_PATH}
-    return subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True, timeout=600, env=env)
+    return forked_dynid(*args, env={"DYNID_URDF_PATH": URDF_PATH})
 
 
 def cad_export(robot: str, out: Path) -> Path:
