@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 import yaml
+from conftest import dynid as forked_dynid
 
 import dynid
 from dynid.config.robot_config import CONSISTENT_MODES, bundled_configs, load_config, resolve_config_path
@@ -27,7 +27,7 @@ SHORT = ("--estimator", "ols", "--blocks", "3")  # IV does not settle on 8 s (te
 
 
 def run(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "dynid.cli", *args], capture_output=True, text=True, timeout=300)
+    return forked_dynid(*args)  # forked from the preloaded server (conftest)
 
 
 def arm_with(tmp_path: Path, fit_section: str) -> Path:

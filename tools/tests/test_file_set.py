@@ -4,12 +4,11 @@ layouts against the values written, every bad folder, file and configuration ref
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import dynid
 
 from dynid.config.robot_config import load_config
 from dynid.errors import ConfigError, DataError
@@ -100,8 +99,8 @@ def test_a_folder_of_files_is_one_run_where_runs_are_listed(tmp_path: Path) -> N
     assert expand(str(tmp_path), run_folder=lambda p: holds_file_set(p, config)) == [run]
     # `dynid fit --data PARENT` reads the folder as one run, not as three .txt files: here it is refused for its
     # random positions, which are outside the arm's limits, and the refusal names the folder
-    done = subprocess.run([sys.executable, "-m", "dynid.cli", "fit", "--robot", str(cfg), "--data", str(tmp_path),
-                           "--out", str(tmp_path / "m.json")], capture_output=True, text=True)
+    done = dynid("fit", "--robot", str(cfg), "--data", str(tmp_path),
+                           "--out", str(tmp_path / "m.json"))
     assert done.returncode == 2 and done.stderr.strip().startswith(f"dynid fit: error: {run}: q.")
 
 
@@ -179,8 +178,8 @@ def test_the_command_line_says_it_in_one_line_with_exit_2(tmp_path: Path) -> Non
     cfg, run, _ = stacked_setup(tmp_path)
     (run / "run_01_torques.txt").unlink()
     out = tmp_path / "run.npz"
-    done = subprocess.run([sys.executable, "-m", "dynid.cli", "import", "--robot", str(cfg), "--data", str(run),
-                           "--out", str(out)], capture_output=True, text=True)
+    done = dynid("import", "--robot", str(cfg), "--data", str(run),
+                           "--out", str(out))
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1 and "Traceback" not in done.stderr
     assert "'*_torques.txt' of the configuration's files: field matches no file" in done.stderr and not out.exists()
 
@@ -191,8 +190,8 @@ def test_fit_on_a_folder_the_files_field_does_not_match_says_how_it_read_it(tmp_
     cfg, run, _ = stacked_setup(tmp_path)
     for name in list(run.iterdir()):  # another logger's names: run_01_time.csv, ...
         name.rename(name.with_suffix(".csv"))
-    done = subprocess.run([sys.executable, "-m", "dynid.cli", "fit", "--robot", str(cfg), "--data", str(run),
-                           "--out", str(tmp_path / "m.json")], capture_output=True, text=True)
+    done = dynid("fit", "--robot", str(cfg), "--data", str(run),
+                           "--out", str(tmp_path / "m.json"))
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
     # The folder's mismatch first, as validate says it; then what reading it as a folder of runs ran into.
     assert done.stderr.startswith(f"dynid fit: error: {run}: '"), done.stderr
