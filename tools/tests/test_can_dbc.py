@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import re
 import subprocess
-import sys
 from pathlib import Path
 
 import cantools
 import pytest
+from conftest import dynid
 
 from dynid.config.icub_bus import make_id, split_id
 from dynid.config.robot_config import load_config
@@ -24,7 +24,6 @@ from dynid.io.can_database import BusCodec, FrameError, FrameProblem, database
 ROOT = Path(__file__).resolve().parents[2]
 VECTORS = ROOT / "build" / "firmware_like" / "icub_can_vectors"
 DBC = ROOT / "firmware_like" / "icub_can.dbc"
-DYNID = Path(sys.executable).with_name("dynid")
 
 
 @pytest.fixture(scope="module")
@@ -194,8 +193,7 @@ def _content(db) -> list:
 def test_the_committed_dbc_is_dynid_exports(tmp_path: Path) -> None:
     """firmware_like/icub_can.dbc is `dynid export --robot icub_right_arm --dbc` (regenerate it if not)."""
     out = tmp_path / "arm.dbc"
-    done = subprocess.run([str(DYNID), "export", "--robot", "icub_right_arm", "--dbc", str(out)], capture_output=True,
-                          text=True)
+    done = dynid("export", "--robot", "icub_right_arm", "--dbc", str(out))
     assert done.returncode == 0, done.stderr
     fresh, committed = (cantools.database.load_file(str(p), strict=True) for p in (out, DBC))
     assert _content(committed) == _content(fresh) == _content(database(load_config("icub_right_arm").bus))
@@ -213,16 +211,12 @@ def test_example_monitor_config_is_current() -> None:
 def test_the_bus_exports_without_a_supplied_urdf(tmp_path: Path) -> None:
     """The DBC and the monitor configuration come from the configuration alone: a robot whose URDF the user supplies
     (the UR10e's) exports them with no DYNID_URDF_PATH; what needs the chain still refuses, in one line."""
-    import os
-
-    env = {**os.environ, "DYNID_URDF_PATH": ""}
+    env = {"DYNID_URDF_PATH": ""}
     dbc, conf = tmp_path / "ur.dbc", tmp_path / "ur.conf"
-    done = subprocess.run([str(DYNID), "export", "--robot", "ur10e", "--dbc", str(dbc), "--monitor-config", str(conf)],
-                          capture_output=True, text=True, env=env)
+    done = dynid("export", "--robot", "ur10e", "--dbc", str(dbc), "--monitor-config", str(conf), env=env)
     assert done.returncode == 0, done.stderr
     assert _content(cantools.database.load_file(str(dbc), strict=True)) == _content(database(load_config(
         "ur10e", need_urdf=False).bus))
     assert conf.read_text().startswith("# rt_monitor configuration for ur10e")
-    done = subprocess.run([str(DYNID), "export", "--robot", "ur10e", "--cad", "--out", str(tmp_path / "ur.dcoef")],
-                          capture_output=True, text=True, env=env)
+    done = dynid("export", "--robot", "ur10e", "--cad", "--out", str(tmp_path / "ur.dcoef"), env=env)
     assert done.returncode == 2 and done.stderr.count("\n") == 1 and "a URDF you supply" in done.stderr, done.stderr

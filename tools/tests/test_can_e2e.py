@@ -9,12 +9,11 @@ from __future__ import annotations
 
 import struct
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import exit_counter
+from conftest import dynid, exit_counter
 from test_rt_core import detector_columns, python_mirror, raw_samples, stream, without_known_answers
 
 from dynid.config.robot_config import load_config
@@ -371,8 +370,7 @@ def test_import_candump_round_trip(setup: dict, clean: dict, tmp_path: Path) -> 
     from dynid.io.dataset import Dataset
 
     log = setup["root"] / "clean.log"
-    done = subprocess.run([sys.executable, "-m", "dynid.cli", "import", "--data", str(log), "--out", str(tmp_path / "d.npz")],
-                          capture_output=True, text=True, timeout=300)
+    done = dynid("import", "--data", str(log), "--out", str(tmp_path / "d.npz"))
     assert done.returncode == 0, done.stderr
     got, want = Dataset.load(tmp_path / "d.npz"), clean["part"]
     assert got.n_samples == want.n_samples
@@ -388,8 +386,7 @@ def test_import_candump_round_trip(setup: dict, clean: dict, tmp_path: Path) -> 
 def test_import_refuses_a_bad_log_with_one_line(tmp_path: Path) -> None:
     bad = tmp_path / "bad.log"
     bad.write_text("(1.000000) can0 514#00\n(1.001000) can0 515#00\n")
-    done = subprocess.run([sys.executable, "-m", "dynid.cli", "import", "--data", str(bad), "--out", str(tmp_path / "d.npz")],
-                          capture_output=True, text=True, timeout=300)
+    done = dynid("import", "--data", str(bad), "--out", str(tmp_path / "d.npz"))
     assert done.returncode == 2
     assert done.stderr.strip().count("\n") == 0 and "no frame STRAIN_TORQUE_13" in done.stderr, done.stderr
     assert not (tmp_path / "d.npz").exists()

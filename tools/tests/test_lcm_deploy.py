@@ -18,6 +18,7 @@ import uuid
 from pathlib import Path
 
 import pytest
+from conftest import dynid
 
 from dynid.cli.spy import plain
 from dynid.config.robot_config import load_config
@@ -209,7 +210,7 @@ def test_lcm_spy_launcher_puts_the_jar_on_the_classpath(tmp_path: Path) -> None:
 
 
 def _spy(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "dynid.cli", "spy", *args], capture_output=True, text=True, timeout=300)
+    return dynid("spy", *args)
 
 
 def test_spy_json_is_every_message_of_the_log(run: dict) -> None:
