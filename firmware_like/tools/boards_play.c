@@ -9,7 +9,8 @@
  * - icub: the iCub board emulators (fixed-point strain conversion, saturation flags, STATUS faults and sequence,
  *   restarts), set up from the table of the iCub protocol (nodes named icub_mc_*, icub_strain_*, icub_skin_*, as dynid
  *   writes the `can:` section's boards) and latched once per sample.
- * On a simulated run of the iCub arm both give the same bytes (tools/tests/test_boards.py).
+ * On a simulated run of the iCub arm both give the same bytes (tools/tests/test_boards.py). A run without a contact
+ * column sends no frame that carries skin bits and no value: it has no contact ground truth to give.
  */
 #include <math.h>
 #include <stdio.h>
@@ -234,6 +235,14 @@ int boards_player_init(boards_player_t *p, const boards_conf_t *c, int encoder, 
     for (i = 0; i < c->n_signals; ++i) {
         if (c->signals[i].kind == BOARDS_T_VALUE) p->value_signal[c->signals[i].value] = i;
     }
+    for (i = 0; i < c->n_frames; ++i) { /* skin bits and no value: the frame says only where contact is */
+        int skin = 0, value = 0;
+        for (k = c->frames[i].first_signal; k < c->frames[i].first_signal + c->frames[i].n_signals; ++k) {
+            skin |= c->signals[k].kind == BOARDS_T_SKIN;
+            value |= c->signals[k].kind == BOARDS_T_VALUE;
+        }
+        p->skin_only[i] = (uint8_t)(skin && !value);
+    }
     return encoder == BOARDS_ENCODER_ICUB ? icub_setup(p, c, err) : 0;
 }
 
@@ -348,6 +357,9 @@ int boards_player_sample(boards_player_t *p, const double *row, const boards_col
         const int i2 = p->order[k];
         const boards_table_frame_t *fr = &c->frames[i2];
         if ((p->node_periods[fr->node] - 1u) % (uint64_t)p->every[i2] != 0u) continue;
+        /* A run without a contact column knows nothing of contact: its skin frames are not sent, so that what reads
+         * the log finds no contact ground truth (dynid.io.candump), rather than "no contact" everywhere. */
+        if (cols->contact < 0 && p->skin_only[i2]) continue;
         if (p->encoder == BOARDS_ENCODER_ICUB) icub_frame(p, i2, &f);
         else generic_frame(p, i2, row, cols, &f);
         if ((rc = emit(ctx, fr->bus, &f, t_us + fr->offset_us)) != 0) return rc;

@@ -135,6 +135,7 @@ typedef struct {
     uint64_t node_periods[BOARDS_MAX_FRAMES]; /* per node: samples since its start or restart */
     uint8_t node_restarted[BOARDS_MAX_FRAMES]; /* a restart flag pending for the node's next frame that has one */
     uint64_t seq[BOARDS_MAX_FRAMES];
+    uint8_t skin_only[BOARDS_MAX_FRAMES]; /* per frame: skin bits and no value (not sent without a contact column) */
     uint8_t clamped[BOARDS_MAX_SIGNALS]; /* per value: it clamped in this sample */
     uint64_t n_clamped;                  /* values clamped at their signal's range, over the run */
     int first_clamped;                   /* the first value that did (-1: none) */

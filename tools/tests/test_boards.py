@@ -113,6 +113,35 @@ def test_frames_match_the_python_writer_and_decode_to_the_csv(part: dict, encode
     assert (skin == (data.contact != 0)).all() and skin.any() and not skin.all()
 
 
+@pytest.mark.parametrize("encoder", ["icub", "generic"])
+def test_a_run_without_contact_labels_sends_no_skin_frames(part: dict, encoder: str) -> None:
+    """A run with no contact column knows nothing of contact: both players send none of the skin boards' frames
+    (all-zero taxels would read back as a run known to be contact-free), the same frames otherwise, and the log reads
+    back with no contact column."""
+    header = part["header"].split(",")
+    keep = [i for i, name in enumerate(header) if name not in ("contact", "skin.patch", "skin.side")]
+    lines = part["csv"].read_text().splitlines()
+    unlabelled = part["root"] / f"unlabelled_{encoder}.csv"
+    unlabelled.write_text("\n".join(",".join(line.split(",")[i] for i in keep) for line in lines) + "\n")
+    log = part["root"] / f"unlabelled_{encoder}.log"
+    done = boards("--config", str(part["conf"]), "--data", str(unlabelled), "--sink", f"candump:{log}",
+                  "--encoder", encoder)
+    assert done.returncode == 0, done.stderr
+    data = load_data(unlabelled, part["config"])
+    assert data.contact is None
+    py_log = part["root"] / f"unlabelled_py_{encoder}.log"
+    write_candump(data, part["config"], py_log)
+    assert log.read_text() == py_log.read_text()
+    with_labels = part["root"] / f"labelled_{encoder}.log"
+    assert boards("--config", str(part["conf"]), "--data", str(part["csv"]), "--sink", f"candump:{with_labels}",
+                  "--encoder", encoder).returncode == 0
+    skin_ids = {f.id for f in part["config"].bus.frames if any(s.target.startswith("skin.") for s in f.signals)}
+    sent, labelled = ({can_id for _, _, can_id, _ in _frames(p)} for p in (log, with_labels))
+    assert skin_ids and not sent & skin_ids and sent == labelled - skin_ids
+    back = load_data(log, part["config"])
+    assert back.contact is None and back.n_samples == N
+
+
 def _bits(dlc: int) -> int:
     return 34 + 8 * dlc + 13 + (34 + 8 * dlc - 1) // 4  # standard ID, worst-case stuffing, with the IFS
 

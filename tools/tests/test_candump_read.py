@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -69,8 +70,12 @@ def test_the_skin_frames_give_the_contact_column(tmp_path: Path) -> None:
     assert data.contact is not None and notes == []
     np.testing.assert_array_equal(data.contact, written.contact[-data.n_samples:])
     # skin frames that report no contact are ground truth too: a run known to be contact-free
-    quiet, _ = read(log_of(tmp_path, ARM, run_of(ARM, contact=False), name="quiet.log"), ARM)
+    known_free = replace(run_of(ARM), contact=np.zeros(N, np.uint8))
+    quiet, _ = read(log_of(tmp_path, ARM, known_free, name="quiet.log"), ARM)
     assert quiet.contact is not None and not quiet.contact.any()
+    # a run without contact labels is written without skin frames (not as all-zero taxels): it reads back without
+    unlabelled, notes = read(log_of(tmp_path, ARM, run_of(ARM, contact=False), name="unlabelled.log"), ARM)
+    assert unlabelled.contact is None and notes == []
 
 
 def skin_frames(config) -> dict[str, str]:

@@ -53,6 +53,9 @@ def cmd_play(args: argparse.Namespace) -> dict[str, Any]:
         print(f"note: the log's stamps are the nominal grid, not the recording's (its steps of {1e3 * lo:.4g} to "
               f"{1e3 * hi:.4g} ms each went out as {1e3 * played.nominal_s:.6g} ms): its time axis is the monitor's, "
               "not the robot's; analyse the recording itself offline (validate, detect), not this log", file=out)
+    if data.contact is None and config.bus is not None and config.bus.patches:
+        print("note: the run has no contact column: the skin boards' frames are not sent (the log reads back with no "
+              "contact ground truth, and rt_monitor reports them as silent frames)", file=out)
     drift = played.drift
     if drift is not None and drift.misleads():
         print(f"note: the recorded steps are not whole periods of {1e3 * drift.period_s:.6g} ms: they drift "

@@ -24,7 +24,9 @@ frame's `offset_us` (the iCub boards: POSITION and PID_VAL at −300 µs, STATUS
 strain force −100 µs and torque at t_k, which closes the sample); a frame with a period every round(period /
 the run's mean sample period) samples from sample 0. Values come from the data (`dq.J`: the run's dq, else its
 `velocity.J` column, the controllers' measured velocities); skin bits are the data's `contact` on the patch the
-simulator's `skin.patch` column names (without it: all contact on the first patch); a sequence counter counts its
+simulator's `skin.patch` column names (without it: all contact on the first patch; a run without a `contact` column
+sends no frame that carries skin bits and no value, so that it reads back without contact ground truth, as `boards`
+plays it); a sequence counter counts its
 frame; fault and saturation flags of a target are set where its value clamps at the signal's range (a frame's long
 form, the iCub strain board's 7-byte variant, is sent for the whole run when one of its flags would be set: `auto`).
 """
@@ -403,6 +405,11 @@ def frame_values(data: Dataset, bus: BusDescription, f: BusFrame, rows: np.ndarr
     return [s.name for s in signals], out
 
 
+def _skin_only(f: BusFrame) -> bool:
+    """The frame carries skin bits and no value: it says only where contact is."""
+    return any(s.target.startswith("skin.") for s in f.signals) and not any(is_value_target(s.target) for s in f.signals)
+
+
 def write_candump(data: Dataset, config: RobotConfig, path: str | Path, t0: float = 1_700_000_000.0,
                   long_form: str = "auto") -> int:
     """Write `data` as the robot's nodes send it on its bus, atomically; returns the number of frames. `long_form`:
@@ -425,6 +432,8 @@ def write_candump(data: Dataset, config: RobotConfig, path: str | Path, t0: floa
             if long_form == "on" or values[:, optional].any():
                 long_nodes.add(f.node)
     for f in bus.send_order():
+        if data.contact is None and _skin_only(f):
+            continue  # a run without contact labels has no skin to send: read back, it has no contact ground truth
         rows = np.arange(0, n, f.every(period))
         long = bool(f.long_dlc) and f.node in long_nodes
         names, vals = frame_values(data, bus, f, rows, long)
