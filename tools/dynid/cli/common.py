@@ -33,9 +33,9 @@ class Parser(argparse.ArgumentParser):
         raise SystemExit(EXIT_BAD_INPUT)
 
 
-def plural(n: int, noun: str) -> str:
-    """'1 episode', '2 episodes'."""
-    return f"{n} {noun}{'' if n == 1 else 's'}"
+def plural(n: int, noun: str, nouns: str | None = None) -> str:
+    """'1 episode', '2 episodes' (`nouns`: the plural where it is not noun + s)."""
+    return f"{n} {noun if n == 1 else nouns or noun + 's'}"
 
 
 def write_json(result: dict[str, Any], target: str | None) -> None:

@@ -417,9 +417,10 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
         print(f"  combined detector skipped: {skipped_combined}")
     if momentum is not None:
         print(f"  momentum: observer bandwidth {args.bandwidth:g} Hz, calibrated on {momentum.detector.samples} "
-              f"contact-free samples; {plural(len(momentum.events), 'contact event')}")
+              f"contact-free samples; {plural(len(momentum.events), 'stretch', 'stretches')} above its threshold")
     if combined is not None:  # the events of --json are the default detector's
-        print(f"  combined: {plural(len(combined.events), 'contact event')} (--json's events)")
+        print(f"  combined: {plural(len(combined.events), 'stretch', 'stretches')} above its threshold (--json's events; "
+              "offline without the monitor's debounce and hysteresis, which merge close ones into one event)")
     print_out_of_sample(found.result["out_of_sample"])
     rates = [s["fpr"] for s in found.result["variants"].values() if s.get("fpr") is not None]
     if rates and min(rates) > MISFIT_FPR:  # α promises 1 - α: no detector is anywhere near, the data are not the model's
