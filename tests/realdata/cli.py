@@ -13,9 +13,11 @@ from pathlib import Path
 from ..hostile.run import run_dynid
 
 
-def run(*args: str, keep_urdf_path: bool = True) -> subprocess.CompletedProcess:
-    """`dynid ARGS`; keep_urdf_path=False drops DYNID_URDF_PATH, so the test's own --urdf is the only one found."""
-    done = run_dynid(list(args), Path.cwd(), timeout=900, unset=() if keep_urdf_path else ("DYNID_URDF_PATH",))
+def run(*args: object, keep_urdf_path: bool = True) -> subprocess.CompletedProcess:
+    """`dynid ARGS` (each as its str); keep_urdf_path=False drops DYNID_URDF_PATH, so the test's own --urdf is the only
+    one found."""
+    done = run_dynid([str(a) for a in args], Path.cwd(), timeout=900,
+                     unset=() if keep_urdf_path else ("DYNID_URDF_PATH",))
     return subprocess.CompletedProcess(["dynid", *args], done.code, done.stdout, done.stderr)
 
 

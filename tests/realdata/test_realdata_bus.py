@@ -38,12 +38,6 @@ def run(*args: object, stdin: Path | None = None) -> subprocess.CompletedProcess
         return subprocess.run([str(a) for a in args], stdin=f, capture_output=True, text=True, timeout=900)
 
 
-def dynid(*args: object) -> subprocess.CompletedProcess:
-    """`dynid ARGS`, forked from the preloaded server (tests/realdata/cli.py): the executable's result without an
-    interpreter start and dynid's imports per command."""
-    return cli.run(*(str(a) for a in args))
-
-
 @pytest.mark.parametrize("robot", sorted(RUNS))
 def test_a_real_run_onto_the_bus_and_back(robot: str, tmp_path: Path) -> None:
     source, urdf, rate, (t_from, t_to) = RUNS[robot]
@@ -54,13 +48,13 @@ def test_a_real_run_onto_the_bus_and_back(robot: str, tmp_path: Path) -> None:
     config = load_config(robot, REALDATA / urdf if urdf else None)
     window = f"{data_path}@{t_from}:{t_to}"
     log, dbc, conf, coef = (tmp_path / n for n in ("run.log", "bus.dbc", "monitor.conf", "cad.dcoef"))
-    done = dynid("play", "--robot", robot, *urdf_args, "--data", window, "--sink", f"candump:{log}",
+    done = cli.run("play", "--robot", robot, *urdf_args, "--data", window, "--sink", f"candump:{log}",
                "--bad-rows", "skip")
     assert done.returncode == 0, done.stderr
     assert "clamped" not in done.stdout  # the bus description keeps the run's values in range
     for args in (("--dbc", dbc, "--monitor-config", conf, "--lcm-url", "memq://"),
                  ("--cad", "--rate", str(rate), "--out", coef)):
-        done = dynid("export", "--robot", robot, *urdf_args, *args)
+        done = cli.run("export", "--robot", robot, *urdf_args, *args)
         assert done.returncode == 0, done.stderr
 
     decoded = run(sys.executable, "-m", "cantools", "decode", "--single-line", dbc, stdin=log)
@@ -82,7 +76,7 @@ def test_a_real_run_onto_the_bus_and_back(robot: str, tmp_path: Path) -> None:
 
     for stamps in ("recorded", "nominal"):
         if stamps == "nominal":
-            assert dynid("play", "--robot", robot, *urdf_args, "--data", window, "--sink", f"candump:{log}",
+            assert cli.run("play", "--robot", robot, *urdf_args, "--data", window, "--sink", f"candump:{log}",
                        "--bad-rows", "skip", "--stamps", "nominal").returncode == 0
         done = run(RT_MONITOR, "--model", coef, "--config", conf, "--replay", log)
         assert done.returncode == 0, done.stderr

@@ -71,12 +71,6 @@ def run(*args: object) -> subprocess.CompletedProcess:
     return subprocess.run([str(a) for a in args], capture_output=True, text=True, timeout=900)
 
 
-def dynid(*args: object) -> subprocess.CompletedProcess:
-    """`dynid ARGS`, forked from the preloaded server (tests/realdata/cli.py): the executable's result without an
-    interpreter start and dynid's imports per command."""
-    return cli.run(*(str(a) for a in args))
-
-
 def _window(path: Path, span: tuple[float, float] | None) -> str:
     """RUN@FROM:TO in the run's seconds."""
     return str(path) if span is None else f"{path}@{float(span[0])!r}:{float(span[1])!r}"
@@ -96,7 +90,7 @@ def fitted(tmp_path_factory: pytest.TempPathFactory):
         key = tuple(map(str, args))
         if key not in made:
             out = tmp_path_factory.mktemp("fit") / "model.json"
-            done = dynid("fit", *key, "--out", out)
+            done = cli.run("fit", *key, "--out", out)
             assert done.returncode == 0, f"dynid fit {' '.join(key)}: {done.stderr}"
             made[key] = out
         return made[key]
@@ -130,7 +124,7 @@ def test_a_real_run_through_the_monitor_is_the_core_on_the_decoded_samples(robot
          "--stamps", "nominal"),
     ]
     for step in steps:
-        done = dynid(*step)
+        done = cli.run(*step)
         assert done.returncode == 0, f"dynid {' '.join(map(str, step))}: {done.stderr}"
     # Every evaluated sample's T² on DYNID_RESIDUAL
     conf.write_text(re.sub(r"^residual_every \d+$", "residual_every 1", conf.read_text(), flags=re.M))
@@ -230,7 +224,7 @@ def test_the_whole_panda_log_exports_though_it_misses_samples(tmp_path: Path) ->
     data = REALDATA / "panda_gaz2019" / "rbt_log"  # the logger's folder of files (panda.yaml's `files:`)
     model, coef = tmp_path / "model.json", tmp_path / "model.dcoef"
     for step in (("fit", "--robot", "panda", "--data", data, "--out", model), ("export", "--model", model, "--out", coef)):
-        done = dynid(*step)
+        done = cli.run(*step)
         assert done.returncode == 0, f"dynid {' '.join(map(str, step))}: {done.stderr}"
     c = read_coefficients(coef)
     assert c.sample_period == pytest.approx(1e-3, rel=1e-3) and c.calibration_samples > 9000
