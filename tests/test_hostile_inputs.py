@@ -87,7 +87,9 @@ def test_hostile_input(case: Case, fixtures: Fixtures, tmp_path: Path) -> None:
     assert not any(mark in done.stderr for mark in SANITIZER_MARKS), report
     assert "Traceback" not in done.stderr + done.stdout, report
     assert done.code == case.code, report
-    lines = done.stderr.splitlines()
+    warned = [x for x in done.stderr.splitlines() if x.startswith(f"{case.program}: warning: ")]
+    assert len(warned) == (1 if case.warns else 0) and case.warns in "".join(warned), report
+    lines = [x for x in done.stderr.splitlines() if x not in warned]
     if case.code == 0:
         assert len(lines) == (1 if says else 0) and says in done.stderr and case.prints in done.stdout, report
         created = {str(outputs / name) for name in case.creates}

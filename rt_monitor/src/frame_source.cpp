@@ -233,14 +233,16 @@ ReadStatus CandumpReplay::read(RxFrame& out, int /*timeout_ms*/) noexcept {
         // An overlong line, or one with a NUL byte in it (strlen would end it early and read its rest as a line of
         // its own): one bad line.
         if (next == Next::kOverlong || std::memchr(line, '\0', n)) {
-            ++counters_.bad_lines;
+            bad_line();
             continue;
         }
         line[n] = '\0';  // the newline (or the spare byte after a last line) ends it
         switch (parse_candump_line(line, buses_, out)) {
             case LineKind::kBlank: continue;
-            case LineKind::kBad: ++counters_.bad_lines; continue;
-            case LineKind::kUnknownBus: ++counters_.unknown_bus; continue;
+            case LineKind::kBad: bad_line(); continue;
+            case LineKind::kUnknownBus:
+                if (counters_.unknown_bus++ == 0) counters_.first_unknown_bus = line_;
+                continue;
             case LineKind::kFrame: break;
         }
         if (realtime_) {

@@ -180,7 +180,8 @@ TEST(MonitorConfig, BusErrorsNameTheFileTheLineAndTheProblem) {
     const std::string& d = dir();
     EXPECT_EQ(error_of("unknown_bus", with("frame MC_POSITION_1 can7 0x111 8 0 mc1 0 -300", 9)),
               d + "unknown_bus.conf:9: bus 'can7' is not in the 'buses' line (can0 can1 can2)");
-    EXPECT_EQ(error_of("no_buses", with("# none", 3)), d + "no_buses.conf:0: no 'buses' line");
+    EXPECT_EQ(error_of("no_buses", with("# none", 3)), d + "no_buses.conf:0: no 'buses' line (not an rt_monitor configuration? "
+                                                       "`dynid export --robot CFG --monitor-config FILE` writes one)");
     EXPECT_EQ(error_of("second_buses", std::string("buses can0\n") + kShuffled),
               d + "second_buses.conf:29: a second 'buses' line (the first is line 1)");
     EXPECT_EQ(error_of("named_twice", with("buses can0 can1 can1", 3)), d + "named_twice.conf:3: bus 'can1' named twice");

@@ -317,7 +317,8 @@ bool write_stats(const std::string& path, const Assembler& a, const FrameSource&
     j.open("source_counters")
         .num("frames", (long long)sc.frames).num("bad_lines", (long long)sc.bad_lines)
         .num("unknown_bus", (long long)sc.unknown_bus).num("bad_size", (long long)sc.bad_size)
-        .num("kernel_drops", (long long)sc.kernel_drops)
+        .num("kernel_drops", (long long)sc.kernel_drops).num("first_bad_line", (long long)sc.first_bad_line)
+        .num("first_unknown_bus", (long long)sc.first_unknown_bus)
         .close();
     j.open("samples")  // evaluated = taken − held + interpolated; taken = assembled − stale
         .num("assembled", c.samples).num("stale", c.stale_samples).num("taken", cc.taken).num("held", cc.held)
@@ -520,7 +521,25 @@ int main(int argc, char** argv) {
                 std::remove(partial.partial.c_str());
         }
     }
-    if (blind)
+    const SourceCounters& sc = src->counters();
+    if (!replay.empty()) {  // skipped, counted: said once, with where to look
+        const auto skipped = [&](uint64_t n, uint64_t line, const char* one, const char* many) {
+            if (n == 1)
+                std::fprintf(stderr, "rt_monitor: warning: %s: line %llu is %s, skipped\n", replay.c_str(),
+                             (unsigned long long)line, one);
+            else if (n > 1)
+                std::fprintf(stderr, "rt_monitor: warning: %s: %llu lines (the first: line %llu) are %s, skipped\n",
+                             replay.c_str(), (unsigned long long)n, (unsigned long long)line, many);
+        };
+        skipped(sc.bad_lines, sc.first_bad_line, "not a classic-CAN candump -L frame",
+                "not classic-CAN candump -L frames");
+        skipped(sc.unknown_bus, sc.first_unknown_bus, "a frame of an interface not among the configuration's buses",
+                "frames of interfaces not among the configuration's buses");
+    }
+    if (blind && !replay.empty() && sc.frames == 0)
+        std::fprintf(stderr, "rt_monitor: error: evaluated no sample: %s holds no candump -L frame of the "
+                     "configuration's buses\n", replay.c_str());
+    else if (blind)
         std::fprintf(stderr, "rt_monitor: error: %s: %s\n",
                      loop->counters().evaluated == 0 ? "evaluated no sample" : "ended blind",
                      *watchdog->reason(kBlind) ? watchdog->reason(kBlind) : "no sample was completed");

@@ -127,17 +127,21 @@ COEFFICIENTS = [
 ]
 
 
-def _replay(name: str, prints: str, make: Maker | None) -> Case:
-    """A damaged candump log: the monitor counts and skips what it cannot use, runs to the end (exit 0), and says
-    only its start-up line on stderr."""
+NOT_FRAMES = "2200 lines (the first: line 4) are not classic-CAN candump -L frames, skipped"
+
+
+def _replay(name: str, prints: str, make: Maker | None, warns: str = NOT_FRAMES) -> Case:
+    """A damaged candump log: the monitor counts and skips what it cannot use, runs to the end (exit 0), and says its
+    start-up line on stderr, then one warning where it skipped lines of the log (how many, the first's number)."""
     return monitor(f"monitor-log-{name}", *RUN, "{in}/run.log", "--lcm-url", "memq://", code=0, says="rt_monitor: running:",
-                   make=make, prints=prints)
+                   make=make, prints=prints, warns=warns)
 
 
-def _blind(name: str, says: str, make: Maker | None) -> Case:
+def _blind(name: str, says: str, make: Maker | None, warns: str = "") -> Case:
     """A log from which no sample can be evaluated: the run is blind, exit 6, its last line naming why (before it, the
     start-up line and the watchdog's fault lines)."""
-    return monitor(f"monitor-log-{name}", *RUN, "{in}/run.log", "--lcm-url", "memq://", code=6, says=says, make=make)
+    return monitor(f"monitor-log-{name}", *RUN, "{in}/run.log", "--lcm-url", "memq://", code=6, says=says, make=make,
+                   warns=warns)
 
 
 CANDUMP_LINES = [
@@ -146,22 +150,25 @@ CANDUMP_LINES = [
     _replay("nine-data-bytes", "bad source input 2200", candump(lambda x: x + "001122334455667788")),
     _replay("odd-hex-digits", "bad source input 2200", candump(lambda x: x + "A")),
     _replay("can-fd", "bad source input 2200", candump(lambda x: x.replace("#", "##1", 1))),
-    _replay("unknown-interface", "bad source input 2200", candump(lambda x: x.replace(" can", " vcan", 1))),
+    _replay("unknown-interface", "bad source input 2200", candump(lambda x: x.replace(" can", " vcan", 1)),
+            "2200 lines (the first: line 4) are frames of interfaces not among the configuration's buses, skipped"),
     _replay("negative-stamps", "bad source input 2200", candump(stamp("(-1.000000)"))),
     _replay("stamps-past-int64", "bad source input 2200", candump(stamp("(99999999999999999999.000000)"))),
     _replay("no-parenthesis", "bad source input 2200", candump(lambda x: x.replace("(", "", 1))),
     _replay("nul-bytes", "bad source input 2200", candump(lambda x: x[:10] + "\x00" + x[10:])),
     _replay("non-utf8", "bad source input 2200", candump(lambda x: x + " \udce9")),
-    _replay("error-frames", "error frames 2200", candump(lambda x: x.split("#")[0][:-3] + "20000004#0000000000000000")),
-    _replay("remote-frames", "unknown id 2200", candump(lambda x: x.split("#")[0] + "#R")),
-    _replay("extended-ids", "unknown id 2200", candump(lambda x: " ".join(x.split(" ")[:2]) + " 1FFFFFFF#00")),
+    _replay("error-frames", "error frames 2200", candump(lambda x: x.split("#")[0][:-3] + "20000004#0000000000000000"), ""),
+    _replay("remote-frames", "unknown id 2200", candump(lambda x: x.split("#")[0] + "#R"), ""),
+    _replay("extended-ids", "unknown id 2200", candump(lambda x: " ".join(x.split(" ")[:2]) + " 1FFFFFFF#00"), ""),
     _replay("a-huge-line", "bad source input 1",
-            candump_lines(lambda ls: ls[:100] + ["(1700000000.000000) can0 123#" + "A" * 100000] + ls[100:])),
+            candump_lines(lambda ls: ls[:100] + ["(1700000000.000000) can0 123#" + "A" * 100000] + ls[100:]),
+            "line 101 is not a classic-CAN candump -L frame, skipped"),
     # Logs that give no sample to evaluate: the monitor ran blind, and says so (exit 6, the watchdog's reason).
     _blind("every-line-twice", "the clock pair's halves are not paired", candump_lines(lambda ls: [x for x in ls for _ in (0, 1)])),
     _blind("reversed", "no sample", candump_lines(lambda ls: ls[::-1])),
-    _blind("binary-garbage", "no sample was completed", raw("run.log", garbage(20000, 13))),
-    _blind("empty", "no sample was completed", raw("run.log", b"")),
+    _blind("binary-garbage", "run.log holds no candump -L frame of the configuration's buses",
+           raw("run.log", garbage(20000, 13)), "(the first: line 1) are not classic-CAN candump -L frames, skipped"),
+    _blind("empty", "run.log holds no candump -L frame of the configuration's buses", raw("run.log", b"")),
 ]
 
 MONITOR_FLAGS = [

@@ -31,6 +31,7 @@ class Case:
     make: Maker | None = None
     synopsis: bool = False  # a C program's usage error: its one error line, then the synopsis (test_cli_help.py)
     prints: str = ""  # with code 0: words stdout must hold (a counter of what was skipped)
+    warns: str = ""  # words of the program's one "warning:" line on stderr ("": none), e.g. where the skipped lines are
     creates: tuple[str, ...] = field(default_factory=tuple)  # with code 0: what it writes into {out}
     as_root: bool = True  # False: skipped when run as root (root reads a file of mode 000)
 
@@ -45,8 +46,8 @@ def unreadable(case: Case) -> Case:
 
 
 def monitor(name: str, *args: str, code: int, says: str, make: Maker | None = None, synopsis: bool = False,
-            prints: str = "") -> Case:
-    return Case(name, "rt_monitor", args, code, says, make, synopsis, prints)
+            prints: str = "", warns: str = "") -> Case:
+    return Case(name, "rt_monitor", args, code, says, make, synopsis, prints, warns=warns)
 
 
 def boards(name: str, *args: str, code: int, says: str, make: Maker | None = None, synopsis: bool = False) -> Case:
@@ -56,4 +57,4 @@ def boards(name: str, *args: str, code: int, says: str, make: Maker | None = Non
 def accepted(case: Case, *creates: str, says: str = "", prints: str = "") -> Case:
     """A control: the same harness on an input that is fine (or only skipped in part), which must be accepted and
     write `creates`: it shows the sweep would see an output if a refusal left one."""
-    return Case(case.name, case.program, case.args, 0, says, case.make, False, prints, creates)
+    return Case(case.name, case.program, case.args, 0, says, case.make, False, prints, case.warns, creates)

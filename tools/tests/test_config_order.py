@@ -112,7 +112,8 @@ def test_bad_bus_lines_are_one_clear_line(case: str, tmp_path: Path) -> None:
         boards_why = f"{tmp_path}/bad.conf:{bad + 1}: bus 'can7' is not in the 'buses' line"
     elif case == "no buses":
         lines = lines[:-1]
-        rt_why = f"{tmp_path}/bad.conf:0: no 'buses' line"  # line 0: the file's (as for "no 'clock' line")
+        rt_why = (f"{tmp_path}/bad.conf:0: no 'buses' line (not an rt_monitor configuration? `dynid export --robot "
+                  "CFG --monitor-config FILE` writes one)")  # line 0: the file's (as for "no 'clock' line")
         boards_why = f"{tmp_path}/bad.conf: no 'buses' line"
     else:
         lines.insert(1, "buses can0 can1")

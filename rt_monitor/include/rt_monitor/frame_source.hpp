@@ -30,6 +30,8 @@ struct SourceCounters {
     uint64_t frames = 0;       // returned to the caller
     uint64_t bad_lines = 0;    // replay: lines that are not a classic-CAN candump -L frame
     uint64_t unknown_bus = 0;  // replay: frames of an interface not in the bus list (skipped)
+    uint64_t first_bad_line = 0;     // replay: the log's line number of the first bad line (0: none)
+    uint64_t first_unknown_bus = 0;  // replay: the line of the first frame of an interface not in the list (0: none)
     uint64_t bad_size = 0;     // loopback: datagrams that are not one struct can_frame
     uint64_t kernel_drops = 0; // SocketCAN: frames the kernel dropped, the socket's receive queue full (SO_RXQ_OVFL)
 };
@@ -83,6 +85,9 @@ private:
     CandumpReplay() = default;
     // The next line in the buffer (its newline excluded; the log's last may have none), reading more as needed.
     Next next_line(char*& line, size_t& n) noexcept;
+    void bad_line() noexcept {  // counted, the first one's line number kept for the run's end
+        if (counters_.bad_lines++ == 0) counters_.first_bad_line = line_;
+    }
     int fd_ = -1;
     std::vector<char> buffer_;  // the log's bytes, [begin_, end_) not yet handed out; allocated at open
     size_t begin_ = 0, end_ = 0;
