@@ -171,8 +171,8 @@ def test_recorded_velocities_are_checked_against_the_positions(panda_run: Path, 
     config = load_config("panda")
     good = load_data(_with_velocities(panda_run, tmp_path / "good.csv"), config)
     assert good.meta.get("derivatives", {}).get("dq", "recorded") == "recorded"
-    with pytest.raises(DataError, match=r"dq\.panda_joint1 is 57\.\d times the rate of q\.panda_joint1 \(deg/s\? "
-                                        r"rad/s are expected\)"):
+    with pytest.raises(DataError, match=r"dq\.panda_joint1 is 57\.\d times the rate of q\.panda_joint1 \(the "
+                                        r"velocity in deg/s, or q in rad declared deg\?"):
         load_data(_with_velocities(panda_run, tmp_path / "deg.csv", lambda dq, tau: np.degrees(dq)), config)
 
     def torque_in_place(dq: np.ndarray, tau: np.ndarray) -> np.ndarray:
@@ -195,8 +195,24 @@ def test_a_joint_at_constant_speed_with_a_wrapped_angle_passes_the_velocity_chec
     t = np.arange(20000) * 1e-3
     q = (2.0 * t[:, None] + np.pi) % (2 * np.pi) - np.pi  # a continuous joint turning at 2 rad/s, logged in [−π, π)
     check_velocities(Dataset(t=t, joints=("wheel",), q=q, dq=np.full((t.size, 1), 2.0)))
-    with pytest.raises(DataError, match=r"dq\.wheel is 57\.3 times the rate of q\.wheel \(deg/s\?"):
+    with pytest.raises(DataError, match=r"dq\.wheel is 57\.3 times the rate of q\.wheel \(the velocity in deg/s"):
         check_velocities(Dataset(t=t, joints=("wheel",), q=q, dq=np.full((t.size, 1), np.degrees(2.0))))
+
+
+def test_positions_read_in_the_wrong_unit_are_caught_where_they_look_still() -> None:
+    # rad declared deg: q imported 57.3 times too small, so the joint looks still (0.01 rad/s RMS, under the check's
+    # moving speed) while its recorded velocity travels at 0.7 rad/s. The fit would take it (the walkthrough's Panda).
+    t = np.arange(20000) * 1e-3
+    q_true = np.sin(t)[:, None]
+    dq = np.cos(t)[:, None]
+    with pytest.raises(DataError, match=r"dq\.a is 57\.3 times the rate of q\.a \(the velocity in deg/s, or q in rad "
+                                        r"declared deg\?"):
+        check_velocities(Dataset(t=t, joints=("a",), q=np.radians(q_true), dq=dq))
+    with pytest.raises(DataError, match=r"dq\.a moves while q\.a stays still"):
+        check_velocities(Dataset(t=t, joints=("a",), q=np.zeros_like(q_true), dq=dq))
+    # a still joint's velocity noise travels nowhere (integrated over each stretch) and is not judged
+    noise = np.random.default_rng(0).normal(0.0, 0.05, dq.shape)
+    check_velocities(Dataset(t=t, joints=("a",), q=np.full_like(q_true, 0.3), dq=noise))
 
 
 @pytest.mark.parametrize(("stamps", "dropped"), [
@@ -223,7 +239,9 @@ def test_a_window_per_run_cuts_that_run_alone_and_the_model_file_keeps_it(panda_
     assert a.t[0] >= 1.5 and a.t[-1] <= 4 and np.array_equal(a.t, b.t)
 
     model = tmp_path / "m.json"
-    code, _, err = run("fit", "--robot", "panda", "--data", f"{panda_run}@1:5", "--data", str(panda_run),
+    other = tmp_path / "other"  # a second run of the same arm (windows of one run may not overlap: they count twice)
+    assert run("simulate", "--robot", "panda", "--duration", "6", "--seed", "1", "--out", str(other))[0] == 0
+    code, _, err = run("fit", "--robot", "panda", "--data", f"{panda_run}@1:5", "--data", str(other / "data.csv"),
                        "--from", "0.5", "--out", str(model))
     assert code == 0, err
     first, second = load_model(str(model)).data
@@ -231,6 +249,26 @@ def test_a_window_per_run_cuts_that_run_alone_and_the_model_file_keeps_it(panda_
     assert first.samples == 4001 and second.samples == 5500
     # The momentum detector recalibrates on the runs as fitted: the recorded windows, not the whole files.
     code, _, err = run("detect", "--model", str(model), "--data", str(panda_run), "--residual", "momentum")
+    assert code == 0, err
+
+
+def test_samples_given_twice_are_refused_before_the_fit(panda_run: Path, tmp_path: Path) -> None:
+    # Two windows of one run that share time, or one recording under two names (a walkthrough's folder and its own
+    # `dynid import`): the shared samples would count twice, and the copies pose as independent runs.
+    model = tmp_path / "m.json"
+    code, _, err = run("fit", "--robot", "panda", "--data", f"{panda_run}@1:5", "--data", str(panda_run),
+                       "--from", "0.5", "--out", str(model))
+    assert code == 2 and err.strip().endswith(f"--data: {panda_run}@1:5 and {panda_run}@0.5: are windows of one run "
+                                              "that overlap: the samples they share would count twice (give windows "
+                                              "that do not overlap)"), err
+    copy = tmp_path / "copy.npz"
+    assert run("import", "--robot", "panda", "--data", str(panda_run), "--out", str(copy))[0] == 0
+    code, _, err = run("fit", "--robot", "panda", "--data", f"{panda_run}@:4", "--data", f"{copy}@:4", "--out",
+                       str(model))
+    assert code == 2 and f"--data {panda_run} and {copy} hold the same samples" in err, err
+    assert not model.exists()
+    code, _, err = run("fit", "--robot", "panda", "--data", f"{panda_run}@:3", "--data", f"{copy}@3:", "--out",
+                       str(model))
     assert code == 0, err
 
 

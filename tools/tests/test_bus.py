@@ -400,11 +400,21 @@ def test_play_says_where_the_nominal_period_comes_from_and_that_a_jittered_log_l
     assert done.returncode == 0, done.stderr
     assert "samples at stamps every 1 ms (the bus's period)" in done.stdout
     assert "note: the log's stamps are the nominal grid, not the recording's" in done.stdout
-    # the log's time counts from its first sample: where that is in the run is said (a walkthrough read the foot's
-    # put-down 0.31 s early in the monitor's events of the iCub leg, whose run starts at 0.31 s)
+    # re-stamped, the log maps to the run by sample, not by time (a walkthrough read the Panda's run 0.23 s off at
+    # the end of a window whose recorded steps average 1.034 ms): the line says so, and it holds
+    assert (f"time: the log's sample k is the run's k-th sample from t = {data.t[0]:.6g} s on, stamped k × 1 ms after "
+            "the first; `dynid import`, `dynid spy` and rt_monitor count time from that first sample, so a time T there "
+            "is the run's sample k = T / 1 ms") in done.stdout
+    back = load_data(tmp_path / "j.log", panda["config"])
+    assert back.t[0] == 0.0 and np.allclose(back.t, 1e-3 * np.arange(data.n_samples), atol=1e-9)
+    assert np.abs(back.q - data.q).max() <= 0.5e-6 * (1 + 1e-9)  # sample k is the run's k-th
+    # at its recorded stamps, the log's time counts from its first sample: where that is in the run is said (a
+    # walkthrough read the foot's put-down 0.31 s early in the monitor's events of the iCub leg, whose run starts
+    # at 0.31 s)
+    done = dynid("play", "--robot", "panda", "--data", tmp_path / "jittered.npz", "--sink", f"candump:{tmp_path / 'r.log'}")
+    assert done.returncode == 0, done.stderr
     assert (f"time: the log's first sample is the run's t = {data.t[0]:.6g} s; `dynid import`, `dynid spy` and "
-            f"rt_monitor count the log's time from it: a time there is the run's less {data.t[0]:.6g} s") in done.stdout
-    assert load_data(tmp_path / "j.log", panda["config"]).t[0] == 0.0
+            f"rt_monitor count time from it: a time there is the run's less {data.t[0]:.6g} s") in done.stdout
     slow = panda["data"].slice(0, 300)
     slow.t = 2.0 * slow.t  # recorded at 500 Hz on the Panda's 1 kHz bus, on the dot
     slow.save(tmp_path / "slow.npz")

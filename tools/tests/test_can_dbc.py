@@ -208,6 +208,22 @@ def test_example_monitor_config_is_current() -> None:
     assert text == monitor_config_text(load_config("icub_right_arm"))
 
 
+def test_a_user_configurations_monitor_config_names_its_file(tmp_path: Path) -> None:
+    """The monitor configuration's first line says how to write it again: for a user's own robot configuration, its
+    file (a walkthrough's `--robot my_panda` was refused: no bundled robot of that name)."""
+    from dynid.config.robot_config import BUNDLED_DIR
+
+    mine = tmp_path / "my_panda.yaml"
+    mine.write_text((BUNDLED_DIR / "panda.yaml").read_text().replace("name: panda", "name: my_panda", 1))
+    first = tmp_path / "first.conf"
+    assert dynid("export", "--robot", str(mine), "--monitor-config", str(first)).returncode == 0
+    header = first.read_text().splitlines()[0]
+    assert header.endswith(f"dynid export --robot {mine.resolve()} --monitor-config FILE)"), header
+    again = tmp_path / "again.conf"
+    done = dynid("export", "--robot", header.split("--robot ")[1].split(" ")[0], "--monitor-config", str(again))
+    assert done.returncode == 0 and again.read_text() == first.read_text(), done.stderr
+
+
 def test_the_bus_exports_without_a_supplied_urdf(tmp_path: Path) -> None:
     """The DBC and the monitor configuration come from the configuration alone: a robot whose URDF the user supplies
     (the UR10e's) exports them with no DYNID_URDF_PATH; what needs the chain still refuses, in one line."""

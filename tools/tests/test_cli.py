@@ -137,6 +137,18 @@ def test_import_refuses_bad_csv(tmp_path: Path, label, edit, words) -> None:
     assert not out.exists()  # nothing half-written
 
 
+def test_data_that_does_not_fit_the_default_robot_says_it_was_read_as_that(tmp_path: Path) -> None:
+    """A user of another robot who forgot --robot reads the data error against the default arm's configuration, and
+    is told so; with --robot given, nothing is added."""
+    csv = tmp_path / "mine.csv"
+    csv.write_text("t,q.joint_a\n0,0\n0.001,0\n")
+    done = dynid("import", "--data", str(csv), "--out", str(tmp_path / "x.npz"))
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert done.stderr.rstrip().endswith("(read as icub_right_arm's, the default robot: --robot names yours)")
+    done = dynid("import", "--robot", "icub_right_arm", "--data", str(csv), "--out", str(tmp_path / "x.npz"))
+    assert done.returncode == 2 and "the default robot" not in done.stderr, done.stderr
+
+
 def test_import_missing_file(tmp_path: Path) -> None:
     assert_one_line_error(run("import", "--data", str(tmp_path / "nope.csv"), "--out", str(tmp_path / "o.npz")), "nope.csv")
 

@@ -236,7 +236,7 @@ def test_simulate_follows_a_trajectory_whose_dq_is_its_qs_rate(tmp_path: Path) -
 @pytest.mark.parametrize("case, dq_of, words", [
     ("1.3 times", lambda t, dq: 1.3 * dq, "dq.r_shoulder_pitch is not the rate of q.r_shoulder_pitch: it integrates "
                                           "to 1.3 times"),
-    ("in deg/s", lambda t, dq: np.degrees(dq), "deg/s?"),
+    ("in deg/s", lambda t, dq: np.degrees(dq), "in deg/s, or q in rad declared deg?"),
     ("0.1 s late", lambda t, dq: np.roll(dq, 10, axis=0), "% unexplained"),
     ("one joint's zero", lambda t, dq: dq * (np.arange(7) != 3), "dq.r_elbow stays still while q.r_elbow moves"),
 ])

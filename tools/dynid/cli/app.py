@@ -19,8 +19,8 @@ import xml.etree.ElementTree as ET
 from typing import TextIO
 from collections.abc import Callable
 
-from ..config.robot_config import bundled_configs
-from ..errors import EXIT_BAD_INPUT, DataNote, InputError
+from ..config.robot_config import DEFAULT_ROBOT, bundled_configs
+from ..errors import EXIT_BAD_INPUT, DataError, DataNote, InputError
 from ..outputs import staged
 from ..version import __version__
 from .commands import COMMANDS
@@ -77,6 +77,15 @@ def _reader_gone(stream: TextIO) -> bool:
         return False
 
 
+def _default_robot_note(args: argparse.Namespace, argv: list[str], error: InputError) -> str:
+    """Where data did not fit the robot configuration and none was named, that the default robot's was used: a user of
+    another robot who forgot --robot reads the error against a configuration they never chose."""
+    given = any(a == "--robot" or a.startswith("--robot=") for a in argv)
+    if not isinstance(error, DataError) or given or getattr(args, "robot", None) != DEFAULT_ROBOT:
+        return ""
+    return f" (read as {DEFAULT_ROBOT}'s, the default robot: --robot names yours)"
+
+
 def run(argv: list[str]) -> int:
     """`dynid ARGV`: the exit code. Ctrl-C (KeyboardInterrupt) is dynid.cli.main's to answer."""
     try:  # the command's group is imported here: its modules may need what scripts/setup generates (SetupError)
@@ -104,7 +113,7 @@ def run(argv: list[str]) -> int:
                 result = args.func(args)
             write_json(result, json_target)
     except InputError as e:
-        sys.stderr.write(f"dynid {args.command}: error: {e}\n")
+        sys.stderr.write(f"dynid {args.command}: error: {e}{_default_robot_note(args, argv, e)}\n")
         return e.exit_code
     except BrokenPipeError as e:
         if _reader_gone(sys.stdout):

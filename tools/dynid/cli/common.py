@@ -290,16 +290,33 @@ def expand_data(args: argparse.Namespace, config: RobotConfig | None = None) -> 
     run_folder = None if config is None or not config.files else (lambda p: holds_file_set(p, config))
     paths: list[str] = []
     windows: list[Window] = []
-    seen: set[tuple[str, Window]] = set()
+    seen: dict[tuple[str, Window], str] = {}
     for i, spec in enumerate(args.data):
         for p in expand(spec, run_folder=run_folder):
             key = (os.path.realpath(p), window(args, i))
             if key in seen:
                 raise InputError(f"--data: the run {p} is named twice" + (" with the same window" if any(key[1]) else ""))
-            seen.add(key)
+            for (other, w), given in seen.items():
+                if other == key[0] and _overlap(w, key[1]):
+                    raise InputError(f"--data: {given} and {_spec(p, key[1])} are windows of one run that overlap: the "
+                                     "samples they share would count twice (give windows that do not overlap)")
+            seen[key] = _spec(p, key[1])
             paths.append(str(p))
             windows.append(key[1])
     return paths, windows
+
+
+def _spec(path: str | Path, w: Window) -> str:
+    """RUN@FROM:TO as a user writes it (RUN alone for the whole run)."""
+    ends = ["" if x is None else f"{x:g}" for x in w]
+    return f"{path}@{ends[0]}:{ends[1]}" if any(x is not None for x in w) else str(path)
+
+
+def _overlap(a: Window, b: Window) -> bool:
+    """Whether two windows (FROM, TO; None open) of one run share time."""
+    lo = max(-np.inf if a[0] is None else a[0], -np.inf if b[0] is None else b[0])
+    hi = min(np.inf if a[1] is None else a[1], np.inf if b[1] is None else b[1])
+    return lo < hi
 
 
 def folder_of_runs_error(args: argparse.Namespace, config: RobotConfig, error: Exception) -> str:

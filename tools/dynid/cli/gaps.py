@@ -78,7 +78,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         "offset that steps between change points; a payload against a given model) by "
         "cross-validated forward selection, refit with them and print the gap before and after per channel.")
     robot_arg(sp, with_model=True)
-    sp.add_argument("--data", required=True, metavar="DATA", help="the measured experiment (.csv, candump or .npz)")
+    sp.add_argument("--data", required=True, metavar="DATA", help="the measured run, in any form `dynid import` "
+                    "reads (CSV, candump log, ROS 2 bag, YARP folder, a folder of files the configuration's 'files' "
+                    "describes, dataset or `dynid simulate` directory)")
     window_args(sp)
     sp.add_argument("--model", metavar="MODEL", help="an identified model: its gap on DATA is shown too, "
                     "its inertias are held (the rest is refitted), so a payload on a link can be named; its robot "

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import hashlib
 import warnings
 from dataclasses import replace
 from typing import Any
@@ -59,6 +60,22 @@ def known_steps(path: str, model: RobotModel, distributed: object) -> list[Effec
     return check_effect_targets(steps, model, path)
 
 
+def check_distinct_runs(paths: list[str], runs: list) -> None:
+    """Refuse one recording given twice under two names (a folder and its `dynid import`, a copy): it would count
+    twice, and its blocks would pose as independent runs. Two runs are the same where their first and last samples'
+    t and q are, bit for bit, and their lengths."""
+    seen: dict[bytes, str] = {}
+    for path, run in zip(paths, runs):
+        n = run.n_samples
+        ends = [run.slice(0, min(n, 64)), run.slice(max(0, n - 64), n)]
+        key = hashlib.sha256(np.int64(n).tobytes() + b"".join(np.ascontiguousarray(a, float).tobytes()
+                                                               for d in ends for a in (d.t, d.q))).digest()
+        if key in seen:
+            raise InputError(f"--data {seen[key]} and {path} hold the same samples (one recording under two names?): "
+                             "it would count twice; give it once")
+        seen[key] = path
+
+
 def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     config = load_config(args.robot, args.urdf)
     from_config = args.consistent is None
@@ -82,6 +99,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         runs = [stream_run(ref, model) for ref in refs]  # every run checked before any work; a dataset file streamed
     except DataError as e:
         raise DataError(folder_of_runs_error(args, config, e)) from None
+    check_distinct_runs(paths, runs)
     for ref, run in zip(refs, runs):  # the model has no contact: labelled contacts in its data bias it
         share = run.contact_share() if isinstance(run, DatasetFile) else (
             float(np.mean(run.contact != 0)) if run.contact is not None and run.n_samples else None)
@@ -256,8 +274,9 @@ def print_consistent(done: dict[str, Any] | None) -> None:
     active = done["active"]
     bounds = "" if done.get("sphere", True) else ", pseudo-inertia only"
     print(f"  physically consistent ({done['solver']}, from {done['from']}{bounds}, {done['solve_time_s']:.1f} s): "
-          f"pull to CAD λ = {done['lambda']:g} (cross-validated over "
-          f"{', '.join(f'{x:g}' for x in done['cv']['lambdas'])})")
+          f"pull to CAD λ = {done['lambda']:g} " + (f"(cross-validated over {', '.join(f'{x:g}' for x in lambdas)})"
+                                                    if len(lambdas := done['cv']['lambdas']) > 1 else
+                                                    "(the data alone: --cad-pull cv weighs a pull to CAD)"))
     binding = [(what, active[key]) for what, key in (("pseudo-inertia at its bound", "pseudo_inertia"),
                                                       ("mass inside its sphere at the bound", "sphere"),
                                                       ("friction at 0", "friction"),
@@ -306,7 +325,8 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
     if result.get("why_worse_than_cad"):
         for line in format_why(result["why_worse_than_cad"]):
             print(line)
-    print("  per channel: RMS of e = y − ŷ, and against the channel's noise std")
+    print("  per channel: RMS of e = y − ŷ (y smoothed by the derivative filter, as the fit takes it), and against "
+          "the channel's noise std")
     for o in ev.outputs:
         entry = result["channels"][o.name]
         line = f"    {o.name:18s} {entry['rms']:10.4g} {o.unit:4s} {entry['ratio_to_noise']:6.2f}× noise"
@@ -542,8 +562,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         "the CAD parameters (F/T set-ups), per-channel residual RMS against the noise, and the relative "
                         "error of the predicted inputs or joint torques per channel and overall (current-, PWM- and "
                         "torque-driven set-ups).")
-    sp.add_argument("--model", required=True, metavar="MODEL")
-    sp.add_argument("--data", required=True, metavar="DATA")
+    sp.add_argument("--model", required=True, metavar="MODEL", help="the model `dynid fit` wrote")
+    sp.add_argument("--data", required=True, metavar="DATA", help="the run to validate on (one the fit did not see, for "
+                    "an honest figure), in any form "
+                    "`dynid import` reads (RUN@FROM:TO: a window of it)")
     window_args(sp)
     payload_arg(sp, repeatable=False)
     sp.add_argument("--blocks", type=block_count, metavar="K",

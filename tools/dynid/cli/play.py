@@ -42,10 +42,18 @@ def cmd_play(args: argparse.Namespace) -> dict[str, Any]:
           f"step {1e3 * played.period_s:.4g} ms, {1e3 * lo:.4g} to {1e3 * hi:.4g} ms), {played.frames} frames",
           file=out)
     first = float(data.t[0])
-    if abs(first) > 1e-9:  # the log's times count from its first frame: say where that is in the run
-        print(f"time: the log's first sample is the run's t = {first:.6g} s; `dynid import`, `dynid spy` and rt_monitor "
-              f"count the log's time from it: a time there is the run's less {first:.6g} s (shift the run's "
-              "episode labels by as much for this log)", file=out)
+    played_on = "log" if kind == "candump" else "bus"
+    on_grid = played.nominal_s is None or (abs(played.period_s - played.nominal_s) <= 1e-9
+                                           and hi - lo <= 1e-6 * played.nominal_s)
+    if not on_grid and played.samples > 1:  # re-stamped: the run's samples map to the log's by index, not by time
+        print(f"time: the {played_on}'s sample k is the run's k-th sample from t = {first:.6g} s on, stamped k × "
+              f"{1e3 * played.nominal_s:.6g} ms after the first; `dynid import`, `dynid spy` and rt_monitor count time "
+              f"from that first sample, so a time T there is the run's sample k = T / {1e3 * played.nominal_s:.6g} ms "
+              f"(its time is not T + {first:.6g} s where the recorded steps are not the grid's)", file=out)
+    elif abs(first) > 1e-9:  # the log's times count from its first frame: say where that is in the run
+        print(f"time: the {played_on}'s first sample is the run's t = {first:.6g} s; `dynid import`, `dynid spy` and "
+              f"rt_monitor count time from it: a time there is the run's less {first:.6g} s (shift the run's "
+              "episode labels by as much)", file=out)
     if played.dq_estimated:
         print("note: the run records no q̇ and the bus carries it: sent as the configuration's derivative filter "
               "estimates it from q (a recording's own q̇, where there is one, is what the robot would send)", file=out)

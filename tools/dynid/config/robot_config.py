@@ -193,6 +193,13 @@ def resolve_config_path(robot: str | Path) -> Path:
     return bundled
 
 
+def robot_argument(config: RobotConfig) -> str:
+    """What `--robot` takes to load `config` again: its name where it is the bundled one, else its file."""
+    bundled = BUNDLED_DIR / f"{config.name}.yaml"
+    source = Path(config.source)
+    return config.name if bundled.is_file() and source.resolve() == bundled.resolve() else str(source.resolve())
+
+
 def bundled_configs() -> list[str]:
     return sorted(p.stem for p in BUNDLED_DIR.glob("*.yaml"))
 

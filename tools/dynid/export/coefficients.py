@@ -398,10 +398,11 @@ def describe(c: coefficients_t) -> str:
         lines.append(f"  {c.body_names[i]:14s} parent {parent:14s} joint {j:18s} {kinds.get(c.joint_type[i], '?'):18s}"
                      f" axis [{f(c.axis[i])}] p [{f(c.translation[i])}]")
         lines.append(f"    φ = [{f(c.inertial[i])}]")
-    lines.append(f"motors: {', '.join(c.motor_names)}")
+    lines.append(f"motors: {', '.join(c.motor_names) or 'none'}")
     for k in range(c.n_motors):
         fr = f"friction [{f(c.motor_friction[k])}]" if c.motor_friction_on[k] else "no motor friction"
         lines.append(f"  {c.motor_names[k]}: q̇_m = [{f(c.motor_velocity[k])}]·q̇; {fr}")
+    lines.append("joint friction:")
     for j in range(c.n_joints):
         lines.append(f"  {c.joint_names[j]:18s} friction fc+ fc- fv+ fv- [{f(c.joint_friction[j])}]")
     lines.append(f"outputs ({c.n_outputs})" + "".join(f"; {n} offset [{f(o)}]" for n, o in zip(c.sensor_names, c.ft_offset)))

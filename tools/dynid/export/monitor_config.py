@@ -15,12 +15,12 @@ description is checked against the monitor's capacity (dynid.export.capacity, fr
 from __future__ import annotations
 
 from ..config.bus import BusDescription
-from ..config.robot_config import RobotConfig
+from ..config.robot_config import RobotConfig, robot_argument
 from ..errors import ConfigError, InputError
 from .capacity import capacity
 
 HEADER = "# rt_monitor configuration for {name} (written by dynid from its robot configuration: dynid export " \
-         "--robot {name} --monitor-config FILE)"
+         "--robot {robot} --monitor-config FILE)"
 
 
 def check_capacity(config: RobotConfig) -> BusDescription:
@@ -117,7 +117,7 @@ def monitor_config_text(config: RobotConfig, lcm_url: str | None = None) -> str:
         raise InputError(f"--lcm-url {lcm_url} opens its file for reading (LCM's default without mode=w or mode=a), "
                          f"and the monitor writes: {fixed}")
     bus = check_capacity(config)
-    lines = [HEADER.format(name=config.name), f"robot {config.name}", "buses " + " ".join(bus.buses)]
+    lines = [HEADER.format(name=config.name, robot=robot_argument(config)), f"robot {config.name}", "buses " + " ".join(bus.buses)]
     if lcm_url:
         lines.append(f"lcm_url {lcm_url}")
     lines += [f"stale_ms {bus.stale_ms:g}", f"pair_us {bus.pair_us}", "status_hz 10", "residual_every 10"]

@@ -198,6 +198,7 @@ VELOCITY_SCALE = (0.5, 2.0)
 MAX_UNEXPLAINED = 0.5
 MOVING_SPEED = 0.05
 VELOCITY_CHECK_S = 0.05
+STILL_Q_TRAVEL = 4 * MOVING_SPEED  # a log's velocity that travels this fast (RMS) is judged even where q stays still
 
 
 class Agreement(NamedTuple):
@@ -227,14 +228,20 @@ def velocity_agreement(t: np.ndarray, q: np.ndarray, v: np.ndarray, rest: str = 
         a, b = travelled[:, j], moved[:, j]
         ok = np.isfinite(a) & np.isfinite(b) & (np.abs(b) < np.pi)  # more than π in 50 ms: a wrapped angle, no motion
         a, b, dt = a[ok], b[ok], span[ok]
-        q_moves = bool(np.sqrt(np.mean((b / dt) ** 2)) >= MOVING_SPEED) if b.size else False
-        v_moves = bool(np.sqrt(np.mean((a / dt) ** 2)) >= MOVING_SPEED) if a.size else False
-        if b.size < 20 or not (q_moves or (rest == "both" and v_moves)):
+        q_speed = float(np.sqrt(np.mean((b / dt) ** 2))) if b.size else 0.0
+        v_speed = float(np.sqrt(np.mean((a / dt) ** 2))) if a.size else 0.0
+        q_moves, v_moves = q_speed >= MOVING_SPEED, v_speed >= MOVING_SPEED
+        # A log's still q under a v that travels far is judged too: integrated over a stretch, noise does not travel
+        # at STILL_Q_TRAVEL, but a q read in the wrong unit (rad declared deg: 57 times too small) does
+        judged = q_moves or (v_moves if rest == "both" else v_speed >= STILL_Q_TRAVEL)
+        if b.size < 20 or not judged:
             found.append(None)
         elif not np.any(a):
             found.append(Agreement(0.0, 1.0, True))
         elif not q_moves:
-            found.append(Agreement(float("inf"), 1.0, False))
+            scale = float(a @ b / (b @ b)) if np.any(b) else float("inf")
+            left = float(np.linalg.norm(a - scale * b) / np.linalg.norm(a)) if np.isfinite(scale) else 1.0
+            found.append(Agreement(scale, left, False))
         else:
             scale = float(a @ b / (b @ b))
             found.append(Agreement(scale, float(np.linalg.norm(a - scale * b) / np.linalg.norm(a)), False))
@@ -258,14 +265,27 @@ def check_velocities(dataset: Dataset, where: str = "", headerless: bool = False
         if fit.zero:
             raise DataError(f"{where}{name} is zero throughout while q.{joint} moves: a controller that records no "
                             "velocity there? (leave the column out and dynid estimates q̇ from q)")
+        if np.isinf(fit.scale):
+            raise DataError(f"{where}{name} moves while q.{joint} stays still: is q.{joint} in the unit the "
+                            f"configuration declares, and is {name} its velocity?{declare}")
         if fit.unexplained > MAX_UNEXPLAINED:
             raise DataError(f"{where}{name} does not follow the motion of q.{joint} (its travel, scaled, leaves "
                             f"{100 * fit.unexplained:.0f} % unexplained while the joint moves): another signal's "
                             "column? (a log a column short shifts every column after it)")
         if not VELOCITY_SCALE[0] <= fit.scale <= VELOCITY_SCALE[1]:
-            unit = " (deg/s? rad/s are expected)" if 45 < fit.scale < 70 else ""
-            raise DataError(f"{where}{name} is {fit.scale:.3g} times the rate of q.{joint}{unit}: recorded "
-                            f"velocities must be in the positions' unit per second, each in its joint's column{declare}")
+            raise DataError(f"{where}{name} is {fit.scale:.3g} times the rate of q.{joint}{_unit_hint(fit.scale)}: "
+                            "recorded velocities must be in the positions' unit per second, each in its joint's "
+                            f"column{declare}")
+
+
+def _unit_hint(scale: float) -> str:
+    """What a velocity `scale` times the rate of its q suggests: 57.3 (or its inverse) is degrees against radians,
+    on either column."""
+    if 45 < scale < 70:
+        return " (the velocity in deg/s, or q in rad declared deg? the two columns must agree in unit)"
+    if 1 / 70 < scale < 1 / 45:
+        return " (q in deg declared rad, or the velocity in rad/s declared deg/s? the two columns must agree in unit)"
+    return ""
 
 
 # A reference trajectory (`dynid simulate --trajectory`) is computed, not measured: its dq is its q's derivative to the
@@ -291,9 +311,8 @@ def check_reference_velocities(dataset: Dataset, where: str = "") -> None:
             still, moving = ("dq", "q") if fit.zero else ("q", "dq")
             raise DataError(f"{where}{still}.{joint} stays still while {moving}.{joint} moves: {rule}")
         if fit.unexplained > REFERENCE_UNEXPLAINED or not REFERENCE_SCALE[0] <= fit.scale <= REFERENCE_SCALE[1]:
-            unit = " (deg/s? rad/s are expected)" if 45 < fit.scale < 70 else ""
             raise DataError(f"{where}dq.{joint} is not the rate of q.{joint}: it integrates to {fit.scale:.3g} times "
-                            f"how far q moves, {100 * fit.unexplained:.0f} % unexplained{unit}; {rule}")
+                            f"how far q moves, {100 * fit.unexplained:.0f} % unexplained{_unit_hint(fit.scale)}; {rule}")
 
 
 def check_values(dataset: Dataset, row_offset: int = 0) -> None:
