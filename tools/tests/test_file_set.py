@@ -158,6 +158,53 @@ def test_a_file_that_ends_early_leaves_its_missing_samples_cut_short(tmp_path: P
     assert ds.n_samples == 259 and ds.meta["bad_rows"]["count"] == 41 and ds.meta["bad_rows"]["kinds"] == {"cut_short": 41}
 
 
+def _smooth(run: Path, values: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The stacked layout's positions and torques as signals move (each joint its own slow sine about its own level),
+    rewritten in place: a line lost inside shows against them, as against a real log."""
+    t = np.arange(N)[:, None] * 2e-3
+    k = np.arange(values["q"].shape[1])[None, :]
+    q = 10.0 * (k - 3) + 5.0 * np.sin(2 * np.pi * (0.3 + 0.1 * k) * t + k)
+    tau = 2.0 * (k - 3) + np.cos(2 * np.pi * (0.2 + 0.15 * k) * t)
+    np.savetxt(run / "run_01_positions.txt", q.reshape(-1), fmt="%.17g")
+    np.savetxt(run / "run_01_torques.txt", tau.reshape(-1), fmt="%.17g")
+    return {**values, "q": q, "tau": tau}
+
+
+def test_a_line_lost_or_added_inside_a_file_is_named_not_taken_for_a_cut_last_sample(tmp_path: Path) -> None:
+    # A walkthrough's Panda log with line 70000 of its torques deleted read as "ends 6 of 7 lines into sample 20544:
+    # the last sample, cut short", and --bad-rows skip then fitted every later torque in the next joint's place.
+    cfg, run, values = stacked_setup(tmp_path)
+    values = _smooth(run, values)
+    config = load_config(cfg)
+    ds = load_data(run, config)  # the clean run reads as written
+    np.testing.assert_allclose(ds.q, np.radians(values["q"]), rtol=1e-15)
+    lines = (run / "run_01_torques.txt").read_text().splitlines(keepends=True)
+    for at in (7 * 120 + 3, 7 * 200):  # inside a sample, and at one's first line
+        (run / "run_01_torques.txt").write_text("".join(lines[:at] + lines[at + 1:]))
+        for policy in ("refuse", "skip"):
+            with pytest.raises(DataError, match=rf"run_01_torques.txt: a line is missing just before line {at + 1} "
+                                                r"\(from there on every value sits in the next signal's place"):
+                load_data(run, config, bad_rows=policy)
+        (run / "run_01_torques.txt").write_text("".join(lines[:at] + [lines[at]] + lines[at:]))
+        with pytest.raises(DataError, match=rf"run_01_torques.txt: line {at + 1} is one too many"):
+            load_data(run, config, bad_rows="skip")
+    # the logger stopping mid-sample is what it was: its last sample cut short, skipped on request
+    (run / "run_01_torques.txt").write_text("".join(lines[:-3]))
+    with pytest.raises(DataError, match=r"run_01_torques.txt ends 4 of 7 lines into sample 300: the last sample, cut "
+                                        r"short"):
+        load_data(run, config)
+    assert load_data(run, config, bad_rows="skip").n_samples == N - 1
+    # a column too many in the configuration: the file's lines are the run's samples of 7, not of 8
+    (run / "run_01_torques.txt").write_text("".join(lines))
+    wide = Path(str(cfg).replace(".yaml", "_wide.yaml"))
+    wide.write_text(cfg.read_text().replace('"*_torques.txt": [', '"*_torques.txt": [_, ', 1).replace(
+        "name: arm_files", "name: arm_files_wide"))
+    with pytest.raises(DataError, match=r"run_01_torques.txt: its 2100 lines are 300 samples of 7 values, as many "
+                                        r"samples as run_01_time.txt holds, but the configuration's "
+                                        r"files.'\*_torques.txt' names 8 columns for it"):
+        load_data(run, load_config(wide))
+
+
 def test_a_bad_line_is_its_samples_bad_row_refused_or_skipped(tmp_path: Path) -> None:
     cfg, run, values = stacked_setup(tmp_path)
     lines = (run / "run_01_positions.txt").read_text().split("\n")

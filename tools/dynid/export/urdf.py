@@ -165,11 +165,15 @@ def export_urdf(identified: IdentifiedModel, out: str | Path, allow_residual: bo
     rows = np.flatnonzero(np.abs(B_in).max(axis=1) > 0)
     try:
         physical = nearest_physical_set(parts, phi[inertial], B_in[rows], sigma[rows], allow_residual)
-    except NotReproducible:
-        if identified.consistent is not None:  # its own set is physical, but on the cone's boundary
-            raise InputError("the solver finds no physically consistent full set that reproduces this consistent "
-                             "fit's base parameters exactly (its bodies sit on the boundary of the physical set); "
-                             "export the nearest one, with its residual, by --nearest-physical") from None
+    except NotReproducible as failed:
+        if identified.consistent is not None:  # its bodies are physical: their split over the URDF's links is not found
+            own = nearest_physical_set(parts, phi[inertial], B_in[rows], sigma[rows], own=True)
+            why = ("its bodies sit on the boundary of the physical set" if own.min_eigenvalue >= -PHYSICAL_TOL else
+                   "a body's difference to CAD on its own link alone is not physical: the body is far lighter or "
+                   "heavier than the URDF's links of it")
+            raise InputError(f"the solver ({failed}) finds no split of this consistent fit's bodies over the URDF's "
+                             f"links that reproduces its base parameters exactly ({why}); export the nearest one, with "
+                             "its residual, by --nearest-physical") from None
         raise InputError(NOT_REPRODUCIBLE) from None
     def written_set(found: PhysicalSet) -> tuple[dict[str, np.ndarray], np.ndarray, list[str]]:
         """Each link's φ, the bodies' full set and what is implausible about it (a link's mass out of its reach)."""
