@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from dynid.config.robot_config import load_config
+from dynid.detect.t2 import debounced_events
 from dynid.export.coefficients import read_coefficients
 from dynid.export.known_answers import answers
 from dynid.export.monitor_log import read_lcm_log
@@ -149,6 +150,10 @@ def test_a_real_run_through_the_monitor_is_the_core_on_the_decoded_samples(robot
     assert worst <= 1e-9
     monitor_events = [(round((m.utime - T0_US) / period_us), int(m.kind)) for m in msgs.get("DYNID_CONTACT", [])]
     assert monitor_events == events_of(out[:, cols["event"]])
+    if c.residual == 2:  # the combined statistic's level is 1: `dynid detect`'s monitor_events debounce it the same way
+        evaluated = np.where(out[:, 0] > 0, out[:, cols["t2"]], np.nan)  # column 0: the core ready (it detects)
+        debounced = debounced_events(evaluated, 1.0, c.debounce_on, c.debounce_off, c.hysteresis)
+        assert [e for k, j in debounced for e in ((k, 1), (j, 2)) if e[0] is not None] == monitor_events
     if c.residual == 2 and robot == "ur10e_known_gains":
         # The core's combined statistic is dynid's (its Python mirror, dynid.export.known_answers) on every decoded
         # sample: the UR10e has no F/T rows, so where the arm rests every row rests and s is the observer's alone.

@@ -111,3 +111,40 @@ def test_an_episode_found_by_one_sample_above_is_not_a_sustained_onset() -> None
     assert score(t, t2, 1.0, contact)["episodes_sustained"]["found"] == 0
     slow = score(t * 10, t2, 1.0, contact)  # at 100 Hz one sample is an onset
     assert slow["episodes_sustained"] == {"samples": 1, "found": 2}
+
+
+def _core_detect(t2: np.ndarray, threshold: float, on: int, off: int, hysteresis: float) -> list[tuple[int, int]]:
+    """rt_monitor's Core::detect transcribed sample by sample (rt_monitor/src/core.cpp): (sample, 1 onset / 2 end)."""
+    out, in_contact, above, below = [], False, 0, 0
+    for k, x in enumerate(t2):
+        if not in_contact:
+            above = above + 1 if x > threshold else 0
+            if above >= on:
+                in_contact, below = True, 0
+                out.append((k, 1))
+        else:
+            below = below + 1 if x < hysteresis * threshold else 0
+            if below >= off:
+                in_contact, above = False, 0
+                out.append((k, 2))
+    return out
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_offline_events_are_the_monitors_debounce_and_hysteresis(seed: int) -> None:
+    """`dynid detect`'s monitor_events: the same onsets and ends as the monitor's per-sample state machine, on
+    statistics that dwell near both levels (bursts, dips under the end level, NaN) with short and long counts."""
+    from dynid.detect.t2 import debounced_events
+
+    rng = np.random.default_rng(seed)
+    n = 5000
+    level = np.repeat(rng.choice([0.2, 0.45, 0.8, 1.5, 4.0], size=n // 50), 50)
+    t2 = level * rng.lognormal(0.0, 0.4, n)
+    t2[rng.random(n) < 0.01] = np.nan
+    for on, off, hysteresis in ((1, 1, 1.0), (10, 100, 0.5), (3, 7, 0.3), (25, 2, 0.9)):
+        got = debounced_events(t2, 1.0, on, off, hysteresis)
+        flat = [e for k, j in got for e in ((k, 1), (j, 2)) if e[0] is not None]
+        assert flat == _core_detect(t2, 1.0, on, off, hysteresis)
+        assert len(got) > 0
+    assert debounced_events(np.zeros(10), 1.0, 1, 1, 0.5) == []
+    assert debounced_events(np.full(10, 2.0), 1.0, 3, 1, 0.5) == [(2, None)]  # in contact at the end

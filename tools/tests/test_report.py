@@ -103,10 +103,10 @@ def test_numbers_are_those_of_validate_and_detect(report) -> None:
     r = load(report["report"])
     assert r["validation"] == load(report["validate"])
     # detect's `out_of_sample` (whether DATA lies outside the fit, and the in-sample calibration's FPR beside), its
-    # events and what it calibrated on are the command's own report on its input, not figures of the page
+    # events, its monitor-style events and what it calibrated on are the command's own report on its input, not figures of the page
     for run in ("contact", "validation"):
         detected = load(report[f"detect_{run}"])
-        for own in ("out_of_sample", "events", "calibration"):
+        for own in ("out_of_sample", "events", "monitor_events", "calibration"):
             assert own in detected
             detected.pop(own)
         assert r["detection"][run] == detected and list(detected["variants"]) == ["combined", "momentum", "calibrated",

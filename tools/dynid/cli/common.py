@@ -26,7 +26,13 @@ from ..robot.regressors.stack import DEFAULT_MIN_SPEED
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse, but a usage error is one line and exit code 2, like every other bad input."""
+    """argparse, but a usage error is one line and exit code 2, like every other bad input; and a flag is named in
+    full (argparse takes any unambiguous prefix: `play --t0` was taken for `--to`'s typo's neighbour, and a `--dat`
+    that reads as `--data` today reads as another flag once one is added)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str) -> NoReturn:
         sys.stderr.write(f"{self.prog}: error: {message} (see --help)\n")

@@ -14,8 +14,8 @@ from ..config.robot_config import RobotConfig, load_config
 from ..detect.evaluation import detection
 from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S
 from ..detect.combined import calibrate_combined, combined_detection, stored_combined
-from ..detect.momentum_t2 import calibration_runs, momentum_detection, stored_detector, stored_in_sample
-from ..detect.t2 import ALPHA
+from ..detect.momentum_t2 import alarm_runs, calibration_runs, momentum_detection, stored_detector, stored_in_sample
+from ..detect.t2 import ALPHA, debounced_events
 from ..errors import DataError, DataNote, InputError
 from ..cluster import executor
 from ..identify.fit import (DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_INERTIA_ONLY, FitResult, FitSettings,
@@ -58,6 +58,38 @@ def known_steps(path: str, model: RobotModel, distributed: object) -> list[Effec
     if not steps:
         raise InputError(f"--steps-from {path}: it names no F/T step (ft_step); `dynid gaps --out` writes one that does")
     return check_effect_targets(steps, model, path)
+
+
+def stretches(t: np.ndarray, statistic: np.ndarray, events: list | None) -> str:
+    """'N stretches above its threshold' of a normalised statistic (a contact above 1; dynid.detect.momentum_t2
+    .alarm_runs), and with `events` (they are --json's) how many of them those describe (contact_events' limit)."""
+    n = len(alarm_runs(t, statistic)[0])
+    said = f"{plural(n, 'stretch', 'stretches')} above its threshold"
+    if events is None:
+        return said
+    return said + (f" (--json's events: the first {len(events)})" if n > len(events) else " (--json's events)")
+
+
+def monitor_events(t: np.ndarray, combined, momentum, found) -> dict[str, Any] | None:
+    """The default detector's alarms as the exported monitor's defaults debounce them into contact events (the same
+    counts and level: dynid.detect.t2.debounced_events), for a lab to set beside the monitor's events."""
+    from ..export.coefficients import EventSettings
+
+    if combined is not None:
+        variant, statistic, level = "combined", combined.statistic, 1.0  # s: the sum over κ, a contact above 1
+    elif momentum is not None:
+        variant, statistic, level = "momentum", momentum.statistic, 1.0
+    elif "calibrated" in found.t2:
+        variant, statistic, level = "calibrated", found.t2["calibrated"], found.detectors["calibrated"].threshold
+    else:
+        return None
+    if t.size < 2:
+        return None
+    settings = EventSettings().at(float(np.median(np.diff(t))))
+    events = debounced_events(statistic, level, settings.debounce_on, settings.debounce_off, settings.hysteresis)
+    return {"residual": variant, "debounce_on": settings.debounce_on, "debounce_off": settings.debounce_off,
+            "hysteresis": settings.hysteresis, "onsets_s": [float(t[k]) for k, _ in events],
+            "ends_s": [None if j is None else float(t[j]) for _, j in events]}
 
 
 def check_distinct_runs(paths: list[str], runs: list) -> None:
@@ -437,10 +469,16 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
         print(f"  combined detector skipped: {skipped_combined}")
     if momentum is not None:
         print(f"  momentum: observer bandwidth {args.bandwidth:g} Hz, calibrated on {momentum.detector.samples} "
-              f"contact-free samples; {plural(len(momentum.events), 'stretch', 'stretches')} above its threshold")
+              f"contact-free samples; {stretches(momentum.residuals.t, momentum.statistic, None if combined else momentum.events)}")
     if combined is not None:  # the events of --json are the default detector's
-        print(f"  combined: {plural(len(combined.events), 'stretch', 'stretches')} above its threshold (--json's events; "
-              "offline without the monitor's debounce and hysteresis, which merge close ones into one event)")
+        print(f"  combined: {stretches(momentum.residuals.t, combined.statistic, combined.events)}")
+    debounced = monitor_events(ev.dataset.t, combined, momentum, found)
+    found.result["monitor_events"] = debounced
+    if debounced is not None:
+        print(f"  as the monitor's events ({debounced['residual']}, its default debounce and hysteresis: "
+              f"{debounced['debounce_on']} samples above the threshold to begin, {debounced['debounce_off']} under "
+              f"{debounced['hysteresis']:g} of it to end): {plural(len(debounced['onsets_s']), 'onset')} "
+              "(--json's monitor_events; on the offline residuals, which the monitor's causal filter only approaches)")
     print_out_of_sample(found.result["out_of_sample"])
     rates = [s["fpr"] for s in found.result["variants"].values() if s.get("fpr") is not None]
     if rates and min(rates) > MISFIT_FPR:  # α promises 1 - α: no detector is anywhere near, the data are not the model's

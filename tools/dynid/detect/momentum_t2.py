@@ -323,18 +323,22 @@ def _widened(t: np.ndarray, mask: np.ndarray, margin_s: float) -> np.ndarray:
     return out
 
 
+def alarm_runs(t: np.ndarray, stat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(first, last sample) of each run of a normalised statistic above 1, runs closer than MERGE_GAP_S merged."""
+    idx = np.flatnonzero(np.asarray(stat) > 1.0)
+    if idx.size == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    breaks = np.flatnonzero(np.diff(t[idx]) > MERGE_GAP_S)
+    return np.r_[idx[0], idx[breaks + 1]], np.r_[idx[breaks], idx[-1]]
+
+
 def contact_events(model: RobotModel, det: MomentumDetector, res: MomentumResiduals, stat: np.ndarray,
                    limit: int = 200) -> list[dict]:
     """Alarm runs (gaps under MERGE_GAP_S merged): onset, end, peak T², and at the peak the isolation (side of
     each F/T sensor, the most distal joint with a significant external torque) and the estimates: external joint
     torques (Nm) and, per sensor, the contact's wrench at the sensor (w − ŵ low-passed: N, Nm)."""
     cfg = model.config
-    alarm = stat > 1.0
-    idx = np.flatnonzero(alarm)
-    if idx.size == 0:
-        return []
-    breaks = np.flatnonzero(np.diff(res.t[idx]) > MERGE_GAP_S)
-    starts, stops = np.r_[idx[0], idx[breaks + 1]], np.r_[idx[breaks], idx[-1]]
+    starts, stops = alarm_runs(res.t, stat)
     events = []
     for a, b in zip(starts[:limit], stops[:limit]):
         k = a + int(np.argmax(stat[a : b + 1]))

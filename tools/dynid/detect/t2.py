@@ -268,6 +268,36 @@ def sustained(alarm: np.ndarray, k: int) -> np.ndarray:
     return on
 
 
+def debounced_events(statistic: np.ndarray, threshold: float, on: int, off: int,
+                     hysteresis: float) -> list[tuple[int, int | None]]:
+    """The contact events the monitor's detector makes of these samples (rt_monitor's Core::detect): an onset at the
+    `on`-th sample in a row above `threshold`, its end at the `off`-th in a row under `hysteresis` × `threshold`
+    (NaN is neither), each count starting afresh after the other's event. (onset, end) sample indices; the end None
+    where the run ends in contact."""
+    def first_run(mask: np.ndarray, length: int) -> Callable[[int], int | None]:
+        total = np.concatenate([[0], np.cumsum(mask, dtype=np.int64)])
+        starts = np.flatnonzero(total[length:] - total[:-length] == length)  # windows of `length` all in mask
+
+        def at_or_after(lo: int) -> int | None:  # the last sample of the first such window starting at lo or later
+            i = int(np.searchsorted(starts, lo))
+            return int(starts[i]) + length - 1 if i < starts.size else None
+
+        return at_or_after
+
+    statistic = np.asarray(statistic, float)
+    onset = first_run(statistic > threshold, max(1, on))
+    end = first_run(statistic < hysteresis * threshold, max(1, off))
+    events: list[tuple[int, int | None]] = []
+    lo = 0
+    while (k := onset(lo)) is not None:
+        j = end(k + 1)
+        events.append((k, j))
+        if j is None:
+            break
+        lo = j + 1
+    return events
+
+
 def episode_onsets(t: np.ndarray, alarm: np.ndarray, contact: np.ndarray, k: int = 1) -> list[float | None]:
     """Each contact episode's delay from its start to its first alarm sample (with `k` > 1, of an alarm sustained
     for `k` samples: `sustained`), None where it has none."""

@@ -224,14 +224,15 @@ NB_MODULE(_kernels, m) {
     m.def(
         "csv_rows",
         [](CArray2 values, const std::vector<bool>& integer) {
-            const long n = static_cast<long>(values.shape(0)), m = static_cast<long>(values.shape(1));
-            if (integer.size() != static_cast<size_t>(m)) throw std::invalid_argument("integer: one flag per column");
-            const std::unique_ptr<bool[]> flags(new bool[size_t(m)]);
+            const long rows = static_cast<long>(values.shape(0)), columns = static_cast<long>(values.shape(1));
+            if (integer.size() != static_cast<size_t>(columns))
+                throw std::invalid_argument("integer: one flag per column");
+            const std::unique_ptr<bool[]> flags(new bool[size_t(columns)]);
             std::copy(integer.begin(), integer.end(), flags.get());
             std::string text;
             {
                 nb::gil_scoped_release release;
-                append_csv_rows(values.data(), n, m, flags.get(), text);
+                append_csv_rows(values.data(), rows, columns, flags.get(), text);
             }
             return nb::bytes(text.data(), text.size());
         },
