@@ -185,6 +185,21 @@ def test_recorded_velocities_are_checked_against_the_positions(panda_run: Path, 
         load_data(_with_velocities(panda_run, tmp_path / "shifted.csv", torque_in_place), config)
 
 
+def test_an_input_within_its_noise_while_its_joint_moves_is_noted(panda_run: Path, tmp_path: Path) -> None:
+    # A walkthrough's UR10e with a current declared mA that the log holds in A: read 1000 times too small, the fit
+    # took it and validate's overall figure looked better. Here the Panda's joint torques, one of them so scaled.
+    from dynid.io.load import quiet_inputs
+
+    config = load_config("panda")
+    ds = load_data(panda_run, config)
+    assert quiet_inputs(config, ds) == []
+    ds.tau["panda_joint1"] = ds.tau["panda_joint1"] * 1e-3
+    notes = quiet_inputs(config, ds)
+    assert len(notes) == 1 and notes[0].startswith("tau.panda_joint1 stays within its noise while its joint moves"), notes
+    code, _, err = run("fit", "--robot", "panda", "--data", str(panda_run), "--out", str(tmp_path / "m.json"))
+    assert code == 0 and "stays within its noise" not in err, err
+
+
 def test_a_velocity_column_of_zeros_is_named_as_such() -> None:
     t = np.arange(5000) * 1e-3
     with pytest.raises(DataError, match=r"dq\.a is zero throughout while q\.a moves"):

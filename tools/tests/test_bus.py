@@ -17,6 +17,7 @@ import re
 import shutil
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -485,3 +486,19 @@ def test_buses_that_share_an_id_get_a_dbc_each(tmp_path: Path) -> None:
     for bus, ids in (("can0", {0x181, 0x182, 0x183, 0x184}), ("can1", {0x181, 0x182, 0x183})):
         db = cantools.database.load_file(str(tmp_path / f"panda-{bus}.dbc"), strict=True)
         assert {m.frame_id for m in db.messages} == ids, bus
+
+
+def test_play_estimates_dq_only_where_the_run_records_no_velocity(panda: dict, tmp_path: Path) -> None:
+    """The Panda's bus carries q̇. A run with neither dq nor the controller's velocity.J sends the derivative filter's
+    estimate, and says so; one with velocity.J sends those (a walkthrough's UR10e log was told it recorded none)."""
+    data = panda["data"].slice(0, 300)
+    bare = replace(data, dq=None)
+    played = play_run(panda["config"], bare, f"candump:{tmp_path / 'bare.log'}", stamps="nominal")
+    assert played.dq_estimated
+    recorded = 1.05 * data.dq  # a controller's velocity, 5 % off q's rate: what is sent tells which one went out
+    measured = replace(bare, extra={f"velocity.{j}": recorded[:, i] for i, j in enumerate(data.joints)})
+    played = play_run(panda["config"], measured, f"candump:{tmp_path / 'measured.log'}", stamps="nominal")
+    assert not played.dq_estimated
+    back = load_data(tmp_path / "measured.log", panda["config"])
+    sent = back.dq if back.dq is not None else np.column_stack([back.extra[f"velocity.{j}"] for j in data.joints])
+    assert np.abs(sent - recorded).max() <= 0.5e-4 * (1 + 1e-9)  # the recorded ones, to the bus's quantum

@@ -127,3 +127,25 @@ def test_a_fit_on_samples_labelled_contact_says_so(default_experiments: dict, tm
     run.save(tmp_path / "free.npz")
     done = dynid("fit", "--data", str(tmp_path / "free.npz"), "--out", str(tmp_path / "free.json"))
     assert done.returncode == 0 and "labelled contact" not in done.stderr, done.stderr
+
+
+def test_a_model_on_another_urdf_than_its_fit_is_refused(default_experiments: dict, tmp_path: Path) -> None:
+    """Φ is the fitted URDF's bodies: the model file keeps that URDF's sha256, and every command that reads the model
+    refuses another one (a walkthrough edited the URDF after the fit: validate ran on it, silently another number)."""
+    from dynid.config.robot_config import load_config
+
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_bytes(load_config().urdf.read_bytes())
+    _short_run(default_experiments).save(tmp_path / "run.npz")
+    model = tmp_path / "m.json"
+    done = dynid("fit", "--urdf", str(urdf), "--data", str(tmp_path / "run.npz"), "--out", str(model))
+    assert done.returncode == 0, done.stderr
+    assert json.loads(model.read_text())["robot"]["urdf_sha256"]
+    validate = ("validate", "--model", str(model), "--data", str(tmp_path / "run.npz"))
+    assert dynid(*validate).returncode == 0
+    urdf.write_text(urdf.read_text().replace('<mass value="', '<mass value="1', 1))  # a link 10 to 20 kg heavier
+    done = dynid(*validate)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert f"the model was fitted with the URDF {urdf}" in done.stderr and "is another file" in done.stderr
+    done = dynid("export", "--model", str(model), "--out", str(tmp_path / "m.dcoef"))
+    assert done.returncode == 2 and "is another file" in done.stderr and not (tmp_path / "m.dcoef").exists()

@@ -384,8 +384,10 @@ def payloads(args: argparse.Namespace, n_data: int) -> list[dict[str, Any] | Non
     if not isinstance(given, list):
         return [given]
     if len(given) != n_data:
-        raise InputError(f"--payload is given {len(given)} times for {n_data} --data: give one per --data, in "
-                         "the same order (0 for a run without payload)")
+        expanded = len(getattr(args, "data", None) or ()) != n_data  # a glob, folder or @LIST named several runs
+        runs = f"{n_data} runs (--data expanded)" if expanded else f"{n_data} --data"
+        raise InputError(f"--payload is given {len(given)} times for {runs}: give one per run, in the same order (0 "
+                         "for a run without payload)" + ("; name the runs one --data each to pair them" if expanded else ""))
     return given
 
 

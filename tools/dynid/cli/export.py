@@ -151,8 +151,10 @@ def _export_urdf(args: argparse.Namespace) -> dict[str, Any]:
           f"{100 * done.base_relative_error:.2g} % of the largest identified one")
     if done.rerooted:
         print(f"  written in the URDF's original tree (the configuration re-roots it at {identified.config.base_link})")
-    for note in done.notes:
-        print(f"  note: {note}")
+    for note in done.notes:  # an implausible written link (a centre of mass metres out) is not to be simulated unread
+        implausible = note.startswith("the written set: ")
+        print(f"  {'WARNING' if implausible else 'note'}: {note}"
+              + (" (the data do not place this link: check it before a simulator loads the URDF)" if implausible else ""))
     result: dict[str, Any] = {
         "model": args.model, "urdf": args.urdf, "side_file": str(done.side), "robot": identified.config.name,
         "identified_links": done.identified_links, "moved_links": done.moved_links, "cad_links": len(done.cad_links), "distance_to_cad": ps.distance,

@@ -28,6 +28,7 @@ from ..identify.blocks import validate_blocks
 from ..identify.transfer import format_why
 from ..identify.validation import evaluate, load_run, validation
 from ..io.dataset import contact_episodes
+from ..io.load import INPUT_CHECK_S, quiet_inputs
 from ..io.stream import DatasetFile
 from ..io.episodes import check_widening, episodes_in_data, episodes_mask, read_episodes
 from ..paper import PAPER, PAPER_ROBOT
@@ -132,6 +133,11 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     except DataError as e:
         raise DataError(folder_of_runs_error(args, config, e)) from None
     check_distinct_runs(paths, runs)
+    for ref, run in zip(refs, runs):  # an input in another unit than declared fits, silently wrong: said
+        head = run.slice(0, min(run.n_samples, int(INPUT_CHECK_S / run.median_step()) + 2)) \
+            if isinstance(run, DatasetFile) else run  # a dataset file is streamed: its first seconds read alone
+        for note in quiet_inputs(config, head):
+            warnings.warn(DataNote(f"{ref.path}: {note}"), stacklevel=2)
     for ref, run in zip(refs, runs):  # the model has no contact: labelled contacts in its data bias it
         share = run.contact_share() if isinstance(run, DatasetFile) else (
             float(np.mean(run.contact != 0)) if run.contact is not None and run.n_samples else None)

@@ -248,6 +248,10 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     # and its composer recurses once per level of nesting.
     except (ValueError, RecursionError) as e:
         raise ConfigError(f"{path}: not valid YAML: {e.__class__.__name__}: {str(e)[:80]}") from None
+    if isinstance(data, dict) and {"robot", "parameters"} <= data.keys():  # JSON is YAML: a model file, given as --robot
+        raise ConfigError(f"{path} is a model file of `dynid fit`, not a robot configuration: give it as --model where "
+                          f"the command takes one; its robot is '{data['robot'].get('name', '?')}'"
+                          if isinstance(data["robot"], dict) else f"{path} is a model file, not a robot configuration")
     root = Fields(path.stem, "", data)
     name = root.string("name")
     f = Fields(name, "", data).only(

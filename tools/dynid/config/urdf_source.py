@@ -26,7 +26,11 @@ def _supplied_urdf(spec: Fields, name: str) -> Path:
 
 
 def resolve_urdf(f: Fields, config_dir: Path, override: str | Path | None = None) -> Path:
-    spec = f.sub("urdf").only("path", "icub_models", "package", "file", "supplied")
+    forms = ("path", "icub_models", "package", "file", "supplied")
+    if f.has("urdf") and not isinstance(f.data["urdf"], dict):  # a bare path, the first thing a user writes
+        raise f.fail("urdf", f"must be a mapping: {{path: FILE}} (relative to the configuration), or one of "
+                             f"{', '.join(forms[1:])} (robots/README.md); got {f.data['urdf']!r}")
+    spec = f.sub("urdf").only(*forms)
     if override is not None:
         path = Path(override)
         if not path.is_file():

@@ -121,8 +121,11 @@ def play_run(config: RobotConfig, data: Dataset, sink: str, realtime: bool = Fal
         raise InputError(f"--stamps must be one of {', '.join(STAMPS)}, got {stamps!r}")
     if not BOARDS.is_file():
         raise InputError(f"{BOARDS} is not built: run scripts/setup")
-    estimated = data.dq is None and any(s.target.startswith("dq.") for f in bus.frames for s in f.signals)
-    if estimated:  # the bus carries q̇ and the run records none (a simulated run): sent as the offline filter estimates it
+    # the bus carries q̇ and the run records none (a simulated run): sent as the offline filter estimates it; a run with
+    # the controller's velocity.J sends that (dynid.io.candump.target_values)
+    carried = {s.target.partition(".")[2] for f in bus.frames for s in f.signals if s.target.startswith("dq.")}
+    estimated = data.dq is None and any(f"velocity.{j}" not in data.extra for j in carried)
+    if estimated:
         options = dict(config.derivatives)
         try:
             data = data.with_derivatives(options.pop("method", None), **options)

@@ -315,7 +315,9 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
                         "fixes the parameters' scale")
     rows_used = stats.rows.sum(axis=0)
     if rows_used.sum() < 2 * base.rank:
-        raise DataError(f"too few samples: {int(rows_used.sum())} usable rows for a rank of {base.rank}")
+        raise DataError(f"too few moving samples: {int(rows_used.sum())} usable rows (rows of resting joints and "
+                        f"motors are left out) for {base.rank} base parameters, which need at least "
+                        f"{2 * base.rank}: does the arm move in this run?")
     check_excitation(model, base)
     if stats.n_blocks < 2:
         if settings.blocks < 2:

@@ -202,7 +202,7 @@ def _config_from(robot: RobotSection) -> RobotConfig:
     if config.name != robot.name:
         raise DataError(f"the model file names robot '{robot.name}', but the configuration it embeds is "
                         f"{config.name}'s")
-    return config
+    return _check_urdf(config, robot)
 
 
 def _config_of(robot: RobotSection) -> RobotConfig:
@@ -228,7 +228,23 @@ def _config_of(robot: RobotSection) -> RobotConfig:
 
 def robot_record(config: RobotConfig) -> RobotSection:
     return RobotSection(config.name, config.digest, config.source, Path(config.source).read_text(encoding="utf-8"),
-                        str(config.urdf.resolve()), dict(config.noise.per_channel))
+                        str(config.urdf.resolve()), dict(config.noise.per_channel),
+                        urdf_sha256=hashlib.sha256(config.urdf.read_bytes()).hexdigest())
+
+
+def _check_urdf(config: RobotConfig, robot: RobotSection) -> RobotConfig:
+    """`config` if its URDF is the one the model was fitted with (its bytes' sha256), else DataError: Φ is of that
+    URDF's bodies, and another one (edited, or the configuration's own where the fitted one is gone) would
+    silently change every prediction. A file written before the digest was kept is taken as it is."""
+    if robot.urdf_sha256 is None or robot.urdf is None:  # what a file does not record is not checked
+        return config
+    found = hashlib.sha256(config.urdf.read_bytes()).hexdigest() if config.urdf.is_file() else None
+    if found != robot.urdf_sha256:
+        now = f"{config.urdf} is another file (sha256 {found[:12]}…)" if found else f"{config.urdf} is not found"
+        raise DataError(f"the model was fitted with the URDF {robot.urdf} (sha256 {robot.urdf_sha256[:12]}…), and "
+                        f"{now}: put the fitted one back (at that path, or in DYNID_URDF_PATH for a supplied URDF), or "
+                        "fit again on this one")
+    return config
 
 
 def _with_noise(config: RobotConfig, robot: RobotSection) -> RobotConfig:

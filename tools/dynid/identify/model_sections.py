@@ -70,18 +70,21 @@ class RobotSection:
     urdf: str | None = None  # the URDF's path it was fitted with (a supplied URDF is found again through it)
     noise_per_channel: dict[str, float] | None = None  # the noise it was fitted with (`fit --noise estimate`)
     extra: Json = field(default_factory=dict, compare=False)
+    urdf_sha256: str | None = None  # that URDF's bytes: a model is refused on another URDF (None: a file before it)
 
-    KEYS = ("name", "config_digest", "config_source", "config_text", "urdf", "noise_per_channel")
+    KEYS = ("name", "config_digest", "config_source", "config_text", "urdf", "noise_per_channel", "urdf_sha256")
 
     @classmethod
     def from_json(cls, d: Json) -> RobotSection:
         noise = d.get("noise_per_channel")
         return cls(d["name"], d["config_digest"], d["config_source"], d.get("config_text"), d.get("urdf"),
-                   None if noise is None else {k: float(v) for k, v in noise.items()}, _extra(d, cls.KEYS))
+                   None if noise is None else {k: float(v) for k, v in noise.items()}, _extra(d, cls.KEYS),
+                   d.get("urdf_sha256"))
 
     def to_json(self) -> Json:
         out = {"name": self.name, "config_digest": self.config_digest, "config_source": self.config_source,
-               "config_text": self.config_text, "urdf": self.urdf, "noise_per_channel": self.noise_per_channel}
+               "config_text": self.config_text, "urdf": self.urdf, "noise_per_channel": self.noise_per_channel,
+               "urdf_sha256": self.urdf_sha256}
         return {**_dropped_none(out, self.KEYS[3:]), **self.extra}
 
 

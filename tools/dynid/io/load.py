@@ -278,6 +278,44 @@ def check_velocities(dataset: Dataset, where: str = "", headerless: bool = False
                             f"column{declare}")
 
 
+INPUT_CHECK_S = 60.0  # the stretch of a run whose input levels are judged (enough to see a unit; bounded memory)
+
+
+def quiet_inputs(config, dataset: Dataset) -> list[str]:  # config: RobotConfig
+    """A note for each motor input (PWM, current) or joint torque that stays within the configuration's noise for it
+    while a joint it drives moves (RMS speed over 50 ms stretches at least MOVING_SPEED): an actuator that moves its
+    joint reads well above its noise, so such a column is most likely in another unit than declared (mA for A reads
+    1000 times too small) or not the signal named. Judged on the run's first INPUT_CHECK_S seconds."""
+    t, q = dataset.t, dataset.q
+    step = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    if not step > 0:
+        return []
+    n = max(5, int(round(VELOCITY_CHECK_S / step)))
+    head = int(np.searchsorted(t, t[0] + INPUT_CHECK_S))
+    edges = np.arange(0, max(head, 1), n)
+    if edges.size < 20:
+        return []
+    speed = np.sqrt(np.nanmean((np.diff(q[edges], axis=0) / np.diff(t[edges])[:, None]) ** 2, axis=0))
+    moving = dict(zip(dataset.joints, speed >= MOVING_SPEED))
+    notes = []
+    for group in config.actuation:
+        if not any(moving.get(j, False) for j in group.joints):
+            continue
+        kind = "torque" if group.input == "torque" else group.input
+        values = dataset.tau if kind == "torque" else getattr(dataset, kind)
+        for name in group.joints if kind == "torque" else group.motors:
+            column = values.get(name)
+            if column is None:
+                continue
+            level, noise = float(np.sqrt(np.nanmean(column[:head] ** 2))), config.noise.of(kind, name)
+            if level < noise:
+                label = f"{'tau' if kind == 'torque' else kind}.{name}"
+                notes.append(f"{label} stays within its noise while its joint moves (RMS {level:.3g} against the "
+                             f"configuration's noise {noise:.3g} over the first {INPUT_CHECK_S:g} s): is it in the unit "
+                             "the configuration declares (mA for A reads it 1000 times too small), and the signal named?")
+    return notes
+
+
 def _unit_hint(scale: float) -> str:
     """What a velocity `scale` times the rate of its q suggests: 57.3 (or its inverse) is degrees against radians,
     on either column."""
