@@ -170,6 +170,7 @@ UNITS = {  # what is done to a sensor's columns fx fy fz tx ty tz, words of the 
     "torques in N·mm": (lambda w: w * [1, 1, 1, 1e3, 1e3, 1e3], "torques in N·mm"),
     "forces in mN": (lambda w: w * [1e3, 1e3, 1e3, 1, 1, 1], "forces in mN"),
     "swapped": (lambda w: w[:, [3, 4, 5, 0, 1, 2]], "swapped"),
+    "torques ÷1000": (lambda w: w * [1, 1, 1, 1e-3, 1e-3, 1e-3], "torques in N·m declared N·mm"),
 }
 
 

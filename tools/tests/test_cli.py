@@ -91,6 +91,11 @@ def test_an_import_whose_reader_closes_stdout_says_what_it_did_not_write(tmp_pat
     assert p.wait(timeout=120) == 141 and not out.exists()
     assert err.strip().splitlines() == ["dynid import: standard output closed before the command ended: its outputs "
                                         "(--out) were not written"], err
+    # `2>&1 | head`: standard error is that closed pipe too; the exit is still SIGPIPE's, not 1 from a second error
+    p = subprocess.Popen([sys.executable, "-m", "dynid.cli", "import", "--data", str(csv), "--out", str(out)],
+                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    p.stdout.close()
+    assert p.wait(timeout=120) == 141 and not out.exists()
 
 
 def test_structure_reports_the_rank() -> None:

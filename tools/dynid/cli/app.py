@@ -121,12 +121,15 @@ def run(argv: list[str]) -> int:
             # The reader of stdout closed it (`dynid spy | head -1`): what it wanted was written. Stop as a tool killed
             # by SIGPIPE would, without a message, and keep the interpreter's final flush off the closed pipe.
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-            # The command did not end: none of its outputs was put in place (dynid.outputs), which it says
+            # The command did not end: none of its outputs was put in place (dynid.outputs), which it says where
+            # standard error still has a reader (`2>&1 | head` closed that pipe too: nothing more to say)
             named = sorted(set(stage.labels.values())) if stage is not None else []
-            if named or (stage is not None and stage.ready):
+            if (named or (stage is not None and stage.ready)) and not _reader_gone(sys.stderr):
                 what = ", ".join(named) or ", ".join(sorted({str(path) for _, path in stage.ready}))
                 sys.stderr.write(f"dynid {args.command}: standard output closed before the command ended: its "
                                  f"outputs ({what}) were not written\n")
+            elif _reader_gone(sys.stderr):
+                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stderr.fileno())
             return 128 + signal.SIGPIPE
         sys.stderr.write(f"dynid {args.command}: error: {e.strerror or e}\n")  # another pipe than stdout
         return EXIT_BAD_INPUT

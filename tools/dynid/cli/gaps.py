@@ -54,9 +54,11 @@ def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
     if args.out:
         found.augmented_model().save(args.out)
         result["out"] = args.out
-        def named(e) -> str:  # several F/T steps on one sensor: each by its time
+        def named(e) -> str:  # several F/T steps on one sensor: each by its time span
             at = e.parameters.get("from_s") if e.kind == FT_STEP else None
-            return f"{e.kind} on {e.where}" + (f" from {at:.2f} s" if at is not None else "")
+            to = e.parameters.get("to_s") if e.kind == FT_STEP else None
+            return (f"{e.kind} on {e.where}" + (f" from {at:.2f} s" if at is not None else "")
+                    + (f" to {to:.2f} s" if to is not None else ""))
 
         kinds = ", ".join([named(e) for e in found.effects]
                           + [f"payload on {e.where} (in its inertial parameters)" for e in found.folded])

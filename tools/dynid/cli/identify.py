@@ -176,7 +176,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     print_run_uncertainty(result)
     skipped = {p: s for p, ds in zip(paths, runs) if (s := skipped_rows(p, ds.meta)) is not None}
     print(f"  base parameters: rank {base.rank} of {len(model.layout)}; {int(result.identified.sum())} determined (a "
-          f"standard error under 10 % of the value or 5 % of its size); PLS ν = {result.cv['n_components']} "
+          f"standard error under 10 % of the value or 5 % of its size); the model's estimator {result.chosen}, "
+          f"the PLS estimate beside it with ν = {result.cv['n_components']} "
           + (f"(cross-validated on {result.statistics.n_blocks} time blocks)" if args.n_components is None else
              "(--n-components)"))
     gains = [i for i, n in enumerate(independent) if n.endswith(".phi_m")]

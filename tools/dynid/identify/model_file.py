@@ -185,7 +185,7 @@ class IdentifiedModel:
     def save(self, path: str | Path) -> None:
         """Write the model file atomically; one that every command would refuse (check_values) is never written."""
         data = self.to_json()
-        check_values(data, str(path))
+        check_values(data, str(path), fitted=True)
         text = json.dumps(data, indent=1, allow_nan=False) + "\n"
         atomic_write(Path(path), lambda f: f.write(text.encode()))
         self.path = str(path)
@@ -324,17 +324,20 @@ def model_from_json(data: dict[str, Any], path: str = "model file") -> Identifie
 MAX_BODY_MASS = 1000.0  # kg: rt_monitor/include/rt_monitor/plausibility.hpp's kMaxMass (no robot link weighs more)
 
 
-def check_values(data: dict[str, Any], path: str) -> None:
+def check_values(data: dict[str, Any], path: str, fitted: bool = False) -> None:
     """Values no model can hold, refused by every command in one line (issue 31): a motor gain that is not positive
     (the PWM or current would have to be infinite, or of the wrong sign, to move the motor), a body mass beyond any
-    robot link's, a detector's Λ or threshold that is not positive (T² would be NaN, or above it on every sample)."""
+    robot link's, a detector's Λ or threshold that is not positive (T² would be NaN, or above it on every sample).
+    `fitted`: the model a fit is about to write, whose values come from the data, not from an edit."""
     for name, v in data["parameters"].items():
         if name.endswith(".phi_m") and not v > 0:
             raise DataError(f"{path}: motor {name[: -len('.phi_m')]}'s gain is {v:g}: a motor gain must be positive "
                             "(refit on a run that moves that motor, or give its known gain in the configuration)")
         if name.endswith(".m") and not abs(v) <= MAX_BODY_MASS:
-            raise DataError(f"{path}: {name} is {v:g} kg, beyond any robot link's ({MAX_BODY_MASS:g} kg): an edited or "
-                            "damaged model file")
+            why = ("the fit gives it from these data, so they do not fit the configuration as declared (F/T sensors' "
+                   "ports swapped, gravity's direction, a unit?): nothing is written" if fitted else
+                   "an edited or damaged model file")
+            raise DataError(f"{path}: {name} is {v:g} kg, beyond any robot link's ({MAX_BODY_MASS:g} kg): {why}")
     detectors = data.get("detector")
     for variant, d in (detectors.items() if isinstance(detectors, dict) else ()):
         if not isinstance(d, dict):

@@ -8,7 +8,8 @@ the sensor's large constant offsets (each channel is taken about its median):
   inertia, a contact on it) acts on the chain beyond the sensor, so torque over force is a distance within that
   chain's reach. Measured: 0.015–0.088 m, 0.11–0.30 of the reach (iCub leg and foot sensors, TIAGo wrist, the
   simulated iCub arm's three kinds); torques ×1000: 15–88 m, 115–300 reaches; force and torque columns swapped:
-  11–68 m. Refused beyond `LEVER_FACTOR` reaches + `LEVER_MARGIN_M` (1.5–3.9 m there).
+  11–68 m. Refused beyond `LEVER_FACTOR` reaches + `LEVER_MARGIN_M` (1.5–3.9 m there), and under `LEVER_FLOOR`
+  reaches (torques ÷1000, N·m declared N·mm: 0.00011–0.0003 reaches, a model that fits them looks excellent).
 - the **force swing** (99th percentile of ‖F − f̃‖, N) against the whole robot's weight: measured 0.01–0.52 weights
   (the iCub foot sensor carries the standing robot's swing), 11.5–518 with forces ×1000. Refused beyond
   `FORCE_WEIGHTS` weights.
@@ -32,6 +33,7 @@ from .dataset import Dataset
 
 LEVER_FACTOR = 5.0  # reaches: a payload or tool beyond the URDF's chain, inertial torques of a fast move
 LEVER_MARGIN_M = 1.0  # m: the floor for a sensor with little or nothing modelled beyond it
+LEVER_FLOOR = 0.01  # reaches: the least lever (measured 0.11 and up; torques ÷1000 give 0.0003 and less)
 FORCE_WEIGHTS = 5.0  # the robot's weights: a humanoid's foot at a landing, an arm pushing on its surroundings
 GRAVITY = 9.81
 
@@ -111,3 +113,10 @@ def check_wrenches(dataset: Dataset, config: RobotConfig, where: str = "", heade
                 f"arm), beyond the {limit:.3g} m allowed where the chain beyond the sensor reaches "
                 f"{reach[s.joint]:.3g} m: torques in N·mm, or forces in kN? (N·m and N expected; or are the force "
                 f"and torque columns swapped, or is a tool beyond the sensor missing from the URDF?){declare}")
+        floor = LEVER_FLOOR * reach[s.joint]
+        if lever < floor:
+            raise DataError(
+                f"{where}ft.{s.name}'s torques are only {lever:.3g} m times its forces (RMS about their medians: a "
+                f"lever arm), under the {floor:.3g} m that a chain reaching {reach[s.joint]:.3g} m beyond the sensor "
+                f"gives at the least: torques in N·m declared N·mm, or forces in N declared kN? (N·m and N expected)"
+                f"{declare}")
