@@ -44,7 +44,7 @@ def test_parallel_axis_round_trip() -> None:
 @pytest.mark.parametrize(
     "inertia, problem",
     [
-        (_params(-6.1, [0, 0, 0.1], np.eye(3) * 1e-3), "mass"),
+        (_params(-0.6, [0, 0, 0.1], np.eye(3) * 1e-3), "mass"),  # the mass beyond the sensor still 0.70 kg
         (_params(1.0, [0, 0, 0.05], np.diag([1e-3, 1e-3, -1e-4])), "inertia"),
         (_params(1.0, [0, 0, 0.05], np.diag([1e-4, 1e-4, 1e-3])), "inertia"),  # I1 + I2 < I3: no such body
         (_params(1.0, [0.0, 0.0, 1.2], np.eye(3) * 1e-3), "com"),
@@ -72,3 +72,22 @@ def test_negative_friction_is_named_and_a_solvers_rounding_is_not(arm: RobotMode
     assert [(w.get("joint") or w.get("motor"), w["problem"], w["negative"]) for w in found] == [
         (joint.owner, "friction", {"fv_pos": -0.0732}), (motor.owner, "friction", {"fc_pos": -0.05})]
     assert found[0]["text"] == f"{joint.owner}: negative friction fv_pos -0.0732 (it would drive the motion, not damp it)"
+
+
+def test_a_negative_mass_beyond_a_sensor_names_gravitys_direction(arm: RobotModel) -> None:
+    """The mass beyond an F/T sensor is what its forces at rest fix: fitted negative (the iCub leg with gravity given
+    +z: −4.93 kg against its CAD's 4.73), it is named first, with the question of gravity's direction."""
+    from dynid.identify.plausibility import distal_masses
+
+    phi = arm.cad_parameters()
+    assert distal_masses(arm, phi) == []
+    flipped = phi.copy()
+    inertial = arm.layout.span("inertial")
+    flipped[inertial] = -phi[inertial]  # what a fit under the opposite gravity gives: every body's sign turned
+    found = distal_masses(arm, flipped)
+    beyond = [k for k, b in enumerate(arm.bodies)
+              if b.joint_id in set(arm.pin_model.subtrees[arm.sensor_joint_ids["r_arm_ft"]])]
+    cad_mass = sum(phi[inertial][10 * k] for k in beyond)
+    assert [(f["sensor"], f["problem"]) for f in found] == [("r_arm_ft", "distal_mass")]
+    assert found[0]["mass_kg"] == pytest.approx(-cad_mass) and found[0]["cad_kg"] == pytest.approx(cad_mass)
+    assert implausible(arm, flipped)[0] == found[0]

@@ -61,6 +61,13 @@ def known_steps(path: str, model: RobotModel, distributed: object) -> list[Effec
     return check_effect_targets(steps, model, path)
 
 
+# A fitted channel's residual RMS, in its noise: 0.5-1.8 on the simulated arm, the UR10e, the Panda; 4.1 on the TIAGo's
+# fz; 45.6 on the iCub leg's foot ty (the leg sensor's offset steps, docs/robots/icub_leg.md). The leg with its two
+# sensors' ports swapped: 855. A fit past this is warned about, not refused: the noise is the configuration's.
+UNEXPLAINED_NOISES = 200.0
+WORST_REAL_NOISES = 45.6
+
+
 def stretches(t: np.ndarray, statistic: np.ndarray, events: list | None) -> str:
     """'N stretches above its threshold' of a normalised statistic (a contact above 1; dynid.detect.momentum_t2
     .alarm_runs), and with `events` (they are --json's) how many of them those describe (contact_events' limit)."""
@@ -271,6 +278,11 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     rms = np.sqrt(result.residual_variance[result.chosen])
     print("  residual RMS on the identification data (rows at rest left out) / channel noise:")
     print("   " + ", ".join(f"{o.name} {r:.3g} ({r / o.sigma:.2f}×)" for o, r in zip(outs, rms)))
+    unexplained = [(o.name, r / o.sigma) for o, r in zip(outs, rms) if r > UNEXPLAINED_NOISES * o.sigma]
+    if unexplained:  # the model leaves most of a channel: data that are not the configured robot's, as declared
+        print(f"  WARNING: the model leaves {', '.join(f'{n} {x:.0f}×' for n, x in unexplained)} its noise (on the "
+              f"bundled real runs at most {WORST_REAL_NOISES:g}×): do the data fit the configuration as declared "
+              "(sensor ports or columns swapped, a unit, gravity's direction)?")
     return {"robot": config.name, "out": args.out, "samples": result.samples, "rank": base.rank,
             "n_components": result.cv["n_components"], "estimator": identified.estimator,
             "identified": int(result.identified.sum()), "determined": {c: {"value": v, "standard_error": e}

@@ -79,7 +79,27 @@ def implausible(model: RobotModel, phi: np.ndarray) -> list[dict[str, Any]]:
         if np.array_equal(inertial[10 * k : 10 * k + 10], cad[10 * k : 10 * k + 10]):
             f["urdf_values"] = True
             f["text"] += " (the URDF's own values: the data leave this body at its CAD)"
-    return found + negative_friction(model, phi)
+    return distal_masses(model, phi) + found + negative_friction(model, phi)
+
+
+def distal_masses(model: RobotModel, phi: np.ndarray) -> list[dict[str, Any]]:
+    """One entry per F/T sensor whose fitted mass beyond it is not positive while its CAD's is: that total is what the
+    sensor weighs at rest, which its forces fix whatever the bodies one by one (a base combination), so a negative
+    one is gravity given the wrong way (the iCub leg with gravity +z: three bodies' masses negative), or the forces'
+    sign."""
+    m = model.pin_model
+    inertial = np.asarray(phi, float)[model.layout.span("inertial")]
+    cad = model.cad_inertial_parameters
+    found: list[dict[str, Any]] = []
+    for sensor, jid in model.sensor_joint_ids.items():
+        beyond = [k for k, b in enumerate(model.bodies) if b.joint_id in set(m.subtrees[jid])]
+        fitted, own = (float(sum(x[10 * k] for k in beyond)) for x in (inertial, cad))
+        if own > 0 and not fitted > 0:
+            found.append({"sensor": sensor, "problem": "distal_mass", "mass_kg": fitted, "cad_kg": own,
+                          "text": f"the mass beyond ft.{sensor} fits {fitted:.3g} kg (its CAD {own:.3g} kg), which "
+                                  "its forces at rest fix: is gravity's direction in the configuration right, and "
+                                  "the forces' sign?"})
+    return found
 
 
 def negative_friction(model: RobotModel, phi: np.ndarray) -> list[dict[str, Any]]:
