@@ -27,8 +27,8 @@ from ..robot.regressors.stack import DEFAULT_MIN_SPEED
 
 class Parser(argparse.ArgumentParser):
     """argparse, but a usage error is one line and exit code 2, like every other bad input; and a flag is named in
-    full (argparse takes any unambiguous prefix: `play --t0` was taken for `--to`'s typo's neighbour, and a `--dat`
-    that reads as `--data` today reads as another flag once one is added)."""
+    full (argparse takes any unambiguous prefix: `fit --dat` read as --data, and a typo that is the prefix of one
+    flag today is another's once a flag is added)."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         kwargs.setdefault("allow_abbrev", False)
@@ -387,7 +387,8 @@ def payloads(args: argparse.Namespace, n_data: int) -> list[dict[str, Any] | Non
         expanded = len(getattr(args, "data", None) or ()) != n_data  # a glob, folder or @LIST named several runs
         runs = f"{n_data} runs (--data expanded)" if expanded else f"{n_data} --data"
         raise InputError(f"--payload is given {len(given)} times for {runs}: give one per run, in the same order (0 "
-                         "for a run without payload)" + ("; name the runs one --data each to pair them" if expanded else ""))
+                         "for a run without payload)"
+                         + ("; name the runs one --data each to pair them" if expanded else ""))
     return given
 
 

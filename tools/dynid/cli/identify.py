@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import hashlib
 import warnings
 from dataclasses import replace
 from typing import Any
@@ -14,21 +13,20 @@ from ..config.robot_config import RobotConfig, load_config
 from ..detect.evaluation import detection
 from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S
 from ..detect.combined import calibrate_combined, combined_detection, stored_combined
-from ..detect.momentum_t2 import alarm_runs, calibration_runs, momentum_detection, stored_detector, stored_in_sample
-from ..detect.t2 import ALPHA, debounced_events
+from ..detect.momentum_t2 import calibration_runs, momentum_detection, stored_detector, stored_in_sample
+from ..detect.t2 import ALPHA
 from ..errors import DataError, DataNote, InputError
 from ..cluster import executor
 from ..identify.fit import (DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_INERTIA_ONLY, FitResult, FitSettings,
                             iv_settled)
 from ..identify.model_file import IdentifiedModel, load_model
 from ..identify.model_sections import DEFAULT_BLOCKS, DEFAULT_N_MODE, N_MODES, BaseSection
-from ..identify.runs import RunRef, stream_run
+from ..identify.runs import RunRef, check_distinct_runs, input_notes, stream_run
 from ..identify.supply import SupplyTracking
 from ..identify.blocks import validate_blocks
 from ..identify.transfer import format_why
 from ..identify.validation import evaluate, load_run, validation
 from ..io.dataset import contact_episodes
-from ..io.load import INPUT_CHECK_S, quiet_inputs
 from ..io.stream import DatasetFile
 from ..io.episodes import check_widening, episodes_in_data, episodes_mask, read_episodes
 from ..paper import PAPER, PAPER_ROBOT
@@ -40,6 +38,7 @@ from .commands import COMMANDS
 from .out_of_sample import out_of_sample, print_out_of_sample
 from .validate_blocks import block_count, print_blocks
 from .common import confidence as alpha
+from .detect_events import monitor_events, stretches
 from .common import one_blas_thread
 from .common import (bad_rows, expand_data, finite_float, folder_of_runs_error, json_arg, min_speed_arg,
                      non_negative_float, payload_arg, payloads, plural, positive_float, positive_int, robot_arg,
@@ -68,54 +67,6 @@ UNEXPLAINED_NOISES = 200.0
 WORST_REAL_NOISES = 45.6
 
 
-def stretches(t: np.ndarray, statistic: np.ndarray, events: list | None) -> str:
-    """'N stretches above its threshold' of a normalised statistic (a contact above 1; dynid.detect.momentum_t2
-    .alarm_runs), and with `events` (they are --json's) how many of them those describe (contact_events' limit)."""
-    n = len(alarm_runs(t, statistic)[0])
-    said = f"{plural(n, 'stretch', 'stretches')} above its threshold"
-    if events is None:
-        return said
-    return said + (f" (--json's events: the first {len(events)})" if n > len(events) else " (--json's events)")
-
-
-def monitor_events(t: np.ndarray, combined, momentum, found) -> dict[str, Any] | None:
-    """The default detector's alarms as the exported monitor's defaults debounce them into contact events (the same
-    counts and level: dynid.detect.t2.debounced_events), for a lab to set beside the monitor's events."""
-    from ..export.coefficients import EventSettings
-
-    if combined is not None:
-        variant, statistic, level = "combined", combined.statistic, 1.0  # s: the sum over κ, a contact above 1
-    elif momentum is not None:
-        variant, statistic, level = "momentum", momentum.statistic, 1.0
-    elif "calibrated" in found.t2:
-        variant, statistic, level = "calibrated", found.t2["calibrated"], found.detectors["calibrated"].threshold
-    else:
-        return None
-    if t.size < 2:
-        return None
-    settings = EventSettings().at(float(np.median(np.diff(t))))
-    events = debounced_events(statistic, level, settings.debounce_on, settings.debounce_off, settings.hysteresis)
-    return {"residual": variant, "debounce_on": settings.debounce_on, "debounce_off": settings.debounce_off,
-            "hysteresis": settings.hysteresis, "onsets_s": [float(t[k]) for k, _ in events],
-            "ends_s": [None if j is None else float(t[j]) for _, j in events]}
-
-
-def check_distinct_runs(paths: list[str], runs: list) -> None:
-    """Refuse one recording given twice under two names (a folder and its `dynid import`, a copy): it would count
-    twice, and its blocks would pose as independent runs. Two runs are the same where their first and last samples'
-    t and q are, bit for bit, and their lengths."""
-    seen: dict[bytes, str] = {}
-    for path, run in zip(paths, runs):
-        n = run.n_samples
-        ends = [run.slice(0, min(n, 64)), run.slice(max(0, n - 64), n)]
-        key = hashlib.sha256(np.int64(n).tobytes() + b"".join(np.ascontiguousarray(a, float).tobytes()
-                                                               for d in ends for a in (d.t, d.q))).digest()
-        if key in seen:
-            raise InputError(f"--data {seen[key]} and {path} hold the same samples (one recording under two names?): "
-                             "it would count twice; give it once")
-        seen[key] = path
-
-
 def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     config = load_config(args.robot, args.urdf)
     from_config = args.consistent is None
@@ -140,11 +91,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     except DataError as e:
         raise DataError(folder_of_runs_error(args, config, e)) from None
     check_distinct_runs(paths, runs)
-    for ref, run in zip(refs, runs):  # an input in another unit than declared fits, silently wrong: said
-        head = run.slice(0, min(run.n_samples, int(INPUT_CHECK_S / run.median_step()) + 2)) \
-            if isinstance(run, DatasetFile) else run  # a dataset file is streamed: its first seconds read alone
-        for note in quiet_inputs(config, head):
-            warnings.warn(DataNote(f"{ref.path}: {note}"), stacklevel=2)
+    for path, note in input_notes(config, paths, runs):  # an input in another unit than declared fits: said
+        warnings.warn(DataNote(f"{path}: {note}"), stacklevel=2)
     for ref, run in zip(refs, runs):  # the model has no contact: labelled contacts in its data bias it
         share = run.contact_share() if isinstance(run, DatasetFile) else (
             float(np.mean(run.contact != 0)) if run.contact is not None and run.n_samples else None)
@@ -488,7 +436,8 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
         print(f"  combined detector skipped: {skipped_combined}")
     if momentum is not None:
         print(f"  momentum: observer bandwidth {args.bandwidth:g} Hz, calibrated on {momentum.detector.samples} "
-              f"contact-free samples; {stretches(momentum.residuals.t, momentum.statistic, None if combined else momentum.events)}")
+              f"contact-free samples; "
+              f"{stretches(momentum.residuals.t, momentum.statistic, None if combined else momentum.events)}")
     if combined is not None:  # the events of --json are the default detector's
         print(f"  combined: {stretches(momentum.residuals.t, combined.statistic, combined.events)}")
     debounced = monitor_events(ev.dataset.t, combined, momentum, found)

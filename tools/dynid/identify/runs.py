@@ -16,12 +16,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..config.robot_config import RobotConfig
-from ..errors import DataError
+from ..errors import DataError, InputError
 from ..io.bad_rows import DEFAULT_POLICY
 from ..io.dataset import SIMULATION_DATASET
+from ..io.load import INPUT_CHECK_S, quiet_inputs
 from ..io.stream import DatasetFile, Run, is_dataset_file, open_run
 from ..robot.model import RobotModel
 from .fit import FitResult, FitSettings, SignalSource, fit_statistics, run_units
@@ -116,3 +118,30 @@ def fit_on_cluster(model: RobotModel, refs: list[RunRef], runs: list[Run], setti
     assert total is not None
     return fit_statistics(model, total, settings, sum(r.n_samples for r in runs),
                           run_units([r.meta.get("payload") for r in runs]))
+
+
+def check_distinct_runs(paths: list[str], runs: list) -> None:
+    """Refuse one recording given twice under two names (a folder and its `dynid import`, a copy): it would count
+    twice, and its blocks would pose as independent runs. Two runs are the same where their first and last samples'
+    t and q are, bit for bit, and their lengths."""
+    seen: dict[bytes, str] = {}
+    for path, run in zip(paths, runs):
+        n = run.n_samples
+        ends = [run.slice(0, min(n, 64)), run.slice(max(0, n - 64), n)]
+        key = hashlib.sha256(np.int64(n).tobytes() + b"".join(np.ascontiguousarray(a, float).tobytes()
+                                                               for d in ends for a in (d.t, d.q))).digest()
+        if key in seen:
+            raise InputError(f"--data {seen[key]} and {path} hold the same samples (one recording under two names?): "
+                             "it would count twice; give it once")
+        seen[key] = path
+
+
+def input_notes(config: RobotConfig, paths: list[str], runs: list) -> list[tuple[str, str]]:
+    """(path, note) for each run's motor inputs or joint torques that stay within their noise while their joints move
+    (dynid.io.load.quiet_inputs), judged on a run's first INPUT_CHECK_S seconds (a dataset file's read alone)."""
+    out = []
+    for path, run in zip(paths, runs):
+        head = run.slice(0, min(run.n_samples, int(INPUT_CHECK_S / run.median_step()) + 2)) \
+            if isinstance(run, DatasetFile) else run
+        out += [(path, note) for note in quiet_inputs(config, head)]
+    return out

@@ -238,8 +238,8 @@ def velocity_agreement(t: np.ndarray, q: np.ndarray, v: np.ndarray, rest: str = 
             found.append(None)
         elif not np.any(a):
             found.append(Agreement(0.0, 1.0, True))
-        elif not q_moves:
-            scale = float(a @ b / (b @ b)) if np.any(b) else float("inf")
+        elif not q_moves:  # a log's q read too small shows its factor; a reference's still q is named as still
+            scale = float(a @ b / (b @ b)) if rest == "q" and np.any(b) else float("inf")
             left = float(np.linalg.norm(a - scale * b) / np.linalg.norm(a)) if np.isfinite(scale) else 1.0
             found.append(Agreement(scale, left, False))
         else:
@@ -281,7 +281,7 @@ def check_velocities(dataset: Dataset, where: str = "", headerless: bool = False
 INPUT_CHECK_S = 60.0  # the stretch of a run whose input levels are judged (enough to see a unit; bounded memory)
 
 
-def quiet_inputs(config, dataset: Dataset) -> list[str]:  # config: RobotConfig
+def quiet_inputs(config: RobotConfig, dataset: Dataset) -> list[str]:
     """A note for each motor input (PWM, current) or joint torque that stays within the configuration's noise for it
     while a joint it drives moves (RMS speed over 50 ms stretches at least MOVING_SPEED): an actuator that moves its
     joint reads well above its noise, so such a column is most likely in another unit than declared (mA for A reads
