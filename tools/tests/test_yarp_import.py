@@ -301,3 +301,18 @@ def test_a_fit_on_a_dumper_folder_is_recorded_and_export_finds_it_again(tmp_path
     with pytest.raises(DataError, match="are gone"):
         calibration_data(identified, model, [])
     assert data_digest(root) is None
+
+
+def test_a_grid_slower_than_the_ports_is_noted(tmp_path: Path) -> None:
+    """yarp.rate 20 Hz on ports that send every 10 ms keeps a fifth of their messages: said, with the ports' rate (a
+    walkthrough's 10 Hz on the iCub leg's 100 Hz ports imported silently, and the fit then asked for a longer
+    derivative window). At half the ports' rate, or the default 100 Hz, nothing is said."""
+    with pytest.warns(DataNote, match=r"yarp.rate 20 Hz keeps fewer than half of the ports' messages \(the slowest "
+                                      r"sends every 1\d.\d* ms"):
+        data = load_data(_dumper(tmp_path), _config(tmp_path, "  rate: 20\n" + PORTS))
+    assert np.allclose(np.diff(data.t), 0.05)
+    for name, rate in (("half", "  rate: 50\n"), ("default", "")):
+        (tmp_path / name).mkdir()
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", DataNote)
+            load_data(_dumper(tmp_path / name), _config(tmp_path / name, rate + PORTS))

@@ -55,6 +55,7 @@ from .csv_format import check_columns, table_dataset
 from .dataset import FT_CHANNELS, Dataset
 
 _GROUP = re.compile(r"\(([^()]*)\)")
+RATE_SHARE = 0.5  # a grid slower than half the slowest port's message rate is noted (the leg's 10 Hz on 100 Hz)
 
 
 def is_dumper_folder(path: Path) -> bool:
@@ -238,6 +239,12 @@ def read_yarp(path: str | Path, config: RobotConfig, joint_limits=None, require_
     for note in said:  # skipped: the run is shorter than its ports' logs, and why
         warnings.warn(DataNote(f"{root}: {note} (--bad-rows skip)"), stacklevel=3)
     streams = [Stream(port, log.stamps, log.values) for port, log in logs.items()]
+    slowest = max(float(np.median(np.diff(log.stamps))) for log in logs.values() if log.stamps.size > 1)
+    if slowest > 0 and layout.rate * slowest < RATE_SHARE:  # the grid throws most of every port's messages away
+        warnings.warn(DataNote(f"{root}: yarp.rate {layout.rate:g} Hz keeps fewer than half of the ports' "
+                               f"messages (the slowest sends every {1e3 * slowest:.3g} ms, {1 / slowest:.3g} Hz): the "
+                               "derivatives' window then spans few samples; set yarp.rate to the ports' rate"),
+                      stacklevel=3)
     grid = uniform_grid(str(root), streams, origin, layout.rate, layout.max_gap, "port", "yarp.max_gap")
     for log in logs.values():
         log.stamps = log.stamps - origin
