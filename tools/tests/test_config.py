@@ -116,7 +116,12 @@ MODEL_BAD = [
     ("payload frame not in the urdf", _set(["payload_frame"], "tool_flange"), "'payload_frame' names 'tool_flange'"),
     ("payload frame on the base", _set(["payload_frame"], "root_link"), "fixed to the base"),
     ("sensor named unlike the URDF", lambda d: (d.pop("can"), d["ft_sensors"][0].__setitem__("name", "r_arm_ftt")),
-     "the URDF names this sensor 'r_arm_ft'"),
+     "the URDF names the sensor at r_arm_ft_sensor 'r_arm_ft' (rename the sensor to it, or give the joint of yours)"),
+    # another sensor's joint (a walkthrough's leg config): the URDF says where the named sensor is
+    ("sensor at another sensor's joint",
+     lambda d: (d.pop("can"), d["ft_sensors"][0].__setitem__("joint", "l_arm_ft_sensor")),
+     "the URDF names the sensor at l_arm_ft_sensor 'l_arm_ft'; the URDF puts r_arm_ft at joint r_arm_ft_sensor: is that "
+     "its joint?"),
 ]
 
 

@@ -141,7 +141,11 @@ class RobotModel:
                 continue
             where = f"{config.name}: field 'ft_sensors' ({name} at {joint})"
             if tag.get("name") != name:
-                raise ConfigError(f"{where}: the URDF names this sensor '{tag.get('name')}'")
+                own = next((t.find("parent").get("joint") for t in tree.getroot().findall("sensor")
+                            if t.get("name") == name and t.find("parent") is not None), None)
+                hint = (f"; the URDF puts {name} at joint {own}: is that its joint?" if own else
+                        " (rename the sensor to it, or give the joint of yours)")
+                raise ConfigError(f"{where}: the URDF names the sensor at {joint} '{tag.get('name')}'{hint}")
             frame = tag.findtext("force_torque/frame", "child").strip()
             direction = tag.findtext("force_torque/measure_direction", "child_to_parent").strip()
             if frame != "child" or direction != "child_to_parent":
