@@ -556,7 +556,7 @@ bool parse_monitor_config(const std::string& text, const std::string& path, Moni
             return fail(error, path, ln, "bad 'buses' line (1 to " + std::to_string(kMaxBuses) + " bus names): " + lines[i]);
         buses_line = ln;
     }
-    if (!buses_line)  // the first thing of every configuration: without it, most likely not one at all
+    if (!buses_line)
         return fail(error, path, 0, "no 'buses' line (not an rt_monitor configuration? `dynid export --robot CFG "
                                     "--monitor-config FILE` writes one)");
     Parser p(path, out);

@@ -26,8 +26,8 @@ DYNID = Path(sys.executable).with_name("dynid")
 TIMEOUT_S = 120.0
 # What the forkserver imports once: every command group's module (dynid.cli.commands) and the heavy imports the
 # commands make lazily, so that a case pays only for the work it does.
-PRELOAD = ["dynid.cli", "dynid.cli.app", "dynid.cli.data", "dynid.cli.identify", "dynid.cli.report",
-           "dynid.cli.export", "dynid.cli.gaps", "dynid.cli.spy", "dynid.simulation", "dynid.pipeline",
+PRELOAD = ["dynid.cli", "dynid.cli.app", "dynid.cli.data", "dynid.cli.identify", "dynid.cli.detect",
+           "dynid.cli.report", "dynid.cli.export", "dynid.cli.gaps", "dynid.cli.spy", "dynid.simulation", "dynid.pipeline",
            "dynid.detect.evaluation", "scipy.signal", "lcm"]
 # Text that only a sanitizer (ASan, LSan, UBSan) writes.
 SANITIZER_MARKS = ("AddressSanitizer", "LeakSanitizer", "UndefinedBehaviorSanitizer", "runtime error:")

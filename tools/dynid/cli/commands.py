@@ -22,7 +22,7 @@ COMMANDS: dict[str, Command] = {
     "fit": Command("identify", "identify inertia, F/T offsets, friction and motor gains in one regression"),
     "fleet": Command("fleet", "runs of many robots of one kind: a model each, compared, the robot that stands out named"),
     "validate": Command("identify", "the paper's Table II on a validation experiment"),
-    "detect": Command("identify", "offline T² contact detection (momentum-observer and acceleration residuals combined) against ground truth or labels"),
+    "detect": Command("detect", "offline T² contact detection (momentum-observer and acceleration residuals combined) against ground truth or labels"),
     "report": Command("report", "the identification report: one HTML page with figures and tables"),
     "export": Command("export", "write the real-time monitor's coefficient file (or --print one), the identified robot as a URDF (--urdf), the robot's CAN bus as a DBC (--dbc) or the monitor's configuration (--monitor-config)"),
     "play": Command("play", "play a recorded run onto the robot's CAN bus (candump log, loopback, SocketCAN) as its bus description says"),

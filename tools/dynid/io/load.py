@@ -201,6 +201,11 @@ VELOCITY_CHECK_S = 0.05
 STILL_Q_TRAVEL = 4 * MOVING_SPEED  # a log's velocity that travels this fast (RMS) is judged even where q stays still
 
 
+def _stretches(step: float, size: int) -> np.ndarray:
+    """The first sample of each VELOCITY_CHECK_S stretch (at least 5 samples) of `size` samples `step` s apart."""
+    return np.arange(0, size, max(5, int(round(VELOCITY_CHECK_S / step))))
+
+
 class Agreement(NamedTuple):
     """A velocity column against its joint's positions, over stretches of `VELOCITY_CHECK_S`."""
 
@@ -217,8 +222,7 @@ def velocity_agreement(t: np.ndarray, q: np.ndarray, v: np.ndarray, rest: str = 
     step = float(np.median(np.diff(t))) if t.size > 1 else 0.0
     if not step > 0:
         return [None] * q.shape[1]  # fewer than two samples, or no time between them: nothing to judge
-    n = max(5, int(round(VELOCITY_CHECK_S / step)))
-    edges = np.arange(0, t.size, n)
+    edges = _stretches(step, t.size)
     if edges.size < 20:
         return [None] * q.shape[1]  # too short a run to judge
     integral = np.concatenate([np.zeros((1, v.shape[1])), np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None], 0)])
@@ -290,9 +294,8 @@ def quiet_inputs(config: RobotConfig, dataset: Dataset) -> list[str]:
     step = float(np.median(np.diff(t))) if t.size > 1 else 0.0
     if not step > 0:
         return []
-    n = max(5, int(round(VELOCITY_CHECK_S / step)))
     head = int(np.searchsorted(t, t[0] + INPUT_CHECK_S))
-    edges = np.arange(0, max(head, 1), n)
+    edges = _stretches(step, max(head, 1))
     if edges.size < 20:
         return []
     speed = np.sqrt(np.nanmean((np.diff(q[edges], axis=0) / np.diff(t[edges])[:, None]) ** 2, axis=0))
