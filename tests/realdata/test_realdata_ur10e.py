@@ -85,6 +85,27 @@ def test_unknown_gains_without_ft_or_payload_is_one_line(tmp_path: Path) -> None
     assert done.returncode == 2 and "--urdf PATH" in done.stderr and len(done.stderr.strip().splitlines()) == 1
 
 
+def test_gravity_given_the_wrong_way_is_named_without_an_ft_sensor(tmp_path: Path) -> None:
+    """The UR10e's configuration with gravity +z, as a user could write it: the currents fit as well (their torques
+    are what the data fix), every body's gravity terms turned. Its fitted gravity torques run against the CAD's
+    (measured slope −0.89, correlation −1.00; the right way 0.89 and 1.00), named first among the warnings."""
+    import dynid
+
+    bundled = Path(dynid.__file__).parent / "config" / "robots" / "ur10e_known_gains.yaml"
+    text = bundled.read_text()
+    assert "gravity: [0.0, 0.0, -9.81]" in text
+    up = tmp_path / "ur10e_up.yaml"
+    up.write_text(text.replace("gravity: [0.0, 0.0, -9.81]", "gravity: [0.0, 0.0, 9.81]"))
+    for cfg, wrong in ((up, True), ("ur10e_known_gains", False)):
+        done = run("fit", "--robot", cfg, *urdf(), "--data", PAIR[0], "--out", tmp_path / "m.json")
+        assert done.returncode == 0, done.stderr
+        warned = [line.strip() for line in done.stdout.splitlines() if "gravity torques run against" in line]
+        assert len(warned) == wrong, done.stdout
+        if wrong:
+            assert "gravity's direction in the configuration right" in warned[0]
+            assert done.stdout.index(warned[0]) < done.stdout.index("inertia about the centre of mass")
+
+
 def test_point_to_point_validation_against_the_repositorys_figures(tmp_path: Path) -> None:
     """The repository's published parameters give 6.61 % on samples 700-4200 of ptp_10_points; dynid's model with
     the known gains and the load-dependent friction the gap workflow names gives less."""

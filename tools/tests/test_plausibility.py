@@ -91,3 +91,25 @@ def test_a_negative_mass_beyond_a_sensor_names_gravitys_direction(arm: RobotMode
     assert [(f["sensor"], f["problem"]) for f in found] == [("r_arm_ft", "distal_mass")]
     assert found[0]["mass_kg"] == pytest.approx(-cad_mass) and found[0]["cad_kg"] == pytest.approx(cad_mass)
     assert implausible(arm, flipped)[0] == found[0]
+
+
+def test_gravity_torques_against_the_cads_name_gravitys_direction(arm: RobotModel) -> None:
+    """A fit on joint torques, currents or PWM under the opposite gravity reproduces the measured torques with every
+    body's gravity terms turned: its gravity torques run against the CAD's (slope and correlation near −1; the UR10e
+    and the Panda given +z: −0.89 and −0.93, tests/realdata/test_realdata_ur10e.py), which no F/T sensor is needed to
+    see. The CAD itself, and a fit near it, pass."""
+    from dynid.identify.plausibility import gravity_torques
+
+    phi = arm.cad_parameters()
+    assert gravity_torques(arm, phi) == []
+    inertial = arm.layout.span("inertial")
+    near = phi.copy()
+    near[inertial] *= np.random.default_rng(1).uniform(0.6, 1.4, inertial.stop - inertial.start)
+    assert gravity_torques(arm, near) == []
+    flipped = phi.copy()
+    flipped[inertial] = -phi[inertial]
+    found = gravity_torques(arm, flipped)
+    assert [f["problem"] for f in found] == ["gravity"]
+    assert found[0]["slope"] == pytest.approx(-1.0) and found[0]["correlation"] == pytest.approx(-1.0)
+    assert "gravity's direction" in found[0]["text"]
+    assert [f["problem"] for f in implausible(arm, flipped)][:2] == ["distal_mass", "gravity"]
