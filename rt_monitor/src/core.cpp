@@ -508,6 +508,17 @@ void Core::detect(double threshold, const std::array<double, kMaxSensors>& ft_th
             above_run_ = 0;
         }
     }
+    out_.peak_now = out_.in_contact && (out_.event == Event::kOnset || t2 > out_.peak.t2);
+    if (out_.peak_now) {  // fixed-size copies: a handful a contact, on its way up
+        Output::Peak& pk = out_.peak;
+        pk.t2 = t2;
+        pk.e = out_.p.e;
+        pk.active = out_.p.active;
+        pk.side = out_.side;
+        pk.wrench = out_.wrench;
+        pk.tau_ext = out_.tau_ext;
+        pk.joint = out_.joint;
+    }
 }
 
 }  // namespace dynid::rt

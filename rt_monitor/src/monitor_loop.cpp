@@ -39,11 +39,12 @@ void MonitorLoop::step(const Sample& x) noexcept {
     if (dt > period_us_) ++n_.overruns;
     ++n_.evaluated;
     dog_.evaluated(o, x.t_us);
+    if (o.peak_now) peak_utime_ = x.t_us;
     if (o.event != Event::kNone) {
         ++n_.events;
         ++(o.event == Event::kOnset ? n_.onsets : n_.ends);
         if (o.event == Event::kOnset) onset_utime_ = x.t_us;
-        pub_.contact(o, x.t_us, onset_utime_, n_.evaluated - 1);
+        pub_.contact(o, x.t_us, onset_utime_, peak_utime_, n_.evaluated - 1);
         if (o.event == Event::kOnset && latency_.size() < latency_.capacity()) latency_.push_back(mono_us() - rx_mono_);
     }
     if (o.ready && n_.evaluated % cfg_.residual_every == 0) pub_.residual(o, x.t_us);

@@ -58,24 +58,34 @@ void Publisher::send(Channel channel, const Message& msg) noexcept {
     else ++failed_;
 }
 
-void Publisher::normalized(std::vector<double>& r, const Output& o) const noexcept {
-    for (int i = 0; i < coef_.n_outputs; ++i) r[size_t(i)] = o.p.active[size_t(i)] ? o.p.e[i] / sigma_[size_t(i)] : 0.0;
+void Publisher::normalized(std::vector<double>& r, const VecO& e, const std::array<bool, kMaxOutputs>& active) const noexcept {
+    for (int i = 0; i < coef_.n_outputs; ++i) r[size_t(i)] = active[size_t(i)] ? e[i] / sigma_[size_t(i)] : 0.0;
 }
 
-void Publisher::contact(const Output& o, int64_t t_us, int64_t onset_utime, int64_t sample) noexcept {
+void Publisher::contact(const Output& o, int64_t t_us, int64_t onset_utime, int64_t peak_utime,
+                        int64_t sample) noexcept {
     event_.utime = t_us;
     event_.kind = int8_t(o.event);
     event_.onset_utime = onset_utime;
     event_.sample = sample;
     event_.t2 = o.p.t2;
-    normalized(event_.normalized_residual, o);
+    // An onset: its own sample. An end: the contact's strongest, as dynid detect's events describe theirs (at the end
+    // sample itself T² is back under the level, and every side unknown).
+    const bool end = o.event == Event::kEnd;
+    event_.peak_utime = end ? peak_utime : t_us;
+    event_.peak_t2 = end ? o.peak.t2 : o.p.t2;
+    normalized(event_.normalized_residual, end ? o.peak.e : o.p.e, end ? o.peak.active : o.p.active);
+    const auto& side = end ? o.peak.side : o.side;
+    const auto& wrench = end ? o.peak.wrench : o.wrench;
     for (int k = 0; k < coef_.n_sensors; ++k) {
-        event_.side[size_t(k)] = int8_t(o.side[size_t(k)]);
-        for (int m = 0; m < 6; ++m) event_.wrench[size_t(k)][size_t(m)] = o.wrench[size_t(k)][m];
+        event_.side[size_t(k)] = int8_t(side[size_t(k)]);
+        for (int m = 0; m < 6; ++m) event_.wrench[size_t(k)][size_t(m)] = wrench[size_t(k)][m];
     }
-    for (int j = 0; j < coef_.n_joints; ++j) event_.tau_ext[size_t(j)] = o.tau_ext[j];
-    event_.isolated_joint = o.joint;
-    if (o.joint >= 0) event_.isolated_link.assign(link_of_joint_[size_t(o.joint)]);  // within its capacity
+    const VecJ& tau_ext = end ? o.peak.tau_ext : o.tau_ext;
+    for (int j = 0; j < coef_.n_joints; ++j) event_.tau_ext[size_t(j)] = tau_ext[j];
+    const int joint = end ? o.peak.joint : o.joint;
+    event_.isolated_joint = joint;
+    if (joint >= 0) event_.isolated_link.assign(link_of_joint_[size_t(joint)]);  // within its capacity
     else event_.isolated_link.clear();
     send(kContact, event_);
 }
@@ -83,7 +93,7 @@ void Publisher::contact(const Output& o, int64_t t_us, int64_t onset_utime, int6
 void Publisher::residual(const Output& o, int64_t t_us) noexcept {
     residual_.utime = t_us;
     residual_.t2 = o.p.t2;
-    normalized(residual_.normalized_residual, o);
+    normalized(residual_.normalized_residual, o.p.e, o.p.active);
     send(kResidual, residual_);
 }
 

@@ -366,6 +366,50 @@ TEST(Detector, DebounceHysteresisAndSide) {
     EXPECT_EQ(end, first_low + 19) << "end after 20 consecutive samples below the end level";
 }
 
+TEST(Detector, AnEndReportsTheContactsStrongestSample) {
+    // A contact first seen on a motor channel alone (proximal of the sensor), then growing beyond the sensor (its fx):
+    // the onset describes its own sample, the end the strongest one, as dynid detect's events take their peak.
+    Scenario s;
+    s.core->set_detector({5, 20, 0.5});
+    VecO motor = VecO::Zero(), both = VecO::Zero();
+    motor[9] = 3.0 * std::sqrt(s.c->threshold * s.c->variance[9]);
+    both = motor;
+    both[0] = 6.0 * std::sqrt(s.c->threshold * s.c->variance[0]);
+    int k = 0;
+    for (; k < 100; ++k) s.step(k, VecO::Zero());
+    double strongest = 0;
+    Vec6 wrench_there = Vec6::Zero();
+    bool onset_seen = false;
+    for (; k < 400; ++k) {
+        const Output& o = s.step(k, k < 200 ? motor : both);
+        if (o.event == Event::kOnset) {
+            onset_seen = true;
+            EXPECT_EQ(o.side[0], Side::kProximal);
+            EXPECT_TRUE(o.peak_now);
+        }
+        if (o.in_contact && o.p.t2 > strongest) {
+            EXPECT_TRUE(o.peak_now) << k;
+            strongest = o.p.t2;
+            wrench_there = o.wrench[0];
+        } else {
+            EXPECT_FALSE(o.peak_now && o.event != Event::kOnset) << k;
+        }
+    }
+    ASSERT_TRUE(onset_seen);
+    bool ended = false;
+    for (; k < 600 && !ended; ++k) {
+        const Output& o = s.step(k, VecO::Zero());
+        if (o.event != Event::kEnd) continue;
+        ended = true;
+        EXPECT_EQ(o.side[0], Side::kNone) << "the end sample itself is under the level";
+        EXPECT_EQ(o.peak.side[0], Side::kDistal);
+        EXPECT_EQ(o.peak.t2, strongest);
+        EXPECT_EQ((o.peak.wrench[0] - wrench_there).norm(), 0.0);
+        EXPECT_GT(o.peak.wrench[0][0], 0.5 * both[0]);
+    }
+    EXPECT_TRUE(ended);
+}
+
 TEST(Detector, MotorChannelsAloneMeanProximal) {
     Scenario s;
     VecO push = VecO::Zero();

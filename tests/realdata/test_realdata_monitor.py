@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from dynid.config.robot_config import load_config
-from dynid.detect.t2 import debounced_events
+from dynid.detect.t2 import debounced_events, episode_peaks
 from dynid.export.coefficients import read_coefficients
 from dynid.export.known_answers import answers
 from dynid.export.monitor_log import read_lcm_log
@@ -154,6 +154,15 @@ def test_a_real_run_through_the_monitor_is_the_core_on_the_decoded_samples(robot
         evaluated = np.where(out[:, 0] > 0, out[:, cols["t2"]], np.nan)  # column 0: the core ready (it detects)
         debounced = debounced_events(evaluated, 1.0, c.debounce_on, c.debounce_off, c.hysteresis)
         assert [e for k, j in debounced for e in ((k, 1), (j, 2)) if e[0] is not None] == monitor_events
+        # An end event describes its contact's strongest sample: monitor_events' peaks_s, the core's T² and sides there
+        peaks = episode_peaks(evaluated, debounced)
+        ends = [m for m in msgs.get("DYNID_CONTACT", []) if m.kind == 2]
+        assert [round((m.peak_utime - T0_US) / period_us) for m in ends] == [p for p, (_, j) in zip(peaks, debounced)
+                                                                             if j is not None]
+        for m in ends:
+            k = round((m.peak_utime - T0_US) / period_us)
+            assert m.peak_t2 == pytest.approx(out[k, cols["t2"]], rel=1e-9) and m.peak_t2 > m.threshold
+            assert list(m.side) == [int(x) for x in out[k, cols["side"]]]
     if c.residual == 2 and robot == "ur10e_known_gains":
         # The core's combined statistic is dynid's (its Python mirror, dynid.export.known_answers) on every decoded
         # sample: the UR10e has no F/T rows, so where the arm rests every row rests and s is the observer's alone.

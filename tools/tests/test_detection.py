@@ -113,28 +113,36 @@ def test_an_episode_found_by_one_sample_above_is_not_a_sustained_onset() -> None
     assert slow["episodes_sustained"] == {"samples": 1, "found": 2}
 
 
-def _core_detect(t2: np.ndarray, threshold: float, on: int, off: int, hysteresis: float) -> list[tuple[int, int]]:
-    """rt_monitor's Core::detect transcribed sample by sample (rt_monitor/src/core.cpp): (sample, 1 onset / 2 end)."""
-    out, in_contact, above, below = [], False, 0, 0
+def _core_detect(t2: np.ndarray, threshold: float, on: int, off: int,
+                 hysteresis: float) -> tuple[list[tuple[int, int]], list[int]]:
+    """rt_monitor's Core::detect transcribed sample by sample (rt_monitor/src/core.cpp): (sample, 1 onset / 2 end),
+    and each contact's peak (the sample its end event describes)."""
+    out, peaks, in_contact, above, below, peak_t2 = [], [], False, 0, 0, 0.0
     for k, x in enumerate(t2):
+        event = 0
         if not in_contact:
             above = above + 1 if x > threshold else 0
             if above >= on:
-                in_contact, below = True, 0
+                in_contact, below, event = True, 0, 1
                 out.append((k, 1))
         else:
             below = below + 1 if x < hysteresis * threshold else 0
             if below >= off:
                 in_contact, above = False, 0
                 out.append((k, 2))
-    return out
+        if in_contact and (event == 1 or x > peak_t2):
+            peak_t2 = x
+            if event == 1:
+                peaks.append(k)
+            peaks[-1] = k
+    return out, peaks
 
 
 @pytest.mark.parametrize("seed", range(6))
 def test_offline_events_are_the_monitors_debounce_and_hysteresis(seed: int) -> None:
     """`dynid detect`'s monitor_events: the same onsets and ends as the monitor's per-sample state machine, on
     statistics that dwell near both levels (bursts, dips under the end level, NaN) with short and long counts."""
-    from dynid.detect.t2 import debounced_events
+    from dynid.detect.t2 import debounced_events, episode_peaks
 
     rng = np.random.default_rng(seed)
     n = 5000
@@ -144,7 +152,9 @@ def test_offline_events_are_the_monitors_debounce_and_hysteresis(seed: int) -> N
     for on, off, hysteresis in ((1, 1, 1.0), (10, 100, 0.5), (3, 7, 0.3), (25, 2, 0.9)):
         got = debounced_events(t2, 1.0, on, off, hysteresis)
         flat = [e for k, j in got for e in ((k, 1), (j, 2)) if e[0] is not None]
-        assert flat == _core_detect(t2, 1.0, on, off, hysteresis)
+        events, peaks = _core_detect(t2, 1.0, on, off, hysteresis)
+        assert flat == events
+        assert episode_peaks(t2, got) == peaks
         assert len(got) > 0
     assert debounced_events(np.zeros(10), 1.0, 1, 1, 0.5) == []
     assert debounced_events(np.full(10, 2.0), 1.0, 3, 1, 0.5) == [(2, None)]  # in contact at the end

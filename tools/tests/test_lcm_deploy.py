@@ -241,6 +241,11 @@ def test_spy_view_shows_events_status_and_rates(run: dict) -> None:
     want = [(f"{(m.utime - t0) * 1e-6:.3f} s", {1: "onset", 2: "end"}[m.kind], f"T² {m.t2:9.1f}")
             for m in msgs["DYNID_CONTACT"]]
     assert [(l.split("  contact")[0].strip(), l.split()[3], "T² " + l.split("T² ")[1][:9]) for l in events] == want
+    # An end names the peak its sides and torques describe
+    ends = [m for m in msgs["DYNID_CONTACT"] if m.kind == 2]
+    assert ends and [l.split("  peak ")[1].split(":")[0] for l in events if " end " in l] == [
+        f"T² {m.peak_t2:.1f} at {(m.peak_utime - t0) * 1e-6:.3f} s" for m in ends]
+    assert all(m.onset_utime <= m.peak_utime < m.utime and m.peak_t2 > m.threshold for m in ends)
     # A status line a second of CAN time; the replayed boards' rates: 14 frames a sample at 1 kHz.
     status = [l for l in out if "frames/s" in l]
     assert len(status) >= 4

@@ -61,7 +61,7 @@ private:
     Sample sample_;
     LoopCounters n_;
     double period_us_ = 0, rx_mono_ = 0, loop_sum_ = 0, loop_max_ = 0;
-    int64_t loop_n_ = 0, onset_utime_ = 0;
+    int64_t loop_n_ = 0, onset_utime_ = 0, peak_utime_ = 0;
     LatencyHistogram processing_, response_;
     std::vector<double> latency_;
 };

@@ -26,7 +26,8 @@ public:
     Publisher(lcm::LCM& lcm, const Coefficients& coef, const Core& core);
 
     // A contact event (onset or end) of the core's output at CAN time t_us, sample `sample` of the run.
-    void contact(const Output& o, int64_t t_us, int64_t onset_utime, int64_t sample) noexcept;
+    // An onset describes its own sample; an end, the contact's strongest (o.peak, at peak_utime).
+    void contact(const Output& o, int64_t t_us, int64_t onset_utime, int64_t peak_utime, int64_t sample) noexcept;
     // One sample of the decimated residual stream.
     void residual(const Output& o, int64_t t_us) noexcept;
     // The status, whose counters the caller has filled (status()); the supply ratios are the core's.
@@ -41,7 +42,7 @@ public:
 private:
     template <class Message>
     void send(Channel channel, const Message& msg) noexcept;
-    void normalized(std::vector<double>& r, const Output& o) const noexcept;
+    void normalized(std::vector<double>& r, const VecO& e, const std::array<bool, kMaxOutputs>& active) const noexcept;
 
     lcm::LCM& lcm_;
     const Coefficients& coef_;

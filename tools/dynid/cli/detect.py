@@ -16,7 +16,7 @@ from ..detect.evaluation import detection
 from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S
 from ..detect.momentum_t2 import (alarm_runs, calibration_runs, momentum_detection, stored_detector,
                                   stored_in_sample)
-from ..detect.t2 import ALPHA, debounced_events
+from ..detect.t2 import ALPHA, debounced_events, episode_peaks
 from ..errors import DataError, InputError
 from ..identify.model_sections import DEFAULT_N_MODE, N_MODES
 from ..identify.validation import evaluate
@@ -58,7 +58,8 @@ def monitor_events(t: np.ndarray, combined, momentum, found) -> dict[str, Any] |
     events = debounced_events(statistic, level, settings.debounce_on, settings.debounce_off, settings.hysteresis)
     return {"residual": variant, "debounce_on": settings.debounce_on, "debounce_off": settings.debounce_off,
             "hysteresis": settings.hysteresis, "onsets_s": [float(t[k]) for k, _ in events],
-            "ends_s": [None if j is None else float(t[j]) for _, j in events]}
+            "ends_s": [None if j is None else float(t[j]) for _, j in events],
+            "peaks_s": [float(t[k]) for k in episode_peaks(statistic, events)]}
 
 
 MISFIT_FPR = 0.5  # every detector above its level on more than half of the contact-free samples: not a contact

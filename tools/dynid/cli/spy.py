@@ -122,8 +122,11 @@ class View:
 
     def event(self, m: Any) -> None:
         """An onset or end: T², then every sensor's side and residual wrench, the isolated link and the largest
-        external joint torques (the event carries all of them: `--json` prints each field)."""
+        external joint torques (the event carries all of them: `--json` prints each field); an end's describe its
+        contact's strongest sample, the peak it names."""
         line = f"{self._t(m.utime):10.3f} s  contact {KIND.get(m.kind, m.kind):5}  T² {m.t2:9.1f} (threshold {m.threshold:.1f})"
+        if m.kind == 2:
+            line += f"  peak T² {m.peak_t2:.1f} at {self._t(m.peak_utime):.3f} s:"
         for name, side, w in zip(m.sensor, m.side, m.wrench):
             line += (f"  {name}: {SIDE.get(side, side)} F [{w[0]:7.2f} {w[1]:7.2f} {w[2]:7.2f}] N "
                      f"τ [{w[3]:6.3f} {w[4]:6.3f} {w[5]:6.3f}] Nm")

@@ -298,6 +298,14 @@ def debounced_events(statistic: np.ndarray, threshold: float, on: int, off: int,
     return events
 
 
+def episode_peaks(statistic: np.ndarray, events: Sequence[tuple[int, int | None]]) -> list[int]:
+    """The sample each of `debounced_events`' contacts peaks at, which the monitor's end event describes (its sides,
+    wrenches, external torques, isolated link: rt_monitor's Core::detect): the first largest statistic from the onset
+    to the sample before the end (to the last sample where it does not end); NaN never."""
+    statistic = np.where(np.isnan(statistic), -np.inf, np.asarray(statistic, float))
+    return [k + int(np.argmax(statistic[k : statistic.size if j is None else j])) for k, j in events]
+
+
 def episode_onsets(t: np.ndarray, alarm: np.ndarray, contact: np.ndarray, k: int = 1) -> list[float | None]:
     """Each contact episode's delay from its start to its first alarm sample (with `k` > 1, of an alarm sustained
     for `k` samples: `sustained`), None where it has none."""
