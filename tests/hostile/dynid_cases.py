@@ -3,9 +3,12 @@ code 2, one line `dynid COMMAND: error: ...` on stderr, and nothing written (tes
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from .case import Case, Maker, accepted, dynid, unreadable
+from .fixtures import ROBOT_YAML
 from .run import ROOT
 from .inputs import (
     DELETE,
@@ -328,6 +331,12 @@ FLAGS = [
           says="(--json): it exists and is not a regular file"),
     dynid("import-out-onto-its-input", "import", "--data", "{in}/data.csv", "--out", "{in}/data.csv",
           says="(--out): it is the input --data", make=csv()),
+    # Found by the TIAGo walkthrough: --out onto the robot's configuration or its URDF replaced it, exit 0.
+    dynid("fit-out-onto-its-robot-configuration", "fit", "--robot", "{in}/cfg.yaml", "--data", "{ident}", "--out",
+          "{in}/cfg.yaml", says="(--out): it is the input --robot", make=raw("cfg.yaml", ROBOT_YAML.read_bytes())),
+    dynid("fit-json-onto-its-urdf", "fit", "--urdf", "{in}/arm.urdf", "--data", "{ident}", "--out", "{out}/m.json",
+          "--json", "{in}/arm.urdf", says="(--json): it is the input --urdf",
+          make=lambda fx, d: (d / "arm.urdf").write_bytes(_arm_urdf().read_bytes())),
     dynid("fit-out-and-json-one-file", "fit", "--data", "{ident}", "--out", "{out}/m.json", "--json", "{out}/m.json",
           says="--out and --json name the same file"),
     dynid("fit-out-onto-a-directory", "fit", "--data", "{ident}", "--out", "{out}", says="it exists and is not a regular file"),
@@ -489,3 +498,9 @@ FLAGS = [
                    make=lcm_foreign), says="DYNID_STATUS: a message that is not a monitor_status_t, skipped",
              prints="40 that do not decode skipped"),
 ]
+
+
+def _arm_urdf() -> Path:
+    from dynid.config.robot_config import load_config
+
+    return Path(load_config("icub_right_arm").urdf)

@@ -44,6 +44,7 @@ class Staging:
     temporaries: list[Path] = field(default_factory=list)  # every temporary file or directory made, ready or not
     made: list[Path] = field(default_factory=list)  # output directories made, parents first
     labels: dict[str, str] = field(default_factory=dict)  # an output's real path -> how the command names it
+    inputs: dict[str, str] = field(default_factory=dict)  # a file the command reads (real path) -> what it is
     closed: bool = False
 
     def commit(self) -> None:
@@ -146,6 +147,14 @@ def label(path: str | Path, name: str) -> None:
         s.labels[os.path.realpath(path)] = name
 
 
+def note_input(path: str | Path, what: str) -> None:
+    """Name a file the command reads that no option of its names outright ('the robot configuration', its URDF): an
+    output on it is refused (exit 2, nothing written) instead of replacing it."""
+    s = _active()
+    if s is not None and str(path):
+        s.inputs.setdefault(os.path.realpath(path), what)
+
+
 def _named(path: Path, s: Staging | None) -> str:
     name = s.labels.get(os.path.realpath(path)) if s is not None else None
     return f"'{path}'" + (f" ({name})" if name else "")
@@ -162,6 +171,8 @@ def _check_target(path: Path, s: Staging | None) -> None:
         raise DataError(f"cannot write {_named(path, s)}: the directory {path.parent} does not exist")
     if path.exists() and not path.is_file():  # never replace a directory, a device or a pipe
         raise DataError(f"cannot write {_named(path, s)}: it exists and is not a regular file")
+    if s is not None and (what := s.inputs.get(os.path.realpath(path))):
+        raise DataError(f"cannot write {_named(path, s)}: it is {what}, which the command reads")
 
 
 def atomic_write(path: str | Path, write: Callable[[BinaryIO], None]) -> None:

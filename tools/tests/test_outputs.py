@@ -72,3 +72,26 @@ def test_a_file_system_without_hard_links_still_takes_the_outputs(tmp_path: Path
 def test_unstaged_writes_are_in_place_at_once(tmp_path: Path) -> None:
     atomic_write(tmp_path / "x", text(b"X"))
     assert (tmp_path / "x").read_bytes() == b"X" and [p.name for p in tmp_path.iterdir()] == ["x"]
+
+
+def test_an_output_on_a_file_the_command_read_through_its_configuration_is_refused(tmp_path: Path) -> None:
+    """The robot configuration and its URDF are read without an option naming them (a model file's robot, a
+    configuration's `urdf`): an output on either is refused at its write, and the command leaves nothing (a TIAGo
+    walkthrough's `export --model M --urdf` onto the configuration's own URDF replaced it, exit 0, and the model
+    could no longer be read: its URDF digest no longer matched)."""
+    from dynid.config.robot_config import load_config
+
+    config = tmp_path / "cfg.yaml"
+    config.write_text(Path(load_config("icub_right_arm").source).read_text())
+    urdf = Path(load_config("icub_right_arm").urdf)
+    before = urdf.read_bytes()
+    for target, what in ((config, "the robot configuration"), (urdf, "icub_right_arm's URDF")):
+        with pytest.raises(DataError, match=f"it is {what}, which the command reads"), staged():
+            load_config(config)
+            atomic_write(tmp_path / "other.json", text(b"A"))
+            atomic_write(target, text(b"B"))
+        assert not (tmp_path / "other.json").exists()
+    assert urdf.read_bytes() == before and config.read_text().startswith("#")
+    with staged():  # outside a command that read it, the file is an output like any
+        atomic_write(config, text(b"C"))
+    assert config.read_bytes() == b"C"

@@ -59,6 +59,10 @@ def write_json(result: dict[str, Any], target: str | None) -> None:
 OUTPUT_OPTIONS: tuple[str, ...] = ("out", "json", "figures")
 DIRECTORY_OUTPUTS: frozenset[tuple[str, str]] = frozenset({("simulate", "out"), ("gaps", "figures"), ("fleet", "out")})
 INPUT_OPTIONS: tuple[str, ...] = ("data", "model", "validation", "contact", "truth", "trajectory")
+# Inputs of some commands that may name a bundled configuration or an output of another (export's --urdf): an input
+# where they name a file that exists, and the command does not write them. (The configuration and URDF a command
+# reaches through a model file are refused at the write: dynid.outputs.note_input.)
+FILE_INPUT_OPTIONS: tuple[str, ...] = ("robot", "urdf", "episodes", "calibration", "steps_from")
 
 
 def check_outputs(args: argparse.Namespace, extra: dict[str, str] | None = None) -> None:
@@ -75,11 +79,13 @@ def check_outputs(args: argparse.Namespace, extra: dict[str, str] | None = None)
     command = getattr(args, "command", "")
     seen: dict[str, str] = {}
     inputs: dict[str, str] = {}
-    for option in INPUT_OPTIONS:
+    for option in INPUT_OPTIONS + FILE_INPUT_OPTIONS:
+        if option in (extra or {}):  # written by this command
+            continue
         given = getattr(args, option, None)
         for value in given if isinstance(given, list) else [given]:
-            if isinstance(value, str) and value:
-                inputs.setdefault(os.path.realpath(value), option)
+            if isinstance(value, (str, Path)) and str(value) and (option in INPUT_OPTIONS or os.path.isfile(value)):
+                inputs.setdefault(os.path.realpath(value), option.replace("_", "-"))
     outputs = [(option, getattr(args, option, None)) for option in OUTPUT_OPTIONS] + list((extra or {}).items())
     for option, value in outputs:
         if not isinstance(value, str) or (option == "json" and value == "-"):

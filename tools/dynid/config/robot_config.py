@@ -19,6 +19,7 @@ import numpy as np
 import yaml
 
 from ..errors import ConfigError
+from ..outputs import note_input
 from .bus import BusDescription, parse_bus
 from .fields import Fields, as_float, shown
 from .icub_bus import icub_bus
@@ -372,11 +373,15 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     else:
         bus = None
 
+    note_input(path, "the robot configuration")
+    resolved = resolve_urdf(f, path.parent, urdf) if need_urdf else urdf_if_found(f, path.parent, urdf)
+    if str(resolved):
+        note_input(resolved, f"{name}'s URDF")
     return RobotConfig(
         name=name,
         source=str(path),
         digest=hashlib.sha256(text).hexdigest(),
-        urdf=resolve_urdf(f, path.parent, urdf) if need_urdf else urdf_if_found(f, path.parent, urdf),
+        urdf=resolved,
         base_link=f.string("base_link"),
         gravity=g_arr,
         gravity_imu=imu_frame,
