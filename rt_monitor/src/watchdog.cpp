@@ -32,6 +32,7 @@ void Watchdog::init(const MonitorConfig& cfg, const Coefficients& coef, const As
     set_ = settings;
     set_.period_samples = std::clamp(set_.period_samples, 3, int(spacing_.size()));
     blind_us_ = int64_t(set_.blind_periods * coef.sample_period * 1e6);
+    fit_samples_ = std::max(kMinFitSamples, int(std::lround(set_.fit_s / coef.sample_period)));
     // A sample's frames: those sent every sample (period 0 or one sample period). A pause of the sender mid-sample is
     // not blindness; blind_periods samples' worth of frames with no sample is.
     int per_sample = 0;
@@ -120,9 +121,9 @@ void Watchdog::evaluated(const Output& o, int64_t t_us) noexcept {
     unpaired_at_eval_ = c.unpaired_strain;
     samples_at_eval_ = c.samples;
     if (!o.ready) return;
-    if (fit_evaluated_ < set_.fit_samples) {
+    if (fit_evaluated_ < fit_samples_) {
         fit_above_ += o.above;
-        if (++fit_evaluated_ == set_.fit_samples && 4 * fit_above_ > 3 * fit_evaluated_) {
+        if (++fit_evaluated_ == fit_samples_ && 4 * fit_above_ > 3 * fit_evaluated_) {
             std::snprintf(text(kStartFit), 256, "T² above T²_α on %d of the first %d samples (α allows %.2g %%): the "
                           "model or the configuration does not fit this robot (or it was touched all through the start)",
                           fit_above_, fit_evaluated_, 100 * (1 - coef_->alpha));

@@ -245,3 +245,33 @@ def test_the_whole_panda_log_exports_though_it_misses_samples(tmp_path: Path) ->
     # The combined detector too, calibrated on the pieces the monitor takes (its pairing needs uniform samples): the
     # export's default. Before, it was not carried and the export fell back to the acceleration residuals.
     assert c.combined_scale > 0 and c.residual == 2
+
+
+def test_a_bus_read_in_the_wrong_byte_order_is_a_start_fit_fault_within_seconds(fitted, tmp_path: Path) -> None:
+    """A monitor configuration whose current signals are read in the other byte order (a lab's own bus description,
+    one word wrong): every value plausible, T² above T²_α from the start. The start-fit fault comes after 4 s of the
+    file's samples (400 at the UR10e's 100 Hz); counted as 4000 samples whatever the rate, it came after 40 s (a
+    walkthrough's own CAN robot, its bus read in the wrong byte order: in contact from 0.3 s, the fault at 40.3 s)."""
+    if not REALDATA.is_dir():
+        pytest.skip(f"real robot data not found at {REALDATA} (clone shared/ beside the repository)")
+    urdf = ("--urdf", REALDATA / "ur10e_mamedov" / "ur10e.urdf")
+    model = fitted("--robot", "ur10e_known_gains", *urdf, *(a for r in UR10E_EXCITATION for a in ("--data", REALDATA / r)),
+                   "--bad-rows", "skip", "--consistent", "off")
+    coef, log, conf = (tmp_path / n for n in ("model.dcoef", "run.log", "monitor.conf"))
+    data = REALDATA / "ur10e_mamedov" / "identification" / "ur-20_02_12-50sec_12harm.csv"
+    for step in (("export", "--model", model, "--out", coef),
+                 ("export", "--robot", "ur10e_known_gains", *urdf, "--monitor-config", conf, "--lcm-url",
+                  f"file://{tmp_path / 'm.lcmlog'}?mode=w"),
+                 ("play", "--robot", "ur10e_known_gains", *urdf, "--data", data, "--sink", f"candump:{log}",
+                  "--stamps", "nominal")):
+        done = cli.run(*step)
+        assert done.returncode == 0, done.stderr
+    text = conf.read_text()
+    # bytes 6-7 of each frame, little-endian from bit 48: the same bytes big-endian start at their first byte's MSB, 55
+    swapped = re.sub(r"^(signal \S+ )48 16 le( s \S+ \S+ current\.)", r"\g<1>55 16 be\2", text, flags=re.M)
+    assert swapped.count(" 55 16 be s ") == 6, text
+    conf.write_text(swapped)
+    done = run(RT_MONITOR, "--model", coef, "--config", conf, "--replay", log)
+    assert "fault: model does not fit at start: T² above T²_α on" in done.stderr, done.stderr
+    assert round(4.0 / read_coefficients(coef).sample_period) == 400
+    assert "on 400 of the first 400 samples" in done.stderr, done.stderr

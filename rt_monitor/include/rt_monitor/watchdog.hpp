@@ -9,7 +9,7 @@
 //   kJointRange a decoded joint position left its range by `range_margin` (a wrong encoder scale or zero);
 //   kStopped    a live source delivered nothing for a second after frames flowed;
 //   kDutyRange  a PWM channel's duty beyond ±1 by `duty_margin` (a wrong PWM scale or offset);
-//   kStartFit   T² above T²_α on more than three quarters of the first `fit_samples` evaluated samples: the model or the
+//   kStartFit   T² above T²_α on more than three quarters of the first `fit_s` seconds' evaluated samples: the model or the
 //               configuration does not fit this robot (or it was touched all through the start).
 // Faults are a bitmask on the status message (`faults`, and `faults_seen` since the start); each one raised is one
 // line on stderr with its reason, written once from a buffer sized at start-up (no allocation in the loop).
@@ -46,7 +46,8 @@ struct WatchdogSettings {
     double range_margin = 0.2;     // rad (or m) beyond a joint's range before a position is implausible
     int range_samples = 10;        // consecutive samples out of range before the fault
     double duty_margin = 0.05;     // beyond ±1 duty
-    int fit_samples = 4000;        // the start-up block (4 s at 1 kHz) whose T² is checked against T²_α
+    double fit_s = 4.0;            // the start-up block (s of samples at the file's period) whose T² is checked
+                                   // against T²_α: 4000 samples at 1 kHz, 400 at 100 Hz (a count, 40 s there)
 };
 
 class Watchdog {
@@ -103,7 +104,9 @@ private:
     int out_of_range_ = 0;
     std::array<bool, kMaxOutputs> is_pwm_{};
     int duty_out_ = 0;
-    int fit_evaluated_ = 0, fit_above_ = 0;
+    // At least this many samples however fast the file: three quarters of them above T²_α is not chance at any α
+    static constexpr int kMinFitSamples = 100;
+    int fit_samples_ = 4000, fit_evaluated_ = 0, fit_above_ = 0;
     std::array<std::array<char, 256>, kFaultKinds> reasons_{};
 };
 
