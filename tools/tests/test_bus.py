@@ -112,6 +112,10 @@ REFUSED = {
     "a period under the rate's": (lambda b: _frame(b, "TPDO1_2").update(period_ms=0.5),
                                   "field 'bus.frames[1].period_ms' must be one sample period (1 ms) to 60000 ms"),
     "a stale_ms beyond the monitor's": (lambda b: b.update(stale_ms=5000), "field 'bus.stale_ms' must be 0.1 to 1000 ms"),
+    # Found by a walkthrough of a lab's own bus: exported, played without the column, refused at the monitor's start
+    "a joint no signal carries": (lambda b: _frame(b, "TPDO1_2")["signals"][0].pop("target"),
+                                  "field 'bus.frames' carries no signal with target 'q.panda_joint2': every joint's "
+                                  "position, motor input and F/T component must be on the bus"),
     "a patch no signal carries": (lambda b: b.update(patches=[{"name": "palm", "sides": {}}]),
                                   "field 'bus.patches' lists patch 'palm', which no signal carries"),
 }

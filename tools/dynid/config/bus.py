@@ -258,6 +258,15 @@ def parse_bus(f: Fields, joints: tuple[str, ...], motors: dict[str, str], sensor
         base, _, of = target.partition(".")
         if base in ("saturated", "fault") and of and of not in seen_targets:
             raise f.fail("frames", f"has a '{target}' signal, but no signal carries '{of}'")
+    # What every reader needs (dynid import, play, the monitor): a bus without it was exported and played (the column
+    # left out) and refused only at the monitor's start
+    needed = ([f"q.{j}" for j in joints] + [f"{kind}.{m}" for m, kind in motors.items() if kind in ("pwm", "current")]
+              + [f"ft.{s}.{c}" for s in sensors for c in FT_COMPONENTS])
+    missing = [t for t in needed if t not in seen_targets]
+    if missing:
+        more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""
+        raise f.fail("frames", f"carries no signal with target '{missing[0]}'{more}: every joint's position, motor input "
+                     "and F/T component must be on the bus")
     for p in patch_names:
         if f"skin.{p}" not in seen_targets:
             raise f.fail("patches", f"lists patch '{p}', which no signal carries (target skin.{p})")
