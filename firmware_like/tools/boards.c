@@ -3,7 +3,7 @@
  *
  *   boards --config MONITOR.conf --data RUN_DIR|data.csv --sink candump:PATH|loopback:DIR|socketcan
  *          [--realtime] [--t0 SECONDS] [--sensor NAME] [--strain-sat auto|on|off] [--restart NODE|ADDR@SAMPLE]
- *          [--repeat N] [--encoder auto|generic|icub] [--rt-priority P] [--help]
+ *          [--repeat N] [--encoder auto|generic|icub] [--bitrate BIT_S] [--rt-priority P] [--help]
  *
  * The configuration is rt_monitor's (docs/formats.md, "rt_monitor configuration"; `dynid` writes it from the robot
  * configuration): the buses and the compiled bus table, which frame carries which signal. Per sample k at time t_k,
@@ -19,7 +19,8 @@
  * the monitor needs --realtime over loopback and SocketCAN; fast mode is for candump logs. --rt-priority runs
  * the sender SCHED_FIFO so that its wake-ups keep the tick on a loaded machine (refused cleanly where the system
  * does not allow it). Paced runs print the CLOCK_REALTIME us of sample 0 (the monitor's clock).
- * Bus load: worst-case bit stuffing at 1 Mbit/s (board_frame_bits_worst), over the run's duration.
+ * Bus load: worst-case bit stuffing at the buses' bit rate (--bitrate, default 1 Mbit/s; board_frame_bits_worst), over
+ * the run's duration.
  * --sink candump:- streams the log to standard output (a pipe into a fault injector or a monitor: an hour of frames
  * needs no 2 GB file); the summary then goes to stderr.
  */
@@ -35,7 +36,7 @@
 
 #include "boards_tool.h"
 
-#define BITRATE 1000000.0
+#define DEFAULT_BITRATE 1000000.0
 #define LOAD_LIMIT 0.70
 /* The sample periods rt_monitor's coefficient loader accepts (kMinSamplePeriod, kMaxSamplePeriod), 1 s excluded. */
 #define MIN_PERIOD_S 1e-5
@@ -53,7 +54,7 @@ static char g_err[BOARDS_ERR_LEN];
 
 #define SYNOPSIS "usage: boards --config MONITOR.conf --data RUN_DIR|data.csv --sink candump:PATH|loopback:DIR|socketcan " \
                  "[--realtime] [--rt-priority P] [--t0 S] [--sensor NAME] [--strain-sat auto|on|off] " \
-                 "[--restart NODE|ADDRESS@SAMPLE] [--repeat N] [--encoder auto|generic|icub] [--help]\n"
+                 "[--restart NODE|ADDRESS@SAMPLE] [--repeat N] [--encoder auto|generic|icub] [--bitrate BIT_S] [--help]\n"
 
 /* --help, line by line (C99 guarantees string literals of 4095 characters only). */
 static const char *const k_help[] = {
@@ -91,11 +92,12 @@ static const char *const k_help[] = {
     "  --repeat N                play the run N times back to back, time continuing (1..100000, default 1)",
     "  --encoder E               auto (default: the iCub board emulators for a table of the iCub protocol, the",
     "                            generic encoder for any other), generic, or icub",
+    "  --bitrate BIT_S           the buses' bit rate, 10000..1000000 (default 1000000): what their load is of",
     "  -h, --help                print this help on stdout and exit 0",
     "",
     "exit codes: 0 done; 2 bad flag or value; 3 an input file is missing or unreadable; 4 a malformed CSV or",
     "configuration; 5 the sink cannot be opened or refuses a frame; 6 a bus loaded at 70 % or more (worst-case",
-    "bit stuffing, 1 Mbit/s); 7 SCHED_FIFO refused.",
+    "bit stuffing, at --bitrate); 7 SCHED_FIFO refused.",
 };
 
 static int usage(const char *why)
@@ -168,6 +170,7 @@ int main(int argc, char **argv)
     long long real0_us = 0;
     int64_t spread = 0, first_offset = 0;
     int realtime = 0, rc, i, overloaded = 0, enc;
+    double bitrate = DEFAULT_BITRATE;
     pace_t pace;
     struct stat st;
 
@@ -178,7 +181,7 @@ int main(int argc, char **argv)
         if (strcmp(a, "--realtime") == 0) { realtime = 1; continue; }
         if (strcmp(a, "--config") && strcmp(a, "--data") && strcmp(a, "--sink") && strcmp(a, "--t0") &&
             strcmp(a, "--sensor") && strcmp(a, "--strain-sat") && strcmp(a, "--restart") && strcmp(a, "--repeat") &&
-            strcmp(a, "--rt-priority") && strcmp(a, "--encoder")) {
+            strcmp(a, "--rt-priority") && strcmp(a, "--encoder") && strcmp(a, "--bitrate")) {
             snprintf(g_err, sizeof g_err, "unknown argument '%s'", a);
             return usage(g_err);
         }
@@ -201,6 +204,11 @@ int main(int argc, char **argv)
             char *end = 0;
             repeat = strtol(argv[i], &end, 10);
             if (*end || repeat < 1 || repeat > BOARDS_MAX_REPEAT) return usage("--repeat N needs 1 <= N <= 100000");
+        } else if (strcmp(a, "--bitrate") == 0) {
+            char *end = 0;
+            bitrate = strtod(argv[i], &end);
+            if (*end || !(bitrate >= 10000.0 && bitrate <= 1000000.0) || bitrate != (double)(long)bitrate)
+                return usage("--bitrate BIT_S needs a whole number of bit/s, 10000 to 1000000");
         } else if (strcmp(a, "--t0") == 0) {
             char *end = 0;
             t0 = strtod(argv[i], &end);
@@ -363,9 +371,9 @@ int main(int argc, char **argv)
                     (unsigned long long)g_player.n_clamped, g_conf.values[g_player.first_clamped]);
         }
         for (i = 0; i < g_conf.n_buses; ++i) {
-            const double load = (double)g_bits[i] / (duration * BITRATE);
-            fprintf(out, "boards: bus %s load %.1f %% (%llu frames; worst-case bit stuffing, 1 Mbit/s)\n", g_conf.buses[i],
-                   100.0 * load, (unsigned long long)g_frames[i]);
+            const double load = (double)g_bits[i] / (duration * bitrate);
+            fprintf(out, "boards: bus %s load %.1f %% (%llu frames; worst-case bit stuffing, %g Mbit/s)\n", g_conf.buses[i],
+                   100.0 * load, (unsigned long long)g_frames[i], bitrate / 1e6);
             overloaded |= load >= LOAD_LIMIT;
         }
     }

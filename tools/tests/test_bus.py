@@ -357,6 +357,25 @@ def test_the_player_refuses_a_run_without_a_value_the_bus_carries(panda: dict, t
     assert not (tmp_path / "x.log").exists()
 
 
+def test_the_load_is_of_the_descriptions_bit_rate(panda: dict, tmp_path: Path) -> None:
+    """The player's bus load is of the description's `bitrate`, as export --dbc prints it (a walkthrough's 500 kbit/s bus:
+    export said 15.4 %, play 7.4 % of 1 Mbit/s; at 20 kbit/s export said 386 % and exited 0, play 7.4 %). A bus that
+    cannot carry a sample in its period is refused by export, and the player's 70 % budget is of the same rate."""
+    config, data = panda["config"], panda["data"].slice(0, 200)
+    fast = play_run(config, data, f"candump:{tmp_path / 'a.log'}").load
+    slow_config = replace(config, bus=replace(config.bus, bitrate=800_000))
+    slow = play_run(slow_config, data, f"candump:{tmp_path / 'b.log'}").load
+    assert set(slow) == set(fast) and all(slow[b] == pytest.approx(1.25 * fast[b], rel=0.01) for b in fast)
+    assert all(slow[b] == pytest.approx(v, rel=0.02) for b, v in slow_config.bus.load().items())
+    with pytest.raises(DataError, match="a bus is loaded at 70 % or more"):
+        play_run(replace(config, bus=replace(config.bus, bitrate=100_000)), data, f"candump:{tmp_path / 'c.log'}")
+    assert not (tmp_path / "c.log").exists()
+    robot = _robot(tmp_path, lambda b: b.update(bitrate=20_000))
+    done = dynid("export", "--robot", str(robot), "--dbc", str(tmp_path / "p.dbc"))
+    assert done.returncode == 2 and "would be loaded at" in done.stderr and "do not fit in its period" in done.stderr
+    assert not (tmp_path / "p.dbc").exists()
+
+
 def test_values_beyond_a_signals_range_are_clamped_and_said(panda: dict, tmp_path: Path) -> None:
     data = panda["data"].slice(0, 100)
     data.dq = data.dq * 4  # beyond the ±3.28 rad/s of the velocity signals

@@ -68,12 +68,17 @@ def _export_bus(args: argparse.Namespace) -> dict[str, Any]:
     if args.monitor_config:
         outputs["monitor-config"] = args.monitor_config
     check_outputs(args, outputs)
+    load = bus.load()
+    full = next((b for b, v in load.items() if v >= 1.0), None)
+    if full is not None:  # a sample's frames do not fit in its period: no bus carries that
+        raise InputError(f"{config.name}: bus {full} would be loaded at {100 * load[full]:.0f} % (at {bus.rate:g} Hz, "
+                         f"worst-case bit stuffing, {bus.bitrate / 1e6:g} Mbit/s): a sample's frames do not fit in its "
+                         "period; move frames to another bus, or check 'rate' and 'bitrate'")
     conf_text = monitor_config_text(config, args.lcm_url) if args.monitor_config else ""
     for suffix, path in paths.items():
         atomic_write(path, lambda f, t=dbcs[suffix]: f.write(t.encode()))
     if args.monitor_config:
         atomic_write(args.monitor_config, lambda f: f.write(conf_text.encode()))
-    load = bus.load()
     n_signals = sum(len(f.signals) for f in bus.frames)
     origin = "the iCub protocol ('can')" if bus.origin == "can" else "its 'bus' description"
     print(f"{config.name}: {len(bus.frames)} frames, {n_signals} signals on {len(bus.buses)} bus"

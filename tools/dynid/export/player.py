@@ -44,7 +44,7 @@ STAMPS = ("recorded", "nominal")
 class Played:
     samples: int
     frames: int
-    load: dict[str, float]  # per bus, fraction of 1 Mbit/s over the run (worst-case bit stuffing)
+    load: dict[str, float]  # per bus, fraction of the bus description's bit rate over the run (worst-case bit stuffing)
     summary: str  # boards' own lines
     period_s: float  # the run's mean sample period, as recorded
     step_range_s: tuple[float, float]  # its smallest and largest step (the jitter sent as recorded)
@@ -154,7 +154,7 @@ def play_run(config: RobotConfig, data: Dataset, sink: str, realtime: bool = Fal
         conf.write_text(monitor_config_text(config))
         csv.write_text(player_csv(data, bus, config.name))
         args = [str(BOARDS), "--config", str(conf), "--data", str(csv), "--sink", sink if log is None else
-                f"candump:{log}", "--encoder", encoder, "--strain-sat", long_form]
+                f"candump:{log}", "--encoder", encoder, "--strain-sat", long_form, "--bitrate", str(bus.bitrate)]
         if realtime:
             args.append("--realtime")
         if t0 is not None:
