@@ -357,6 +357,20 @@ def test_the_player_refuses_a_run_without_a_value_the_bus_carries(panda: dict, t
     assert not (tmp_path / "x.log").exists()
 
 
+def test_a_position_beyond_its_signals_range_is_refused_not_clamped(panda: dict, tmp_path: Path) -> None:
+    """A position scale too fine for the joint's travel (a walkthrough's 1e-7 rad on 16 bits: ±3.3 mrad; here 1e-10 on 32) played a log of
+    clamped postures, exit 0, "5450 values clamped" its only trace; a velocity beyond its range is clamped and said
+    (the test below), a position is refused."""
+    config = panda["config"]
+    frames = tuple(replace(f, signals=tuple(replace(s, scale=1e-10) if s.target == "q.panda_joint2" else s
+                                            for s in f.signals)) for f in config.bus.frames)
+    fine = replace(config, bus=replace(config.bus, frames=frames))
+    with pytest.raises(DataError, match=r"q.panda_joint2 reaches 0.7\d+ \(sample 0\), beyond the -0.214748 to "
+                                        r"0.214748 its signal TPDO1_2.Position carries \(32 bits, scale 1e-10\)"):
+        play_run(fine, panda["data"].slice(0, 100), f"candump:{tmp_path / 'x.log'}")
+    assert not (tmp_path / "x.log").exists()
+
+
 def test_the_load_is_of_the_descriptions_bit_rate(panda: dict, tmp_path: Path) -> None:
     """The player's bus load is of the description's `bitrate`, as export --dbc prints it (a walkthrough's 500 kbit/s bus:
     export said 15.4 %, play 7.4 % of 1 Mbit/s; at 20 kbit/s export said 386 % and exited 0, play 7.4 %). A bus that

@@ -100,6 +100,14 @@ def player_csv(data: Dataset, bus: BusDescription, robot: str) -> str:
             if v is None:
                 raise DataError(f"the run has no {s.target}, which frame {f.name} of {robot}'s bus carries "
                                 f"(signal {s.name})")
+            if s.target.startswith("q."):  # clamped, a position is another posture: the log would lie
+                lo, hi = s.physical_range
+                step = abs(s.scale) / 2
+                out = np.flatnonzero((np.asarray(v) < lo - step) | (np.asarray(v) > hi + step))
+                if out.size:
+                    raise DataError(f"{s.target} reaches {float(v[out[0]]):.6g} (sample {int(out[0])}), beyond the "
+                                    f"{lo:.6g} to {hi:.6g} its signal {f.name}.{s.name} carries ({s.length} bits, scale "
+                                    f"{s.scale:g}): check the signal's scale, offset and length in {robot}'s bus")
             columns.append((s.target, v))
     if data.contact is not None:
         columns.append(("contact", data.contact.astype(float)))
