@@ -74,6 +74,10 @@ REFUSED = {
     "a DLC of 9": (lambda b: _frame(b, "TPDO1_2").update(dlc=9), "field 'bus.frames[1].dlc' must be an integer 0 to 8"),
     "a signal past the DLC": (lambda b: _frame(b, "TPDO1_2").update(dlc=7),
                               "field 'bus.frames[1].signals[2].start' puts 'Torque' outside the frame's 7 bytes"),
+    # a walkthrough's: the offset's range was named first, the signal leaving its frame not at all
+    "a signal past the DLC with an offset": (
+        lambda b: (_frame(b, "TPDO1_2").update(dlc=7), _frame(b, "TPDO1_2")["signals"][2].update(offset=300)),
+        "field 'bus.frames[1].signals[2].start' puts 'Torque' outside the frame's 7 bytes"),
     "overlapping signals": (lambda b: _frame(b, "TPDO1_2")["signals"][1].update(start=24),
                             "field 'bus.frames[1].signals[1].start' overlaps signal 'Position' in frame 'TPDO1_2'"),
     "a big-endian signal overlapping": (

@@ -367,6 +367,7 @@ def _frame(fr: Fields, buses: tuple[str, ...], rate: float, joints: tuple[str, .
         if clash:
             raise sg.fail("start", f"overlaps signal '{clash}' in frame '{name}'")
         used.update(dict.fromkeys(bits, s.name))
+        _zero_in_middle_half(sg, s)
         if s.target:
             if s.target in ("restart", "seq"):
                 if s.target in frame_health:
@@ -420,14 +421,6 @@ def _signal(sg: Fields, joints: tuple[str, ...], motors: dict[str, str], sensors
     elif is_value_target(target):
         if (why := _value_target_ok(target, joints, motors, sensors)):
             raise sg.fail("target", f"'{target}' {why}")
-        if base != "q" and kind != "float":
-            # A sensor that reads both ways holds zero in the middle half of its decoded range (rt_monitor's rule)
-            first = -(2.0 ** (length - 1)) if kind == "signed" else 0.0
-            ends = sorted((first * scale + offset, (first + 2.0**length - 1) * scale + offset))
-            quarter = (ends[1] - ends[0]) / 4
-            if not ends[0] + quarter <= 0 <= ends[1] - quarter:
-                raise sg.fail("offset", f"{offset:g} puts '{target}' at {ends[0]:g} to {ends[1]:g}: a sensor that reads "
-                              "both ways holds zero in the middle half of its range")
     elif base == "skin":
         if rest not in patches:
             raise sg.fail("target", f"'{target}' names patch '{rest}', which is not in 'patches'")
@@ -443,6 +436,18 @@ def _signal(sg: Fields, joints: tuple[str, ...], motors: dict[str, str], sensors
     if not isinstance(unit, str) or '"' in unit:
         raise sg.fail("unit", f"must be a string without quotes, got {unit!r}")
     return BusSignal(name, start, length, order, kind, scale, offset, target, unit or _default_unit(target))
+
+
+def _zero_in_middle_half(sg: Fields, s: BusSignal) -> None:
+    """A sensor that reads both ways (every value but a position) holds zero in the middle half of its decoded range
+    (rt_monitor's rule). Checked once the signal is known to fit its frame: that is the first thing wrong with it."""
+    if not is_value_target(s.target) or s.target.startswith("q.") or s.type == "float":
+        return
+    lo, hi = s.physical_range
+    quarter = (hi - lo) / 4
+    if not lo + quarter <= 0 <= hi - quarter:
+        raise sg.fail("offset", f"{s.offset:g} puts '{s.target}' at {lo:g} to {hi:g}: a sensor that reads both ways "
+                      "holds zero in the middle half of its range")
 
 
 def _default_unit(target: str) -> str:
