@@ -20,7 +20,8 @@ namespace dynid::rt {
 namespace {
 
 bool fail(std::string& error, const std::string& path, int line, const std::string& what) {
-    error = path + ":" + std::to_string(line) + ": " + escape_control(what);  // a NUL or CR of the file: one line
+    // line 0: the file as a whole (a line it lacks); a NUL or CR of the file stays on one line
+    error = path + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " + escape_control(what);
     return false;
 }
 

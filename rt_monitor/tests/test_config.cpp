@@ -180,7 +180,7 @@ TEST(MonitorConfig, BusErrorsNameTheFileTheLineAndTheProblem) {
     const std::string& d = dir();
     EXPECT_EQ(error_of("unknown_bus", with("frame MC_POSITION_1 can7 0x111 8 0 mc1 0 -300", 9)),
               d + "unknown_bus.conf:9: bus 'can7' is not in the 'buses' line (can0 can1 can2)");
-    EXPECT_EQ(error_of("no_buses", with("# none", 3)), d + "no_buses.conf:0: no 'buses' line (not an rt_monitor configuration? "
+    EXPECT_EQ(error_of("no_buses", with("# none", 3)), d + "no_buses.conf: no 'buses' line (not an rt_monitor configuration? "
                                                        "`dynid export --robot CFG --monitor-config FILE` writes one)");
     EXPECT_EQ(error_of("second_buses", std::string("buses can0\n") + kShuffled),
               d + "second_buses.conf:29: a second 'buses' line (the first is line 1)");
@@ -266,7 +266,7 @@ TEST(MonitorConfig, TargetsAreCheckedOneByOne) {
               d + "tgt_fault_of.conf:13: 'fault.x': a flag's own target is a value target (q.J, dq.J, pwm.M, current.M, "
                   "tau.J, ft.S.C)");
     EXPECT_EQ(error_of("tgt_fault_absent", with("signal MC_STATUS_1 0 1 le u 1.0 0.0 fault.pwm.m0", 13)),
-              d + "tgt_fault_absent.conf:0: 'fault.pwm.m0': no signal carries 'pwm.m0'");
+              d + "tgt_fault_absent.conf: 'fault.pwm.m0': no signal carries 'pwm.m0'");
     EXPECT_EQ(error_of("patch_empty", with("signal SKIN_12 0 16 le u 1.0 0.0 -", 28)),
               d + "patch_empty.conf:26: patch 'shoulder' is carried by no signal (target skin.shoulder)");
     EXPECT_EQ(error_of("patch_side", with("patch hand s:inside", 25)),
@@ -278,7 +278,7 @@ TEST(MonitorConfig, TargetsAreCheckedOneByOne) {
 TEST(MonitorConfig, TheClockAndThePairsAreChecked) {
     const std::string& d = dir();
     EXPECT_EQ(error_of("no_clock", with("# none", 23)),
-              d + "no_clock.conf:0: no 'clock' line (the frame that completes a sample)");
+              d + "no_clock.conf: no 'clock' line (the frame that completes a sample)");
     EXPECT_EQ(error_of("clock_twice", with("clock MC_POSITION_1")),
               d + "clock_twice.conf:29: a second 'clock' line (the first is line 23)");
     EXPECT_EQ(error_of("clock_unknown", with("clock NOPE", 23)),
@@ -365,7 +365,7 @@ TEST(MonitorConfig, TheRobotLineIsRequired) {
     const std::string& d = dir();
     // Without it the check against the coefficient file's robot was skipped.
     EXPECT_EQ(error_of("no_robot", with("# no robot", 2)),
-              d + "no_robot.conf:0: no 'robot' line (the coefficient file's robot is checked against it)");
+              d + "no_robot.conf: no 'robot' line (the coefficient file's robot is checked against it)");
     EXPECT_EQ(error_of("robot_empty", with("robot", 2)), d + "robot_empty.conf:2: bad 'robot' line: robot");
     EXPECT_EQ(error_of("robot_two", with("robot a b", 2)), d + "robot_two.conf:2: bad 'robot' line: robot a b");
 }

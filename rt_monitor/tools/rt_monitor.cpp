@@ -52,19 +52,21 @@ constexpr const char* kSynopsis =
     "[--lcm-url URL] [--residual acceleration|momentum|combined] [--mlockall] [--priority N] [--cpu LIST] [--latency-out FILE] [--stats-out FILE] [--help]\n";
 
 constexpr const char* kHelp = R"(
-The real-time contact monitor: reads the boards' CAN frames, assembles samples (one per F/T strain pair),
-predicts the F/T wrench and the PWMs with the identified model (the acceleration residuals), runs its momentum
-observer, or both in the combined detector (the file says which, --residual overrides), computes Hotelling T2 and
-publishes contact events (with the
-observer: the external joint torques and the isolated joint), a status (counters, loop times, supply ratios) and
-decimated residuals on LCM (channels DYNID_CONTACT, DYNID_STATUS, DYNID_RESIDUAL). SIGINT or SIGTERM ends the
-run; the final counters are printed on stdout.
+The real-time contact monitor: reads the robot's CAN frames, decodes them through the configuration's bus table
+(any protocol: `dynid export --monitor-config` compiles the robot's bus description), assembles a sample at each
+clock frame, predicts the measured outputs (every F/T sensor's wrench, every motor input: PWM, current or joint
+torque) with the identified model (the acceleration residuals), runs its momentum observer, or both in the combined
+detector (the file says which, --residual overrides), computes Hotelling T2 and publishes contact events (every
+sensor's side and residual wrench, the external joint torques, the isolated link), a status (counters, loop times,
+supply ratios, faults) and decimated residuals on LCM (channels DYNID_CONTACT, DYNID_STATUS, DYNID_RESIDUAL).
+SIGINT or SIGTERM ends the run; the final counters are printed on stdout.
 
 required:
   --model COEF          the coefficient file written by `dynid export` (refused with exit 10 + the reason if
                         damaged, of another format version or exported for another robot)
-  --config CONFIG       the monitor configuration: buses, which board serves which joint or channel, full
-                        scales, timing, LCM URL (rt_monitor/README.md, "Configuration"; keys in any order)
+  --config CONFIG       the monitor configuration: buses, the bus table (which frame and bits carry which
+                        joint or channel, scale and offset), the sample clock, timing, LCM URL (written by
+                        `dynid export --monitor-config`; rt_monitor/README.md, "The monitor program")
 
 frame source (default: SocketCAN raw sockets on the configured buses, kernel filters and timestamps):
   --replay CANDUMP.log  replay a `candump -L` log instead, as fast as possible
@@ -274,7 +276,7 @@ void print_exit_line(const char* how, const Assembler& a, const FrameSource& src
     const SourceCounters& sc = src.counters();
     const LoopCounters& n = loop.counters();
     std::printf("rt_monitor: %s; frames %lld, samples %lld, evaluated %lld, stale %lld, events %lld, unknown id %lld, "
-                "bad length %lld, error frames %lld, unpaired strain %lld, saturated %lld, board faults %lld, "
+                "bad length %lld, error frames %lld, unpaired halves %lld, saturated %lld, board faults %lld, "
                 "board restarts %lld, bad source input %llu, interpolated %lld, late %lld, filter restarts %lld, overruns %lld, "
                 "kernel drops %llu\n",
                 how, (long long)c.frames, (long long)c.samples, (long long)n.evaluated, (long long)c.stale_samples,

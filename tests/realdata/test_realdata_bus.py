@@ -82,6 +82,6 @@ def test_a_real_run_onto_the_bus_and_back(robot: str, tmp_path: Path) -> None:
         assert done.returncode == 0, done.stderr
         n = want.n_samples
         assert f"samples {n}, " in done.stdout and ", stale 0," in done.stdout, done.stdout
-        assert "unknown id 0, bad length 0, error frames 0, unpaired strain 0," in done.stdout, done.stdout
+        assert "unknown id 0, bad length 0, error frames 0, unpaired halves 0," in done.stdout, done.stdout
         if stamps == "nominal":
             assert f"evaluated {n}, " in done.stdout and "interpolated 0, late 0," in done.stdout, done.stdout

@@ -112,7 +112,7 @@ def test_bad_bus_lines_are_one_clear_line(case: str, tmp_path: Path) -> None:
         boards_why = f"{tmp_path}/bad.conf:{bad + 1}: bus 'can7' is not in the 'buses' line"
     elif case == "no buses":
         lines = lines[:-1]
-        rt_why = (f"{tmp_path}/bad.conf:0: no 'buses' line (not an rt_monitor configuration? `dynid export --robot "
+        rt_why = (f"{tmp_path}/bad.conf: no 'buses' line (not an rt_monitor configuration? `dynid export --robot "
                   "CFG --monitor-config FILE` writes one)")  # line 0: the file's (as for "no 'clock' line")
         boards_why = f"{tmp_path}/bad.conf: no 'buses' line"
     else:
@@ -177,5 +177,6 @@ def test_refused_configuration_is_one_line(case: str, tmp_path: Path) -> None:
     empty.write_text("")
     done = run(RT_MONITOR, "--model", COEF, "--config", conf, "--replay", empty, "--lcm-url", "memq://")
     assert done.returncode == 2, done.stderr
-    assert done.stderr.splitlines() == [f"rt_monitor: error: {conf}:{at}: {why}"], done.stderr
+    where = f"{conf}:{at}" if at else str(conf)  # a line the file lacks: the file's own
+    assert done.stderr.splitlines() == [f"rt_monitor: error: {where}: {why}"], done.stderr
     assert done.stdout == ""
