@@ -337,6 +337,10 @@ FLAGS = [
     dynid("fit-json-onto-its-urdf", "fit", "--urdf", "{in}/arm.urdf", "--data", "{ident}", "--out", "{out}/m.json",
           "--json", "{in}/arm.urdf", says="(--json): it is the input --urdf",
           make=lambda fx, d: (d / "arm.urdf").write_bytes(_arm_urdf().read_bytes())),
+    # Found by the TIAGo walkthrough: the refusal gave no way out for a copied configuration
+    dynid("validate-dataset-of-another-configuration", "validate", "--model", "{model}", "--data", "{in}/d.npz",
+          says="was imported for 'my_arm', not for 'icub_right_arm': import the original recording again",
+          make=lambda fx, d: _reimported(fx, d)),
     dynid("fit-out-and-json-one-file", "fit", "--data", "{ident}", "--out", "{out}/m.json", "--json", "{out}/m.json",
           says="--out and --json name the same file"),
     dynid("fit-out-onto-a-directory", "fit", "--data", "{ident}", "--out", "{out}", says="it exists and is not a regular file"),
@@ -504,3 +508,15 @@ def _arm_urdf() -> Path:
     from dynid.config.robot_config import load_config
 
     return Path(load_config("icub_right_arm").urdf)
+
+
+def _reimported(fx, d: Path) -> None:  # noqa: ANN001 - the sweep's Fixtures
+    """The session's dataset as a copy of the arm's configuration under another name imports it."""
+    import numpy as np
+
+    with np.load(fx.npz, allow_pickle=False) as z:
+        members = dict(z)
+    text = str(members.get("meta", ""))
+    assert "icub_right_arm" in text, sorted(members)
+    members["meta"] = np.array(text.replace('"robot": "icub_right_arm"', '"robot": "my_arm"'))
+    np.savez(d / "d.npz", **members)

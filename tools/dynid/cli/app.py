@@ -82,7 +82,7 @@ def _default_robot_note(args: argparse.Namespace, argv: list[str], error: InputE
     another robot who forgot --robot reads the error against a configuration they never chose."""
     given = any(a == "--robot" or a.startswith("--robot=") for a in argv)
     if (not isinstance(error, DataError) or given or getattr(args, "robot", None) != DEFAULT_ROBOT
-            or getattr(args, "model", None)):  # a model names its own robot
+            or getattr(args, "model", None) or getattr(args, "print", None)):  # a model, a coefficient file: their own
         return ""
     return f" (read as {DEFAULT_ROBOT}'s, the default robot: --robot names yours)"
 

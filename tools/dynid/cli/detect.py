@@ -156,7 +156,7 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
     found.result["monitor_events"] = debounced
     if debounced is not None:
         print(f"  as the monitor's events ({debounced['residual']}, its default debounce and hysteresis: "
-              f"{debounced['debounce_on']} samples above the threshold to begin, {debounced['debounce_off']} under "
+              f"{plural(debounced['debounce_on'], 'sample')} above the threshold to begin, {debounced['debounce_off']} under "
               f"{debounced['hysteresis']:g} of it to end): {plural(len(debounced['onsets_s']), 'onset')} "
               "(--json's monitor_events; on the offline residuals, which the monitor's causal filter only approaches)")
     print_out_of_sample(found.result["out_of_sample"])
@@ -168,7 +168,9 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
               "offset that moved), or the run is in contact throughout")
     for variant, s in found.result["variants"].items():
         tpr = "n/a" if s.get("tpr") is None else f"{100 * s['tpr']:.1f} %"
-        line = f"  {variant:10s} threshold {s['threshold']:9.3g}: TPR {tpr}, FPR {100 * s['fpr']:.2f} %"
+        # the combined statistic is the two ratios' sum over κ (its JSON `threshold`), a contact above 1
+        level = (f"level 1 (κ {s['threshold']:.3g})" if variant == "combined" else f"threshold {s['threshold']:9.3g}")
+        line = f"  {variant:10s} {level}: TPR {tpr}, FPR {100 * s['fpr']:.2f} %"
         if "auc" in s:
             line += f", AUC {s['auc']:.3f}"
         if s.get("episodes"):

@@ -28,7 +28,7 @@ from ..io.stream import DatasetFile, Run, is_dataset_file, open_run
 from ..robot.model import RobotModel
 from .fit import FitResult, FitSettings, SignalSource, fit_statistics, run_units
 from .statistics import Statistics, accumulate_blocks, assemble, block_edges
-from .validation import load_run
+from .validation import check_robot, load_run
 
 Window = tuple[float | None, float | None]
 
@@ -58,9 +58,7 @@ def stream_run(ref: RunRef, model: RobotModel) -> Run:
     if ref.payload is not None:
         model.payload_parameters(float(ref.payload["mass"]), ref.payload.get("com"))  # the frame exists
         run.meta = {**run.meta, "payload": ref.payload}
-    robot = run.meta.get("robot")
-    if robot is not None and robot != model.config.name:
-        raise DataError(f"{ref.path} was recorded on '{robot}', not on '{model.config.name}'")
+    check_robot(ref.path, run.meta.get("robot"), model)
     return run
 
 

@@ -42,10 +42,15 @@ def load_run(path: str, model: RobotModel, window: Window = (None, None),
     if payload is not None:
         model.payload_parameters(float(payload["mass"]), payload.get("com"))  # the frame exists
         ds.meta["payload"] = payload
-    robot = ds.meta.get("robot")
-    if robot is not None and robot != model.config.name:
-        raise DataError(f"{path} was recorded on '{robot}', not on '{model.config.name}'")
+    check_robot(path, ds.meta.get("robot"), model)
     return ds
+
+
+def check_robot(path: str, robot: str | None, model: RobotModel) -> None:
+    """Refuse a dataset file imported for another configuration (its `robot`), saying how to read it with this one."""
+    if robot is not None and robot != model.config.name:
+        raise DataError(f"{path} was imported for '{robot}', not for '{model.config.name}': import the original "
+                        f"recording again with this configuration (dynid import --robot ...), or give --robot {robot}")
 
 
 def cad_phi(model: RobotModel, identified: IdentifiedModel, missing: float = 0.0) -> np.ndarray:
