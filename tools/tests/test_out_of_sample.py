@@ -4,6 +4,8 @@ does not (docs/detection.md#out-of-sample)."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 from pathlib import Path
 
@@ -85,3 +87,34 @@ def test_folds_segments_and_bad_sections() -> None:
         FoldsSection.from_json({"run": [0], "samples": [[5, 5]], "parameters": [[0.0]]})
     with pytest.raises(ValueError):
         FoldsSection.from_json({"run": [0, 0], "samples": [[0, 5]], "parameters": [[0.0]]})
+
+
+def test_a_window_that_touches_the_fits_by_a_sample_is_in_sample_by_that_sample(tmp_path: Path) -> None:
+    """The share of DATA's samples inside the windows fitted on (a TIAGo walkthrough's `detect --from 67.9` after a
+    fit to 67.9006 s was called "an in-sample figure" outright: one sample of 1230 was)."""
+    from types import SimpleNamespace
+
+    from dynid.cli.out_of_sample import out_of_sample, print_out_of_sample
+    from dynid.identify.model_file import data_digest
+
+    run = tmp_path / "run.csv"
+    run.write_text("t\n")
+    fitted = SimpleNamespace(data=[SimpleNamespace(sha256=data_digest(run), window=(9.21, 67.9006))], detector=None,
+                             folds=None)
+    t = np.arange(6790, 8020) * 0.01  # 67.90 s to 80.19 s
+    o = out_of_sample(fitted, str(run), (67.9, None), [], False, (None, None), {}, t)
+    assert o["share_in_fit_and_calibration"] == pytest.approx(1 / t.size) and not o["data_outside_fit_and_calibration"]
+    o = out_of_sample(fitted, str(run), (67.91, None), [], False, (None, None), {}, t[1:])
+    assert o["share_in_fit_and_calibration"] == 0.0 and o["data_outside_fit_and_calibration"]
+    o = out_of_sample(fitted, str(run), (20, 30), [], False, (None, None), {}, np.arange(2000, 3001) * 0.01)
+    assert o["share_in_fit_and_calibration"] == 1.0 and not o["data_outside_fit_and_calibration"]
+    other = tmp_path / "other.csv"
+    other.write_text("t,q\n")
+    o = out_of_sample(fitted, str(other), (None, None), [], False, (None, None), {}, t)
+    assert o["share_in_fit_and_calibration"] == 0.0 and o["data_outside_fit_and_calibration"]
+    o = out_of_sample(fitted, str(run), (67.9, None), [], False, (None, None),
+                      {"calibrated": {"fpr": 0.01, "in_sample_fpr": None}}, t)
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        print_out_of_sample(o)
+    assert "of which 0.081 % was fitted or calibrated on (partly in-sample)" in printed.getvalue()

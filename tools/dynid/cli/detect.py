@@ -128,7 +128,7 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
     found.result["out_of_sample"] = out_of_sample(ev.identified, args.data, window(args),
                                                   paths if momentum is not None else [], calibration_given,
                                                   (args.calibration_from, args.calibration_to),
-                                                  found.result["variants"])
+                                                  found.result["variants"], ev.dataset.t)
     if skipped:
         found.result["momentum_skipped"] = skipped
     if skipped_combined:

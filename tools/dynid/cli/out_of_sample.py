@@ -17,19 +17,33 @@ def _overlap(a: tuple, b: tuple) -> bool:
     return lo < hi
 
 
+def _inside(t: np.ndarray, w: tuple) -> np.ndarray:
+    return (t >= (-np.inf if w[0] is None else w[0])) & (t <= (np.inf if w[1] is None else w[1]))
+
+
 def out_of_sample(identified, data: str, data_window: tuple, calibration_paths: list[str], calibration_given: bool,
-                  calibration_window: tuple, variants: dict[str, dict[str, Any]]) -> dict[str, Any]:
+                  calibration_window: tuple, variants: dict[str, dict[str, Any]],
+                  t: np.ndarray | None = None) -> dict[str, Any]:
     """`detect --json`'s `out_of_sample`: whether DATA (in its --from/--to window) lies outside the runs, and their
     windows, the model was fitted and calibrated on (sha256), what Λ and T²_α were calibrated on, and per variant the
     FPR on DATA's contact-free samples (an out-of-sample figure where DATA is outside) beside the FPR the in-sample
-    calibration gives on them."""
+    calibration gives on them. With DATA's times `t`, the share of its samples inside those windows (a window that
+    touches the fit's by a sample is in-sample by that sample, not by all of its)."""
     from ..identify.model_file import data_digest
 
     digest = data_digest(data)
     seen = [(run.sha256, run.window or (None, None)) for run in identified.data if run.sha256 is not None]
     if calibration_given:
         seen += [(data_digest(p), calibration_window) for p in calibration_paths]
-    outside = digest is not None and not any(d == digest and _overlap(w, data_window) for d, w in seen)
+    same = [w for d, w in seen if digest is not None and d == digest]
+    outside = digest is not None and not any(_overlap(w, data_window) for w in same)
+    share = None
+    if t is not None and np.size(t) and digest is not None:
+        inside = np.zeros(np.size(t), dtype=bool)
+        for w in same:
+            inside |= _inside(np.asarray(t, float), w)
+        share = float(inside.mean())
+        outside = share == 0.0
     det = identified.detector
     calibration = {"calibrated": det.calibration if det is not None else IN_SAMPLE}
     for name in ("combined", "momentum"):
@@ -42,12 +56,17 @@ def out_of_sample(identified, data: str, data_window: tuple, calibration_paths: 
             v = variants[name]
             per[name] = {"calibration": calibration[name], "fpr": v.get("fpr"),
                          "in_sample_calibration_fpr": v.get("in_sample_fpr")}
-    return {"data_outside_fit_and_calibration": outside, "variants": per}
+    return {"data_outside_fit_and_calibration": outside, "share_in_fit_and_calibration": share, "variants": per}
 
 
 def print_out_of_sample(o: dict[str, Any]) -> None:
-    where = "outside the fit and calibration" if o["data_outside_fit_and_calibration"] else \
-        "among the runs fitted or calibrated on (an in-sample figure)"
+    share = o.get("share_in_fit_and_calibration")
+    if o["data_outside_fit_and_calibration"]:
+        where = "outside the fit and calibration"
+    elif share is not None and share < 1.0:
+        where = f"of which {100 * share:.2g} % was fitted or calibrated on (partly in-sample)"
+    else:
+        where = "among the runs fitted or calibrated on (an in-sample figure)"
     for name, v in o["variants"].items():
         if v["fpr"] is None:
             continue
