@@ -108,8 +108,8 @@ def distal_masses(model: RobotModel, phi: np.ndarray) -> list[dict[str, Any]]:
         if own > 0 and not fitted > 0:
             found.append({"sensor": sensor, "problem": "distal_mass", "mass_kg": fitted, "cad_kg": own,
                           "text": f"the mass beyond ft.{sensor} fits {fitted:.3g} kg (its CAD {own:.3g} kg), which "
-                                  "its forces at rest fix: is gravity's direction in the configuration right, and "
-                                  "the forces' sign?"})
+                                  "its forces at rest fix: is gravity's direction in the configuration right, the "
+                                  "forces' sign, and the sensor's joint (its frame)?"})
     return found
 
 
