@@ -20,6 +20,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
@@ -105,6 +107,18 @@ def icub_leg(real: Path, work: Path) -> list[dict]:
                        test_window[1])
         out.append(row("iCub leg", f"swing {test_window[0]}-{test_window[1]} s (fit on {fit_window[0]}-"
                                    f"{fit_window[1]} s)", result))
+    # Five time blocks of the swing, each left out of the fit in turn (the fit on the rest: two windows of the run)
+    edges = [float(x) for x in np.linspace(14.0, float(end), 6)]
+    for k in range(5):
+        windows = [(a, b) for a, b in ((edges[0], edges[k]), (edges[k + 1], edges[-1])) if b > a]
+        model = work / f"leg_block{k}.json"
+        dynid("fit", *robot, *(x for a, b in windows for x in ("--data", f"{leg}@{a!r}:{b!r}")), "--consistent",
+              "off", "--out", str(model))
+        result = dynid("detect", "--model", str(model), "--data", str(leg), "--from", repr(edges[k]), "--to",
+                       repr(edges[k + 1]))
+        outside = result["out_of_sample"].get("postures_outside_fit") or []
+        out.append(row("iCub leg", f"block {k + 1} of 5, {edges[k]:.2f}-{edges[k + 1]:.2f} s (postures beyond the "
+                                   f"fit's: {max((o['outside_share'] for o in outside), default=0):.0%})", result))
     return out
 
 

@@ -17,6 +17,7 @@ from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S
 from ..detect.momentum_t2 import (alarm_runs, calibration_runs, momentum_detection, stored_detector,
                                   stored_in_sample)
 from ..detect.t2 import ALPHA, debounced_events, episode_peaks
+from ..identify.transfer import outside_fit
 from ..errors import DataError, InputError
 from ..identify.model_sections import DEFAULT_N_MODE, N_MODES
 from ..identify.validation import evaluate
@@ -129,6 +130,9 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
                                                   paths if momentum is not None else [], calibration_given,
                                                   (args.calibration_from, args.calibration_to),
                                                   found.result["variants"], ev.dataset.t)
+    # α's promise is for data like the fit's: postures it never saw are the model's extrapolation, named beside it
+    found.result["out_of_sample"]["postures_outside_fit"] = outside_fit(
+        ev.identified, ev.dataset.joints, ev.dataset.q, ev.identified.robot_model.joint_limits)
     if skipped:
         found.result["momentum_skipped"] = skipped
     if skipped_combined:

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..identify.model_sections import CROSS_VALIDATED, IN_SAMPLE
+from ..identify.transfer import postures_text
 
 
 def _overlap(a: tuple, b: tuple) -> bool:
@@ -60,6 +61,9 @@ def out_of_sample(identified, data: str, data_window: tuple, calibration_paths: 
 
 
 def print_out_of_sample(o: dict[str, Any]) -> None:
+    if o.get("postures_outside_fit"):
+        print("  note: postures the fit never saw: " + postures_text(o["postures_outside_fit"]) + ": the model is "
+              "extrapolated there, and α holds on data like the fit's (docs/detection.md#out-of-sample)")
     share = o.get("share_in_fit_and_calibration")
     if o["data_outside_fit_and_calibration"]:
         where = "outside the fit and calibration"

@@ -87,6 +87,18 @@ def why_worse(identified: IdentifiedModel, tables: dict[str, Any], joints: tuple
             "outside_fit": outside_fit(identified, joints, q, limits), "ft_steps": step_effects(identified, t)}
 
 
+def postures_text(outside: list[dict]) -> str:
+    """`outside_fit`'s joints, the first MAX_PRINTED: their range here against the fit's, the share of samples outside."""
+    parts = []
+    for o in outside[:MAX_PRINTED]:
+        held = f", at its limit {o['fit_at_limit_deg']:g}°" if o["fit_at_limit_deg"] is not None else ""
+        parts.append(f"{o['joint']} here {o['here_from_deg']:.1f}…{o['here_to_deg']:.1f}° against "
+                     f"{o['fit_from_deg']:.1f}…{o['fit_to_deg']:.1f}° in the fit{held} "
+                     f"({100 * o['outside_share']:.0f} % of samples outside)")
+    more = f"; {len(outside) - MAX_PRINTED} more joints (--json)" if len(outside) > MAX_PRINTED else ""
+    return "; ".join(parts) + more
+
+
 def format_why(why: dict) -> list[str]:
     """The lines `dynid validate` prints under Table II."""
     worse = ", ".join(f"{w['sensor']} {w['quantity']} ({w['identified']:.4g} against CAD's {w['cad']:.4g})"
@@ -98,14 +110,7 @@ def format_why(why: dict) -> list[str]:
     if outside is None:
         lines.append("    (the model file does not record the postures of the data its inertias were fitted on)")
     elif outside:
-        parts = []
-        for o in outside[:MAX_PRINTED]:
-            held = f", at its limit {o['fit_at_limit_deg']:g}°" if o["fit_at_limit_deg"] is not None else ""
-            parts.append(f"{o['joint']} here {o['here_from_deg']:.1f}…{o['here_to_deg']:.1f}° against "
-                         f"{o['fit_from_deg']:.1f}…{o['fit_to_deg']:.1f}° in the fit{held} "
-                         f"({100 * o['outside_share']:.0f} % of samples outside)")
-        more = f"; {len(outside) - MAX_PRINTED} more joints (--json)" if len(outside) > MAX_PRINTED else ""
-        lines.append(f"    postures the fit never saw (fitted on {windows}): " + "; ".join(parts) + more
+        lines.append(f"    postures the fit never saw (fitted on {windows}): " + postures_text(outside)
                      + ": the fit determined only what its postures excite, and is extrapolated here")
     for s in why["ft_steps"]:
         to = "the end" if s["to_s"] is None else f"{s['to_s']:.2f} s"
