@@ -19,7 +19,7 @@ PROGRAMS = {
 # Every option each program takes (its argument parser), so that a help text cannot silently drop one.
 OPTIONS = {
     "boards": {"--config", "--data", "--sink", "--realtime", "--rt-priority", "--t0", "--sensor", "--strain-sat",
-               "--restart", "--repeat", "--encoder", "--help"},
+               "--restart", "--repeat", "--encoder", "--bitrate", "--help"},
     "rt_monitor": {"--model", "--config", "--replay", "--realtime", "--loopback", "--lcm-url", "--residual", "--mlockall",
                    "--priority", "--cpu", "--latency-out", "--stats-out", "--help"},
 }

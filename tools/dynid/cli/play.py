@@ -102,11 +102,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     "run (auto), always, never")
     sp.add_argument("--stamps", choices=STAMPS, default="recorded", help="recorded (default: each sample at its own "
                     "stamp; a jittered log stays jittered and the monitor bridges its gaps) or nominal (sample k at "
-                    "t0 + k times the nominal period: the bus's where its rate agrees with the run's median step to "
-                    "5 %%, else that median step; the run's samples one for one, none bridged, as the offline "
-                    "analysis and `dynid export` take them)")
-    sp.add_argument("--t0", type=float, default=None, metavar="S", help="the first sample's stamp, s (default "
-                    "1700000000)")
+                    "the first stamp + k times the nominal period: the bus's where its rate agrees with the run's "
+                    "median step to 5 %%, else that median step; the run's samples one for one, none bridged, as the "
+                    "offline analysis and `dynid export` take them)")
+    # not --t0, which a --to typed one key off would become: the stamps moved, and the window left open
+    sp.add_argument("--first-stamp", dest="t0", type=float, default=None, metavar="S",
+                    help="the first sample's stamp on the bus, s (default 1700000000)")
     window_args(sp)
     json_arg(sp)
     sp.set_defaults(func=cmd_play)
