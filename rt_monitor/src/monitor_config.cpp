@@ -19,16 +19,15 @@ namespace dynid::rt {
 
 namespace {
 
+// line 0: the file as a whole (a line it lacks). A NUL or CR of the file stays on one line.
 bool fail(std::string& error, const std::string& path, int line, const std::string& what) {
-    // line 0: the file as a whole (a line it lacks); a NUL or CR of the file stays on one line
     error = path + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " + escape_control(what);
     return false;
 }
 
 int index_of(const std::vector<std::string>& names, const std::string& name) {
-    for (size_t i = 0; i < names.size(); ++i)
-        if (names[i] == name) return int(i);
-    return -1;
+    const auto it = std::find(names.begin(), names.end(), name);
+    return it == names.end() ? -1 : int(it - names.begin());
 }
 
 // A whole token as a finite number (strtod's syntax) or an integer (decimal, or hex with 0x); false on anything else.
