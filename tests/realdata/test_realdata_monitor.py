@@ -9,6 +9,7 @@ episode labels beside the run. One test per robot; each skips, with the reason, 
 
 from __future__ import annotations
 
+import json
 import re
 import subprocess
 from pathlib import Path
@@ -275,3 +276,35 @@ def test_a_bus_read_in_the_wrong_byte_order_is_a_start_fit_fault_within_seconds(
     assert "fault: model does not fit at start: T² above T²_α on" in done.stderr, done.stderr
     assert round(4.0 / read_coefficients(coef).sample_period) == 400
     assert "on 400 of the first 400 samples" in done.stderr, done.stderr
+
+
+def test_detect_notes_a_bus_without_the_velocity_its_events_took(tmp_path: Path) -> None:
+    """The UR10e's own bus description without its dq.J signals (carried, read by nobody): the monitor then estimates
+    q̇ from q, while `detect`'s monitor_events take the run's recorded velocity; detect says so (a walkthrough's bus:
+    offline 11 of 11 collisions, the monitor far fewer, and nothing said)."""
+    if not REALDATA.is_dir():
+        pytest.skip(f"real robot data not found at {REALDATA} (clone shared/ beside the repository)")
+    import yaml
+
+    import dynid
+
+    config = yaml.safe_load((Path(dynid.__file__).parent / "config/robots/ur10e_known_gains.yaml").read_text())
+    config["name"] = "ur10e_without_velocity"
+    for frame in config["bus"]["frames"]:
+        for signal in frame["signals"]:
+            if str(signal.get("target", "")).startswith("dq."):
+                del signal["target"]
+    robot = tmp_path / "ur10e.yaml"
+    robot.write_text(yaml.safe_dump(config, sort_keys=False))
+    urdf = ("--urdf", REALDATA / "ur10e_mamedov" / "ur10e.urdf")
+    run = REALDATA / "ur10e_mamedov" / "contact" / "collision_3link.csv"
+    notes = {}
+    for cfg in (robot, "ur10e_known_gains"):
+        model = tmp_path / "m.json"
+        done = cli.run("fit", "--robot", cfg, *urdf, "--data", REALDATA / UR10E_EXCITATION[0], "--out", model)
+        assert done.returncode == 0, done.stderr
+        result = cli.run("detect", "--model", model, "--data", run, "--json", tmp_path / "d.json")
+        assert result.returncode == 0, result.stderr
+        notes[str(cfg)] = ("bus carries none: the monitor estimates q̇ from q" in result.stdout,
+                           json.loads((tmp_path / "d.json").read_text())["monitor_events"].get("monitor_velocity"))
+    assert notes == {str(robot): (True, "estimated"), "ur10e_known_gains": (False, None)}

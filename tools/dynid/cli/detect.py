@@ -13,13 +13,14 @@ from dataclasses import replace
 
 from ..detect.combined import calibrate_combined, combined_detection, stored_combined
 from ..detect.evaluation import detection
-from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S
+from ..detect.momentum import DEFAULT_BANDWIDTH_HZ, VELOCITY_WINDOW_S, measured_velocity
 from ..detect.momentum_t2 import (alarm_runs, calibration_runs, momentum_detection, stored_detector,
                                   stored_in_sample)
 from ..detect.t2 import ALPHA, debounced_events, episode_peaks
-from ..identify.transfer import outside_fit
 from ..errors import DataError, InputError
+from ..export.model_export import bus_carries_velocity
 from ..identify.model_sections import DEFAULT_N_MODE, N_MODES
+from ..identify.transfer import outside_fit
 from ..identify.validation import evaluate
 from ..io.dataset import contact_episodes
 from ..io.episodes import check_widening, episodes_in_data, episodes_mask, read_episodes
@@ -163,6 +164,11 @@ def cmd_detect(args: argparse.Namespace) -> dict[str, Any]:
               f"{plural(debounced['debounce_on'], 'sample')} above the threshold to begin, {debounced['debounce_off']} under "
               f"{debounced['hysteresis']:g} of it to end): {plural(len(debounced['onsets_s']), 'onset')} "
               "(--json's monitor_events; on the offline residuals, which the monitor's causal filter only approaches)")
+        model = ev.identified.robot_model
+        if momentum is not None and measured_velocity(model, ev.dataset) is not None and not bus_carries_velocity(model):
+            debounced["monitor_velocity"] = "estimated"
+            print(f"  note: these take the run's recorded q̇, but {model.config.name}'s bus carries none: the monitor "
+                  "estimates q̇ from q, causally, with more noise and lag, and finds less (docs/detection.md#the-monitor)")
     print_out_of_sample(found.result["out_of_sample"])
     rates = [s["fpr"] for s in found.result["variants"].values() if s.get("fpr") is not None]
     if rates and min(rates) > MISFIT_FPR:  # α promises 1 - α: no detector is anywhere near, the data are not the model's
