@@ -113,3 +113,25 @@ def test_gravity_torques_against_the_cads_name_gravitys_direction(arm: RobotMode
     assert found[0]["slope"] == pytest.approx(-1.0) and found[0]["correlation"] == pytest.approx(-1.0)
     assert "gravity's direction" in found[0]["text"]
     assert [f["problem"] for f in implausible(arm, flipped)][:2] == ["distal_mass", "gravity"]
+
+
+def test_a_mass_far_from_cads_is_said_apart_from_the_implausible(arm: RobotModel) -> None:
+    """A consistent fit puts what the data leave free where its constraints cost the fit least: the simulated arm's
+    shoulders at 9-29 kg (CAD 0.12-0.36 kg), the Panda's link2 at 108 kg, silently until a walkthrough read them. Such
+    a body is physical (not `implausible`), and named apart; a body a few times its CAD, or heavier by less than a
+    kilogram, is not."""
+    from dynid.identify.plausibility import masses_far_from_cad
+
+    phi = arm.cad_parameters()
+    inertial = arm.layout.span("inertial").start
+    names = [b.name for b in arm.bodies]
+    heavy = phi.copy()
+    k = names.index("r_shoulder_3")
+    heavy[inertial + 10 * k: inertial + 10 * k + 10] *= 81.5  # the whole body scaled: still physical
+    hand = names.index("r_hand")
+    heavy[inertial + 10 * hand: inertial + 10 * hand + 10] *= 4.0
+    found = masses_far_from_cad(arm, heavy)
+    assert [(f["body"], f["problem"]) for f in found] == [("r_shoulder_3", "mass_far_from_cad")]
+    assert found[0]["text"] == (f"r_shoulder_3: mass {found[0]['mass_kg']:.3g} kg, 82 times its CAD "
+                                f"{found[0]['cad_kg']:.3g} kg")
+    assert implausible(arm, heavy) == [] and masses_far_from_cad(arm, phi) == []

@@ -16,6 +16,7 @@ from ..identify.fit import (DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_IN
                             iv_settled)
 from ..identify.model_file import IdentifiedModel, load_model
 from ..identify.model_sections import DEFAULT_BLOCKS, DEFAULT_N_MODE, N_MODES, BaseSection
+from ..identify.plausibility import masses_far_from_cad
 from ..identify.runs import RunRef, check_distinct_runs, input_notes, stream_run
 from ..identify.supply import SupplyTracking
 from ..identify.blocks import validate_blocks
@@ -213,6 +214,12 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
         print(f"  WARNING: {len(implausible)} physically implausible estimate(s) ({why}):")
         for w in implausible:
             print(f"    {w['text']}")
+    far = masses_far_from_cad(model, result.phi)
+    if far:
+        how = ("a consistent fit puts what the data leave free where its constraints cost the fit least; --cad-pull cv "
+               "weighs a pull to CAD" if result.consistent is not None else "the data may not determine them")
+        print(f"  note: {plural(len(far), 'mass', 'masses')} far from CAD, not to be read as measured ({how}): "
+              + "; ".join(w["text"] for w in far))
     rms = np.sqrt(result.residual_variance[result.chosen])
     print("  residual RMS on the identification data (rows at rest left out) / channel noise:")
     print("   " + ", ".join(f"{o.name} {r:.3g} ({r / o.sigma:.2f}×)" for o, r in zip(outs, rms)))
@@ -229,7 +236,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
             "estimators": {k: v.to_json() for k, v in identified.estimators.items()},
             "base": base_section(identified).to_json(), "residual_rms": dict(zip(identified.output_channels, rms.tolist())),
             "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed,
-            "plausibility": implausible, "consistent": result.consistent, "borderline": edges,
+            "plausibility": implausible, "masses_far_from_cad": far, "consistent": result.consistent,
+            "borderline": edges,
             **({"bad_rows": skipped} if skipped else {})}
 
 

@@ -34,7 +34,7 @@ import yaml
 
 from ..errors import DataError, InputError
 from ..identify.model_file import IdentifiedModel, file_digest
-from ..identify.plausibility import implausible
+from ..identify.plausibility import implausible, masses_far_from_cad
 from ..io.dataset import atomic_write
 from ..robot.model import RobotModel
 from ..robot.parameters import FRICTION_FIELDS, WRENCH_FIELDS
@@ -209,6 +209,9 @@ def export_urdf(identified: IdentifiedModel, out: str | Path, allow_residual: bo
     if odd:  # physical, but not what the link can be: the base parameters alone do not place its mass
         notes += odd + (["`dynid fit --consistent on` identifies a set in which every link is physical and its mass "
                          "within the link's reach"] if identified.consistent is None else [])
+    full = np.array(phi, float)
+    full[inertial] = bodies
+    notes += [f"the written set: {w['text']}" for w in masses_far_from_cad(robot, full)]
     dynamics, joint_rows = _joint_dynamics(identified, notes)
     urdf_text = _splice(text, inertials, dynamics)
     side = side_file(out)
