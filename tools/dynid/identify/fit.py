@@ -29,7 +29,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ..errors import DataError
+from ..errors import DataError, InputError
 from ..io.dataset import Dataset
 from ..io.stream import Run
 from ..io.derivatives import SavitzkyGolay
@@ -327,6 +327,9 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
                         "give a longer run or a wider --from/--to window")
     prior = prior_parameters(model)
     beta_prior = base.base(prior)
+    if settings.n_components is not None and settings.n_components > base.rank:  # PLS has no more components
+        raise InputError(f"--n-components {settings.n_components}: PLS has at most as many latent variables as the base "
+                        f"parameters' rank, {base.rank} here")
     cv = cross_validate_nu(stats, base.rank) if settings.n_components is None else {"n_components": settings.n_components}
     nu = int(cv["n_components"])
     names = [settings.estimator] + [e for e in ESTIMATORS if e != settings.estimator]
