@@ -235,6 +235,11 @@ MODELS = [
           make=model(lambda m: m["robot"].update(config_text="name: [", config_source="/nonexistent.yaml"))),
     dynid("validate-model-is-a-dataset", "validate", "--model", "{npz}", "--data", "{run}",
           says="not a dynid model file (not JSON: UnicodeDecodeError)"),
+    # Found by a walkthrough: "not JSON: UnicodeDecodeError"; and a missing file came with a note on the default robot
+    dynid("detect-model-is-a-coefficient-file", "detect", "--model", "{coef}", "--data", "{run}",
+          says="a coefficient file (dynid export's, for rt_monitor), not a model file"),
+    dynid("fit-data-missing", "fit", "--data", "{in}/gone.csv", "--out", "{out}/m.json",
+          says="data file not found: {in}/gone.csv"),
     dynid("validate-model-missing", "validate", "--model", "{in}/gone.json", "--data", "{run}", says="model file not found"),
     dynid("detect-model-directory", "detect", "--model", "{in}/m.json", "--data", "{run}", says="model file not found",
           make=directory("m.json")),

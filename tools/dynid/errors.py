@@ -36,6 +36,10 @@ class DataError(InputError):
     """A data file (CSV, candump log, dataset) that cannot be used as it is."""
 
 
+class MissingFile(DataError):
+    """A file named on the command line that is not there (nothing about how it would have been read)."""
+
+
 class SetupError(InputError, ImportError):
     """A module scripts/setup generates is missing (a clone run without the set-up). An ImportError too: it is raised
     where that module is imported."""

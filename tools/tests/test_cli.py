@@ -152,6 +152,9 @@ def test_data_that_does_not_fit_the_default_robot_says_it_was_read_as_that(tmp_p
     assert done.stderr.rstrip().endswith("(read as icub_right_arm's, the default robot: --robot names yours)")
     done = dynid("import", "--robot", "icub_right_arm", "--data", str(csv), "--out", str(tmp_path / "x.npz"))
     assert done.returncode == 2 and "the default robot" not in done.stderr, done.stderr
+    for command in ("import", "fit"):  # a file that is not there was read as nothing: no robot to name
+        done = dynid(command, "--data", str(tmp_path / "gone.csv"), "--out", str(tmp_path / "x.npz"))
+        assert done.returncode == 2 and "not found" in done.stderr and "the default robot" not in done.stderr
 
 
 def test_import_missing_file(tmp_path: Path) -> None:

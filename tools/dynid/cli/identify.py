@@ -80,7 +80,7 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     try:
         runs = [stream_run(ref, model) for ref in refs]  # every run checked before any work; a dataset file streamed
     except DataError as e:
-        raise DataError(folder_of_runs_error(args, config, e)) from None
+        raise type(e)(folder_of_runs_error(args, config, e)) from None  # a missing file stays one
     check_distinct_runs(paths, runs)
     for path, note in input_notes(config, paths, runs):  # an input in another unit than declared fits: said
         warnings.warn(DataNote(f"{path}: {note}"), stacklevel=2)

@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from ..config.robot_config import RobotConfig, load_config
-from ..errors import DataError, InputError
+from ..errors import DataError, InputError, MissingFile
 from ..io.dataset import SIMULATION_DATASET, atomic_write
 from ..robot.effects import Effect, check_effect_targets, finite_number, parse_effects
 from ..robot.model import RobotModel
@@ -260,12 +260,16 @@ def load_model(path: str | Path) -> IdentifiedModel:
     """Read and check a model file; any problem is a `DataError` naming it."""
     path = Path(path)
     if not path.is_file():
-        raise DataError(f"model file not found: {path}")
+        raise MissingFile(f"model file not found: {path}")
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     # ValueError covers JSONDecodeError, UnicodeDecodeError and an integer of more than 4300 digits; RecursionError
     # arrays nested thousands deep.
     except (ValueError, RecursionError) as e:
+        with open(path, "rb") as f:
+            if f.read(8) == b"DYNIDCOF":  # dynid.export.coefficients.MAGIC (that layer is above this one)
+                raise DataError(f"{path}: a coefficient file (dynid export's, for rt_monitor), not a model file: give "
+                                "the model.json it was exported from") from None
         raise DataError(f"{path}: not a dynid model file (not JSON: {e.__class__.__name__})") from None
     if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
         raise DataError(f"{path}: not a dynid model file (no 'format: {FORMAT_NAME}')")
