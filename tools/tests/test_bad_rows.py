@@ -282,6 +282,17 @@ def test_samples_given_twice_are_refused_before_the_fit(panda_run: Path, tmp_pat
                        str(model))
     assert code == 2 and f"--data {panda_run} and {copy} hold the same samples" in err, err
     assert not model.exists()
+    # ... and with its stamps moved to the epoch (a walkthrough's bag of the same log): the same samples all the same
+    from dataclasses import replace
+
+    from dynid.config.robot_config import load_config
+    from dynid.io.load import load_data
+
+    recorded = load_data(copy, load_config("panda"))
+    shifted = tmp_path / "epoch.npz"
+    replace(recorded, t=recorded.t + 1.7e9).save(shifted)
+    code, _, err = run("fit", "--robot", "panda", "--data", f"{copy}", "--data", f"{shifted}", "--out", str(model))
+    assert code == 2 and f"--data {copy} and {shifted} hold the same samples" in err, err
     code, _, err = run("fit", "--robot", "panda", "--data", f"{panda_run}@:3", "--data", f"{copy}@3:", "--out",
                        str(model))
     assert code == 0, err

@@ -84,3 +84,26 @@ def test_the_fleet_page_renders_in_headless_chromium(fleet: dict, tmp_path: Path
     assert np.any(np.all(np.abs(pixels - [246, 200, 200]) < 3, axis=-1))
     text = page.read_text()
     assert text.count("<img") == 3 and "arm07</b>: friction r_elbow" in text
+
+
+def test_runs_linked_from_a_shared_store_belong_to_the_folder_given(fleet: dict, tmp_path: Path) -> None:
+    """A folder per robot whose runs are symlinks into a shared store: each robot is the folder the link is in, not
+    the one it points to (a walkthrough's three robots were merged into one named after the store); and one recording
+    given as two robots' is refused before any fit."""
+    from dynid.io.run_paths import expand_named
+
+    runs = fleet["root"] / "runs"
+    lab = tmp_path / "lab"
+    for robot, source in (("robot_a", "arm00"), ("robot_b", "arm01"), ("robot_c", "arm02")):
+        (lab / robot).mkdir(parents=True)
+        (lab / robot / "run").symlink_to(runs / source / "run")
+    assert [r.name for r in expand_named([str(lab)])] == ["robot_a", "robot_b", "robot_c"]
+    (lab / "robot_d").mkdir()
+    (lab / "robot_d" / "run").symlink_to(runs / "arm00" / "run")  # robot_a's run again, linked
+    done = dynid("fleet", "--data", str(lab), "--out", str(tmp_path / "out"))
+    assert done.returncode == 2 and "is named twice" in done.stderr and "default robot" not in done.stderr
+    (lab / "robot_d" / "run").unlink()
+    shutil.copytree(runs / "arm00" / "run", lab / "robot_d" / "run")  # ... and copied
+    done = dynid("fleet", "--data", str(lab), "--out", str(tmp_path / "out"))
+    assert done.returncode == 2 and "hold the same samples" in done.stderr, done.stderr
+    assert not (tmp_path / "out").exists()

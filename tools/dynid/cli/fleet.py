@@ -12,7 +12,7 @@ from ..cluster import executor
 from ..config.robot_config import load_config
 from ..errors import InputError
 from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, FitSettings
-from ..identify.runs import RunRef, stream_run
+from ..identify.runs import RunRef, check_distinct_runs, stream_run
 from ..io.dataset import atomic_write
 from ..io.file_set import holds_file_set
 from ..io.run_paths import expand_named
@@ -44,13 +44,15 @@ def cmd_fleet(args: argparse.Namespace) -> dict[str, Any]:
                          f"{MIN_ROBOTS} to have a spread (name each run's robot: --data NAME=RUN, or one folder per "
                          "robot)")
     files = {r: _file_name(r) for r in fleet}
-    if len(set(files.values())) != len(files):
-        raise InputError("two robots' names map to the same model file name: " + ", ".join(fleet))
+    clash = [r for r in fleet if list(files.values()).count(files[r]) > 1]
+    if clash:
+        raise InputError("robots' names map to the same model file name: " + ", ".join(clash))
     out = Path(args.out)
     if not out.parent.is_dir():
         raise InputError(f"cannot write to '{args.out}' (--out): the directory {out.parent} does not exist")
     refs = {r: [RunRef(p) for p in paths] for r, paths in fleet.items()}
     runs = {r: [stream_run(ref, model) for ref in rr] for r, rr in refs.items()}  # all checked before any fit
+    check_distinct_runs([p for paths in fleet.values() for p in paths], [x for rr in runs.values() for x in rr])
     settings = IdentifySettings(FitSettings(estimator=args.estimator, min_speed=args.min_speed, blocks=args.blocks))
     cluster = executor(args.workers, args.scheduler)
     models = {}

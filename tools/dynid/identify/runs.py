@@ -121,13 +121,14 @@ def fit_on_cluster(model: RobotModel, refs: list[RunRef], runs: list[Run], setti
 def check_distinct_runs(paths: list[str], runs: list) -> None:
     """Refuse one recording given twice under two names (a folder and its `dynid import`, a copy): it would count
     twice, and its blocks would pose as independent runs. Two runs are the same where their first and last samples'
-    t and q are, bit for bit, and their lengths."""
+    q are, bit for bit, and their lengths: not their stamps, which a bag written from the same log may shift to the
+    epoch (a walkthrough's CSV and its MCAP: block errors 0.56 times the run's own, the runs' error zero)."""
     seen: dict[bytes, str] = {}
     for path, run in zip(paths, runs):
         n = run.n_samples
         ends = [run.slice(0, min(n, 64)), run.slice(max(0, n - 64), n)]
-        key = hashlib.sha256(np.int64(n).tobytes() + b"".join(np.ascontiguousarray(a, float).tobytes()
-                                                               for d in ends for a in (d.t, d.q))).digest()
+        key = hashlib.sha256(np.int64(n).tobytes() + b"".join(np.ascontiguousarray(d.q, float).tobytes()
+                                                               for d in ends)).digest()
         if key in seen:
             raise InputError(f"--data {seen[key]} and {path} hold the same samples (one recording under two names?): "
                              "it would count twice; give it once")

@@ -15,11 +15,12 @@ that holds it (a fleet laid out one folder per robot).
 from __future__ import annotations
 
 import glob
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import DataError
+from ..errors import DataError, InputError
 from .dataset import SIMULATION_DATASET
 from .yarp import is_dumper_folder
 
@@ -90,7 +91,7 @@ def expand_all(specs: list[str]) -> list[str]:
     for p in out:
         key = str(Path(p).resolve())
         if key in seen:
-            raise DataError(f"--data: the run {p} is named twice")
+            raise InputError(f"--data: the run {p} is named twice")
         seen.add(key)
     return out
 
@@ -102,6 +103,7 @@ def expand_named(specs: list[str], run_folder: RunFolder | None = None) -> list[
         name, eq, rest = spec.partition("=")
         named = bool(eq) and name and not Path(spec).exists() and "/" not in name
         for p in expand(rest if named else spec, run_folder=run_folder):
-            out.append(NamedRun(str(p), name if named else (p.resolve().parent.name or str(p))))
+            # the folder as given, not where a symlink in it points (a lab's runs linked from a shared store)
+            out.append(NamedRun(str(p), name if named else (Path(os.path.abspath(p)).parent.name or str(p))))
     expand_all([r.path for r in out])  # the duplicate check
     return out
