@@ -208,3 +208,38 @@ def test_a_scheduler_that_is_not_there_is_one_line(runs: list[Path], tmp_path: P
 
     code = main(["fit", "--data", str(runs[0]), "--scheduler", "tcp://127.0.0.1:9", "--out", str(tmp_path / "m.json")])
     assert code == 3 and not (tmp_path / "m.json").exists()
+
+
+@pytest.mark.parametrize(("address", "says"), [
+    ("127.0.0.1", "not a Dask scheduler.s address: give \\[tcp://\\]HOST:PORT"),
+    ("", "not a Dask scheduler's address"),
+    ("http://127.0.0.1:8787", "not a Dask scheduler's address"),
+    ("tcp://127.0.0.1:99999", "not a Dask scheduler's address"),
+    ("tls://127.0.0.1:8786", "a TLS scheduler needs a security context")])
+def test_an_address_no_scheduler_has_is_refused_before_connecting(address: str, says: str) -> None:
+    """A walkthrough's mistyped addresses waited 40 s and left a traceback (tls://: exit 1): refused at once."""
+    from dynid.cluster import check_scheduler_address
+    from dynid.errors import InputError
+
+    with pytest.raises(InputError, match=says):
+        check_scheduler_address(address)
+    for good in ("tcp://127.0.0.1:8786", "127.0.0.1:8786", "tcp://[::1]:8786", "scheduler.lab:8786"):
+        check_scheduler_address(good)
+
+
+def test_runs_and_urdf_go_to_a_scheduler_s_workers_as_absolute_paths(tmp_path: Path, monkeypatch) -> None:
+    """A Dask worker opens the files in its own working directory: relative paths were "data file not found" there
+    (and a relative --urdf "lost the connection to the cluster"). Symlinks stay: they are what the workers share."""
+    from dynid.config.robot_config import load_config
+    from dynid.identify.runs import RunRef, for_workers
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "store").mkdir()
+    (tmp_path / "store" / "a.csv").write_text("t\n")
+    (tmp_path / "linked.csv").symlink_to(tmp_path / "store" / "a.csv")
+    urdf = Path(load_config("icub_right_arm").urdf)
+    (tmp_path / "arm.urdf").write_bytes(urdf.read_bytes())
+    config = load_config("icub_right_arm", "arm.urdf")
+    assert not Path(config.urdf).is_absolute()
+    config, refs = for_workers(config, [RunRef("linked.csv", (1.0, None))])
+    assert config.urdf == tmp_path / "arm.urdf" and refs == [RunRef(str(tmp_path / "linked.csv"), (1.0, None))]

@@ -12,7 +12,7 @@ from ..cluster import executor
 from ..config.robot_config import load_config
 from ..errors import InputError
 from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, FitSettings
-from ..identify.runs import RunRef, check_distinct_runs, stream_run
+from ..identify.runs import RunRef, check_distinct_runs, for_workers, stream_run
 from ..io.dataset import atomic_write
 from ..io.file_set import holds_file_set
 from ..io.run_paths import expand_named
@@ -51,6 +51,10 @@ def cmd_fleet(args: argparse.Namespace) -> dict[str, Any]:
     if not out.parent.is_dir():
         raise InputError(f"cannot write to '{args.out}' (--out): the directory {out.parent} does not exist")
     refs = {r: [RunRef(p) for p in paths] for r, paths in fleet.items()}
+    if args.scheduler:  # workers open the files in their own directory
+        config, _ = for_workers(config, [])
+        model = RobotModel(config)
+        refs = {r: for_workers(config, rr)[1] for r, rr in refs.items()}
     runs = {r: [stream_run(ref, model) for ref in rr] for r, rr in refs.items()}  # all checked before any fit
     check_distinct_runs([p for paths in fleet.values() for p in paths], [x for rr in runs.values() for x in rr])
     settings = IdentifySettings(FitSettings(estimator=args.estimator, min_speed=args.min_speed, blocks=args.blocks))

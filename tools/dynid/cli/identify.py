@@ -17,7 +17,7 @@ from ..identify.fit import (DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_IN
 from ..identify.model_file import IdentifiedModel, load_model
 from ..identify.model_sections import DEFAULT_BLOCKS, DEFAULT_N_MODE, N_MODES, BaseSection
 from ..identify.plausibility import masses_far_from_cad
-from ..identify.runs import RunRef, check_distinct_runs, input_notes, stream_run
+from ..identify.runs import RunRef, check_distinct_runs, for_workers, input_notes, stream_run
 from ..identify.supply import SupplyTracking
 from ..identify.blocks import validate_blocks
 from ..identify.transfer import format_why
@@ -69,10 +69,12 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     if from_config and args.consistent != "off":
         print(f"--consistent {args.consistent}: {config.name}'s default (its configuration's fit.consistent; "
               "--consistent off for the unconstrained fit)")
-    model = RobotModel(config)
     paths, windows = expand_data(args, config)
     refs = [RunRef(p, w, payload, bad_rows(args))
             for p, w, payload in zip(paths, windows, payloads(args, len(paths)))]
+    if args.scheduler:  # workers open the files in their own directory
+        config, refs = for_workers(config, refs)
+    model = RobotModel(config)
     settings = FitSettings(estimator=args.estimator, n_components=args.n_components, min_speed=args.min_speed,
                            blocks=args.blocks, consistent=args.consistent != "off",
                            cad_pull=args.cad_pull == "cv", consistent_sphere=args.consistent != PSEUDO_INERTIA_ONLY)

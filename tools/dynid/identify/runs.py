@@ -10,9 +10,10 @@ fit solves from the very sums the serial fit would: the same model, to rounding 
 from __future__ import annotations
 
 import hashlib
+import os
 import pickle
 from collections import OrderedDict
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -66,6 +67,14 @@ def stream_run(ref: RunRef, model: RobotModel) -> Run:
 _MODELS: dict[str, RobotModel] = {}
 _RUNS: OrderedDict[tuple, Run] = OrderedDict()
 _KEEP_RUNS = 4
+
+
+def for_workers(config: RobotConfig, refs: list[RunRef]) -> tuple[RobotConfig, list[RunRef]]:
+    """The configuration and runs with absolute paths: a Dask worker opens them in its own working directory (a
+    walkthrough's `--data 'npz/*.npz' --scheduler ...` was "data file not found" there, and a relative --urdf "lost
+    the connection to the cluster"). Symlinks are kept: they are what the workers share."""
+    urdf = Path(os.path.abspath(config.urdf)) if str(config.urdf) else config.urdf
+    return replace(config, urdf=urdf), [replace(r, path=os.path.abspath(r.path)) for r in refs]
 
 
 def worker_model(config: RobotConfig) -> RobotModel:
