@@ -57,6 +57,16 @@ def test_the_worn_joint_is_named_and_no_other_robot(fleet: dict) -> None:
     assert values.argmax() == WORN
 
 
+def test_a_fleet_into_a_directory_that_holds_files_is_refused(fleet: dict) -> None:
+    """A walkthrough's second fleet into the first one's directory left the first's models beside its own, unread by
+    its page; refused before any fit, nothing written."""
+    out = fleet["root"] / "out"
+    before = sorted(p.relative_to(out) for p in out.rglob("*"))
+    done = dynid("fleet", "--data", str(fleet["root"] / "runs"), "--out", str(out))
+    assert done.returncode == 2 and "it holds files already" in done.stderr, done.stderr
+    assert sorted(p.relative_to(out) for p in out.rglob("*")) == before
+
+
 def test_a_fleet_needs_three_robots_and_says_so(fleet: dict, tmp_path: Path) -> None:
     runs = fleet["root"] / "runs"
     done = dynid("fleet", "--data", f"a={runs / 'arm00' / 'run'}", "--data", f"b={runs / 'arm01' / 'run'}",

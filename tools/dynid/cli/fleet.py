@@ -50,6 +50,9 @@ def cmd_fleet(args: argparse.Namespace) -> dict[str, Any]:
     out = Path(args.out)
     if not out.parent.is_dir():
         raise InputError(f"cannot write to '{args.out}' (--out): the directory {out.parent} does not exist")
+    if out.is_dir() and any(out.iterdir()):  # an earlier fleet's models would stand beside this one's, unread
+        raise InputError(f"cannot write to '{args.out}' (--out): it holds files already (an earlier fleet's models "
+                         "would mix with this one's); give a new or empty directory")
     refs = {r: [RunRef(p) for p in paths] for r, paths in fleet.items()}
     if args.scheduler:  # workers open the files in their own directory
         config, _ = for_workers(config, [])
