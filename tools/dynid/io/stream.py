@@ -59,7 +59,7 @@ class DatasetFile:
         self._pid = -1
         try:
             _check_members(self.path)
-            self._members, small = self._index()
+            self._members, small, self._fortran = self._index()
         except (zipfile.BadZipFile, OSError, ValueError, EOFError) as e:
             raise DataError(f"{self.path}: not a dynid dataset (.npz) or a corrupt one: {e}") from None
         if str(small.get("format", "")) != FORMAT_NAME:
@@ -88,10 +88,12 @@ class DatasetFile:
     # ------------------------------------------------------------------------------------------------------
     # The file
 
-    def _index(self) -> tuple[dict[str, tuple[int, np.dtype, tuple[int, ...]]], dict[str, np.ndarray]]:
-        """Each row member's (data offset, dtype, shape); the small members (format, meta, joints) read whole."""
+    def _index(self) -> tuple[dict[str, tuple[int, np.dtype, tuple[int, ...]]], dict[str, np.ndarray], set[str]]:
+        """Each row member's (data offset, dtype, shape); the small members (format, meta, joints) read whole; the
+        two-dimensional members stored column-major (a lab's own writer: numpy keeps a transposed array's order)."""
         members: dict[str, tuple[int, np.dtype, tuple[int, ...]]] = {}
         small: dict[str, np.ndarray] = {}
+        fortran_members: set[str] = set()
         with zipfile.ZipFile(self.path) as archive, open(self.path, "rb") as raw:
             for info in archive.infolist():
                 name = info.filename.removesuffix(".npy")
@@ -110,15 +112,17 @@ class DatasetFile:
                 read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
                         else np.lib.format.read_array_header_2_0)
                 shape, fortran, dtype = read(raw)
-                if fortran and len(shape) > 1:
+                if fortran and len(shape) > 2:
                     raise NotStreamable(name)
+                if fortran and len(shape) == 2:
+                    fortran_members.add(name)
                 family, _, channel = name.partition("/")
                 if not (name in _ROW_MEMBERS or (family in CHANNEL_FAMILIES and channel)) or not shape:
                     raise ValueError(f"unknown member '{name}'")
                 if dtype.kind not in "fiub":
                     raise ValueError(f"member '{name}' is not numeric ({dtype})")
                 members[name] = (raw.tell(), dtype, tuple(shape))
-        return members, small
+        return members, small, fortran_members
 
     def __getstate__(self) -> dict[str, Any]:  # a Dask worker reopens the file itself: no descriptor travels
         state = dict(self.__dict__)
@@ -134,16 +138,28 @@ class DatasetFile:
         if self._fd is None or self._pid != os.getpid():  # opened per process (a fork inherits no position)
             self._fd, self._pid = os.open(self.path, os.O_RDONLY), os.getpid()
         offset, dtype, shape = self._members[name]
+        if name in self._fortran:  # column by column: rows [lo, hi) of each column are contiguous
+            out = np.empty((hi - lo, shape[1]), dtype=dtype)
+            for j in range(shape[1]):
+                out[:, j] = self._pread(name, offset + (j * shape[0] + lo) * dtype.itemsize, hi - lo, dtype, hi)
+            return out
         row = dtype.itemsize * math.prod(shape[1:])
         out = np.empty((hi - lo, *shape[1:]), dtype=dtype)
-        view = memoryview(out).cast("B") if out.size else memoryview(b"")
+        self._fill(name, memoryview(out).cast("B") if out.size else memoryview(b""), offset + lo * row, hi)
+        return out
+
+    def _pread(self, name: str, at: int, count: int, dtype: np.dtype, hi: int) -> np.ndarray:
+        out = np.empty(count, dtype=dtype)
+        self._fill(name, memoryview(out).cast("B") if out.size else memoryview(b""), at, hi)
+        return out
+
+    def _fill(self, name: str, view: memoryview, at: int, hi: int) -> None:
         done = 0
         while done < len(view):
-            got = os.preadv(self._fd, [view[done:]], offset + lo * row + done)
+            got = os.preadv(self._fd, [view[done:]], at + done)
             if got <= 0:
                 raise DataError(f"{self.path}: member '{name}' ends before row {hi} (a truncated file)")
             done += got
-        return out
 
     # ------------------------------------------------------------------------------------------------------
     # What a fit reads
