@@ -346,9 +346,9 @@ FLAGS = [
     dynid("validate-dataset-of-another-configuration", "validate", "--model", "{model}", "--data", "{in}/d.npz",
           says="was imported for 'my_arm', not for 'icub_right_arm': import the original recording again",
           make=lambda fx, d: _reimported(fx, d)),
-    # Found by a walkthrough: ν = 500 of rank 87 was stored, and detect's paper threshold came out at 579
-    dynid("fit-n-components-above-the-rank", "fit", "--data", "{ident}", "--out", "{out}/m.json", "--n-components",
-          "500", says="--n-components 500: PLS has at most as many latent variables as the base parameters' rank"),
+    # Found by a walkthrough: ν = 500 of 118 columns was stored, and detect's paper threshold came out at 579
+    dynid("fit-n-components-above-the-columns", "fit", "--data", "{ident}", "--out", "{out}/m.json", "--n-components",
+          "500", says="--n-components 500: PLS has at most as many latent variables as the regressor has columns"),
     dynid("fit-out-and-json-one-file", "fit", "--data", "{ident}", "--out", "{out}/m.json", "--json", "{out}/m.json",
           says="--out and --json name the same file"),
     dynid("fit-out-onto-a-directory", "fit", "--data", "{ident}", "--out", "{out}", says="it exists and is not a regular file"),

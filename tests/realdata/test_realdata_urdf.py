@@ -72,7 +72,10 @@ def test_a_consistent_fit_writes_a_plausible_urdf(tmp_path: Path) -> None:
     done = run("export", "--model", str(model), "--urdf", str(out), "--json", "-")
     assert done.returncode == 0, done.stderr
     notes = json.loads(done.stdout)["notes"]
-    assert not any(n.startswith("the written set:") for n in notes), notes  # every link within its reach
+    reach = [n for n in notes if n.startswith("the written set:") and "times its CAD" not in n]
+    assert not reach, notes  # every link within its reach
+    # ... and wrist_3 at 2.5 kg against its CAD's 0.20 (12 times): a mass the data leave free, said, not measured
+    assert any(n.startswith("the written set: wrist_3_link: mass") and "times its CAD" in n for n in notes), notes
     identified = load_model(model)
     sig = signals_from_dataset(identified.robot_model, load_run(str(PTP), identified.robot_model))
     errors = round_trip(identified, out, sig.q, sig.dq, sig.ddq)

@@ -36,8 +36,8 @@ class DataError(InputError):
     """A data file (CSV, candump log, dataset) that cannot be used as it is."""
 
 
-class MissingFile(DataError):
-    """A file named on the command line that is not there (nothing about how it would have been read)."""
+class PathError(DataError):
+    """A file as the command line names it: not there, or named twice (nothing about how it would have been read)."""
 
 
 class SetupError(InputError, ImportError):

@@ -20,7 +20,7 @@ from typing import TextIO
 from collections.abc import Callable
 
 from ..config.robot_config import DEFAULT_ROBOT, bundled_configs
-from ..errors import EXIT_BAD_INPUT, DataError, DataNote, InputError, MissingFile
+from ..errors import EXIT_BAD_INPUT, DataError, DataNote, InputError, PathError
 from ..outputs import staged
 from ..version import __version__
 from .commands import COMMANDS
@@ -81,7 +81,7 @@ def _default_robot_note(args: argparse.Namespace, argv: list[str], error: InputE
     """Where data did not fit the robot configuration and none was named, that the default robot's was used: a user of
     another robot who forgot --robot reads the error against a configuration they never chose."""
     given = any(a == "--robot" or a.startswith("--robot=") for a in argv)
-    if (not isinstance(error, DataError) or isinstance(error, MissingFile) or given
+    if (not isinstance(error, DataError) or isinstance(error, PathError) or given
             or getattr(args, "robot", None) != DEFAULT_ROBOT
             or getattr(args, "model", None) or getattr(args, "print", None)):  # a model, a coefficient file: their own
         return ""

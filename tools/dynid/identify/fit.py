@@ -327,9 +327,11 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
                         "give a longer run or a wider --from/--to window")
     prior = prior_parameters(model)
     beta_prior = base.base(prior)
-    if settings.n_components is not None and settings.n_components > base.rank:  # PLS has no more components
-        raise InputError(f"--n-components {settings.n_components}: PLS has at most as many latent variables as the base "
-                        f"parameters' rank, {base.rank} here")
+    # PLS has no more components than the regressor has columns (beyond the rank it runs on until Xᵀy is exhausted,
+    # which floating point needs to reach least squares: tools/tests/test_estimators.py)
+    if settings.n_components is not None and settings.n_components > len(model.layout):
+        raise InputError(f"--n-components {settings.n_components}: PLS has at most as many latent variables as the "
+                         f"regressor has columns, {len(model.layout)} here (the base parameters' rank: {base.rank})")
     cv = cross_validate_nu(stats, base.rank) if settings.n_components is None else {"n_components": settings.n_components}
     nu = int(cv["n_components"])
     names = [settings.estimator] + [e for e in ESTIMATORS if e != settings.estimator]

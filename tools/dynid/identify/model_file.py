@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from ..config.robot_config import RobotConfig, load_config
-from ..errors import DataError, InputError, MissingFile
+from ..errors import DataError, InputError, PathError
 from ..io.dataset import SIMULATION_DATASET, atomic_write
 from ..robot.effects import Effect, check_effect_targets, finite_number, parse_effects
 from ..robot.model import RobotModel
@@ -260,7 +260,7 @@ def load_model(path: str | Path) -> IdentifiedModel:
     """Read and check a model file; any problem is a `DataError` naming it."""
     path = Path(path)
     if not path.is_file():
-        raise MissingFile(f"model file not found: {path}")
+        raise PathError(f"model file not found: {path}")
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     # ValueError covers JSONDecodeError, UnicodeDecodeError and an integer of more than 4300 digits; RecursionError

@@ -44,7 +44,7 @@ from typing import BinaryIO
 import numpy as np
 
 from ..config.robot_config import RobotConfig
-from ..errors import DataError, MissingFile
+from ..errors import DataError, PathError
 from ..kernels import native
 from .bad_rows import DEFAULT_POLICY, Malformed, apply_policy, find_bad_rows
 from .dataset import FT_CHANNELS, Dataset, atomic_write, check_units
@@ -194,7 +194,7 @@ _LONE_CR = re.compile(rb"\r(?=[^\n])")
 
 def _read_bytes(path: Path) -> bytes:
     if not path.exists():
-        raise MissingFile(f"CSV file not found: {path}")
+        raise PathError(f"CSV file not found: {path}")
     if not path.is_file():
         raise DataError(f"CSV path is not a file: {path}")
     try:

@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import DataError, MissingFile
+from ..errors import DataError, PathError
 from ..outputs import atomic_write  # re-exported: where the writers have always imported it from
 from .derivatives import estimate_derivatives
 
@@ -278,7 +278,7 @@ class Dataset:
         """Read a dataset file; a missing, corrupt or foreign file raises `DataError` with one line."""
         path = Path(path)
         if not path.is_file():
-            raise MissingFile(f"dataset file not found: {path}")
+            raise PathError(f"dataset file not found: {path}")
         with open(path, "rb") as f:
             if f.read(4) != _ZIP_MAGIC:
                 raise DataError(f"{path}: not a dynid dataset (.npz): the file is not a zip archive")

@@ -15,7 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..config.robot_config import RobotConfig
-from ..errors import DataError, DataNote, MissingFile
+from ..errors import DataError, DataNote, PathError
 from .candump import read_candump
 from .bad_rows import DEFAULT_POLICY, MAX_ABS_VALUE, POLICIES
 from .csv_format import check_columns, read_csv
@@ -88,7 +88,7 @@ def _load(
     bad_rows: str,
 ) -> Dataset:
     if not path.exists():
-        raise MissingFile(f"data file not found: {path}")
+        raise PathError(f"data file not found: {path}")
     if path.is_dir() and (path / SIMULATION_DATASET).is_file():  # the output directory of `dynid simulate`
         path = path / SIMULATION_DATASET
     elif is_bag(path):  # a ROS 2 bag: a rosbag2 folder, or one .mcap or .db3 file

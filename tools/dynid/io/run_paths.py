@@ -20,7 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import DataError, InputError
+from ..errors import DataError, PathError
 from .dataset import SIMULATION_DATASET
 from .yarp import is_dumper_folder
 
@@ -91,7 +91,7 @@ def expand_all(specs: list[str]) -> list[str]:
     for p in out:
         key = str(Path(p).resolve())
         if key in seen:
-            raise InputError(f"--data: the run {p} is named twice")
+            raise PathError(f"--data: the run {p} is named twice")
         seen.add(key)
     return out
 
