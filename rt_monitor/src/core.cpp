@@ -508,10 +508,14 @@ void Core::detect(double threshold, const std::array<double, kMaxSensors>& ft_th
             above_run_ = 0;
         }
     }
-    out_.peak_now = out_.in_contact && (out_.event == Event::kOnset || t2 > out_.peak.t2);
+    // Strongest against the level in force (the observer's differs at rest and in motion), as dynid detect's
+    // statistic T²/T²_α is
+    const double ratio = t2 / threshold;
+    out_.peak_now = out_.in_contact && (out_.event == Event::kOnset || ratio > out_.peak.ratio);
     if (out_.peak_now) {  // fixed-size copies: a handful a contact, on its way up
         Output::Peak& pk = out_.peak;
         pk.t2 = t2;
+        pk.ratio = ratio;
         pk.e = out_.p.e;
         pk.active = out_.p.active;
         pk.side = out_.side;

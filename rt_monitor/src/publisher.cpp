@@ -69,23 +69,19 @@ void Publisher::contact(const Output& o, int64_t t_us, int64_t onset_utime, int6
     event_.onset_utime = onset_utime;
     event_.sample = sample;
     event_.t2 = o.p.t2;
-    // An onset: its own sample. An end: the contact's strongest, as dynid detect's events describe theirs (at the end
-    // sample itself T² is back under the level, and every side unknown).
-    const bool end = o.event == Event::kEnd;
-    event_.peak_utime = end ? peak_utime : t_us;
-    event_.peak_t2 = end ? o.peak.t2 : o.p.t2;
-    normalized(event_.normalized_residual, end ? o.peak.e : o.p.e, end ? o.peak.active : o.p.active);
-    const auto& side = end ? o.peak.side : o.side;
-    const auto& wrench = end ? o.peak.wrench : o.wrench;
+    // The contact's strongest sample so far: an onset's own (the core takes it as the first peak), an end's strongest
+    // (at the end's own sample T² is back under the level, and every side unknown), as dynid detect's events take theirs
+    const Output::Peak& pk = o.peak;
+    event_.peak_utime = peak_utime;
+    event_.peak_t2 = pk.t2;
+    normalized(event_.normalized_residual, pk.e, pk.active);
     for (int k = 0; k < coef_.n_sensors; ++k) {
-        event_.side[size_t(k)] = int8_t(side[size_t(k)]);
-        for (int m = 0; m < 6; ++m) event_.wrench[size_t(k)][size_t(m)] = wrench[size_t(k)][m];
+        event_.side[size_t(k)] = int8_t(pk.side[size_t(k)]);
+        for (int m = 0; m < 6; ++m) event_.wrench[size_t(k)][size_t(m)] = pk.wrench[size_t(k)][m];
     }
-    const VecJ& tau_ext = end ? o.peak.tau_ext : o.tau_ext;
-    for (int j = 0; j < coef_.n_joints; ++j) event_.tau_ext[size_t(j)] = tau_ext[j];
-    const int joint = end ? o.peak.joint : o.joint;
-    event_.isolated_joint = joint;
-    if (joint >= 0) event_.isolated_link.assign(link_of_joint_[size_t(joint)]);  // within its capacity
+    for (int j = 0; j < coef_.n_joints; ++j) event_.tau_ext[size_t(j)] = pk.tau_ext[j];
+    event_.isolated_joint = pk.joint;
+    if (pk.joint >= 0) event_.isolated_link.assign(link_of_joint_[size_t(pk.joint)]);  // within its capacity
     else event_.isolated_link.clear();
     send(kContact, event_);
 }

@@ -120,6 +120,8 @@ REFUSED = {
     "a joint no signal carries": (lambda b: _frame(b, "TPDO1_2")["signals"][0].pop("target"),
                                   "field 'bus.frames' carries no signal with target 'q.panda_joint2': every joint's "
                                   "position, motor input and F/T component must be on the bus"),
+    "a joint torque no signal carries": (lambda b: _frame(b, "TPDO1_2")["signals"][2].pop("target"),
+                                         "carries no signal with target 'tau.panda_joint2'"),
     "a patch no signal carries": (lambda b: b.update(patches=[{"name": "palm", "sides": {}}]),
                                   "field 'bus.patches' lists patch 'palm', which no signal carries"),
 }

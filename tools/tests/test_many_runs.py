@@ -262,3 +262,18 @@ def test_runs_and_urdf_go_to_a_scheduler_s_workers_as_absolute_paths(tmp_path: P
     assert not Path(config.urdf).is_absolute()
     config, refs = for_workers(config, [RunRef("linked.csv", (1.0, None))])
     assert config.urdf == tmp_path / "arm.urdf" and refs == [RunRef(str(tmp_path / "linked.csv"), (1.0, None))]
+
+
+def test_two_recordings_of_one_trajectory_at_rest_at_both_ends_are_two_runs(runs: list[Path], model: RobotModel) -> None:
+    """The same q at both ends and the same length (a fleet runs one trajectory, parked at home) is not one recording:
+    the measured outputs' noise differs. The same samples under shifted stamps are one."""
+    from dataclasses import replace
+
+    from dynid.errors import InputError
+    from dynid.identify.runs import check_distinct_runs
+
+    a = load_data(runs[0], model.config, model.joint_limits)
+    b = replace(a, ft={s: w + np.random.default_rng(0).normal(0, 0.1, w.shape) for s, w in a.ft.items()})
+    check_distinct_runs(["a", "b"], [a, b])
+    with pytest.raises(InputError, match="--data a and c hold the same samples"):
+        check_distinct_runs(["a", "c"], [a, replace(a, t=a.t + 1.7e9)])

@@ -118,3 +118,7 @@ def test_a_window_that_touches_the_fits_by_a_sample_is_in_sample_by_that_sample(
     with contextlib.redirect_stdout(printed):
         print_out_of_sample(o)
     assert "of which 0.081 % was fitted or calibrated on (partly in-sample)" in printed.getvalue()
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        print_out_of_sample({**o, "share_in_fit_and_calibration": 0.9962})
+    assert "of which 99.6 % was fitted" in printed.getvalue(), printed.getvalue()

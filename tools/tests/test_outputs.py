@@ -83,11 +83,12 @@ def test_an_output_on_a_file_the_command_read_through_its_configuration_is_refus
 
     config = tmp_path / "cfg.yaml"
     config.write_text(Path(load_config("icub_right_arm").source).read_text())
-    urdf = Path(load_config("icub_right_arm").urdf)
+    urdf = tmp_path / "arm.urdf"  # a copy: should the refusal regress, the bundled one stays as it is
+    urdf.write_bytes(Path(load_config("icub_right_arm").urdf).read_bytes())
     before = urdf.read_bytes()
     for target, what in ((config, "the robot configuration"), (urdf, "icub_right_arm's URDF")):
         with pytest.raises(DataError, match=f"it is {what}, which the command reads"), staged():
-            load_config(config)
+            load_config(config, urdf)
             atomic_write(tmp_path / "other.json", text(b"A"))
             atomic_write(target, text(b"B"))
         assert not (tmp_path / "other.json").exists()

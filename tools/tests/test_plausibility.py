@@ -96,8 +96,8 @@ def test_a_negative_mass_beyond_a_sensor_names_gravitys_direction(arm: RobotMode
 def test_gravity_torques_against_the_cads_name_gravitys_direction(arm: RobotModel) -> None:
     """A fit on joint torques, currents or PWM under the opposite gravity reproduces the measured torques with every
     body's gravity terms turned: its gravity torques run against the CAD's (slope and correlation near −1; the UR10e
-    and the Panda given +z: −0.89 and −0.93, tests/realdata/test_realdata_ur10e.py), which no F/T sensor is needed to
-    see. The CAD itself, and a fit near it, pass."""
+    given +z: −0.89, tests/realdata/test_realdata_ur10e.py; the Panda −0.93, tools/benchmarks/plausibility_figures.py),
+    which no F/T sensor is needed to see. The CAD itself, and a fit near it, pass."""
     from dynid.identify.plausibility import gravity_torques
 
     phi = arm.cad_parameters()

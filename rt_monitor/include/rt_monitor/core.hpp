@@ -57,11 +57,11 @@ struct Output {
     // row rests, the observer's ratio alone (its rest threshold; the acceleration residuals leave resting rows out).
     // Everything else above is the observer's. Zero with one residual.
     double observer_ratio = 0, acceleration_ratio = 0;
-    // The contact's strongest sample since its onset (the first largest p.t2 from the onset on): what its end event
-    // reports, as dynid detect's events report their peak; an onset freezes its own sample, which a contact growing
-    // on the other side of a sensor outgrows (the iCub leg's put-down). peak_now: this sample is it.
+    // The contact's strongest sample since its onset (the first largest p.t2 / T²_α from the onset on): what its end
+    // event reports, as dynid detect's events report their peak; an onset freezes its own sample, which a contact
+    // growing on the other side of a sensor outgrows (the iCub leg's put-down). peak_now: this sample is it.
     struct Peak {
-        double t2 = 0;
+        double t2 = 0, ratio = 0;  // p.t2 there, and over the T²_α in force there
         VecO e = VecO::Zero();
         std::array<bool, kMaxOutputs> active{};
         std::array<Side, kMaxSensors> side{};

@@ -26,7 +26,7 @@ public:
     Publisher(lcm::LCM& lcm, const Coefficients& coef, const Core& core);
 
     // A contact event (onset or end) of the core's output at CAN time t_us, sample `sample` of the run.
-    // An onset describes its own sample; an end, the contact's strongest (o.peak, at peak_utime).
+    // An event describes o.peak, at peak_utime: an onset's own sample, an end's contact's strongest.
     void contact(const Output& o, int64_t t_us, int64_t onset_utime, int64_t peak_utime, int64_t sample) noexcept;
     // One sample of the decimated residual stream.
     void residual(const Output& o, int64_t t_us) noexcept;

@@ -47,7 +47,7 @@ struct WatchdogSettings {
     int range_samples = 10;        // consecutive samples out of range before the fault
     double duty_margin = 0.05;     // beyond ±1 duty
     double fit_s = 4.0;            // the start-up block (s of samples at the file's period) whose T² is checked
-                                   // against T²_α: 4000 samples at 1 kHz, 400 at 100 Hz (a count, 40 s there)
+                                   // against T²_α: a time, so a slow bus is not blind for longer (400 at 100 Hz)
 };
 
 class Watchdog {

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import argparse
 import re
-from collections import OrderedDict
+from collections import Counter, OrderedDict
 from pathlib import Path
 from typing import Any
 
-from ..cluster import executor
+from ..cluster import check_scheduler_address, executor
 from ..config.robot_config import load_config
 from ..errors import InputError
 from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, FitSettings
@@ -33,6 +33,8 @@ def _file_name(robot: str) -> str:
 
 
 def cmd_fleet(args: argparse.Namespace) -> dict[str, Any]:
+    if args.scheduler is not None:  # before any run is read
+        check_scheduler_address(args.scheduler)
     config = load_config(args.robot, args.urdf)
     model = RobotModel(config)
     named = expand_named(args.data, (lambda p: holds_file_set(p, config)) if config.files else None)
@@ -44,7 +46,8 @@ def cmd_fleet(args: argparse.Namespace) -> dict[str, Any]:
                          f"{MIN_ROBOTS} to have a spread (name each run's robot: --data NAME=RUN, or one folder per "
                          "robot)")
     files = {r: _file_name(r) for r in fleet}
-    clash = [r for r in fleet if list(files.values()).count(files[r]) > 1]
+    uses = Counter(files.values())
+    clash = [r for r in fleet if uses[files[r]] > 1]
     if clash:
         raise InputError("robots' names map to the same model file name: " + ", ".join(clash))
     out = Path(args.out)

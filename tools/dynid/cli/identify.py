@@ -11,7 +11,7 @@ import numpy as np
 from ..config.robot_config import RobotConfig, load_config
 from ..detect.t2 import ALPHA
 from ..errors import DataError, DataNote, InputError
-from ..cluster import executor
+from ..cluster import check_scheduler_address, executor
 from ..identify.fit import (DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_INERTIA_ONLY, FitResult, FitSettings,
                             iv_settled)
 from ..identify.model_file import IdentifiedModel, load_model
@@ -59,6 +59,8 @@ WORST_REAL_NOISES = 45.6
 
 
 def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
+    if args.scheduler is not None:  # before any run is read
+        check_scheduler_address(args.scheduler)
     config = load_config(args.robot, args.urdf)
     from_config = args.consistent is None
     if from_config:  # the robot's default (its configuration's fit.consistent; docs/consistency.md#default)

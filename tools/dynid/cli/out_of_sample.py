@@ -68,7 +68,9 @@ def print_out_of_sample(o: dict[str, Any]) -> None:
     if o["data_outside_fit_and_calibration"]:
         where = "outside the fit and calibration"
     elif share is not None and share < 1.0:
-        where = f"of which {100 * share:.2g} % was fitted or calibrated on (partly in-sample)"
+        percent = 100 * share
+        shown = f"{percent:.2g}" if percent < 99 else f"{percent:.1f}"  # never '1e+02'
+        where = f"of which {shown} % was fitted or calibrated on (partly in-sample)"
     else:
         where = "among the runs fitted or calibrated on (an in-sample figure)"
     for name, v in o["variants"].items():

@@ -205,8 +205,9 @@ def _value_target_ok(target: str, joints: tuple[str, ...], motors: dict[str, str
 
 
 def parse_bus(f: Fields, joints: tuple[str, ...], motors: dict[str, str], sensors: tuple[str, ...],
-              origin: str = "bus") -> BusDescription:
-    """Validate a `bus:` mapping (fields as docs/formats.md has them); `motors` maps each motor to its input kind."""
+              origin: str = "bus", torques: tuple[str, ...] = ()) -> BusDescription:
+    """Validate a `bus:` mapping (fields as docs/formats.md has them); `motors` maps each motor to its input kind,
+    `torques` names the joints a torque sensor drives the model from."""
     f.only("buses", "bitrate", "rate", "stale_ms", "pair_us", "clock", "pairs", "patches", "frames")
     buses = f.strings("buses")
     if not buses:
@@ -261,7 +262,7 @@ def parse_bus(f: Fields, joints: tuple[str, ...], motors: dict[str, str], sensor
     # What every reader needs (dynid import, play, the monitor): a bus without it was exported and played (the column
     # left out) and refused only at the monitor's start
     needed = ([f"q.{j}" for j in joints] + [f"{kind}.{m}" for m, kind in motors.items() if kind in ("pwm", "current")]
-              + [f"ft.{s}.{c}" for s in sensors for c in FT_COMPONENTS])
+              + [f"tau.{j}" for j in torques] + [f"ft.{s}.{c}" for s in sensors for c in FT_COMPONENTS])
     missing = [t for t in needed if t not in seen_targets]
     if missing:
         more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""

@@ -366,16 +366,18 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     sensor_names = tuple(s.name for s in sensors)
     inputs = {m: g.input for g in groups for m in g.motors}
     can_map = _validate_can(f, joints, inputs, sensor_names)
+    torques = tuple(j for g in groups if g.input == "torque" for j in g.joints)
     if f.has("bus"):
-        bus = parse_bus(f.sub("bus"), joints, inputs, sensor_names)
+        bus = parse_bus(f.sub("bus"), joints, inputs, sensor_names, torques=torques)
     elif can_map:
-        bus = parse_bus(Fields(name, "can", icub_bus(can_map, sensor_names)), joints, inputs, sensor_names, "can")
+        bus = parse_bus(Fields(name, "can", icub_bus(can_map, sensor_names)), joints, inputs, sensor_names, "can",
+                        torques=torques)
     else:
         bus = None
 
     note_input(path, "the robot configuration")
     resolved = resolve_urdf(f, path.parent, urdf) if need_urdf else urdf_if_found(f, path.parent, urdf)
-    if str(resolved):
+    if resolved != Path():  # an unresolved URDF (need_urdf False) is no file
         note_input(resolved, f"{name}'s URDF")
     return RobotConfig(
         name=name,

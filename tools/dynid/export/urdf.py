@@ -182,7 +182,9 @@ def export_urdf(identified: IdentifiedModel, out: str | Path, allow_residual: bo
                                  for k in range(len(robot.bodies))])
         full = np.array(phi, float)
         full[inertial] = bodies
-        return links, bodies, [f"the written set: {p['text']}" for p in implausible(robot, full)]
+        # a link's placement; gravity's direction is the fit's to say (`dynid fit`), and the same for either set
+        return links, bodies, [f"the written set: {p['text']}" for p in implausible(robot, full)
+                               if p["problem"] != "gravity"]
 
     written, bodies, odd = written_set(physical)
     if odd and identified.consistent is not None:

@@ -73,7 +73,7 @@ def for_workers(config: RobotConfig, refs: list[RunRef]) -> tuple[RobotConfig, l
     """The configuration and runs with absolute paths: a Dask worker opens them in its own working directory (a
     walkthrough's `--data 'npz/*.npz' --scheduler ...` was "data file not found" there, and a relative --urdf "lost
     the connection to the cluster"). Symlinks are kept: they are what the workers share."""
-    urdf = Path(os.path.abspath(config.urdf)) if str(config.urdf) else config.urdf
+    urdf = Path(os.path.abspath(config.urdf)) if config.urdf != Path() else config.urdf
     return replace(config, urdf=urdf), [replace(r, path=os.path.abspath(r.path)) for r in refs]
 
 
@@ -130,14 +130,18 @@ def fit_on_cluster(model: RobotModel, refs: list[RunRef], runs: list[Run], setti
 def check_distinct_runs(paths: list[str], runs: list) -> None:
     """Refuse one recording given twice under two names (a folder and its `dynid import`, a copy): it would count
     twice, and its blocks would pose as independent runs. Two runs are the same where their first and last samples'
-    q are, bit for bit, and their lengths: not their stamps, which a bag written from the same log may shift to the
-    epoch (a walkthrough's CSV and its MCAP: block errors 0.56 times the run's own, the runs' error zero)."""
+    q and measured outputs (F/T, inputs: their noise tells two recordings of one trajectory apart, however still the
+    robot was at both ends) are, bit for bit, and their lengths: not their stamps, which a bag written from the same
+    log may shift to the epoch (a walkthrough's CSV and its MCAP: block errors 0.56 times the run's own, the runs'
+    error zero)."""
     seen: dict[bytes, str] = {}
     for path, run in zip(paths, runs):
         n = run.n_samples
         ends = [run.slice(0, min(n, 64)), run.slice(max(0, n - 64), n)]
-        key = hashlib.sha256(np.int64(n).tobytes() + b"".join(np.ascontiguousarray(d.q, float).tobytes()
-                                                               for d in ends)).digest()
+        arrays = [a for d in ends for a in (d.q, *(v for family in (d.ft, d.pwm, d.current, d.tau)
+                                                   for _, v in sorted(family.items())))]
+        key = hashlib.sha256(np.int64(n).tobytes() + b"".join(np.ascontiguousarray(a, float).tobytes()
+                                                               for a in arrays)).digest()
         if key in seen:
             raise InputError(f"--data {seen[key]} and {path} hold the same samples (one recording under two names?): "
                              "it would count twice; give it once")

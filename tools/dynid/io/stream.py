@@ -44,8 +44,8 @@ _ROW_MEMBERS = ("t", "q", "dq", "ddq", "contact")
 
 
 class NotStreamable(Exception):
-    """The file is a dataset, but not one whose rows can be read in place (a compressed or Fortran-ordered
-    member): it is read whole instead."""
+    """The file is a dataset, but not one whose rows can be read in place (a compressed member, or a column-major
+    one of more than two dimensions): it is read whole instead."""
 
 
 class DatasetFile:
