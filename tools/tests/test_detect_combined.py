@@ -192,3 +192,28 @@ def test_a_version_2_file_keeps_its_observer_and_calibrates_kappa_alone(default_
     for name in ("combined", "momentum", "calibrated"):
         assert recalibrated[name]["threshold"] == pytest.approx(new[name]["threshold"], rel=1e-9)
         assert recalibrated[name]["fpr"] == pytest.approx(new[name]["fpr"], abs=1e-12)
+
+
+def test_the_derivative_filters_edges_are_not_scored(default_model: Path, default_experiments: dict,
+                                                      tmp_path: Path) -> None:
+    """Within half the derivative filter's window of a run's ends the residual is the off-centre polynomial's: on the
+    default validation run T²/T²_α reached 1.55 at the first sample and 27 at the last, and every `detect --json`
+    began with an event at 0 s. Those samples are left out of the scores and events, as the monitor never evaluates
+    them; every other sample is scored as before."""
+    from dynid.detect.evaluation import detection, filter_edges
+    from dynid.identify.validation import evaluate
+
+    ev = evaluate(str(default_model), str(default_experiments["validation"]))
+    edge = filter_edges(ev)
+    assert edge[:15].all() and edge[-15:].all() and not edge[15:-15].any()  # 31 samples at 1 kHz: 15 each side
+    det = detection(ev, "m", "d", ALPHA, "dim")
+    for variant, t2 in det.t2.items():
+        assert np.isnan(t2[edge]).all() and np.isfinite(t2[~edge]).all(), variant
+        assert det.result["variants"][variant]["samples"] == int((~edge).sum())
+    out = tmp_path / "d.json"
+    done = subprocess.run([sys.executable, "-m", "dynid.cli", "detect", "--model", str(default_model), "--data",
+                           str(default_experiments["validation"]), "--json", str(out)], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    result = json.loads(out.read_text())
+    t = ev.dataset.t
+    assert all(t[15] <= e["onset_s"] and e["end_s"] <= t[-16] for e in result["events"])

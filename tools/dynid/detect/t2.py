@@ -331,6 +331,11 @@ def _score(t: np.ndarray, t2: np.ndarray, threshold: float, contact: np.ndarray 
     """(`score`'s result, each episode's onset delay: None where missed)."""
     from sklearn.metrics import roc_auc_score, roc_curve  # ~0.3 s: only where detection is scored
 
+    keep = np.isfinite(t2)  # NaN: a sample not evaluated (the derivative filter's edges: evaluation.filter_edges)
+    if not keep.all():
+        t, t2 = np.asarray(t)[keep], np.asarray(t2)[keep]
+        contact = None if contact is None else np.asarray(contact)[keep]
+        side = None if side is None else np.asarray(side)[keep]
     alarm = t2 > threshold
     out: dict = {"threshold": threshold, "alarm_rate": float(alarm.mean()), "samples": int(t2.size)}
     if contact is None:
