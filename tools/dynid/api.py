@@ -24,7 +24,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from .config import RobotConfig, load_config
 from .detect.combined import CombinedDetector, calibrate_combined
-from .detect.evaluation import detectors
+from .detect.evaluation import detectors, filter_edges
 from .detect.momentum_t2 import MomentumDetector, calibrate_momentum, calibration_runs, friction_band, run_residuals
 from .detect.t2 import ALPHA, VARIANTS, Detector, calibrate, calibration_residuals, score_with_delays
 from .detect.t2 import score as score_t2
@@ -325,8 +325,8 @@ class ContactDetector(BaseEstimator):
         ds, momentum, all_rest = self._momentum_statistic_and_rest(X)
         ev = self.model._evaluated(X)
         acceleration = self._detector()
-        return ds, det.statistic(momentum, acceleration.t2(ev.model, ev.e, ev.signals.dq) / acceleration.threshold,
-                                 all_rest)
+        t2 = np.where(filter_edges(ev), np.nan, acceleration.t2(ev.model, ev.e, ev.signals.dq))
+        return ds, det.statistic(momentum, t2 / acceleration.threshold, all_rest)
 
     def _momentum_statistic(self, X: Data) -> tuple[Dataset, np.ndarray]:
         return self._momentum_statistic_and_rest(X)[:2]
@@ -370,8 +370,9 @@ class ContactDetector(BaseEstimator):
         return self
 
     def decision_function(self, X: Data) -> np.ndarray:
-        """T² per sample (NaN where the detector is gated off); T²/T²_α for the momentum variant, s for the
-        combined one."""
+        """T² per sample (NaN where the detector is gated off, and within half the derivative filter's window of
+        the run's ends: `dynid.detect.evaluation.filter_edges`); T²/T²_α for the momentum variant, s for the combined
+        one."""
         self._check()
         if self.variant == "momentum":
             return self._momentum_statistic(X)[1]
@@ -379,7 +380,7 @@ class ContactDetector(BaseEstimator):
             return self._combined_statistic(X)[1]
         ev = self.model._evaluated(X)
         e = ev.e_constant if self.variant == "paper" else ev.e  # the paper's model has constant gains
-        return self._detector().t2(ev.model, e, ev.signals.dq, ev.identified.phi)
+        return np.where(filter_edges(ev), np.nan, self._detector().t2(ev.model, e, ev.signals.dq, ev.identified.phi))
 
     def predict(self, X: Data) -> np.ndarray:
         """Contact (True) where T² exceeds T²_α."""
@@ -410,7 +411,7 @@ class ContactDetector(BaseEstimator):
         ev = self.model._evaluated(X)
         e = ev.e_constant if self.variant == "paper" else ev.e
         det = self._detector()
-        t2 = det.t2(ev.model, e, ev.signals.dq, ev.identified.phi)
+        t2 = np.where(filter_edges(ev), np.nan, det.t2(ev.model, e, ev.signals.dq, ev.identified.phi))
         return score_t2(ev.dataset.t, t2, det.threshold, ev.dataset.contact, ev.dataset.extra.get("skin.side"))
 
 
