@@ -593,8 +593,7 @@ bool load_monitor_config(const std::string& path, MonitorConfig& out, std::strin
 
 std::vector<uint32_t> bus_ids(const MonitorConfig& c, int bus) {
     std::vector<uint32_t> out;
-    for (const FrameDef& f : c.bus.frames)
-        if (f.bus == bus) out.push_back(f.id);
+    for (const FrameDef& f : c.bus.frames) if (f.bus == bus) out.push_back(f.id);
     return out;
 }
 

@@ -58,7 +58,8 @@ void Publisher::send(Channel channel, const Message& msg) noexcept {
     else ++failed_;
 }
 
-void Publisher::normalized(std::vector<double>& r, const VecO& e, const std::array<bool, kMaxOutputs>& active) const noexcept {
+void Publisher::normalized(std::vector<double>& r, const VecO& e,
+                           const std::array<bool, kMaxOutputs>& active) const noexcept {
     for (int i = 0; i < coef_.n_outputs; ++i) r[size_t(i)] = active[size_t(i)] ? e[i] / sigma_[size_t(i)] : 0.0;
 }
 

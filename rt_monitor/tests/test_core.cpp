@@ -1,7 +1,8 @@
 // Unit tests of the real-time core on the CAD coefficient file (tests/data/icub_cad.dcoef, made by
 // `dynid export --cad`): loader refusals on damaged bytes, zero heap allocations over 100 000 samples (core, sample
-// clock, and the status message's fill and encode), the detector's debounce, hysteresis and contact side.
+// clock, and the status message's fill and encode), supply tracking (the detector's own: test_detector.cpp).
 // Cross-language equality is tested from Python (tests/test_rt_core.py) against dynid's own residuals.
+#include "core_fixture.hpp"
 #include "rt_monitor/core.hpp"
 #include "rt_monitor/sample_clock.hpp"
 #include "rt_monitor/status.hpp"
@@ -14,13 +15,15 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
-#include <initializer_list>
 #include <iterator>
 #include <memory>
 #include <new>
 #include <vector>
 
 using namespace dynid::rt;
+using dynid::rt::testing::joint_vector;
+using dynid::rt::testing::load_fixture;
+using dynid::rt::testing::Scenario;
 
 // ---- allocation counting: every operator new, and malloc where no sanitizer owns it -------------------------
 namespace {
@@ -81,13 +84,6 @@ void put_le32(std::vector<uint8_t>& b, size_t at, uint32_t v) {
 }
 
 void reseal(std::vector<uint8_t>& b) { put_le32(b, b.size() - 4, crc32(b.data(), b.size() - 4)); }
-
-std::unique_ptr<Coefficients> load_fixture() {
-    auto c = std::make_unique<Coefficients>();
-    const LoadResult r = load_coefficients(RT_TEST_COEF, "icub_right_arm", *c);
-    EXPECT_TRUE(bool(r)) << r.message;
-    return c;
-}
 
 }  // namespace
 
@@ -300,131 +296,6 @@ void no_allocation_over_100000_samples(Residual residual) {
 TEST(Core, NoHeapAllocationOver100000Samples) { no_allocation_over_100000_samples(Residual::kAcceleration); }
 TEST(Core, NoHeapAllocationOver100000SamplesWithTheObserver) { no_allocation_over_100000_samples(Residual::kMomentum); }
 TEST(Core, NoHeapAllocationOver100000SamplesCombined) { no_allocation_over_100000_samples(Residual::kCombined); }
-
-namespace {
-// A joint vector of the monitor's capacity: the given leading values, zeros beyond. (A comma initializer with fewer
-// values than kMaxJoints leaves the rest uninitialised; Eigen asserts on it where NDEBUG is off: build-asan.)
-VecJ joint_vector(std::initializer_list<double> values) {
-    VecJ x = VecJ::Zero();
-    int i = 0;
-    for (double value : values) x[i++] = value;
-    return x;
-}
-
-// A smooth motion (q linear in time: the filter reproduces it exactly) with its exact model outputs, plus a
-// disturbance on chosen channels.
-struct Scenario {
-    std::unique_ptr<Coefficients> c = load_fixture();
-    std::unique_ptr<Core> core = std::make_unique<Core>(*c);
-    VecJ q0 = joint_vector({0.1, 0.4, 0.2, 0.8, 0.0, 0.1, -0.1});
-    VecJ v = joint_vector({0.2, -0.15, 0.25, 0.3, -0.2, 0.1, 0.15});
-    const Output& step(int k, const VecO& disturbance) {
-        VecJ q = q0 + v * (1e-3 * k);
-        Prediction p;
-        core->predict(q, v, VecJ::Zero(), VecO::Zero(), p);
-        VecO y = p.y_hat + disturbance;
-        return core->step(q.data(), y.data());
-    }
-};
-}  // namespace
-
-TEST(Detector, DebounceHysteresisAndSide) {
-    Scenario s;
-    s.core->set_detector({5, 20, 0.5});
-    const double big = 5.0 * std::sqrt(s.c->threshold * s.c->variance[0]);  // fx alone: 25× T²_α
-    VecO none = VecO::Zero(), push = VecO::Zero(), mid = VecO::Zero();
-    push[0] = big;
-    mid[0] = 0.85 * std::sqrt(s.c->threshold * s.c->variance[0]);  // T² ≈ 0.72 T²_α: between end and onset levels
-    int k = 0, onset = -1, end = -1, first_above = -1;
-    for (; k < 200; ++k) EXPECT_FALSE(s.step(k, none).above) << "false alarm at " << k << " T2 " << s.core->output().p.t2;
-    for (; k < 400; ++k) {
-        const Output& o = s.step(k, push);
-        if (o.above && first_above < 0) first_above = k;
-        if (o.event == Event::kOnset) {
-            onset = k;
-            EXPECT_EQ(o.side[0], Side::kDistal);
-        }
-        if (k == 399) {  // settled: the F/T residual is the external wrench
-            EXPECT_NEAR(o.wrench[0][0], big, 1e-3 * big);
-            EXPECT_NEAR(o.wrench[0].tail<5>().norm(), 0.0, 1e-3 * big);
-        }
-    }
-    ASSERT_GE(first_above, 200);
-    EXPECT_EQ(onset, first_above + 4) << "onset after 5 consecutive samples above";
-    for (; k < 600; ++k) {
-        const Output& o = s.step(k, mid);
-        EXPECT_TRUE(o.in_contact) << "hysteresis: stays in contact above the end level, sample " << k;
-        EXPECT_NE(o.event, Event::kEnd);
-    }
-    int first_low = -1;
-    for (; k < 800; ++k) {
-        const Output& o = s.step(k, none);
-        if (first_low < 0 && o.p.t2 < 0.5 * s.c->threshold) first_low = k;
-        if (o.event == Event::kEnd) end = k;
-    }
-    ASSERT_GE(first_low, 600);
-    EXPECT_EQ(end, first_low + 19) << "end after 20 consecutive samples below the end level";
-}
-
-TEST(Detector, AnEndReportsTheContactsStrongestSample) {
-    // A contact first seen on a motor channel alone (proximal of the sensor), then growing beyond the sensor (its fx):
-    // the onset describes its own sample, the end the strongest one, as dynid detect's events take their peak.
-    Scenario s;
-    s.core->set_detector({5, 20, 0.5});
-    VecO motor = VecO::Zero(), both = VecO::Zero();
-    motor[9] = 3.0 * std::sqrt(s.c->threshold * s.c->variance[9]);
-    both = motor;
-    both[0] = 6.0 * std::sqrt(s.c->threshold * s.c->variance[0]);
-    int k = 0;
-    for (; k < 100; ++k) s.step(k, VecO::Zero());
-    double strongest = 0;
-    Vec6 wrench_there = Vec6::Zero();
-    bool onset_seen = false;
-    for (; k < 400; ++k) {
-        const Output& o = s.step(k, k < 200 ? motor : both);
-        if (o.event == Event::kOnset) {
-            onset_seen = true;
-            EXPECT_EQ(o.side[0], Side::kProximal);
-            EXPECT_TRUE(o.peak_now);
-        }
-        if (o.in_contact && o.p.t2 > strongest) {
-            EXPECT_TRUE(o.peak_now) << k;
-            strongest = o.p.t2;
-            wrench_there = o.wrench[0];
-        } else {
-            EXPECT_FALSE(o.peak_now && o.event != Event::kOnset) << k;
-        }
-    }
-    ASSERT_TRUE(onset_seen);
-    bool ended = false;
-    for (; k < 600 && !ended; ++k) {
-        const Output& o = s.step(k, VecO::Zero());
-        if (o.event != Event::kEnd) continue;
-        ended = true;
-        EXPECT_EQ(o.side[0], Side::kNone) << "the end sample itself is under the level";
-        EXPECT_EQ(o.peak.side[0], Side::kDistal);
-        EXPECT_EQ(o.peak.t2, strongest);
-        EXPECT_EQ((o.peak.wrench[0] - wrench_there).norm(), 0.0);
-        EXPECT_GT(o.peak.wrench[0][0], 0.5 * both[0]);
-    }
-    EXPECT_TRUE(ended);
-}
-
-TEST(Detector, MotorChannelsAloneMeanProximal) {
-    Scenario s;
-    VecO push = VecO::Zero();
-    push[9] = 5.0 * std::sqrt(s.c->threshold * s.c->variance[9]);  // the elbow motor's PWM only
-    for (int k = 0; k < 100; ++k) s.step(k, VecO::Zero());
-    bool seen = false;
-    for (int k = 100; k < 200; ++k) {
-        const Output& o = s.step(k, push);
-        if (o.above) {
-            seen = true;
-            EXPECT_EQ(o.side[0], Side::kProximal);
-        }
-    }
-    EXPECT_TRUE(seen);
-}
 
 TEST(Core, SupplyTrackingFollowsASagAndIgnoresAPush) {
     // The motors' measured inputs are ŷ/0.95 (a 5 % supply sag): r must reach 1/0.95 (dynid.identify.supply), its first

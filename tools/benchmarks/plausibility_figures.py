@@ -23,8 +23,7 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tools"))
 
 from dynid.identify.model_file import load_model  # noqa: E402
-from dynid.identify.plausibility import GRAVITY_POSTURES, masses_far_from_cad  # noqa: E402
-from dynid.robot.regressors.rigid_body import rigid_body_regressors  # noqa: E402
+from dynid.identify.plausibility import gravity_agreement, masses_far_from_cad  # noqa: E402
 
 
 def fit(work: Path, name: str, *args: str) -> Path | None:
@@ -35,19 +34,6 @@ def fit(work: Path, name: str, *args: str) -> Path | None:
         print(f"{name}: dynid fit failed: {done.stderr.strip()}")
         return None
     return out
-
-
-def gravity_statistic(path: Path) -> tuple[float, float]:
-    """(slope, correlation) of the fitted gravity torques on the CAD's, as `gravity_torques` computes them."""
-    m = load_model(path)
-    rm = m.robot_model
-    phi = np.array([m.parameters[n] for n in rm.layout.names])[rm.layout.span("inertial")]
-    lo, hi = (np.array([rm.joint_limits[j][i] for j in rm.config.joints]) for i in (0, 1))
-    lo, hi = np.where(np.isfinite(lo), lo, -np.pi), np.where(np.isfinite(hi), hi, np.pi)
-    q = np.random.default_rng(0).uniform(lo, hi, (GRAVITY_POSTURES, len(lo)))
-    Y = rigid_body_regressors(rm, q, np.zeros_like(q), np.zeros_like(q)).tau
-    fitted, cad = (Y @ phi).ravel(), (Y @ rm.cad_inertial_parameters).ravel()
-    return float(fitted @ cad / (cad @ cad)), float(np.corrcoef(fitted, cad)[0, 1])
 
 
 def main() -> None:
@@ -89,9 +75,9 @@ def main() -> None:
                        consistent)
             if path is None:
                 continue
-            slope, correlation = gravity_statistic(path)
             m = load_model(path)
             phi = np.array([m.parameters[n] for n in m.robot_model.layout.names])
+            slope, correlation = gravity_agreement(m.robot_model, phi)
             far = "; ".join(w["text"] for w in masses_far_from_cad(m.robot_model, phi)) or "none"
             print(f"| {name} | {consistent} | {slope:.2f} | {correlation:.2f} | {far} |", flush=True)
 

@@ -145,24 +145,24 @@ def executor(workers: int | None = None, scheduler: str | None = None) -> DaskCl
         warnings.warn(DataNote(f"--workers {workers}: this process may run on {cpus} CPU{'s' * (cpus != 1)}; "
                                f"{cpus} worker{'s' * (cpus != 1)} started"), stacklevel=2)
         workers = cpus
-    if scheduler is not None:
-        check_scheduler_address(scheduler)
+    if scheduler is not None and (why := scheduler_problem(scheduler)):  # the API's; the CLI's parser refuses first
+        raise InputError(f"--scheduler {scheduler!r}: {why}")
     if scheduler is not None or workers is not None:
         return DaskCluster(workers, scheduler)
     return None
 
 
-def check_scheduler_address(address: str) -> None:
-    """Refuse, before any connection, an address no plain Dask scheduler has: [tcp://]HOST:PORT (a walkthrough's
-    '127.0.0.1' without its port, 'http://...' and '' each waited 40 s and left a traceback; 'tls://' needs a
-    security context dynid does not take, and was a traceback, exit 1)."""
+def scheduler_problem(address: str) -> str:
+    """Why no plain Dask scheduler has `address` ('' where one may: [tcp://]HOST:PORT), before any connection (a
+    walkthrough's '127.0.0.1' without its port, 'http://...' and '' each waited 40 s and left a traceback; 'tls://'
+    needs a security context dynid does not take, and was a traceback, exit 1)."""
     scheme, sep, location = address.partition("://")
     if not sep:
         scheme, location = "tcp", address
     host, colon, port = location.rpartition(":")
     if scheme == "tls":
-        raise InputError(f"--scheduler {address!r}: a TLS scheduler needs a security context, which dynid does not "
-                         "take; reach it over tcp:// (an SSH tunnel, a private network)")
+        return ("a TLS scheduler needs a security context, which dynid does not take; reach it over tcp:// (an SSH "
+                "tunnel, a private network)")
     if scheme != "tcp" or not colon or not host or not port.isdigit() or not 0 < int(port) < 65536:
-        raise InputError(f"--scheduler {address!r}: not a Dask scheduler's address: give [tcp://]HOST:PORT, e.g. "
-                         "tcp://127.0.0.1:8786")
+        return "not a Dask scheduler's address: give [tcp://]HOST:PORT, e.g. tcp://127.0.0.1:8786"
+    return ""

@@ -121,6 +121,15 @@ def check_outputs(args: argparse.Namespace, extra: dict[str, str] | None = None)
         seen[real] = option
 
 
+def scheduler_address(text: str) -> str:
+    """An argument type: a Dask scheduler's address, refused at once where none can have it (dynid.cluster)."""
+    from ..cluster import scheduler_problem
+
+    if why := scheduler_problem(text):
+        raise argparse.ArgumentTypeError(f"'{text}' is {why}" if why.startswith("not") else f"'{text}': {why}")
+    return text
+
+
 def positive_int(text: str) -> int:
     try:
         value = int(text)

@@ -8,7 +8,7 @@ from collections import Counter, OrderedDict
 from pathlib import Path
 from typing import Any
 
-from ..cluster import check_scheduler_address, executor
+from ..cluster import executor
 from ..config.robot_config import load_config
 from ..errors import InputError
 from ..identify.fit import DEFAULT_ESTIMATOR, ESTIMATORS, FitSettings
@@ -21,7 +21,7 @@ from ..pipeline import IdentifySettings, identify
 from ..report.fleet import compare, page
 from ..robot.model import RobotModel
 from .commands import COMMANDS
-from .common import json_arg, min_speed_arg, plural, positive_int, robot_arg
+from .common import json_arg, min_speed_arg, plural, positive_int, robot_arg, scheduler_address
 
 LAYOUT_KINDS = {"joint_friction": "friction", "motor_friction": "friction", "motor_gain": "gain",
                 "ft_offset": "ft_offset"}
@@ -33,9 +33,9 @@ def _file_name(robot: str) -> str:
 
 
 def cmd_fleet(args: argparse.Namespace) -> dict[str, Any]:
-    if args.scheduler is not None:  # before any run is read
-        check_scheduler_address(args.scheduler)
     config = load_config(args.robot, args.urdf)
+    if args.scheduler:  # workers open the files in their own directory
+        config = for_workers(config, [])[0]
     model = RobotModel(config)
     named = expand_named(args.data, (lambda p: holds_file_set(p, config)) if config.files else None)
     fleet: OrderedDict[str, list[str]] = OrderedDict()
@@ -57,9 +57,7 @@ def cmd_fleet(args: argparse.Namespace) -> dict[str, Any]:
         raise InputError(f"cannot write to '{args.out}' (--out): it holds files already (an earlier fleet's models "
                          "would mix with this one's); give a new or empty directory")
     refs = {r: [RunRef(p) for p in paths] for r, paths in fleet.items()}
-    if args.scheduler:  # workers open the files in their own directory
-        config, _ = for_workers(config, [])
-        model = RobotModel(config)
+    if args.scheduler:
         refs = {r: for_workers(config, rr)[1] for r, rr in refs.items()}
     runs = {r: [stream_run(ref, model) for ref in rr] for r, rr in refs.items()}  # all checked before any fit
     check_distinct_runs([p for paths in fleet.values() for p in paths], [x for rr in runs.values() for x in rr])
@@ -113,7 +111,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--out", required=True, metavar="DIR", help="the directory to write (created)")
     where = sp.add_mutually_exclusive_group()
     where.add_argument("--workers", type=positive_int, metavar="N", help="fit on a Dask LocalCluster of N workers")
-    where.add_argument("--scheduler", metavar="ADDRESS", help="fit on the running Dask cluster at ADDRESS")
+    where.add_argument("--scheduler", type=scheduler_address, metavar="ADDRESS",
+                       help="fit on the running Dask cluster at ADDRESS")
     sp.add_argument("--estimator", choices=ESTIMATORS, default=DEFAULT_ESTIMATOR,
                     help=f"the estimator each robot's model keeps (default {DEFAULT_ESTIMATOR})")
     sp.add_argument("--blocks", type=positive_int, default=10, help="time blocks per run (default 10)")

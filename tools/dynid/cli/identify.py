@@ -11,7 +11,7 @@ import numpy as np
 from ..config.robot_config import RobotConfig, load_config
 from ..detect.t2 import ALPHA
 from ..errors import DataError, DataNote, InputError
-from ..cluster import check_scheduler_address, executor
+from ..cluster import executor
 from ..identify.fit import (DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_INERTIA_ONLY, FitResult, FitSettings,
                             iv_settled)
 from ..identify.model_file import IdentifiedModel, load_model
@@ -33,7 +33,8 @@ from .validate_blocks import block_count, print_blocks
 from .common import confidence as alpha
 from .common import one_blas_thread
 from .common import (bad_rows, expand_data, folder_of_runs_error, json_arg, min_speed_arg, non_negative_float,
-                     payload_arg, payloads, plural, positive_int, robot_arg, skipped_rows, window, window_args)
+                     payload_arg, payloads, plural, positive_int, robot_arg, scheduler_address, skipped_rows, window,
+                     window_args)
 
 INPUT_WORD = {"pwm": "PWM", "current": "current", "tau": "joint torque"}
 GAIN_UNIT = {"pwm": "Nm per unit duty", "current": "Nm per A"}
@@ -59,8 +60,6 @@ WORST_REAL_NOISES = 45.6
 
 
 def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
-    if args.scheduler is not None:  # before any run is read
-        check_scheduler_address(args.scheduler)
     config = load_config(args.robot, args.urdf)
     from_config = args.consistent is None
     if from_config:  # the robot's default (its configuration's fit.consistent; docs/consistency.md#default)
@@ -376,7 +375,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     where.add_argument("--workers", type=positive_int, metavar="N",
                        help="map the runs' time blocks on a Dask LocalCluster of N worker processes started here "
                        "(default: in this process, with a process pool per run)")
-    where.add_argument("--scheduler", metavar="ADDRESS",
+    where.add_argument("--scheduler", type=scheduler_address, metavar="ADDRESS",
                        help="map them on a running Dask cluster (e.g. tcp://10.0.0.1:8786); every worker must read "
                        "the runs at the same paths (docs/deployment.md#many-runs-on-a-dask-cluster)")
     window_args(sp)

@@ -29,20 +29,20 @@ from ..robot.model import RobotModel
 from ..robot.regressors.rigid_body import rigid_body_regressors
 
 COM_MARGIN_FACTOR = 1.5
+COM_MARGIN_M = 0.05
+FRICTION_TOLERANCE = 1e-6  # Nm, Nm s/rad: below a solver's rounding of a bound at 0, far below any real friction
 # Gravity torques opposite to the CAD's: a least-squares slope of the fitted on the CAD's under 0 with a correlation
 # under this. Fits under the right gravity: slope 0.89-1.31, correlation 0.96-1.00 (the simulated arm, the UR10e
 # alone and from its pair, the Panda, TIAGo, the iCub leg, unconstrained and consistent: their docs/robots fits);
 # the UR10e and the Panda given +z: slopes −0.89 and −0.93, correlations −1.00
 # (tools/benchmarks/plausibility_figures.py).
+GRAVITY_CORRELATION = -0.5
+GRAVITY_POSTURES = 256
 # A body's mass this many times its CAD's, and this much heavier: not a mass the data determined. Physical, so not
 # implausible; said apart (the consistent fit puts what the data leave free where its constraints cost the fit least:
 # the simulated arm's shoulders at 9-29 kg, their CAD 0.12-0.36 kg; the Panda's link2 at 108 kg, CAD 0.65 kg)
 MASS_RATIO = 5.0
 MASS_EXCESS_KG = 1.0
-GRAVITY_CORRELATION = -0.5
-GRAVITY_POSTURES = 256
-COM_MARGIN_M = 0.05
-FRICTION_TOLERANCE = 1e-6  # Nm, Nm s/rad: below a solver's rounding of a bound at 0, far below any real friction
 
 
 def inertia_about_com(phi_body: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -141,22 +141,29 @@ def gravity_torques(model: RobotModel, phi: np.ndarray, seed: int = 0) -> list[d
     per sample (`gravity.imu`), where the configuration's direction is not what the fit used."""
     if model.config.gravity_imu:
         return []
-    lo, hi = (np.array([model.joint_limits[j][i] for j in model.config.joints]) for i in (0, 1))
-    lo, hi = np.where(np.isfinite(lo), lo, -np.pi), np.where(np.isfinite(hi), hi, np.pi)
-    q = np.random.default_rng(seed).uniform(lo, hi, (GRAVITY_POSTURES, len(lo)))
-    Y = rigid_body_regressors(model, q, np.zeros_like(q), np.zeros_like(q)).tau  # (N, joints, 10 bodies)
-    span = model.layout.span("inertial")
-    fitted, cad = Y @ np.asarray(phi, float)[span], Y @ model.cad_inertial_parameters
-    if not np.all(np.isfinite(fitted)) or not np.std(cad) > 0 or not np.std(fitted) > 0:
+    agreement = gravity_agreement(model, phi, seed)
+    if agreement is None or not (agreement[0] < 0 and agreement[1] < GRAVITY_CORRELATION):
         return []
-    slope = float(fitted.ravel() @ cad.ravel() / (cad.ravel() @ cad.ravel()))
-    correlation = float(np.corrcoef(fitted.ravel(), cad.ravel())[0, 1])
-    if not (slope < 0 and correlation < GRAVITY_CORRELATION):
-        return []
+    slope, correlation = agreement
     return [{"problem": "gravity", "slope": slope, "correlation": correlation,
              "text": f"the fitted gravity torques run against the CAD's (slope {slope:.2f}, correlation "
                      f"{correlation:.2f} over {GRAVITY_POSTURES} postures within the joints' limits): is gravity's "
                      "direction in the configuration right, and the inputs' sign?"}]
+
+
+def gravity_agreement(model: RobotModel, phi: np.ndarray, seed: int = 0) -> tuple[float, float] | None:
+    """(slope, correlation) of the fitted Φ's gravity torques on the CAD's over GRAVITY_POSTURES postures drawn within
+    the joints' limits (±π where unbounded), every joint's torque one point; None where either set is constant or the
+    fitted one not finite."""
+    lo, hi = (np.array([model.joint_limits[j][i] for j in model.config.joints]) for i in (0, 1))
+    lo, hi = np.where(np.isfinite(lo), lo, -np.pi), np.where(np.isfinite(hi), hi, np.pi)
+    q = np.random.default_rng(seed).uniform(lo, hi, (GRAVITY_POSTURES, len(lo)))
+    Y = rigid_body_regressors(model, q, np.zeros_like(q), np.zeros_like(q)).tau  # (N, joints, 10 bodies)
+    fitted = (Y @ np.asarray(phi, float)[model.layout.span("inertial")]).ravel()
+    cad = (Y @ model.cad_inertial_parameters).ravel()
+    if not np.all(np.isfinite(fitted)) or not np.std(cad) > 0 or not np.std(fitted) > 0:
+        return None
+    return float(fitted @ cad / (cad @ cad)), float(np.corrcoef(fitted, cad)[0, 1])
 
 
 def negative_friction(model: RobotModel, phi: np.ndarray) -> list[dict[str, Any]]:
