@@ -17,6 +17,7 @@ from ..identify.fit import (DEFAULT_ESTIMATOR, ESTIMATORS, IV_SETTLED, PSEUDO_IN
 from ..identify.model_file import IdentifiedModel, load_model
 from ..identify.model_sections import DEFAULT_BLOCKS, DEFAULT_N_MODE, N_MODES, BaseSection
 from ..identify.plausibility import masses_far_from_cad
+from ..identify.run_payloads import apparent_payloads, payload_frame
 from ..identify.runs import RunRef, check_distinct_runs, for_workers, input_notes, stream_run
 from ..identify.supply import SupplyTracking
 from ..identify.blocks import validate_blocks
@@ -223,6 +224,13 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
                "weighs a pull to CAD" if result.consistent is not None else "the data may not determine them")
         print(f"  note: {plural(len(far), 'mass', 'masses')} far from CAD, not to be read as measured ({how}): "
               + "; ".join(w["text"] for w in far))
+    loads = apparent_payloads(model, result.statistics, base.independent, [ref.payload is not None for ref in refs])
+    frame = payload_frame(model)
+    for a in loads:  # a run that carries what the others do not, averaged into the robot's parameters: said
+        print(f"  WARNING: {run_label(refs[a.run])}: its rows ask for {a.mass_kg:+.3g} kg at {frame} beyond what the "
+              f"other runs carry (± {a.standard_error_kg:.2g}; the residual {100 * a.residual_drop:.0f} % lower with "
+              "it): a load not given, on this run or the others? The fit averages it into the robot's parameters; "
+              "give it (--payload MASS[@x,y,z], one per --data) or fit the runs apart")
     rms = np.sqrt(result.residual_variance[result.chosen])
     print("  residual RMS on the identification data (rows at rest left out) / channel noise:")
     print("   " + ", ".join(f"{o.name} {r:.3g} ({r / o.sigma:.2f}×)" for o, r in zip(outs, rms)))
@@ -240,8 +248,17 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
             "base": base_section(identified).to_json(), "residual_rms": dict(zip(identified.output_channels, rms.tolist())),
             "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed,
             "plausibility": implausible, "masses_far_from_cad": far, "consistent": result.consistent,
+            "apparent_payloads": [{**a.to_json(), "data": run_label(refs[a.run]), "frame": frame} for a in loads],
             "borderline": edges,
             **({"bad_rows": skipped} if skipped else {})}
+
+
+def run_label(ref: RunRef) -> str:
+    """A run as --data names it: its path, and its window where it has one (RUN@FROM:TO)."""
+    lo, hi = ref.window
+    if lo is None and hi is None:
+        return str(ref.path)
+    return f"{ref.path}@{'' if lo is None else f'{lo:g}'}:{'' if hi is None else f'{hi:g}'}"
 
 
 def base_section(identified: IdentifiedModel) -> BaseSection:

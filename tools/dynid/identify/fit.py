@@ -41,6 +41,7 @@ from ..robot.regressors.base import BaseParameters, base_parameters_from_factor,
 from ..robot.regressors.stack import DEFAULT_MIN_SPEED, Signals, row_weights, signals_from_dataset
 from .consistent import LAMBDAS, ConsistentSettings, consistent_fit
 from .model_sections import DEFAULT_BLOCKS, DEFAULT_ESTIMATOR, INSTRUMENT_WINDOW_S
+from .run_payloads import refusal_hint
 from .regression import InputColumns, base_least_squares, instrumental_variables, pls_path, unseen_directions
 from .statistics import MIN_BLOCK_SAMPLES, Statistics, accumulate
 
@@ -298,13 +299,14 @@ def run_units(payloads: Sequence[object]) -> list[int]:
 
 
 def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, samples: int,
-                   units: Sequence[int] | None = None) -> FitResult:
+                   units: Sequence[int] | None = None, declared: Sequence[bool] = ()) -> FitResult:
     """Every estimator, its jackknife errors and the base structure, from the runs' statistics.
 
     With two or more units (runs, or loaded/unloaded pairs: `run_units`), each estimate has a second jackknife,
     over the units (one left out at a time), which sees what differs between runs (friction that drifts with
     temperature, a payload mounted differently); its standard error is reported beside the within-run one
-    (time blocks), `se` is the larger, and a combination is determined only when both determine it."""
+    (time blocks), `se` is the larger, and a combination is determined only when both determine it. `declared`: per
+    run, whether its payload was given (a refusal names the runs that ask for a load of their own, the others)."""
     p = stats.p
     G = stats.system()
     base = base_parameters_from_factor(_factor(G)[:, :p], model.layout.names, BASE_RTOL)
@@ -415,6 +417,7 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
 
     identified = determined() & ~unit_unseen.any(axis=0)  # (unit_unseen: the same for a run or pair left out)
     if not identified.any():
+        loads = refusal_hint(model, stats, base.independent, list(declared) or [False] * stats.n_runs)
         within = determined(blocks_only=True) if chosen.se_runs is not None and chosen.se_blocks is not None else None
         if within is not None and within.any():
             # Determined over time blocks, but not across the runs: say that, not "a longer run"
@@ -423,8 +426,11 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
                 f"{int(within.sum())} of {base.rank}): leaving out one of the {n_units} units (a run, or a loaded "
                 "run with the unloaded one before it) moves every estimate by more; the runs disagree, or one "
                 "unit alone sees what the others cannot (a single loaded run fixes the gains' scale): fit it "
-                "alone, or add runs that see the same")
+                "alone, or add runs that see the same" + loads)
         hint = f"; the {chosen.name} iteration did not settle (try --estimator ols)" if not settled else ""
+        if loads:
+            raise DataError(f"the runs determine no base combination to 10 % ({samples} samples, rank {base.rank}"
+                            f"{hint}){loads}")
         raise DataError(f"the run determines no base combination to 10 % ({samples} samples, rank {base.rank}{hint}): "
                         "a longer run, or one that moves every joint both ways, is needed")
     combinations = base.combinations()
@@ -592,4 +598,5 @@ def fit(model: RobotModel, datasets: list[Dataset], settings: FitSettings = FitS
     # The estimators work on p × p Grams (p ≈ 100): BLAS threads cost more than they give there (2-3× slower on a
     # shared 2-core machine, measured: docs/benchmarks.md#compiled-kernels).
     with threadpool_limits(limits=1, user_api="blas"):
-        return fit_statistics(model, total, settings, samples, run_units([ds.meta.get("payload") for ds in datasets]))
+        payloads = [ds.meta.get("payload") for ds in datasets]
+        return fit_statistics(model, total, settings, samples, run_units(payloads), [bool(p) for p in payloads])

@@ -123,8 +123,9 @@ def fit_on_cluster(model: RobotModel, refs: list[RunRef], runs: list[Run], setti
         stats = assemble(model, edges, [p for p, o in zip(parts, owner) if o == i])
         total = stats if total is None else total + stats
     assert total is not None
-    return fit_statistics(model, total, settings, sum(r.n_samples for r in runs),
-                          run_units([r.meta.get("payload") for r in runs]))
+    payloads = [r.meta.get("payload") for r in runs]
+    return fit_statistics(model, total, settings, sum(r.n_samples for r in runs), run_units(payloads),
+                          [bool(p) for p in payloads])
 
 
 def check_distinct_runs(paths: list[str], runs: list) -> None:
