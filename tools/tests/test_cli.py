@@ -161,6 +161,16 @@ def test_import_missing_file(tmp_path: Path) -> None:
     assert_one_line_error(run("import", "--data", str(tmp_path / "nope.csv"), "--out", str(tmp_path / "o.npz")), "nope.csv")
 
 
+@pytest.mark.parametrize("spec", ["@{list}", "{folder}/*.csv"])
+def test_import_of_many_runs_says_it_reads_one(tmp_path: Path, spec: str) -> None:
+    """`import --data @list.txt` said "data file not found" of a list that exists."""
+    listing = tmp_path / "runs.txt"
+    listing.write_text(f"{tmp_path / 'a.csv'}\n")
+    done = run("import", "--data", spec.format(list=listing, folder=tmp_path), "--out", str(tmp_path / "o.npz"))
+    assert_one_line_error(done, "import reads one run")
+    assert not (tmp_path / "o.npz").exists()
+
+
 def test_import_unknown_robot(tmp_path: Path) -> None:
     assert_one_line_error(run("import", "--robot", "icub_left_leg", "--data", "x.csv", "--out", "o.npz"), "icub_left_leg")
 

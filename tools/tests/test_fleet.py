@@ -117,3 +117,24 @@ def test_runs_linked_from_a_shared_store_belong_to_the_folder_given(fleet: dict,
     done = dynid("fleet", "--data", str(lab), "--out", str(tmp_path / "out"))
     assert done.returncode == 2 and "hold the same samples" in done.stderr, done.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_a_negative_coefficient_is_drawn_where_it_can_be_seen() -> None:
+    """A panel of friction coefficients was on a log axis whenever its first coefficient was positive on every robot:
+    another's negative value (the outlier, e.g. a fit that made friction feed energy) vanished from the figure."""
+    from dynid.report.fleet import group_figure
+
+    robots = ["a", "b", "c", "d"]
+
+    def coefficient(name: str, values: list[float]) -> dict:
+        return {"kind": "friction", "group": "friction j1", "name": f"j1.{name}", "log_scale": min(values) > 0,
+                "values": dict(zip(robots, values)), "standard_errors": dict(zip(robots, [0.01] * 4))}
+
+    result = {"robots": robots, "outliers": [],
+              "parameters": [coefficient("fc_pos", [0.5, 0.52, 0.48, 0.51]), coefficient("fv_pos", [0.2, 0.21, -0.3, 0.19])]}
+    ax = group_figure(result, "friction", "t").axes[0]
+    assert ax.get_yscale() == "linear"
+    low, high = ax.get_ylim()
+    assert low < -0.3 / 0.2 < high  # the negative coefficient over its median's magnitude, inside the axis
+    result["parameters"][1] = coefficient("fv_pos", [0.2, 0.21, 0.3, 0.19])
+    assert group_figure(result, "friction", "t").axes[0].get_yscale() == "log"

@@ -33,6 +33,9 @@ MAX_STATES = 100_000
 def cmd_import(args: argparse.Namespace) -> dict[str, Any]:
     config = load_config(args.robot, args.urdf)
     model = RobotModel(config)
+    if not Path(args.data).exists() and (args.data.startswith("@") or any(c in args.data for c in "*?[")):
+        raise InputError(f"{args.data}: import reads one run, and this names many (an @LIST or a glob, as fit and "
+                         "fleet take them): import each run alone")
     dataset = apply_window(load_data(Path(args.data), config, joint_limits=model.joint_limits,
                                      bad_rows=bad_rows(args)), *window(args), source=args.data)
     dataset.meta.setdefault("robot", config.name)

@@ -149,9 +149,11 @@ def compare(models: dict[str, IdentifiedModel], layout_kinds: dict[str, str],
 # The page
 
 
-def _group_figure(result: dict[str, Any], kind: str, title: str) -> bytes | None:
-    """One panel per group of `kind`, the robots side by side: each coefficient's value over the fleet's median
-    (log scale) or its value (offsets), with ±1.96 standard errors; a named robot's panel edge in red."""
+def group_figure(result: dict[str, Any], kind: str, title: str) -> Figure | None:
+    """One panel per group of `kind`, the robots side by side, with ±1.96 standard errors; a named robot's column in
+    red. Friction and gains: each coefficient over the fleet's median, on a log scale where every value in the panel
+    is positive, else over the median's magnitude on a linear one (a negative coefficient, the outlier it may be,
+    has no place on a log axis); offsets: their values."""
     robots = result["robots"]
     params = [p for p in result["parameters"] if p["kind"] == kind]
     if not params:
@@ -165,18 +167,22 @@ def _group_figure(result: dict[str, Any], kind: str, title: str) -> bytes | None
     for i, g in enumerate(groups):
         ax = fig.add_subplot(rows, cols, i + 1)
         members = [p for p in params if p["group"] == g]
+        log = all(p["log_scale"] for p in members)
         for j, p in enumerate(members):
             v = np.array([p["values"][r] for r in robots])
             e = np.array([p["standard_errors"][r] for r in robots])
-            if p["log_scale"]:
-                med = np.median(v)
+            if kind in ("friction", "gain"):
+                med = abs(float(np.median(v))) or 1.0
                 v, e = v / med, e / med
             off = (j - (len(members) - 1) / 2) * 0.12
             ax.errorbar(x + off, v, yerr=1.96 * e, fmt="o", ms=3, lw=0.8, color=COLORS[j % len(COLORS)],
                         label=p["name"].rsplit(".", 1)[-1])
-        if members[0]["log_scale"]:
-            ax.set_yscale("log")
+        if kind in ("friction", "gain"):
             ax.axhline(1.0, color="#888", lw=0.8)
+            if log:
+                ax.set_yscale("log")
+            else:
+                ax.axhline(0.0, color="#888", lw=0.8, ls=":")
         for r in range(len(robots)):
             if (robots[r], g) in named:
                 ax.axvspan(r - 0.45, r + 0.45, color="#d62728", alpha=0.15)
@@ -186,7 +192,7 @@ def _group_figure(result: dict[str, Any], kind: str, title: str) -> bytes | None
         ax.legend(fontsize=6, loc="best")
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    return png(fig)
+    return fig
 
 
 def page(result: dict[str, Any], robot_kind: str) -> str:
@@ -217,9 +223,9 @@ def page(result: dict[str, Any], robot_kind: str) -> str:
     for kind, title in (("friction", "Friction: each coefficient over the fleet's median (±1.96 SE)"),
                         ("gain", "Motor gains over the fleet's median (±1.96 SE)"),
                         ("ft_offset", "F/T offsets (N, Nm; ±1.96 SE)")):
-        fig = _group_figure(result, kind, title)
+        fig = group_figure(result, kind, title)
         if fig is not None:
-            figures.append(H.figure(f"fig-{kind}", fig, title))
+            figures.append(H.figure(f"fig-{kind}", png(fig), title))
     sections.append("<h2>The robots side by side</h2>" + "".join(figures))
     rows = []
     for p in result["parameters"]:
