@@ -35,7 +35,7 @@ from .identify.statistics import Statistics
 from .identify.supply import SupplyTracking
 from .errors import DataError, InputError
 from .io.dataset import Dataset
-from .io.stream import Run
+from .io.stream import DatasetFile, Run
 from .robot.effects import Effect, augmented_residuals_many
 from .robot.model import RobotModel
 from .robot.outputs import output_channels, residuals_many
@@ -74,11 +74,17 @@ def derivatives_record(model: RobotModel) -> dict[str, Any]:
 
 
 def joint_ranges(run: Any) -> dict[str, list[float]] | None:
-    """{joint: [min, max]} in degrees of a run in memory (a streamed one: None, not read again for this)."""
-    q = getattr(run, "q", None)
-    if not isinstance(q, np.ndarray) or q.size == 0:
-        return None
-    return {j: [float(np.rad2deg(q[:, k].min())), float(np.rad2deg(q[:, k].max()))] for k, j in enumerate(run.joints)}
+    """{joint: [min, max]} in degrees of a run (a streamed one read again for it, its positions alone)."""
+    if isinstance(run, DatasetFile):
+        if run.n_samples == 0:
+            return None
+        lo, hi = run.joint_extrema()
+    else:
+        q = getattr(run, "q", None)
+        if not isinstance(q, np.ndarray) or q.size == 0:
+            return None
+        lo, hi = q.min(axis=0), q.max(axis=0)
+    return {j: [float(np.rad2deg(a)), float(np.rad2deg(b))] for j, a, b in zip(run.joints, lo, hi)}
 
 
 def cad_ft_offsets(model: RobotModel, stats: Statistics) -> np.ndarray:

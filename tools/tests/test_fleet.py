@@ -42,6 +42,7 @@ def test_the_worn_joint_is_named_and_no_other_robot(fleet: dict) -> None:
     assert [o["robot"] for o in r["outliers"]] == [f"arm{WORN:02d}"]
     (named,) = r["outliers"][0]["groups"]
     assert named["group"] == "friction r_elbow" and named["statistic"] > r["bound"]
+    assert any(g["group"] == "scale" for g in r["groups"])  # tested, and named nowhere: the gains absorb a scale
     # Each of its four coefficients is well above the others' median (doubled, give or take the fleet's spread)
     assert all(1.3 < x < 3.0 for x in named["ratio_to_median"])
     assert "STANDS OUT: arm07: friction r_elbow" in fleet["stdout"]
@@ -138,3 +139,46 @@ def test_a_negative_coefficient_is_drawn_where_it_can_be_seen() -> None:
     assert low < -0.3 / 0.2 < high  # the negative coefficient over its median's magnitude, inside the axis
     result["parameters"][1] = coefficient("fv_pos", [0.2, 0.21, 0.3, 0.19])
     assert group_figure(result, "friction", "t").axes[0].get_yscale() == "log"
+
+
+# ---- a scale is named once, as a scale ------------------------------------------------------------------------------
+
+PANDAS = 8
+SCALED, WORN_PANDA = 2, 4
+FRICTION = [(0.8, 0.6), (0.8, 0.6), (0.6, 0.4), (0.6, 0.4), (0.3, 0.2), (0.3, 0.2), (0.2, 0.1)]  # Nm, Nm s/rad
+
+
+@pytest.fixture(scope="module")
+def panda_fleet(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    """Eight synthetic Pandas (torques of the plant's truth), friction drawn within ±5 % per coefficient; robot 2's
+    torques read 1.3 times too large (a torque sensor's gain), robot 4's joint 4 friction doubled (worn)."""
+    from synthetic_panda import panda_run
+
+    from dynid.robot.model import RobotModel
+
+    root = tmp_path_factory.mktemp("pandas")
+    model = RobotModel(load_config("panda"))
+    rng = np.random.default_rng(0)
+    for i in range(PANDAS):
+        friction = [[c * rng.uniform(0.95, 1.05) for c in (fc, fc, fv, fv)] for fc, fv in FRICTION]
+        if i == WORN_PANDA:
+            friction[3] = [2 * c for c in friction[3]]
+        folder = root / "runs" / f"panda{i}"
+        folder.mkdir(parents=True)
+        panda_run(model, 10 + i, 15.0, friction=friction, scale=1.3 if i == SCALED else 1.0).save(folder / "run.npz")
+    done = dynid("fleet", "--robot", "panda", "--data", str(root / "runs"), "--out", str(root / "out"),
+                 "--json", str(root / "fleet.json"))
+    assert done.returncode == 0, done.stderr
+    return {"stdout": done.stdout, "result": json.loads((root / "fleet.json").read_text())}
+
+
+def test_a_scaled_robot_is_named_as_a_scale_not_as_friction_on_every_joint(panda_fleet: dict) -> None:
+    """Every torque of robot 2 read ×1.3: it was named for friction on every joint (a walkthrough, on the UR10e's
+    currents). Its gravity torques say scale; its friction, the scale taken out, is the fleet's; robot 4's worn joint
+    is still named, as friction."""
+    r = panda_fleet["result"]
+    named = {o["robot"]: [g["group"] for g in o["groups"]] for o in r["outliers"]}
+    assert named == {f"panda{SCALED}": ["scale"], f"panda{WORN_PANDA}": ["friction panda_joint4"]}, named
+    (scale,) = next(o["groups"] for o in r["outliers"] if o["robot"] == f"panda{SCALED}")
+    assert scale["ratio_to_median"][0] == pytest.approx(1.3, rel=0.02)
+    assert f"STANDS OUT: panda{SCALED}: scale" in panda_fleet["stdout"]

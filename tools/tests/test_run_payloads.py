@@ -11,23 +11,19 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
-import pinocchio as pin
 import pytest
 from conftest import dynid
+from synthetic_panda import panda_run
 
 from dynid.config.robot_config import load_config
 from dynid.identify.fit import FitSettings, fit
 from dynid.identify.run_payloads import apparent_payloads
 from dynid.io.dataset import Dataset
 from dynid.robot.model import RobotModel
-from dynid.robot.outputs import output_channels
 
 LOAD_KG = 0.5  # the fit determines combinations across the runs beside it
 HEAVY_KG = 2.0  # it no longer does: the refusal names the load
-RATE = 1000
 SECONDS = 12.0
-HARMONICS = 4
 
 
 @pytest.fixture(scope="module")
@@ -36,28 +32,7 @@ def panda() -> RobotModel:
 
 
 def run(model: RobotModel, seed: int, load_kg: float = 0.0) -> Dataset:
-    """Sinusoids of the seed's frequencies and phases within the joints' limits, and their exact torques with `load_kg`
-    at the payload frame (noise at the configuration's level)."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(int(SECONDS * RATE)) / RATE
-    lo, hi = (np.array([model.joint_limits[j][i] for j in model.config.joints]) for i in (0, 1))
-    mid, amp = (lo + hi) / 2, np.minimum(0.6, 0.4 * (hi - lo) / 2) / HARMONICS
-    q, dq, ddq = (np.zeros((t.size, len(lo))) for _ in range(3))
-    q += mid
-    for _ in range(HARMONICS):  # a sum of sinusoids per joint: every combination excited within a few seconds
-        w = 2 * np.pi * rng.uniform(0.1, 0.8, len(lo))
-        phase = rng.uniform(0, 2 * np.pi, len(lo))
-        q += amp * np.sin(w * t[:, None] + phase)
-        dq += amp * w * np.cos(w * t[:, None] + phase)
-        ddq -= amp * w**2 * np.sin(w * t[:, None] + phase)
-    inertial = model.cad_inertial_parameters + model.payload_parameters(load_kg)[: model.cad_inertial_parameters.size]
-    plant = model.with_inertial_parameters(inertial)
-    data = plant.createData()
-    tau = np.array([pin.rnea(plant, data, q[k], dq[k], ddq[k]) for k in range(t.size)])
-    sigma = np.array([o.sigma for o in output_channels(model) if o.kind == "torque"])
-    tau += rng.normal(0.0, 1.0, tau.shape) * sigma
-    return Dataset(t=t, joints=model.config.joints, q=q, dq=dq,
-                   tau={j: tau[:, i] for i, j in enumerate(model.config.joints)}, meta={"robot": "panda"})
+    return panda_run(model, seed, SECONDS, load_kg)
 
 
 @pytest.fixture(scope="module")

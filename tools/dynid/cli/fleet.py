@@ -18,7 +18,7 @@ from ..io.file_set import holds_file_set
 from ..io.run_paths import expand_named
 from ..outputs import output_dir
 from ..pipeline import IdentifySettings, identify
-from ..report.fleet import compare, page
+from ..report.fleet import SCALE_WHY, compare, page
 from ..robot.model import RobotModel
 from .commands import COMMANDS
 from .common import json_arg, min_speed_arg, plural, positive_int, robot_arg, scheduler_address
@@ -93,7 +93,9 @@ def cmd_fleet(args: argparse.Namespace) -> dict[str, Any]:
     for o in result["outliers"]:
         for g in o["groups"]:
             ratios = ", ".join(f"{x:.2f}" for x in g["ratio_to_median"])
-            print(f"  STANDS OUT: {o['robot']}: {g['group']} (S = {g['statistic']:.1f}; × {ratios} the others' median)")
+            print(f"  STANDS OUT: {o['robot']}: {g['group']} (S = {g['statistic']:.1f}; × {ratios} the others' median)"
+                  + (f": every torque of its fit scaled (its gravity torques), {SCALE_WHY}" if g["group"] == "scale"
+                     else ""))
     return result
 
 

@@ -182,6 +182,14 @@ class DatasetFile:
             return None
         return float(np.count_nonzero(self._read("contact", self.lo, self.hi)) / self.n_samples)
 
+    def joint_extrema(self, chunk: int = 1 << 16) -> tuple[np.ndarray, np.ndarray]:
+        """(min, max) of each joint's position over this window, `chunk` rows at a time (q alone: one member)."""
+        lo, hi = np.full(len(self.joints), np.inf), np.full(len(self.joints), -np.inf)
+        for a in range(self.lo, self.hi, chunk):
+            q = self._read("q", a, min(a + chunk, self.hi))
+            lo, hi = np.minimum(lo, q.min(axis=0)), np.maximum(hi, q.max(axis=0))
+        return lo, hi
+
     def median_step(self) -> float:
         """The median sample period of the first `HEAD_ROWS` rows (the whole log's, for a log sampled evenly)."""
         return float(np.median(np.diff(self.times(0, min(self.n_samples, HEAD_ROWS)))))

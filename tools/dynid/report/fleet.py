@@ -14,6 +14,17 @@ not). A robot is named when |S| exceeds the two-sided Bonferroni bound for the w
 Φ⁻¹(1 − α / (2 · robots · groups)) with α = 1 %: under a fleet whose robots differ only by chance, the chance of
 naming any robot at all is about 1 %.
 
+**A common scale.** Where the measured torques carry a scale of their own on one robot (its currents read in
+other units, a current sensor's gain, a known motor gain that is wrong), every base combination of that robot
+scales with them, inertial and friction alike. It is a group of its own, `scale`, read where the fits are surest and
+friction plays no part: the gravity torques. Each robot's factor c_r is the median ratio of its gravity torques over
+the other robots' median, at 256 postures within every robot's fitted range, on the joints gravity loads (robots of
+one kind are one design, while friction wears); its standard error is the jackknife's over the model file's folds
+(the Φ fitted without each time block); the statistic is log c_r against the other robots' factors, as above. A robot named for its scale has its friction
+compared with c_r taken out, so a scale is named once, as a scale, not as friction on every joint (taken out of every
+robot, c_r's own noise would move each robot's coefficients together). With unknown gains the
+gains absorb an input's scale, c_r stays near 1 and the gains are named.
+
 What it cannot see: a factor smaller than the fleet's own spread. The simulated fleet draws each friction
 coefficient within ×2.4 (5–12 % of a joint's load); a joint whose friction was at the bottom of that range and
 doubled can stay within it (docs/validation.md#a-fleet).
@@ -31,12 +42,16 @@ from scipy.stats import norm
 
 from ..errors import DataError
 from ..identify.model_file import IdentifiedModel
+from ..robot.regressors.rigid_body import rigid_body_regressors
 from . import html as H
 from .figures import png
 
 FAMILY_ALPHA = 0.01
 MAD_SCALE = 1.4826  # MAD → standard deviation of a normal
 SE_FLOOR = 1e-12
+SCALE_WHY = "the measured inputs' unit or a sensor's gain, or a known motor gain that is wrong"
+GRAVITY_POSTURES = 256
+GRAVITY_SHARE = 0.1  # a joint, and a posture's torque on it, enter the common scale above this share of the largest
 KINDS = ("friction", "gain", "ft_offset", "inertial")
 FLAGGED_KINDS = ("friction", "gain", "ft_offset")
 COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#e377c2"]
@@ -108,6 +123,65 @@ def z_scores(p: Compared) -> np.ndarray:
     return z
 
 
+def common_scales(models: dict[str, IdentifiedModel], seed: int = 0) -> tuple[np.ndarray, np.ndarray] | None:
+    """(log c_r, its standard error) per robot (module docstring, "A common scale"), or None where the fleet's
+    gravity torques say nothing (no joint loaded by gravity, no posture every fit saw, a model without its folds)."""
+    fitted = list(models.values())
+    if any(m.folds is None for m in fitted):
+        return None
+    model = fitted[0].robot_model
+    q = _common_postures(fitted, seed)
+    if q is None:
+        return None
+    Y = rigid_body_regressors(model, q, np.zeros_like(q), np.zeros_like(q)).tau  # (N, joints, 10 bodies)
+    span = model.layout.span("inertial")
+    torques = np.stack([Y @ m.phi[span] for m in fitted])  # (robots, N, joints)
+    folds = [np.stack([Y @ phi[span] for phi in m.folds.parameters]) for m in fitted]  # (B, N, joints) each
+    loaded = np.median(np.sqrt(np.mean(torques**2, axis=1)), axis=0)  # each joint's RMS gravity torque
+    joints = loaded > GRAVITY_SHARE * loaded.max() if loaded.max() > 0 else np.zeros(loaded.size, dtype=bool)
+    if not joints.any():
+        return None
+    log_c, se = np.zeros(len(fitted)), np.zeros(len(fitted))
+    for r in range(len(fitted)):
+        others = np.median(np.delete(torques, r, axis=0), axis=0)
+        log_c[r] = _log_scale(torques[r], others, loaded, joints)
+        jack = np.array([_log_scale(f, others, loaded, joints) for f in folds[r]])
+        se[r] = math.sqrt((jack.size - 1) / jack.size * float(np.sum((jack - jack.mean()) ** 2)))
+    if not np.all(np.isfinite(log_c)) or not np.all(np.isfinite(se)):
+        return None
+    return log_c, se
+
+
+def _common_postures(fitted: list[IdentifiedModel], seed: int) -> np.ndarray | None:
+    """GRAVITY_POSTURES postures drawn within every robot's fitted range of every joint (the model files' data
+    records), or None where a range is not recorded or the ranges do not overlap."""
+    model = fitted[0].robot_model
+    lo, hi = np.full(len(model.config.joints), -np.inf), np.full(len(model.config.joints), np.inf)
+    for m in fitted:
+        for d in m.data:
+            if d.joint_range_deg is None:
+                return None
+            for k, j in enumerate(model.config.joints):
+                a, b = d.joint_range_deg.get(j, (np.nan, np.nan))
+                lo[k], hi[k] = max(lo[k], np.deg2rad(a)), min(hi[k], np.deg2rad(b))
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(lo <= hi)):
+        return None
+    return np.random.default_rng(seed).uniform(lo, hi, (GRAVITY_POSTURES, lo.size))
+
+
+def _log_scale(torques: np.ndarray, others: np.ndarray, loaded: np.ndarray, joints: np.ndarray) -> float:
+    """The median log ratio of a robot's gravity torques over the others' median, on the loaded joints where the
+    others' torque is at least GRAVITY_SHARE of that joint's RMS and of the same sign."""
+    use = joints[None, :] & (np.abs(others) > GRAVITY_SHARE * loaded[None, :]) & (torques * others > 0)
+    return float(np.median(np.log(torques[use] / others[use]))) if use.any() else float("nan")
+
+
+def _without_scale(p: Compared, log_c: np.ndarray) -> Compared:
+    """A friction coefficient with each robot's common scale taken out."""
+    c = np.exp(log_c)
+    return Compared(p.combination, p.name, p.kind, p.group, p.values / c, p.errors / c, p.log)
+
+
 def compare(models: dict[str, IdentifiedModel], layout_kinds: dict[str, str],
             alpha: float = FAMILY_ALPHA) -> dict[str, Any]:
     """The fleet's comparison (JSON-able): every shared parameter, each group's statistic per robot, the bound, the
@@ -117,11 +191,23 @@ def compare(models: dict[str, IdentifiedModel], layout_kinds: dict[str, str],
         raise ValueError("a fleet needs at least 3 robots")
     params = shared_parameters(models, layout_kinds)
     groups: dict[str, list[tuple[Compared, np.ndarray]]] = {}
+    scales = common_scales(models)
+    flagged = {p.group for p in params if p.kind in FLAGGED_KINDS}
+    n_tests = max(1, len(robots) * (len(flagged) + (scales is not None)))
+    bound = float(norm.isf(alpha / (2 * n_tests)))
+    taken_out = np.zeros(len(robots))  # log c_r of the robots named for a scale, 0 elsewhere
+    if scales is not None:
+        log_c, se = scales
+        scale = Compared("common scale", "scale", "scale", "scale", np.exp(log_c), se * np.exp(log_c), True)
+        z = z_scores(scale)
+        groups["scale"] = [(scale, z)]
+        # Only a scale the fleet names is taken out of friction: c_r's own noise, shared by every coefficient of a
+        # robot, would otherwise move a joint's four together (the default arms' fleet: robot 8's elbow -2.9 -> -4.9)
+        taken_out = np.where(np.abs(z) > bound, log_c, 0.0)
     for p in params:
         if p.kind in FLAGGED_KINDS:
-            groups.setdefault(p.group, []).append((p, z_scores(p)))
-    n_tests = max(1, len(robots) * len(groups))
-    bound = float(norm.isf(alpha / (2 * n_tests)))
+            compared = _without_scale(p, taken_out) if p.kind == "friction" and taken_out.any() else p
+            groups.setdefault(p.group, []).append((compared, z_scores(compared)))
     group_rows = []
     outliers: dict[str, list[dict[str, Any]]] = {}
     for g, members in groups.items():
@@ -201,7 +287,9 @@ def page(result: dict[str, Any], robot_kind: str) -> str:
         items = "".join(
             f"<li><b>{H.esc(o['robot'])}</b>: " + "; ".join(
                 f"{H.esc(g['group'])} (S = {g['statistic']:.1f}; × "
-                + ", ".join(f"{r:.2f}" for r in g["ratio_to_median"]) + " the others' median)" for g in o["groups"])
+                + ", ".join(f"{r:.2f}" for r in g["ratio_to_median"]) + " the others' median"
+                + (f": every torque of its fit scaled, {H.esc(SCALE_WHY)})" if g["group"] == "scale" else ")")
+                for g in o["groups"])
             + "</li>" for o in result["outliers"])
         summary = f"<p>Standing out beyond the fleet's spread:</p><ul>{items}</ul>"
     else:
