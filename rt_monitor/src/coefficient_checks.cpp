@@ -127,6 +127,7 @@ LoadResult check_shape(const uint8_t* p, size_t n) {
     w.array(int64_t(nk) * kw, 8);                   // known_input
     if (!w.count(kc, "known-answer columns", 3 + 2 * kMaxSensors, r)) return r ? not_this : r;
     w.array(int64_t(nk) * kc, 8);                   // known_answer
+    w.array(int64_t(nj) * 2, 8);                    // fit_range
     if (!w.ok() || w.at() != n) return not_this;
     return LoadResult{};
 }
@@ -268,6 +269,11 @@ LoadResult check_plausible(const dynid::coefficients_t& c) {
             !within(c.joint_limits[j][1], -P::kMaxJointRange, P::kMaxJointRange))
             return implausible("joint " + shown_name(c.joint_names[j]) + ": its range's lower limit",
                                c.joint_limits[j][0], -P::kMaxJointRange, c.joint_limits[j][1], "rad or m");
+    for (int j = 0; j < c.n_joints; ++j)  // the fit's data may pass the URDF's limits: only an order and a magnitude
+        if (!(c.fit_range[j][0] <= c.fit_range[j][1]) || !within(c.fit_range[j][0], -P::kMaxJointRange, P::kMaxJointRange) ||
+            !within(c.fit_range[j][1], -P::kMaxJointRange, P::kMaxJointRange))
+            return implausible("joint " + shown_name(c.joint_names[j]) + ": the fit's range's lower end",
+                               c.fit_range[j][0], -P::kMaxJointRange, c.fit_range[j][1], "rad or m");
     const double g = std::sqrt(c.gravity[0] * c.gravity[0] + c.gravity[1] * c.gravity[1] + c.gravity[2] * c.gravity[2]);
     if (!within(g, P::kMinGravity, P::kMaxGravity)) return implausible("gravity |g|", g, P::kMinGravity, P::kMaxGravity, "m/s²");
     for (int k = 0; k < c.n_motors; ++k) {

@@ -179,6 +179,8 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
     if (!finite_all(c.gravity)) return nf("gravity");
     for (const auto& l : c.joint_limits)
         if (!finite_all(l)) return nf("the joint limits");
+    for (const auto& l : c.fit_range)
+        if (!finite_all(l)) return nf("the fit's joint ranges");
     for (int k = 0; k < c.n_motors; ++k)
         if (!finite_all(c.motor_velocity[k]) || !finite_all(c.motor_friction[k])) return nf("the motors");
     for (int j = 0; j < c.n_joints; ++j)
@@ -280,6 +282,8 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
         out.joint_names[j] = c.joint_names[j];
         out.joint_lower[j] = c.joint_limits[j][0];
         out.joint_upper[j] = c.joint_limits[j][1];
+        out.fit_lower[j] = c.fit_range[j][0];
+        out.fit_upper[j] = c.fit_range[j][1];
         for (int m = 0; m < 4; ++m) out.joint_friction(j, m) = c.joint_friction[j][m];
     }
     for (int i = 0; i < c.n_outputs; ++i) {

@@ -20,7 +20,7 @@ double real_us() noexcept {
 MonitorLoop::MonitorLoop(const MonitorConfig& cfg, const Coefficients& coef, Core& core, Assembler& assembler,
                          Publisher& publisher, Watchdog& watchdog, const LoopOptions& options)
     : cfg_(cfg), core_(core), asm_(assembler), pub_(publisher), dog_(watchdog), opt_(options),
-      clock_(coef.sample_period * 1e6), period_us_(coef.sample_period * 1e6) {
+      clock_(coef.sample_period * 1e6), coverage_(coef), period_us_(coef.sample_period * 1e6) {
     if (opt_.stats) {
         processing_.init(period_us_);
         response_.init(period_us_);
@@ -39,12 +39,14 @@ void MonitorLoop::step(const Sample& x) noexcept {
     if (dt > period_us_) ++n_.overruns;
     ++n_.evaluated;
     dog_.evaluated(o, x.t_us);
-    if (o.peak_now) peak_utime_ = x.t_us;
+    const uint64_t beyond = coverage_.check(x.q.data());
+    n_.beyond_fit = coverage_.samples();
+    if (o.peak_now) peak_utime_ = x.t_us, peak_beyond_ = beyond;
     if (o.event != Event::kNone) {
         ++n_.events;
         ++(o.event == Event::kOnset ? n_.onsets : n_.ends);
         if (o.event == Event::kOnset) onset_utime_ = x.t_us;
-        pub_.contact(o, x.t_us, onset_utime_, peak_utime_, n_.evaluated - 1);
+        pub_.contact(o, x.t_us, onset_utime_, peak_utime_, n_.evaluated - 1, peak_beyond_);
         if (o.event == Event::kOnset && latency_.size() < latency_.capacity()) latency_.push_back(mono_us() - rx_mono_);
     }
     if (o.ready && n_.evaluated % cfg_.residual_every == 0) pub_.residual(o, x.t_us);
@@ -82,6 +84,8 @@ void MonitorLoop::fill_status(int64_t t_us) noexcept {
     st.loop_us_mean = loop_n_ ? loop_sum_ / double(loop_n_) : 0.0;
     st.loop_us_max = loop_max_;
     st.overruns = n_.overruns;
+    st.beyond_fit = coverage_.samples();
+    st.beyond_fit_joints = int64_t(coverage_.last());
     st.faults = int32_t(dog_.active());
     st.faults_seen = int32_t(dog_.seen());
     pub_.publish_status(t_us);

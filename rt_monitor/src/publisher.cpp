@@ -23,6 +23,7 @@ Publisher::Publisher(lcm::LCM& lcm, const Coefficients& coef, const Core& core)
     event_.n_joints = n_joints;
     event_.joint.assign(coef.joint_names.begin(), coef.joint_names.begin() + n_joints);
     event_.tau_ext.assign(size_t(n_joints), 0.0);
+    event_.beyond_fit.assign(size_t(n_joints), 0);
     event_.isolated_joint = -1;
     event_.threshold = core.threshold();
     // The isolated link's name takes the room of the longest: the event's size never grows in the loop (its string
@@ -64,7 +65,7 @@ void Publisher::normalized(std::vector<double>& r, const VecO& e,
 }
 
 void Publisher::contact(const Output& o, int64_t t_us, int64_t onset_utime, int64_t peak_utime,
-                        int64_t sample) noexcept {
+                        int64_t sample, uint64_t beyond_fit) noexcept {
     event_.utime = t_us;
     event_.kind = int8_t(o.event);
     event_.onset_utime = onset_utime;
@@ -80,7 +81,10 @@ void Publisher::contact(const Output& o, int64_t t_us, int64_t onset_utime, int6
         event_.side[size_t(k)] = int8_t(pk.side[size_t(k)]);
         for (int m = 0; m < 6; ++m) event_.wrench[size_t(k)][size_t(m)] = pk.wrench[size_t(k)][m];
     }
-    for (int j = 0; j < coef_.n_joints; ++j) event_.tau_ext[size_t(j)] = pk.tau_ext[j];
+    for (int j = 0; j < coef_.n_joints; ++j) {
+        event_.tau_ext[size_t(j)] = pk.tau_ext[j];
+        event_.beyond_fit[size_t(j)] = int8_t((beyond_fit >> j) & 1u);
+    }
     event_.isolated_joint = pk.joint;
     if (pk.joint >= 0) event_.isolated_link.assign(link_of_joint_[size_t(pk.joint)]);  // within its capacity
     else event_.isolated_link.clear();

@@ -278,13 +278,13 @@ void print_exit_line(const char* how, const Assembler& a, const FrameSource& src
     std::printf("rt_monitor: %s; frames %lld, samples %lld, evaluated %lld, stale %lld, events %lld, unknown id %lld, "
                 "bad length %lld, error frames %lld, unpaired halves %lld, saturated %lld, board faults %lld, "
                 "board restarts %lld, bad source input %llu, interpolated %lld, late %lld, filter restarts %lld, overruns %lld, "
-                "kernel drops %llu\n",
+                "kernel drops %llu, beyond the fit's postures %lld\n",
                 how, (long long)c.frames, (long long)c.samples, (long long)n.evaluated, (long long)c.stale_samples,
                 (long long)n.events, (long long)c.unknown_id, (long long)c.bad_length, (long long)c.error_frames,
                 (long long)c.unpaired_strain, (long long)c.saturated, (long long)c.board_faults,
                 (long long)c.board_restarts, (unsigned long long)(sc.bad_lines + sc.unknown_bus + sc.bad_size),
                 (long long)cc.interpolated, (long long)cc.late, (long long)cc.restarts, (long long)n.overruns,
-                (unsigned long long)sc.kernel_drops);
+                (unsigned long long)sc.kernel_drops, (long long)n.beyond_fit);
 }
 
 // --stats-out: one JSON object with every counter (their identities: rt_monitor/README.md, "Accounting"), the heap
@@ -325,7 +325,7 @@ bool write_stats(const std::string& path, const Assembler& a, const FrameSource&
     j.open("samples")  // evaluated = taken − held + interpolated; taken = assembled − stale
         .num("assembled", c.samples).num("stale", c.stale_samples).num("taken", cc.taken).num("held", cc.held)
         .num("lost", cc.lost).num("interpolated", cc.interpolated).num("late", cc.late)
-        .num("evaluated", n.evaluated).num("filter_restarts", cc.restarts)
+        .num("evaluated", n.evaluated).num("filter_restarts", cc.restarts).num("beyond_fit", n.beyond_fit)
         .close();
     // onsets = ends + cut (open at a filter restart) + in_contact (open at the end)
     j.open("events").num("total", n.events).num("onsets", n.onsets).num("ends", n.ends).num("cut", n.cut)

@@ -151,6 +151,14 @@ def test_a_real_run_through_the_monitor_is_the_core_on_the_decoded_samples(robot
     assert worst <= 1e-9
     monitor_events = [(round((m.utime - T0_US) / period_us), int(m.kind)) for m in msgs.get("DYNID_CONTACT", [])]
     assert monitor_events == events_of(out[:, cols["event"]])
+    # The postures the fit saw (the file's fit_range): the samples beyond counted, each event's joints marked
+    lower, upper = np.asarray(c.fit_range).T
+    beyond = (imported.q < lower) | (imported.q > upper)
+    assert msgs["DYNID_STATUS"][-1].beyond_fit == int(beyond.any(axis=1).sum())
+    for m in msgs.get("DYNID_CONTACT", []):
+        assert list(m.beyond_fit) == beyond[round((m.peak_utime - T0_US) / period_us)].astype(int).tolist()
+    print(f"{robot}: {100 * beyond.any(axis=1).mean():.1f} % of the samples beyond the fit's postures, "
+          f"{sum(any(m.beyond_fit) for m in msgs.get('DYNID_CONTACT', []))} events marked")
     if c.residual == 2:  # the combined statistic's level is 1: `dynid detect`'s monitor_events debounce it the same way
         evaluated = np.where(out[:, 0] > 0, out[:, cols["t2"]], np.nan)  # column 0: the core ready (it detects)
         debounced = debounced_events(evaluated, 1.0, c.debounce_on, c.debounce_off, c.hysteresis)

@@ -158,6 +158,54 @@ def _bad_run(setup: dict, clean: dict, lines: list[str], name: str):
     return status, msgs
 
 
+def test_postures_beyond_the_fits_are_counted_and_marked(setup: dict, clean: dict, default_model: Path,
+                                                         tmp_path: Path) -> None:
+    """The coefficient file carries the fit's joint ranges (format version 8), which `dynid validate` and `detect`
+    compare a run against; the monitor counts the samples beyond them (status, exit line) and marks each event's joints
+    that are. The file's ranges are the fit data's widened by 1°; narrowed here to the middle of the slice's elbow range,
+    so that the slice leaves them, the counts and marks equal the decoded samples' own."""
+    from dynid.export.coefficients import write_coefficients
+    from dynid.identify.model_file import load_model
+
+    c = read_coefficients(setup["coef"])
+    record = load_model(default_model).data[0].joint_range_deg
+    joints = list(setup["config"].joints)
+    assert np.allclose(np.rad2deg(c.fit_range), [[record[j][0] - 1, record[j][1] + 1] for j in joints], atol=1e-9)
+    log = setup["root"] / "clean.log"
+    q = load_data(log, setup["config"]).q  # what the monitor decodes
+    elbow = joints.index("r_elbow")
+    lo, hi = np.quantile(q[:, elbow], [0.25, 0.75])
+    c.fit_range[elbow] = [float(lo), float(hi)]
+    narrowed = tmp_path / "narrowed.dcoef"
+    write_coefficients(c, narrowed)
+    conf = setup["root"] / "clean.conf"
+    lcm_log = tmp_path / "narrowed.lcmlog"
+    conf_text = conf.read_text().replace(str(setup["root"] / "clean.lcmlog"), str(lcm_log))
+    (tmp_path / "narrowed.conf").write_text(conf_text)
+    done = subprocess.run([str(RT_MONITOR), "--model", str(narrowed), "--config", str(tmp_path / "narrowed.conf"),
+                           "--replay", str(log)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    lower, upper = np.asarray(c.fit_range).T
+    beyond = (q < lower) | (q > upper)  # (samples, joints)
+    assert 0.3 * len(q) < beyond.any(axis=1).sum() < 0.7 * len(q)
+    msgs = read_lcm_log(lcm_log)
+    last = msgs["DYNID_STATUS"][-1]
+    assert last.beyond_fit == beyond.any(axis=1).sum() == exit_counter(done.stdout, "beyond the fit's postures")
+    assert last.beyond_fit_joints == sum(1 << j for j in np.flatnonzero(beyond[-1]))
+    assert msgs["DYNID_CONTACT"]
+    for m in msgs["DYNID_CONTACT"]:
+        k = round((m.peak_utime - T0_US) / 1000)
+        assert list(m.beyond_fit) == beyond[k].astype(int).tolist()
+    # dynid spy says so, on the events that are and in its summary
+    spied = dynid("spy", "--lcm-url", f"file://{lcm_log}?speed=0")
+    assert spied.returncode == 0, spied.stderr
+    marked = [line for line in spied.stdout.splitlines() if "BEYOND THE FIT'S POSTURES (r_elbow: α untested" in line]
+    assert len(marked) == sum(any(m.beyond_fit) for m in msgs["DYNID_CONTACT"])
+    assert f", {last.beyond_fit} beyond the fit's postures (α untested there)" in spied.stdout.splitlines()[-1]
+    # The file as exported: the slice within the fit's postures, nothing counted
+    assert clean["msgs"]["DYNID_STATUS"][-1].beyond_fit == 0
+
+
 def test_a_failed_replay_leaves_the_log_it_would_have_replaced(setup: dict, clean: dict) -> None:
     # The clean run's LCM log is there; a replay of another robot's frames (every ID unknown) evaluates no sample.
     lcm_log = setup["root"] / "clean.lcmlog"

@@ -224,18 +224,18 @@ def test_cad_fixture_is_current(tmp_path: Path) -> None:
     assert_same_coefficients(read_coefficients(out), read_coefficients(FIXTURE))
 
 
-PREVIOUS_VERSION = ROOT / "tools" / "tests" / "data" / "icub_cad_version6.dcoef"  # `dynid export --cad` of 8092ff7
+PREVIOUS_VERSION = ROOT / "tools" / "tests" / "data" / "icub_cad_version7.dcoef"  # the CAD fixture before version 8
 
 
 @pytest.mark.parametrize("exe", BUILDS, ids=lambda p: p.name)
 def test_a_previous_version_file_is_refused_saying_what_to_do(exe: Path, tmp_path: Path) -> None:
-    """A genuine version-6 file (before the known answers): the monitor and dynid refuse it in one line that says to
+    """A genuine version-7 file (before the fit's ranges): the monitor and dynid refuse it in one line that says to
     export again; it is never misread."""
     done = rt_eval("--coef", str(PREVIOUS_VERSION), "--check", exe=exe / "rt_monitor" / "rt_eval")
     assert done.returncode == EXIT_BASE + 4, done.stderr
-    assert done.stderr.count("\n") == 1 and f"format version 6, this monitor reads {file_version()}: export the model again" in done.stderr
+    assert done.stderr.count("\n") == 1 and f"format version 7, this monitor reads {file_version()}: export the model again" in done.stderr
     done = dynid("export", "--print", str(PREVIOUS_VERSION))
-    assert done.returncode == 2 and f"format version 6, this dynid reads {file_version()}: export the model again" in done.stderr
+    assert done.returncode == 2 and f"format version 7, this dynid reads {file_version()}: export the model again" in done.stderr
     done = subprocess.run([str(exe / "rt_monitor" / "rt_monitor"), "--model", str(PREVIOUS_VERSION), "--config",
                            str(ROOT / "rt_monitor" / "config" / "icub_right_arm.conf"), "--replay", "/dev/null",
                            "--lcm-url", "memq://"], capture_output=True, text=True, timeout=60)
@@ -309,12 +309,22 @@ def _bad_files(good: bytes) -> dict[str, tuple[bytes, int, str]]:
     c.tau_variance = list(c.tau_variance) + [1.0] * extra
     c.accel_tau_variance = list(c.accel_tau_variance) + [0.0] * extra
     c.joint_limits = list(c.joint_limits) + [[-1.0, 1.0]] * extra
+    c.fit_range = list(c.fit_range) + [[-1.0, 1.0]] * extra
     bad["too many joints"] = (_reencode(c), EXIT_BASE + 7, f"too many joints: {nj}")
 
     c = coefficients_t.decode(payload)
     c.inertial = [list(r) for r in c.inertial]
     c.inertial[4][0] = float("nan")
     bad["NaN inside"] = (_reencode(c), EXIT_BASE + 9, "non-finite value in the inertial parameters")
+
+    # The fit's ranges (format version 8): finite, in order, within ±1e6
+    for label, value, code, message in (("not finite", [float("nan"), 1.0], 9, "non-finite value in the fit's joint ranges"),
+                                        ("out of order", [0.5, -0.5], 11, "the fit's range's lower end"),
+                                        ("beyond 1e6", [-2e6, 1.0], 11, "the fit's range's lower end")):
+        c = coefficients_t.decode(payload)
+        c.fit_range = [list(r) for r in c.fit_range]
+        c.fit_range[3] = value
+        bad[f"fit range {label}"] = (_reencode(c), EXIT_BASE + code, message)
 
     c = coefficients_t.decode(payload)
     c.supply_time_constant, c.supply_prior = 3.0, 0.0

@@ -27,8 +27,8 @@ constexpr int kMaxKnown = 2048;             // samples of the coefficient file's
 
 // The coefficient file's format version: 2 effects (Stribeck, spring) of an augmented model; 3 supply tracking; 4 the
 // momentum observer; 5 any number of F/T sensors, the acceleration residuals' external-torque variance, the joints'
-// ranges; 6 the combined detector (residual 2, combined_scale); 7 the known answers the loader checks the core against.
-// A file of another version is refused, named.
-constexpr int kFileVersion = 7;
+// ranges; 6 the combined detector (residual 2, combined_scale); 7 the known answers the loader checks the core against;
+// 8 the postures the fit saw (fit_range). A file of another version is refused, named.
+constexpr int kFileVersion = 8;
 
 }  // namespace dynid::rt

@@ -108,6 +108,7 @@ struct Coefficients {
 
     std::array<std::string, kMaxJoints> joint_names;
     std::array<double, kMaxJoints> joint_lower{}, joint_upper{};  // each joint's range (rad, or m)
+    std::array<double, kMaxJoints> fit_lower{}, fit_upper{};      // ... over the fit's data (format version 8)
     std::array<std::string, kMaxOutputs> channel_names;
     std::array<std::string, kMaxSensors> sensor_names;
     std::array<std::string, kMaxBodies> body_names;

@@ -10,6 +10,7 @@
 
 #include "rt_monitor/assembler.hpp"
 #include "rt_monitor/core.hpp"
+#include "rt_monitor/fit_coverage.hpp"
 #include "rt_monitor/frame_source.hpp"
 #include "rt_monitor/publisher.hpp"
 #include "rt_monitor/run_stats.hpp"
@@ -27,6 +28,7 @@ struct LoopOptions {
 // What the loop counted, for the exit line and --stats-out.
 struct LoopCounters {
     int64_t evaluated = 0, events = 0, onsets = 0, ends = 0, cut = 0, overruns = 0;
+    int64_t beyond_fit = 0;        // evaluated samples with a joint beyond the fit's range (FitCoverage)
     double loop_max_us = 0;
     long long allocations = 0;     // heap allocations from the first read to the last publish
 };
@@ -58,10 +60,12 @@ private:
     LoopOptions opt_;
     FrameSource* src_ = nullptr;
     SampleClock clock_;
+    FitCoverage coverage_;
     Sample sample_;
     LoopCounters n_;
     double period_us_ = 0, rx_mono_ = 0, loop_sum_ = 0, loop_max_ = 0;
     int64_t loop_n_ = 0, onset_utime_ = 0, peak_utime_ = 0;
+    uint64_t peak_beyond_ = 0;  // the joints beyond the fit's range at the sample the next event describes
     LatencyHistogram processing_, response_;
     std::vector<double> latency_;
 };

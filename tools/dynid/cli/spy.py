@@ -135,6 +135,9 @@ class View:
         largest = sorted(zip(m.joint, m.tau_ext), key=lambda jt: -abs(jt[1]))[:3]
         if largest and abs(largest[0][1]) > 0:
             line += "  τ_ext " + ", ".join(f"{j} {t:+.2f}" for j, t in largest) + " Nm"
+        beyond = [j for j, b in zip(m.joint, m.beyond_fit) if b]
+        if beyond:
+            line += f"  BEYOND THE FIT'S POSTURES ({', '.join(beyond)}: α untested there)"
         self._write(line)
 
     def status(self, m: Any) -> None:
@@ -152,6 +155,7 @@ class View:
                             + f"{'  STALE' if m.stale else ''}  frames {m.frames}  samples {m.samples} assembled, "
                             f"{m.samples_evaluated} evaluated{rate}  loop {m.loop_us_mean:.1f}/{m.loop_us_max:.1f} µs"
                             + (f"  {supply_text(m.supply_ratio)}" if m.n_supply else "")
+                            + (f"  beyond the fit's postures {m.beyond_fit}" if m.beyond_fit else "")
                             + (f"  {problems}" if problems else ""))
         if self.tty:
             self.out.write("\r\x1b[K" + self.status_line)
@@ -257,6 +261,8 @@ def cmd_spy(args: argparse.Namespace) -> dict[str, Any]:
               + (f"; last status: frames {status['frames']}, samples {status['samples']}, evaluated "
                  f"{status['samples_evaluated']}" + (", " + ", ".join(problems) if problems else ", no problems counted")
                  + (f", {supply_text(status['supply_ratio'])}" if status["n_supply"] else "")
+                 + (f", {status['beyond_fit']} beyond the fit's postures (α untested there)"
+                    if status["beyond_fit"] else "")
                  if status else "; no status message"))
     else:
         sys.stdout.write(json.dumps({"summary": summary}) + "\n")

@@ -207,10 +207,12 @@ def check_window(est: FixedLagSavitzkyGolay) -> None:
 def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDetector, est: FixedLagSavitzkyGolay,
                        provenance: Provenance = Provenance(), effects: Sequence[Effect] = (),
                        tracking: SupplyTracking | None = None, observer: MonitorObserver | None = None,
-                       residual: str = "acceleration", combined_scale: float = 0.0) -> coefficients_t:
+                       residual: str = "acceleration", combined_scale: float = 0.0,
+                       fit_range: np.ndarray | None = None) -> coefficients_t:
     """The payload of the coefficient file for Φ (with Stribeck and spring effects), the detector and the filter,
     the momentum observer, and the combined detector's κ (`combined_scale`, 0: none; dynid.detect.combined);
-    `residual` names what the monitor runs (the observer needs `observer`, the combined detector both)."""
+    `residual` names what the monitor runs (the observer needs `observer`, the combined detector both);
+    `fit_range` (joints, 2) rad: the postures the fit saw (dynid.identify.transfer.fit_ranges), None: not recorded."""
     if residual not in RESIDUAL or (residual != "acceleration" and observer is None):
         raise DataError(f"the monitor's residual is acceleration, or momentum or combined with an observer, not "
                         f"'{residual}'")
@@ -229,6 +231,10 @@ def build_coefficients(model: RobotModel, phi: np.ndarray, detector: MonitorDete
     joints = list(cfg.joints)
     c.n_joints, c.joint_names = len(joints), joints
     c.joint_limits = [[max(lo, -NO_LIMIT), min(hi, NO_LIMIT)] for lo, hi in (model.joint_limits[j] for j in joints)]
+    if fit_range is not None and (np.shape(fit_range) != (len(joints), 2) or not np.all(np.isfinite(fit_range))):
+        raise DataError(f"the fit's joint ranges must be ({len(joints)}, 2) finite values")
+    c.fit_range = ([[-NO_LIMIT, NO_LIMIT]] * len(joints) if fit_range is None else
+                   np.clip(np.asarray(fit_range, float), -NO_LIMIT, NO_LIMIT).tolist())
     c.n_bodies = len(model.bodies)
     c.body_names = [b.name for b in model.bodies]
     c.parent, c.joint_type, c.joint_index, c.axis, c.rotation, c.translation, c.inertial = [], [], [], [], [], [], []
@@ -402,9 +408,13 @@ def describe(c: coefficients_t) -> str:
     for k in range(c.n_motors):
         fr = f"friction [{f(c.motor_friction[k])}]" if c.motor_friction_on[k] else "no motor friction"
         lines.append(f"  {c.motor_names[k]}: q̇_m = [{f(c.motor_velocity[k])}]·q̇; {fr}")
-    lines.append("joint friction:")
+    lines.append("joint friction, and the postures the fit saw (its data's range, widened by 1°; the monitor counts "
+                 "samples beyond):")
     for j in range(c.n_joints):
-        lines.append(f"  {c.joint_names[j]:18s} friction fc+ fc- fv+ fv- [{f(c.joint_friction[j])}]")
+        lo, hi = c.fit_range[j]
+        seen = (f"fit {np.rad2deg(lo):.1f}…{np.rad2deg(hi):.1f}°" if max(abs(lo), abs(hi)) < NO_LIMIT
+                else "fit range not recorded")
+        lines.append(f"  {c.joint_names[j]:18s} friction fc+ fc- fv+ fv- [{f(c.joint_friction[j])}]  {seen}")
     lines.append(f"outputs ({c.n_outputs})" + "".join(f"; {n} offset [{f(o)}]" for n, o in zip(c.sensor_names, c.ft_offset)))
     for i in range(c.n_outputs):
         lines.append(f"  {c.channel_names[i]:18s} Λ {c.residual_variance[i]:.4g}  divisor {c.divisor[i]:.6g}"

@@ -24,6 +24,7 @@ from ..errors import DataError
 from ..identify.model_file import IdentifiedModel, data_digest, file_digest
 from ..identify.model_sections import ALPHA
 from ..identify.supply import SupplyTracking
+from ..identify.transfer import fit_ranges
 from ..identify.validation import load_run
 from ..io.bad_rows import DEFAULT_POLICY
 from ..io.dataset import Dataset
@@ -201,15 +202,16 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
         residual = "acceleration"  # the default, where the combined detector cannot be calibrated: said
     provenance = Provenance(file_digest(identified.path) if identified.path else "", calibration_digest,
                             identified.estimator or "")
+    fit_range = fit_ranges(identified, model.config.joints)
     c = build_coefficients(model, identified.phi, detector, est, provenance, effects, tracking, observer, residual,
-                           scale)
+                           scale, fit_range)
     if observer is not None and settings.residual in (None, "acceleration"):
         try:
             check_plausible(c)
         except Implausible as e:  # an observer calibrated on too little: dropped, said; the file is checked again
             residual = "acceleration"  # (the same event settings as the combined detector's)
             without = build_coefficients(model, identified.phi, detector, est, provenance, effects, tracking, None,
-                                         residual)
+                                         residual, fit_range=fit_range)
             check_plausible(without)
             c, observer, note = without, None, f"its calibration is implausible ({e})"
             scale, combined_note = 0.0, note

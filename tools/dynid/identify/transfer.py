@@ -35,6 +35,23 @@ def worse_than_cad(tables: dict[str, Any]) -> list[dict]:
     return out
 
 
+def fit_ranges(identified: IdentifiedModel, joints: tuple[str, ...]) -> np.ndarray | None:
+    """(joints, 2) rad: each joint's range over the fit's data (the union of its runs'), widened by MARGIN_DEG, as
+    `outside_fit` takes it; None where `outside_fit` has none to compare (ranges not recorded, another model's
+    inertias). What the monitor's coefficient file carries (fit_range)."""
+    gaps = identified.gaps
+    ranges = [d.joint_range_deg for d in identified.data]
+    if (gaps is not None and gaps.given_model) or not ranges or any(r is None for r in ranges):
+        return None
+    out = np.empty((len(joints), 2))
+    for k, joint in enumerate(joints):
+        spans = [r[joint] for r in ranges if joint in r]
+        if not spans:
+            return None
+        out[k] = (min(s[0] for s in spans) - MARGIN_DEG, max(s[1] for s in spans) + MARGIN_DEG)
+    return np.deg2rad(out)
+
+
 def outside_fit(identified: IdentifiedModel, joints: tuple[str, ...], q: np.ndarray,
                 limits: dict[str, tuple[float, float]]) -> list[dict] | None:
     """The joints this run (q, rad) takes beyond their range in the fit's data, most samples outside first; None
