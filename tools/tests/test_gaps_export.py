@@ -263,3 +263,29 @@ def test_report_takes_the_augmented_model(augmented: dict, tmp_path: Path) -> No
     assert done.returncode == 0, done.stderr
     assert json.loads((tmp_path / "r.json").read_text())["parameters"] == []
     assert "holds no base-parameter statistics" in out.read_text()
+    # why its momentum and combined variants are missing, as `dynid detect` says it (not "detect calibrates them")
+    assert "an augmented model (named effects) has no momentum residual yet" in out.read_text()
+
+
+def test_report_takes_a_text_parameter_and_refuses_another_robots_gaps(augmented: dict, tmp_path: Path) -> None:
+    """A limit step names its joint (a text parameter): the section formatted it as a number, a traceback (the iCub
+    leg's gaps, a walkthrough). And a folder of another robot's gaps went into the page unchecked."""
+    import shutil
+
+    from dynid.report.gaps_figures import report_section
+
+    figs = tmp_path / "figs"
+    shutil.copytree(augmented["figures"], figs)
+    result = json.loads((figs / "gaps.json").read_text())
+    assert result["robot"] == "icub_right_arm"
+    result["effects"].append({"name": "limit_step", "where": "sensor r_arm_ft", "parameters": {"joint": "r_elbow",
+                              "at_deg": 30.0}, "standard_errors": {"at_deg": 0.5}, "cv_gain": 0.3})
+    (figs / "gaps.json").write_text(json.dumps(result))
+    page = "\n".join(report_section(str(figs))[0])
+    assert "joint r_elbow, at_deg 30 ± 0.5" in page
+    result["robot"] = "panda"
+    (figs / "gaps.json").write_text(json.dumps(result))
+    done = dynid("report", "--model", str(augmented["model"]), "--validation", str(augmented["runs"]["replay"]),
+                 "--out", str(tmp_path / "r.html"), "--gaps", str(figs))
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert "the gaps of panda, not of icub_right_arm" in done.stderr and not (tmp_path / "r.html").exists()

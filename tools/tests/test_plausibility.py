@@ -135,3 +135,25 @@ def test_a_mass_far_from_cads_is_said_apart_from_the_implausible(arm: RobotModel
     assert found[0]["text"] == (f"r_shoulder_3: mass {found[0]['mass_kg']:.3g} kg, 82 times its CAD "
                                 f"{found[0]['cad_kg']:.3g} kg")
     assert implausible(arm, heavy) == [] and masses_far_from_cad(arm, phi) == []
+
+
+def test_export_refuses_a_model_fitted_under_gravity_given_the_wrong_way(default_model, tmp_path) -> None:
+    """`fit` warned, `export` wrote the monitor's file with exit 0: its Λ 3-50 times too wide, a contact seen only
+    at about three times the force (a walkthrough: the Panda given +z). Refused now, before any data is read."""
+    from conftest import dynid
+
+    from dynid.identify.model_file import load_model
+
+    identified = load_model(default_model)
+    arm = identified.robot_model
+    phi = identified.phi.copy()
+    inertial = arm.layout.span("inertial")
+    phi[inertial] = -phi[inertial]
+    identified.parameters = dict(zip(arm.layout.names, phi.tolist()))
+    identified.plausibility = implausible(arm, phi)
+    flipped = tmp_path / "flipped.json"
+    identified.save(flipped)
+    out = tmp_path / "flipped.dcoef"
+    done = dynid("export", "--model", str(flipped), "--out", str(out))
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert "r_arm_ft" in done.stderr and "gravity" in done.stderr and not out.exists()

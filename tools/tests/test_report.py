@@ -394,3 +394,16 @@ def test_windows_and_episodes_as_every_command_takes_them(default_experiments, d
         assert rates[variant]["fpr"] == pytest.approx(expected[variant]["fpr"], rel=1e-9)
     one_line_exit_2(dynid("report", "--model", str(default_model), "--validation", str(v), "--episodes", str(labels),
                           "--out", str(tmp_path / "x.html")), "--episodes labels the contact run")
+
+
+def test_the_rocs_chance_line_is_the_diagonal_on_the_log_axis_too() -> None:
+    """It was drawn as one straight segment from (1e-5, 1e-5) to (1, 1): on the log-FPR panel a curve bending up to
+    the right, under which a good ROC (AUC 0.83, a walkthrough) seemed to lie below chance."""
+    from dynid.report.figures import roc_figure
+
+    curve = {"fpr": [0.0, 0.001, 0.01, 0.1, 1.0], "tpr": [0.0, 0.5, 0.7, 0.9, 1.0]}
+    fig = roc_figure({"calibrated": curve}, {"calibrated": (0.01, 0.7)}, {"calibrated": 0.9}, 0.99)
+    for ax in fig.axes:
+        (chance,) = [line for line in ax.lines if line.get_gid() == "chance"]
+        x, y = chance.get_xdata(), chance.get_ydata()
+        assert len(x) > 50 and np.allclose(x, y)  # TPR = FPR at every drawn point, dense enough on a log axis

@@ -48,6 +48,7 @@ def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
     found = find_gaps(model, ds, args.data, identified, supply_tracking=tracking, log=print,
                       keep_tentative=args.keep_tentative, steps=args.steps)
     result = found.result
+    result["robot"] = config.name  # `dynid report --gaps` refuses another robot's
     if skipped is not None:
         result["bad_rows"] = skipped
     print(format_report(result))

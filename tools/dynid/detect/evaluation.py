@@ -137,6 +137,9 @@ def add_stored_default(ev: Evaluated, found: Detection, alpha: float, shift_s: f
     stored = None if identified.effects else stored_detector(identified, "detect", alpha, DEFAULT_BANDWIDTH_HZ,
                                                              VELOCITY_WINDOW_S)
     combined = None if stored is None or "calibrated" not in found.detectors else stored_combined(identified, alpha)
+    if identified.effects:  # as `dynid detect` says of such a model
+        return ("an augmented model (named effects) has no momentum residual yet: the acceleration residuals' variants "
+                "alone")
     if combined is None:
         return ("the model file keeps no momentum observer and combined detector at this α for its runs "
                 "(`dynid detect` calibrates them)")

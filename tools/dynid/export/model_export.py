@@ -137,6 +137,9 @@ def calibration_data(identified: IdentifiedModel, model: RobotModel, data: Seque
     return runs, ",".join(str(d) for d in digests)
 
 
+WRONG_WAY = ("gravity", "distal_mass")  # dynid.identify.plausibility: what gravity given the wrong way gives
+
+
 def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportSettings = ExportSettings()) -> Exported:
     """Calibrate the monitor's T² on contact-free data through its fixed-lag filter and write the coefficient file
     atomically."""
@@ -145,6 +148,14 @@ def export_model(identified: IdentifiedModel, out: str | Path, settings: ExportS
         raise DataError(f"{model.config.name} takes gravity per sample from the accelerometer at "
                         f"{model.config.gravity_imu}; the monitor takes it constant: export a configuration with a "
                         "constant 'gravity' (the base held still) instead")
+    # A fit under gravity given the wrong way (or the inputs' sign turned) predicts with the right magnitudes and the
+    # wrong signs: its Λ comes out 3-50 times too wide and the monitor needs about three times the force to see a
+    # contact (a walkthrough on the Panda), with no fault. `fit` warns of it; the monitor's file is refused.
+    wrong_way = [p for p in identified.plausibility or () if p.get("problem") in WRONG_WAY]
+    if wrong_way:
+        raise DataError(f"{identified.path or 'the model'}: {wrong_way[0]['text']}; a monitor on this model would see "
+                        "contacts only far above its noise: fit again with gravity's direction and the inputs' sign "
+                        "checked in the configuration")
     effects = identified.effects
     check_monitor_supports(model, effects)  # before any data is read: a robot the core cannot run is refused at once
     exportable_effects(effects)  # before the (slow) calibration: an effect the monitor lacks is refused at once

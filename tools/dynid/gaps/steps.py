@@ -95,8 +95,8 @@ def _candidate(ctx: Context, sensor: str, from_s: float, to_s: float | None, axe
         out.update({f"d{a}": float(v) for a, v in zip(axes, th)})
         force = [abs(float(v)) for a, v in zip(axes, th) if a[0] == "f"]
         torque = [abs(float(v)) for a, v in zip(axes, th) if a[0] == "t"]
-        out.update({"force": float(np.mean(force))} if force else {})
-        out.update({"torque": float(np.mean(torque))} if torque else {})
+        out.update({"force": float(np.linalg.norm(force))} if force else {})  # its size, as limit_step's
+        out.update({"torque": float(np.linalg.norm(torque))} if torque else {})
         return out
 
     return Candidate(FT_STEP, f"sensor {sensor}", nonlinear, cols, tuple(f"d{a}" for a in axes), interpret)
@@ -149,8 +149,8 @@ def subset(c: Candidate, axes: Sequence[str]) -> Candidate | None:
         out.pop("force", None), out.pop("torque", None)
         force = [abs(out[f"d{a}"]) for a in axes if a[0] == "f"]
         torque = [abs(out[f"d{a}"]) for a in axes if a[0] == "t"]
-        out.update({"force": float(np.mean(force))} if force else {})
-        out.update({"torque": float(np.mean(torque))} if torque else {})
+        out.update({"force": float(np.linalg.norm(force))} if force else {})  # its size, as limit_step's
+        out.update({"torque": float(np.linalg.norm(torque))} if torque else {})
         return out
 
     return replace(c, values=c.values[:, :, keep], labels=tuple(c.labels[k] for k in keep), interpret=interpret)

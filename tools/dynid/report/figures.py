@@ -78,6 +78,12 @@ def t2_contact(t: np.ndarray, t2: dict[str, np.ndarray], thresholds: dict[str, f
 
 
 def roc(curves: dict[str, dict], points: dict[str, tuple[float, float]], auc: dict[str, float], alpha: float) -> bytes:
+    """Fig. 5 as PNG (`roc_figure`)."""
+    return png(roc_figure(curves, points, auc, alpha))
+
+
+def roc_figure(curves: dict[str, dict], points: dict[str, tuple[float, float]], auc: dict[str, float],
+               alpha: float) -> Figure:
     """Fig. 5: ROC of each variant with its operating point at α marked; linear and logarithmic FPR."""
     fig = Figure(figsize=(10, 4.2))
     axes = fig.subplots(1, 2)
@@ -91,7 +97,8 @@ def roc(curves: dict[str, dict], points: dict[str, tuple[float, float]], auc: di
             x, y = points[variant]
             ax.plot([max(x, 1e-5)], [y], "o", color=COLORS[variant], markeredgecolor="k",
                     label=f"{variant} at α = {alpha:g}: TPR {100 * y:.1f} %, FPR {100 * x:.2f} %")
-        ax.plot([1e-5, 1], [1e-5, 1], ":", color="grey", linewidth=0.8)
+        chance = np.logspace(-5, 0, 200)  # TPR = FPR: a straight segment between its ends is no diagonal on a log axis
+        ax.plot(chance, chance, ":", color="grey", linewidth=0.8, gid="chance")
         ax.set_xscale(scale)
         if scale == "log":
             ax.set_xlim(1e-4, 1)
@@ -102,7 +109,7 @@ def roc(curves: dict[str, dict], points: dict[str, tuple[float, float]], auc: di
         ax.set_ylabel("true-positive rate")
         ax.grid(True, alpha=0.3)
     axes[1].legend(loc="lower right", fontsize=8)
-    return png(fig)
+    return fig
 
 
 def traces(t: np.ndarray, names: Sequence[str], units: Sequence[str], raw: np.ndarray, predicted: np.ndarray,

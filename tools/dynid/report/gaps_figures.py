@@ -158,7 +158,8 @@ def report_section(directory: str) -> tuple[list[str], dict]:
     rows = []
     for e in result.get("effects", []):
         se = e.get("standard_errors", {})
-        params = ", ".join(f"{k} {v:.4g}" + (f" ± {se[k]:.2g}" if se.get(k) is not None else "")
+        params = ", ".join((f"{k} {v:.4g}" if isinstance(v, (int, float)) else f"{k} {v}")  # a limit step's joint
+                           + (f" ± {se[k]:.2g}" if se.get(k) is not None else "")
                            for k, v in e["parameters"].items())
         rows.append(f"<tr>{H.text(e['name'])}{H.text(e['where'])}{H.text(params)}"
                     f"{H.num(e['cv_gain'], '.1f', scale=100.0)}</tr>")

@@ -103,6 +103,9 @@ def write_report(args: ReportSettings) -> dict[str, Any]:
         gaps_section = report_section(args.gaps)
     identified = load_model(args.model)
     model = identified.robot_model
+    gaps_robot = gaps_section[1].get("robot") if gaps_section is not None else None
+    if gaps_robot is not None and gaps_robot != model.config.name:
+        raise DataError(f"{args.gaps}: the gaps of {gaps_robot}, not of {model.config.name} ({args.model})")
     labels = read_episodes(args.episodes) if args.episodes else None  # a bad file: refused before any work
     if labels is not None and args.contact is None:
         raise DataError("--episodes labels the contact run: give it with --contact")

@@ -172,8 +172,8 @@ def ft_drift(ctx: Context, grid: Sequence[float] = DRIFT_TAUS) -> Iterable[Candi
 
             def interpret(th: np.ndarray, phi: np.ndarray, nonlinear=nonlinear) -> dict[str, float]:
                 out: dict[str, float] = {f"d{c}": float(v) for c, v in zip(labels, th)}
-                out["force"] = float(np.mean(np.abs(th[:3])))
-                out["torque"] = float(np.mean(np.abs(th[3:])))
+                out["force"] = float(np.linalg.norm(th[:3]))  # the step's size, as limit_step's
+                out["torque"] = float(np.linalg.norm(th[3:]))
                 if "tau" in nonlinear:
                     out["tau"] = float(nonlinear["tau"])
                 return out
