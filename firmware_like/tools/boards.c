@@ -169,8 +169,8 @@ int main(int argc, char **argv)
     long n = 0, k = 0, restart_at = -1, repeat = 1, r, rt_priority = 0;
     long long real0_us = 0;
     int64_t spread = 0, first_offset = 0;
-    int realtime = 0, rc, i, overloaded = 0, enc;
-    double bitrate = DEFAULT_BITRATE;
+    int realtime = 0, rc, i, overloaded = 0, enc, worst = 0;
+    double bitrate = DEFAULT_BITRATE, worst_load = 0.0;
     pace_t pace;
     struct stat st;
 
@@ -374,13 +374,18 @@ int main(int argc, char **argv)
             const double load = (double)g_bits[i] / (duration * bitrate);
             fprintf(out, "boards: bus %s load %.1f %% (%llu frames; worst-case bit stuffing, %g Mbit/s)\n", g_conf.buses[i],
                    100.0 * load, (unsigned long long)g_frames[i], bitrate / 1e6);
-            overloaded |= load >= LOAD_LIMIT;
+            if (load >= LOAD_LIMIT && !overloaded) { /* the first: named in the refusal */
+                overloaded = 1;
+                worst = i;
+                worst_load = load;
+            }
         }
     }
     /* An overloaded run is refused, so its candump log is not committed (it was renamed into place first). */
     if ((rc = boards_sink_close(&g_sink, !overloaded, g_err)) != 0) return fail(rc);
     if (overloaded) {
-        snprintf(g_err, sizeof g_err, "a bus is loaded at 70 %% or more: move frames to another bus");
+        snprintf(g_err, sizeof g_err, "bus %s is loaded at %.0f %% (70 %% or more at %g Mbit/s): move frames to another "
+                 "bus, or raise its bitrate", g_conf.buses[worst], 100.0 * worst_load, bitrate / 1e6);
         return fail(BOARDS_EXIT_LOAD);
     }
     return 0;

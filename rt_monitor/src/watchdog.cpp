@@ -14,7 +14,7 @@ namespace {
 
 constexpr const char* kNames[kFaultKinds] = {"blind", "silent frame", "T² not finite", "sample period",
                                             "joint out of range", "source stopped", "duty out of range",
-                                            "model does not fit at start"};
+                                            "model does not fit at start", "samples bridged"};
 
 int index_of(Fault f) noexcept {
     int i = 0;
@@ -33,6 +33,7 @@ void Watchdog::init(const MonitorConfig& cfg, const Coefficients& coef, const As
     set_.period_samples = std::clamp(set_.period_samples, 3, int(spacing_.size()));
     blind_us_ = int64_t(set_.blind_periods * coef.sample_period * 1e6);
     fit_samples_ = std::max(kMinFitSamples, int(std::lround(set_.fit_s / coef.sample_period)));
+    bridge_block_ = std::max(1, int(std::lround(1.0 / coef.sample_period)));
     // A sample's frames: those sent every sample (period 0 or one sample period). A pause of the sender mid-sample is
     // not blindness; blind_periods samples' worth of frames with no sample is.
     int per_sample = 0;
@@ -58,6 +59,21 @@ void Watchdog::raise(Fault f) noexcept {
         const ssize_t w = ::write(2, line, size_t(std::min(n, int(sizeof line) - 1)));
         (void)w;  // stderr closed: the status message still carries the fault
     }
+}
+
+void Watchdog::placed(bool interpolated) noexcept {
+    bridged_ += interpolated;
+    if (++placed_ < bridge_block_) return;
+    const double share = double(bridged_) / double(placed_);
+    if (share > set_.bridged_share) {
+        std::snprintf(text(kBridged), 256, "%.0f %% of the last %d samples bridged by interpolation (lost, or held "
+                      "by a frame that did not come): a frame at another rate than the bus's, or frames dropped?",
+                      100.0 * share, placed_);
+        raise(kBridged);
+    } else {
+        clear(kBridged);
+    }
+    placed_ = bridged_ = 0;
 }
 
 void Watchdog::sample(const Sample& s) noexcept {

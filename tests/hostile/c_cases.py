@@ -297,7 +297,7 @@ BOARDS = [
     _boards("unknown-flag", *PLAY, "{run}", *SINK, "--bogus", code=2, says="unknown argument '--bogus'", synopsis=True),
     # Found by this sweep: refused (exit 6) after its log was renamed into place; now the log is not kept.
     _boards("bus-overloaded", "--config", "{in}/bad.conf", "--data", "{run}", *SINK, code=6,
-            says="a bus is loaded at 70 % or more",
+            says="is loaded at 156 % (70 % or more at 1 Mbit/s)",
             make=conf(lambda ls: [x if x.startswith(("buses", "#", "robot")) else
                                   x.replace(" can1 ", " can0 ").replace(" can2 ", " can0 ") for x in ls])),
 ]

@@ -270,4 +270,5 @@ def test_an_overloaded_bus_is_refused_after_printing_the_loads(part: dict) -> No
     assert done.returncode == 6, done.stderr
     load = float(re.search(r"bus can0 load ([\d.]+) %", done.stdout).group(1))
     assert abs(load - (46.9 + 47.9 + 61.5)) < 0.3
-    assert done.stderr.strip() == "boards: error: a bus is loaded at 70 % or more: move frames to another bus"
+    assert done.stderr.strip() == (f"boards: error: bus can0 is loaded at {load:.0f} % (70 % or more at 1 Mbit/s): move "
+                                   "frames to another bus, or raise its bitrate")

@@ -288,3 +288,19 @@ def test_an_output_that_fails_late_leaves_none_behind(tmp_path: Path, monkeypatc
     assert code == 2
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv", "run.npz"]
     assert out.read_bytes() == b"an earlier import"  # the file the import would have replaced is left as it was
+
+
+def test_validate_on_the_fits_own_data_says_it_is_in_sample(default_model: Path, default_experiments: dict,
+                                                           tmp_path: Path) -> None:
+    """A validation window inside the fit's data printed in-sample figures as a validation (a walkthrough); the model
+    file knows its runs and windows."""
+    import json
+
+    done = run("validate", "--model", str(default_model), "--data", str(default_experiments["identification"]),
+               "--to", "20", "--json", str(tmp_path / "v.json"))
+    assert done.returncode == 0, done.stderr
+    assert "note: 100 % of these samples are the fit's own" in done.stdout
+    result = json.loads((tmp_path / "v.json").read_text())
+    assert result["fit_overlap"] == 1.0 and result["window"] == [None, 20.0]
+    done = run("validate", "--model", str(default_model), "--data", str(default_experiments["validation"]), "--to", "20")
+    assert done.returncode == 0 and "the fit's own" not in done.stdout

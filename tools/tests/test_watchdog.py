@@ -24,7 +24,7 @@ from dynid.io.load import load_data
 
 ROOT = Path(__file__).resolve().parents[2]
 RT_MONITOR = ROOT / "build" / "rt_monitor" / "rt_monitor"
-BLIND, SILENT, NOT_FINITE, PERIOD, JOINT_RANGE, STOPPED, DUTY_RANGE, START_FIT = 1, 2, 4, 8, 16, 32, 64, 128
+BLIND, SILENT, NOT_FINITE, PERIOD, JOINT_RANGE, STOPPED, DUTY_RANGE, START_FIT, BRIDGED = 1, 2, 4, 8, 16, 32, 64, 128, 256
 EXIT_BLIND = 6
 
 
@@ -191,3 +191,36 @@ def test_a_strain_board_gone_silent_live_is_a_fault_within_100_ms(bench: dict, t
     last_sample = max(u for u in residuals if u < first_fault)
     print(f"the fault {1e-3 * (first_fault - last_sample):.1f} ms after the last residual message (every 10 samples)")
     assert first_fault - last_sample <= 100_000
+
+
+def test_stamps_a_tenth_apart_are_a_period_fault(bench: dict, tmp_path: Path) -> None:
+    """The stream 1.1 times slower than the file's period passed the old ±20 % check: the sample clock invented a
+    sample in ten, with no fault (a walkthrough: TIAGo at 1.15, 15 % of its samples). Now ±5 %."""
+    lines = bench["log"].read_text().splitlines()
+    t0 = float(lines[0][1:lines[0].index(")")])
+    stretched = tmp_path / "stretched.log"
+    stretched.write_text("".join(f"({t0 + 1.1 * (float(l[1:l.index(')')]) - t0):.6f}){l[l.index(')') + 1:]}\n"
+                                 for l in lines))
+    code, err, msgs = replay(bench, "stretched", log=stretched)
+    assert "fault: sample period: the samples come 1100 µs apart, the coefficient file's period is 1000 µs" in err, err
+    assert faults(msgs) & PERIOD
+
+
+def test_a_frame_at_half_its_rate_is_a_bridged_fault(bench: dict, tmp_path: Path) -> None:
+    """One joint's position frame every other sample: half the samples were interpolated, with no fault (only the
+    `interpolated` counter said it). Now a fault names the share; a clean replay bridges none."""
+    frame = next(f for f in bench["config"].bus.frames if any(s.target == "q.r_elbow" for s in f.signals))
+    lines = bench["log"].read_text().splitlines()
+    kept, k = [], 0
+    for line in lines:
+        if line.split()[2].split("#")[0] == f"{frame.id:03X}":
+            k += 1
+            if k % 2 == 0:
+                continue
+        kept.append(line)
+    halved = tmp_path / "halved.log"
+    halved.write_text("\n".join(kept) + "\n")
+    code, err, msgs = replay(bench, "halved", log=halved)
+    assert re.search(r"fault: samples bridged: (4\d|5\d) % of the last 1000 samples bridged by interpolation", err), err
+    assert faults(msgs) & BRIDGED
+    assert msgs["DYNID_STATUS"][-1].interpolated > 0.4 * 10_000

@@ -20,7 +20,7 @@ from ..identify.plausibility import masses_far_from_cad
 from ..identify.run_payloads import apparent_payloads, payload_frame
 from ..identify.runs import RunRef, check_distinct_runs, for_workers, input_notes, stream_run
 from ..identify.supply import SupplyTracking
-from ..identify.blocks import validate_blocks
+from ..identify.blocks import fitted_mask, validate_blocks
 from ..identify.transfer import format_why
 from ..identify.validation import evaluate, load_run, validation
 from ..io.stream import DatasetFile
@@ -319,6 +319,14 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
     print(f"validation of {args.model} on {args.data} ({result['samples']} samples)")
     if (skipped := skipped_rows(args.data, ev.dataset.meta)) is not None:
         result["bad_rows"] = skipped
+    lo, hi = window(args)
+    result["window"] = [lo, hi]
+    fitted = fitted_mask(ev.identified, args.data, ev.dataset.t)  # the model file knows its runs and windows
+    result["fit_overlap"] = None if fitted is None else float(fitted.mean())
+    if fitted is not None and fitted.any():
+        print(f"  note: {100 * fitted.mean():.0f} % of these samples are the fit's own (its run, inside its window): "
+              "the figures below are in-sample, not a validation on data the model never saw; validate on another "
+              "run or window (--blocks K shows which blocks the fit took)")
     if "contact_fraction" in result:  # the model has no contact: its error includes the contacts'
         print(f"  note: {100 * result['contact_fraction']:.1f} % of these samples are in contact (the run's contact "
               "column): the errors below include the contact forces the model does not predict; validate on a "
