@@ -169,5 +169,5 @@ def test_error_frames_on_the_bus_are_counted(guest: dict) -> None:
     assert any(0 < m.error_frames < N_ERRORS for m in msgs["DYNID_STATUS"])  # counted live, while the boards played
     assert f"error frames {N_ERRORS}," in files["monitor.out"]
     assert files["monitor.out"].startswith("rt_monitor: stopped by signal;")  # SIGTERM, exit 0: no crash
-    assert files["monitor.out"].rstrip().endswith(", kernel drops 0")  # no frame dropped by the kernel (SO_RXQ_OVFL)
+    assert ", kernel drops 0," in files["monitor.out"]  # no frame dropped by the kernel (SO_RXQ_OVFL)
 

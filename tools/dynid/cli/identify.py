@@ -313,16 +313,14 @@ def input_words(config: RobotConfig) -> list[str]:
 @one_blas_thread
 def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
     ev = evaluate(args.model, args.data, window=window(args), payload=args.payload, bad_rows=bad_rows(args))
-    result = validation(ev, args.model, args.data)
+    fitted = fitted_mask(ev.identified, args.data, ev.dataset.t)  # the model file knows its runs and windows
+    result = validation(ev, args.model, args.data, window=window(args),
+                        fit_overlap=None if fitted is None else float(fitted.mean()))
     if args.blocks is not None:  # every block computed (or refused) before anything is printed
         result["blocks"] = validate_blocks(ev.identified, ev.dataset, args.blocks, args.model, args.data, args.data)
     print(f"validation of {args.model} on {args.data} ({result['samples']} samples)")
     if (skipped := skipped_rows(args.data, ev.dataset.meta)) is not None:
         result["bad_rows"] = skipped
-    lo, hi = window(args)
-    result["window"] = [lo, hi]
-    fitted = fitted_mask(ev.identified, args.data, ev.dataset.t)  # the model file knows its runs and windows
-    result["fit_overlap"] = None if fitted is None else float(fitted.mean())
     if fitted is not None and fitted.any():
         print(f"  note: {100 * fitted.mean():.0f} % of these samples are the fit's own (its run, inside its window): "
               "the figures below are in-sample, not a validation on data the model never saw; validate on another "

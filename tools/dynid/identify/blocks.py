@@ -153,8 +153,8 @@ def validate_blocks(identified: IdentifiedModel, dataset: Dataset, k: int, model
             raise RuntimeError(f"{data_label}: block {b.index + 1} cut to {part.n_samples} samples, "
                                f"not {b.stop - b.start}")
         ev = evaluate(model_label, data_label, identified, part)
-        result = validation(ev, model_label, data_label)
         overlap = None if fitted is None else float(fitted[b.start : b.stop].mean())
+        result = validation(ev, model_label, data_label, window=(b.t_first, b.t_last), fit_overlap=overlap)
         entry = {"index": b.index, "from": b.t_first, "to": b.t_last, "samples": b.stop - b.start,
                  "fit_overlap": overlap, "in_fit": None if overlap is None else overlap > 0,
                  "figures": block_figures(result), "validation": result}

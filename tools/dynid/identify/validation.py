@@ -126,12 +126,15 @@ def cad_ft_residuals(ev: Evaluated) -> np.ndarray | None:
 
 
 def validation(ev: Evaluated, model_label: str, data_label: str,
-               cad_e: np.ndarray | None = None) -> dict[str, Any]:
-    """`dynid validate --json`: Table II (identified and CAD F/T error norms) and per-channel RMS against noise."""
+               cad_e: np.ndarray | None = None, window: Window = (None, None),
+               fit_overlap: float | None = None) -> dict[str, Any]:
+    """`dynid validate --json`: Table II (identified and CAD F/T error norms) and per-channel RMS against noise; the
+    data's `window` and the share of its samples that are the fit's own (`fit_overlap`, dynid.identify.blocks.
+    fitted_mask; None: the model file cannot tell)."""
     outs, e = ev.outputs, ev.e
     ft = [o.row for o in outs if o.kind == "ft"]
     result: dict[str, Any] = {"model": model_label, "data": data_label, "samples": ev.dataset.n_samples,
-                              "channels": {}}
+                              "window": list(window), "fit_overlap": fit_overlap, "channels": {}}
     contact = ev.dataset.contact
     if contact is not None and np.any(contact != 0):  # the model has no contact: its error includes the contacts'
         result["contact_fraction"] = float(np.mean(contact != 0))

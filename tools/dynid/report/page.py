@@ -21,6 +21,7 @@ import numpy as np
 
 from ..detect.evaluation import add_stored_default, detection
 from ..errors import DataError
+from ..identify.blocks import fitted_mask
 from ..identify.model_file import IdentifiedModel, load_model
 from ..identify.validation import Evaluated, cad_ft_residuals, evaluate, load_run, validation
 from ..io.bad_rows import DEFAULT_POLICY
@@ -127,7 +128,9 @@ def write_report(args: ReportSettings) -> dict[str, Any]:
     def evaluate_validation() -> None:
         ev = state["val"] = evaluate(args.model, args.validation, identified, ds_val)
         state["cad_e"] = cad_ft_residuals(ev)
-        state["validation"] = validation(ev, args.model, args.validation, state["cad_e"])
+        fitted = fitted_mask(identified, args.validation, ev.dataset.t)
+        state["validation"] = validation(ev, args.model, args.validation, state["cad_e"], args.validation_window,
+                                         None if fitted is None else float(fitted.mean()))
         state["det_val"] = detection(ev, args.model, args.validation, args.alpha, args.n_mode)
         state["default_skipped"] = add_stored_default(ev, state["det_val"], args.alpha)
 
