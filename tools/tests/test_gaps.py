@@ -171,6 +171,8 @@ def test_hidden_effect_is_named_and_closed(gaps, case: str, effect: str, where: 
     control, _, _ = gaps("control")
     assert (effect, where) in _named(result), stdout
     assert len(result["effects"]) == len(CASES[case]), stdout  # nothing else named
+    # what is named is not also ruled out (gaps.json listed the named armature among them: a walkthrough)
+    assert not {r["effect"] for r in result["ruled_out"]} & {f"{e['name']} on {e['where']}" for e in result["effects"]}
     named = _effect(result, effect)
     assert named["where"] == where and named["confident"], stdout
     if parameter is not None:  # ft_gain: see test_ft_gain_matrix_is_not_identifiable

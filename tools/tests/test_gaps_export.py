@@ -289,3 +289,20 @@ def test_report_takes_a_text_parameter_and_refuses_another_robots_gaps(augmented
                  "--out", str(tmp_path / "r.html"), "--gaps", str(figs))
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert "the gaps of panda, not of icub_right_arm" in done.stderr and not (tmp_path / "r.html").exists()
+
+
+def test_a_finding_figure_for_every_channel_a_motors_effect_helps() -> None:
+    """An effect on a motor (armature, load friction: the UR10e's) helped its own input channel, and no figure showed
+    it: only channels with an effect on one of their joints, or left unexplained, had one (a walkthrough: one figure of
+    five)."""
+    from dynid.report.gaps_figures import findings
+
+    speed = {"speed": {"before": [2.0, 1.0], "after": [1.0, 1.0]}}
+    result = {"effects": [{"where": "motor wrist_1"}, {"where": "joint elbow_joint"}],
+              "profile": {"channels": {f"current.{j}": {"joints": {f"{j}_joint": speed}}
+                                       for j in ("wrist_1", "elbow", "wrist_2")}},
+              "gap": [{"channel": "current.wrist_1", "before_over_noise": 3.0, "after_over_noise": 1.1},
+                      {"channel": "current.elbow", "before_over_noise": 3.0, "after_over_noise": 1.1},
+                      {"channel": "current.wrist_2", "before_over_noise": 1.1, "after_over_noise": 1.05}]}
+    assert [(c, why) for c, _, why in findings(result)] == [("current.wrist_1", "explained"),
+                                                             ("current.elbow", "explained")]

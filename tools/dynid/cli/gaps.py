@@ -39,7 +39,8 @@ def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
     config = identified.config if identified is not None else load_config(args.robot, args.urdf)
     model = RobotModel(config)
     ds = load_run(args.data, model, window(args), bad_rows=bad_rows(args))
-    check_scale(model, [ds], payload_possible=False)  # the workflow refits the standard model on these data alone
+    if identified is None:  # the workflow refits the standard model on these data alone (a given model: its inertias
+        check_scale(model, [ds], payload_possible=False)  # held fix the scale)
     if identified is not None and identified.effects:  # before minutes of work
         raise InputError(f"{args.model} is already an augmented model (it names effects); give the standard "
                          "model it came from")

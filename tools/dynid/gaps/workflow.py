@@ -374,7 +374,9 @@ def _analyse(model: RobotModel, ctx: Context, A: np.ndarray, b: np.ndarray, w: n
         k = tr.candidate.key
         if k not in best_by_key or tr.gain > best_by_key[k].gain:
             best_by_key[k] = tr
-    ruled_out = sorted(({"effect": k, "cv_gain": v.gain} for k, v in best_by_key.items()), key=lambda d: -d["cv_gain"])
+    taken = {item["trial"].candidate.key for item in named}  # named above: not ruled out
+    ruled_out = sorted(({"effect": k, "cv_gain": v.gain} for k, v in best_by_key.items() if k not in taken),
+                       key=lambda d: -d["cv_gain"])
     return {
         "blocks": settings.n_blocks, "rank": dof,
         "thresholds": {"min_cv_gain": settings.min_gain, "alpha": settings.alpha, "batch_samples": batch,

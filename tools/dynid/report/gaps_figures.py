@@ -29,10 +29,13 @@ BEFORE, AFTER, GIVEN = "#d62728", "#1f77b4", "#7f7f7f"
 
 
 def findings(result: dict) -> list[tuple[str, str, str]]:
-    """(channel, joint, why) per finding, in channel order."""
+    """(channel, joint, why) per finding, in channel order: every channel a named effect on one of its joints or on its
+    own motor helps, and every channel left unexplained."""
     prof = result.get("profile", {}).get("channels", {})
     out = []
-    effect_joints = {e["where"].partition(" ")[2] for e in result.get("effects", []) if e["where"].startswith("joint ")}
+    effects = result.get("effects", [])
+    effect_joints = {e["where"].partition(" ")[2] for e in effects if e["where"].startswith("joint ")}
+    effect_motors = {e["where"].partition(" ")[2] for e in effects if e["where"].startswith("motor ")}
     for g in result["gap"]:
         ch = g["channel"]
         if ch not in prof:
@@ -40,7 +43,8 @@ def findings(result: dict) -> list[tuple[str, str, str]]:
         gain = 1 - g["after_over_noise"] / g["before_over_noise"] if g["before_over_noise"] > 0 else 0.0
         joints = prof[ch]["joints"]
         named = [j for j in joints if j in effect_joints]
-        if named and gain > 0.1:
+        own_motor = ch.partition(".")[2] in effect_motors  # current.M, pwm.M: the motor's own input channel
+        if (named or own_motor) and gain > 0.1:
             why = "explained" if g["after_over_noise"] <= UNEXPLAINED else "partly explained"
         elif g["after_over_noise"] > UNEXPLAINED:
             why = "unexplained"
