@@ -10,7 +10,7 @@ import numpy as np
 from ..config.robot_config import load_config
 from ..errors import InputError
 from ..gaps.find import find_gaps
-from ..gaps.workflow import format_report
+from ..gaps.workflow import format_report, worse_than_given
 from ..identify.model_file import load_model
 from ..identify.validation import load_run
 from ..robot.effects import FT_STEP
@@ -56,6 +56,10 @@ def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
     if args.out:
         found.augmented_model().save(args.out)
         result["out"] = args.out
+        worse = worse_than_given(result)
+        if worse:  # written, as asked, but not silently
+            print(f"  WARNING: {args.out} is worse on {', '.join(g['channel'] for g in worse)} than {args.model}, whose "
+                  "refit it is: keep the given model there")
         def named(e) -> str:  # several F/T steps on one sensor: each by its time span
             at = e.parameters.get("from_s") if e.kind == FT_STEP else None
             to = e.parameters.get("to_s") if e.kind == FT_STEP else None
