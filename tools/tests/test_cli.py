@@ -304,3 +304,14 @@ def test_validate_on_the_fits_own_data_says_it_is_in_sample(default_model: Path,
     assert result["fit_overlap"] == 1.0 and result["window"] == [None, 20.0]
     done = run("validate", "--model", str(default_model), "--data", str(default_experiments["validation"]), "--to", "20")
     assert done.returncode == 0 and "the fit's own" not in done.stdout
+
+
+def test_a_headerless_log_of_another_robot_names_the_configuration(tmp_path: Path) -> None:
+    """The UR10e's headerless log read with the Panda's configuration said only "no header: name the columns" (a
+    walkthrough): the likelier mistake, another robot's data, is named with what this configuration reads."""
+    log = tmp_path / "ur.csv"
+    log.write_text("".join(f"{k * 0.002:.3f}," + ",".join(["0.1"] * 30) + "\n" for k in range(50)))
+    done = run("import", "--robot", "panda", "--data", str(log), "--out", str(tmp_path / "o.npz"))
+    assert_one_line_error(done, "no header: the first line is data (31 values), and the configuration panda reads its "
+                                "runs as folders of files")
+    assert "another robot's data (give its --robot)" in done.stderr

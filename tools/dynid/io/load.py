@@ -129,6 +129,15 @@ def _load(
         return dataset
     if suffix in (".csv", ".txt") and config.columns and looks_headerless(head):
         return read_headerless(path, config, joint_limits=joint_limits, require_all=require_all, bad_rows=bad_rows)
+    if suffix == ".csv" and not config.columns and looks_headerless(head):
+        # A log without a header for a configuration that describes none: as likely another robot's as a header lost
+        width = len(first_line.split(b","))
+        reads = ("its runs as folders of files (its 'files' field)" if config.files else
+                 "CSVs with a header line (t, q.<joint>, ...)")
+        raise DataError(f"{path}: no header: the first line is data ({width} values), and the configuration "
+                        f"{config.name} reads {reads}, with no 'columns' field for a headerless log: another robot's "
+                        "data (give its --robot), or describe these columns in the configuration's 'columns' field "
+                        "(docs/formats.md)")
     if suffix == ".csv":
         return read_csv(path, config, joint_limits=joint_limits, require_all=require_all, bad_rows=bad_rows)
     raise DataError(
