@@ -14,7 +14,7 @@ namespace {
 
 constexpr const char* kNames[kFaultKinds] = {"blind", "silent frame", "T² not finite", "sample period",
                                             "joint out of range", "source stopped", "duty out of range",
-                                            "model does not fit at start", "samples bridged"};
+                                            "model does not fit at start", "samples bridged", "stamps went back"};
 
 int index_of(Fault f) noexcept {
     int i = 0;
@@ -95,6 +95,14 @@ void Watchdog::sample(const Sample& s) noexcept {
                 raise(kPeriod);
             }
         }
+    }
+    if (last_sample_t_ >= 0 && s.t_us < last_sample_t_) {
+        std::snprintf(text(kTimeBack), 256, "a sample stamped %.1f ms before the one before it (a sender's clock reset, "
+                      "a log spliced?): the filter restarts there", double(last_sample_t_ - s.t_us) * 1e-3);
+        raise(kTimeBack);
+        in_order_ = 0;
+    } else if (in_order_ < bridge_block_ && ++in_order_ == bridge_block_) {  // bounded: a monitor runs for months
+        clear(kTimeBack);
     }
     last_sample_t_ = s.t_us;
     // A duty cycle beyond ±1, for consecutive samples: the PWM's scale or offset is wrong

@@ -24,7 +24,8 @@ from dynid.io.load import load_data
 
 ROOT = Path(__file__).resolve().parents[2]
 RT_MONITOR = ROOT / "build" / "rt_monitor" / "rt_monitor"
-BLIND, SILENT, NOT_FINITE, PERIOD, JOINT_RANGE, STOPPED, DUTY_RANGE, START_FIT, BRIDGED = 1, 2, 4, 8, 16, 32, 64, 128, 256
+BLIND, SILENT, NOT_FINITE, PERIOD, JOINT_RANGE, STOPPED, DUTY_RANGE, START_FIT, BRIDGED, TIME_BACK = (
+    1, 2, 4, 8, 16, 32, 64, 128, 256, 512)
 EXIT_BLIND = 6
 
 
@@ -224,3 +225,16 @@ def test_a_frame_at_half_its_rate_is_a_bridged_fault(bench: dict, tmp_path: Path
     assert re.search(r"fault: samples bridged: (4\d|5\d) % of the last 1000 samples bridged by interpolation", err), err
     assert faults(msgs) & BRIDGED
     assert msgs["DYNID_STATUS"][-1].interpolated > 0.4 * 10_000
+
+
+def test_stamps_that_go_back_are_a_fault(bench: dict, tmp_path: Path) -> None:
+    """A log whose stamps jump back 50 ms halfway (a sender's clock reset): the filter restarted, with no fault and no
+    line (a walkthrough); now a fault that says how far back, cleared after a second in order."""
+    lines = bench["log"].read_text().splitlines()
+    half = len(lines) // 2
+    shifted = [f"({float(l[1:l.index(')')]) - 0.05:.6f}){l[l.index(')') + 1:]}" for l in lines[half:]]
+    back = tmp_path / "back.log"
+    back.write_text("\n".join(lines[:half] + shifted) + "\n")
+    code, err, msgs = replay(bench, "back", log=back)
+    assert code == 0 and re.search(r"fault: stamps went back: a sample stamped 4\d\.\d ms before the one before it", err), err
+    assert faults(msgs) & TIME_BACK and not msgs["DYNID_STATUS"][-1].faults & TIME_BACK  # cleared by the end

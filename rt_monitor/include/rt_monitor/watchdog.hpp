@@ -13,7 +13,10 @@
 //               configuration does not fit this robot (or it was touched all through the start);
 //   kBridged    more than `bridged_share` of a second's samples bridged by interpolation (lost, or held by a frame
 //               that did not come): a frame at another rate than the bus's, or a bus dropping frames; the core then
-//               sees invented samples. Cleared by a second under the share.
+//               sees invented samples. Cleared by a second under the share;
+//   kTimeBack   a sample stamped before the one before it (a sender's clock reset, a log spliced): the sample clock
+//               restarts the filter there, which only the filter_restarts counter said. Cleared by a second of
+//               samples in order.
 // Faults are a bitmask on the status message (`faults`, and `faults_seen` since the start); each one raised is one
 // line on stderr with its reason, written once from a buffer sized at start-up (no allocation in the loop).
 // Nothing here decides a contact: a fault is never an event.
@@ -39,8 +42,9 @@ enum Fault : uint32_t {
     kDutyRange = 1u << 6,
     kStartFit = 1u << 7,
     kBridged = 1u << 8,
+    kTimeBack = 1u << 9,
 };
-constexpr int kFaultKinds = 9;
+constexpr int kFaultKinds = 10;
 
 struct WatchdogSettings {
     double blind_periods = 5;      // sample periods without an evaluated sample while frames arrive
@@ -117,6 +121,7 @@ private:
     static constexpr int kMinFitSamples = 100;
     int fit_samples_ = 4000, fit_evaluated_ = 0, fit_above_ = 0;
     int bridge_block_ = 1000, placed_ = 0, bridged_ = 0;  // a second of samples at the file's period
+    int in_order_ = 0;  // samples in stamp order since the last one stamped before its predecessor
     std::array<std::array<char, 256>, kFaultKinds> reasons_{};
 };
 

@@ -34,7 +34,7 @@ PROBLEMS = ("stale_samples", "unknown_id", "bad_length", "error_frames", "unpair
             "board_faults", "board_restarts", "source_bad", "interpolated", "late", "filter_restarts", "overruns")
 # The watchdog's fault bits (rt_monitor/include/rt_monitor/watchdog.hpp, the status message's `faults`)
 FAULTS = ("BLIND", "FRAME SILENT", "T² NOT FINITE", "SAMPLE PERIOD", "JOINT OUT OF RANGE", "SOURCE STOPPED",
-          "DUTY OUT OF RANGE", "MODEL DOES NOT FIT AT START", "SAMPLES BRIDGED")
+          "DUTY OUT OF RANGE", "MODEL DOES NOT FIT AT START", "SAMPLES BRIDGED", "STAMPS WENT BACK")
 
 
 def fault_text(bits: int) -> str:
