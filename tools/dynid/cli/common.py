@@ -319,15 +319,15 @@ def expand_data(args: argparse.Namespace, config: RobotConfig | None = None) -> 
                 raise InputError(f"--data: the run {p} is named twice" + (" with the same window" if any(key[1]) else ""))
             for (other, w), given in seen.items():
                 if other == key[0] and _overlap(w, key[1]):
-                    raise InputError(f"--data: {given} and {_spec(p, key[1])} are windows of one run that overlap: the "
+                    raise InputError(f"--data: {given} and {run_spec(p, key[1])} are windows of one run that overlap: the "
                                      "samples they share would count twice (give windows that do not overlap)")
-            seen[key] = _spec(p, key[1])
+            seen[key] = run_spec(p, key[1])
             paths.append(str(p))
             windows.append(key[1])
     return paths, windows
 
 
-def _spec(path: str | Path, w: Window) -> str:
+def run_spec(path: str | Path, w: Window) -> str:
     """RUN@FROM:TO as a user writes it (RUN alone for the whole run)."""
     ends = ["" if x is None else f"{x:g}" for x in w]
     return f"{path}@{ends[0]}:{ends[1]}" if any(x is not None for x in w) else str(path)

@@ -34,8 +34,8 @@ from .validate_blocks import block_count, print_blocks
 from .common import confidence as alpha
 from .common import one_blas_thread
 from .common import (bad_rows, expand_data, folder_of_runs_error, json_arg, min_speed_arg, non_negative_float,
-                     payload_arg, payloads, plural, positive_int, robot_arg, scheduler_address, skipped_rows, window,
-                     window_args)
+                     payload_arg, payloads, plural, positive_int, robot_arg, run_spec, scheduler_address, skipped_rows,
+                     window, window_args)
 
 INPUT_WORD = {"pwm": "PWM", "current": "current", "tau": "joint torque"}
 GAIN_UNIT = {"pwm": "Nm per unit duty", "current": "Nm per A"}
@@ -227,7 +227,8 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
     loads = apparent_payloads(model, result.statistics, base.independent, [ref.payload is not None for ref in refs])
     frame = payload_frame(model)
     for a in loads:  # a run that carries what the others do not, averaged into the robot's parameters: said
-        print(f"  WARNING: {run_label(refs[a.run])}: its rows ask for {a.mass_kg:+.3g} kg at {frame} beyond what the "
+        run = run_spec(refs[a.run].path, refs[a.run].window)
+        print(f"  WARNING: {run}: its rows ask for {a.mass_kg:+.3g} kg at {frame} beyond what the "
               f"other runs carry (± {a.standard_error_kg:.2g}; the residual {100 * a.residual_drop:.0f} % lower with "
               "it): a load not given, on this run or the others? The fit averages it into the robot's parameters; "
               "give it (--payload MASS[@x,y,z], one per --data) or fit the runs apart")
@@ -248,17 +249,10 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
             "base": base_section(identified).to_json(), "residual_rms": dict(zip(identified.output_channels, rms.tolist())),
             "thresholds": {k: d.threshold for k, d in detectors.items()}, "fit_time_s": elapsed,
             "plausibility": implausible, "masses_far_from_cad": far, "consistent": result.consistent,
-            "apparent_payloads": [{**a.to_json(), "data": run_label(refs[a.run]), "frame": frame} for a in loads],
+            "apparent_payloads": [{**a.to_json(), "data": run_spec(refs[a.run].path, refs[a.run].window), "frame": frame}
+                                  for a in loads],
             "borderline": edges,
             **({"bad_rows": skipped} if skipped else {})}
-
-
-def run_label(ref: RunRef) -> str:
-    """A run as --data names it: its path, and its window where it has one (RUN@FROM:TO)."""
-    lo, hi = ref.window
-    if lo is None and hi is None:
-        return str(ref.path)
-    return f"{ref.path}@{'' if lo is None else f'{lo:g}'}:{'' if hi is None else f'{hi:g}'}"
 
 
 def base_section(identified: IdentifiedModel) -> BaseSection:

@@ -42,6 +42,7 @@ from scipy.stats import norm
 
 from ..errors import DataError
 from ..identify.model_file import IdentifiedModel
+from ..identify.transfer import fit_ranges
 from ..robot.regressors.rigid_body import rigid_body_regressors
 from . import html as H
 from .figures import png
@@ -49,9 +50,12 @@ from .figures import png
 FAMILY_ALPHA = 0.01
 MAD_SCALE = 1.4826  # MAD → standard deviation of a normal
 SE_FLOOR = 1e-12
-SCALE_WHY = "the measured inputs' unit or a sensor's gain, or a known motor gain that is wrong"
+SCALE_WHY = ("the measured inputs' unit or a sensor's gain, a known motor gain that is wrong, or a load it carries that "
+             "the others do not")
 GRAVITY_POSTURES = 256
-GRAVITY_SHARE = 0.1  # a joint, and a posture's torque on it, enter the common scale above this share of the largest
+# A joint enters the common scale where its RMS gravity torque is above this share of the largest joint's, and a
+# posture's torque on it where above this share of that joint's RMS (near zero, a ratio is noise)
+GRAVITY_SHARE = 0.1
 KINDS = ("friction", "gain", "ft_offset", "inertial")
 FLAGGED_KINDS = ("friction", "gain", "ft_offset")
 COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#e377c2"]
@@ -153,18 +157,15 @@ def common_scales(models: dict[str, IdentifiedModel], seed: int = 0) -> tuple[np
 
 
 def _common_postures(fitted: list[IdentifiedModel], seed: int) -> np.ndarray | None:
-    """GRAVITY_POSTURES postures drawn within every robot's fitted range of every joint (the model files' data
-    records), or None where a range is not recorded or the ranges do not overlap."""
-    model = fitted[0].robot_model
-    lo, hi = np.full(len(model.config.joints), -np.inf), np.full(len(model.config.joints), np.inf)
-    for m in fitted:
-        for d in m.data:
-            if d.joint_range_deg is None:
-                return None
-            for k, j in enumerate(model.config.joints):
-                a, b = d.joint_range_deg.get(j, (np.nan, np.nan))
-                lo[k], hi[k] = max(lo[k], np.deg2rad(a)), min(hi[k], np.deg2rad(b))
-    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(lo <= hi)):
+    """GRAVITY_POSTURES postures drawn within every robot's fitted range of every joint (each robot's the union over
+    its runs, dynid.identify.transfer.fit_ranges), or None where a range is not recorded or the robots' do not
+    overlap."""
+    joints = fitted[0].robot_model.config.joints
+    ranges = [fit_ranges(m, joints) for m in fitted]
+    if any(r is None for r in ranges):
+        return None
+    lo, hi = np.max([r[:, 0] for r in ranges], axis=0), np.min([r[:, 1] for r in ranges], axis=0)
+    if not np.all(lo <= hi):
         return None
     return np.random.default_rng(seed).uniform(lo, hi, (GRAVITY_POSTURES, lo.size))
 
@@ -222,6 +223,8 @@ def compare(models: dict[str, IdentifiedModel], layout_kinds: dict[str, str],
                 outliers.setdefault(r, []).append({"group": g, "statistic": float(s), "ratio_to_median": ratio})
     return {
         "robots": robots, "alpha": alpha, "bound": bound, "tests": n_tests,
+        # whether the common scale could be tested (gravity torques at postures every robot's fit saw, and folds)
+        "scale_tested": scales is not None,
         "parameters": [{"combination": p.combination, "name": p.name, "kind": p.kind, "group": p.group,
                         "log_scale": p.log, "values": dict(zip(robots, p.values.tolist())),
                         "standard_errors": dict(zip(robots, p.errors.tolist())),
