@@ -13,7 +13,9 @@ Layer: above everything but the cli.
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Union
 
@@ -32,7 +34,7 @@ from .errors import InputError
 from .export.model_export import Exported, ExportSettings, export_model
 from .gaps.find import Gaps
 from .gaps.find import find_gaps as analyse_gaps
-from .identify.blocks import validate_blocks
+from .identify.blocks import fitted_mask, validate_blocks
 from .identify.fit import ESTIMATORS, PSEUDO_INERTIA_ONLY, FitSettings
 from .identify.model_file import IdentifiedModel
 from .identify.model_file import load_model as load_model_file
@@ -55,20 +57,46 @@ def load_robot(robot: str | Path | RobotConfig = "icub_right_arm") -> RobotModel
 
 
 def read_data(data: Data, robot: str | Path | RobotConfig | RobotModel = "icub_right_arm") -> Dataset:
-    """A run of data as a `Dataset`, checked against the robot (what `dynid import` reads)."""
+    """A run of data as a `Dataset`, checked against the robot (what `dynid import` reads); its meta["read_from"] is
+    the path, which a model fitted on it (or on a slice of it) records as its data."""
     if isinstance(data, Dataset):
         return data
     model = robot if isinstance(robot, RobotModel) else load_robot(robot)
-    return load_data(Path(data), model.config, joint_limits=model.joint_limits)
+    ds = load_data(Path(data), model.config, joint_limits=model.joint_limits)
+    ds.meta["read_from"] = str(data)
+    return ds
 
 
 def _runs(data: Data | Sequence[Data], model: RobotModel) -> tuple[list[Dataset], list[str]]:
-    items = [data] if isinstance(data, (str, Path, Dataset)) else list(data)
-    if not items:
-        raise InputError("no data given")
-    runs = [d if isinstance(d, Dataset) else load_run(str(d), model) for d in items]
-    labels = [d.meta.get("source", "dataset") if isinstance(d, Dataset) else str(d) for d in items]
+    items = _items(data)
+    runs = [_windowed(d) if isinstance(d, Dataset) else load_run(str(d), model) for d in items]
+    labels = [_path_of(d) or "dataset" if isinstance(d, Dataset) else str(d) for d in items]
     return runs, labels
+
+
+def _path_of(ds: Dataset) -> str | None:
+    """The file a run in memory was read from (`read_data`), else its recorded source."""
+    return ds.meta.get("read_from") or ds.meta.get("source")
+
+
+def _items(data: Data | Sequence[Data]) -> list[Data]:
+    """One run or a sequence of runs, as a list; what is neither is refused in one line."""
+    if isinstance(data, (str, Path, Dataset)):
+        return [data]
+    if isinstance(data, np.ndarray) or not isinstance(data, Sequence):
+        raise InputError(f"data must be a path, a Dataset (dynid.read_data) or a list of them, not {type(data).__name__}")
+    if not data:
+        raise InputError("no data given")
+    return list(data)
+
+
+def _windowed(ds: Dataset) -> Dataset:
+    """A run in memory, its window (its first and last stamps, the data's own seconds) recorded where it names no
+    window of its file: the model file then says which samples it was fitted on (as `--from/--to` do), so that
+    `validate` and `detect` know a later window of the same file for what it is, and export reloads the same samples."""
+    if ds.meta.get("window") is not None or not _path_of(ds) or ds.n_samples == 0:
+        return ds
+    return replace(ds, meta={**ds.meta, "window": [float(ds.t[0]), float(ds.t[-1])]})
 
 
 class DynamicsModel(BaseEstimator):
@@ -133,17 +161,19 @@ class DynamicsModel(BaseEstimator):
     def _check_params(self) -> None:
         if self.estimator not in ESTIMATORS:
             raise InputError(f"estimator must be one of {', '.join(ESTIMATORS)}, got {self.estimator!r}")
-        if self.n_components is not None and not (isinstance(self.n_components, int) and self.n_components > 0):
+        integer = lambda v: isinstance(v, numbers.Integral) and not isinstance(v, bool)  # noqa: E731 - np.int64 too
+        real = lambda v: isinstance(v, numbers.Real) and not isinstance(v, bool) and np.isfinite(v)  # noqa: E731
+        if self.n_components is not None and not (integer(self.n_components) and self.n_components > 0):
             raise InputError(f"n_components must be a positive integer or None, got {self.n_components!r}")
-        if not (isinstance(self.blocks, int) and self.blocks > 1):
+        if not (integer(self.blocks) and self.blocks > 1):
             raise InputError(f"blocks must be an integer of 2 or more, got {self.blocks!r}")
-        if not (np.isfinite(self.min_speed) and self.min_speed >= 0):
+        if not (real(self.min_speed) and self.min_speed >= 0):
             raise InputError(f"min_speed must be 0 or more, got {self.min_speed!r}")
-        if not 0.5 <= self.alpha < 1:
+        if not (real(self.alpha) and 0.5 <= self.alpha < 1):
             raise InputError(f"alpha must be in [0.5, 1), got {self.alpha!r}")
         if self.n_mode not in ("dim", "nu"):
             raise InputError(f"n_mode must be 'dim' or 'nu', got {self.n_mode!r}")
-        if not (np.isfinite(self.supply_time_constant) and self.supply_time_constant >= 0):
+        if not (real(self.supply_time_constant) and self.supply_time_constant >= 0):
             raise InputError(f"supply_time_constant must be 0 or more, got {self.supply_time_constant!r}")
         if not (self.consistent is None or isinstance(self.consistent, (bool, np.bool_))
                 or self.consistent == PSEUDO_INERTIA_ONLY):
@@ -172,8 +202,9 @@ class DynamicsModel(BaseEstimator):
         if self.cad_pull and consistent is False:
             raise InputError("cad_pull weighs the CAD prior of the physically consistent fit: set consistent too")
         runs, labels = _runs(X, robot)
-        fit = FitSettings(estimator=self.estimator, n_components=self.n_components, min_speed=self.min_speed,
-                          blocks=self.blocks, consistent=bool(consistent),
+        fit = FitSettings(estimator=self.estimator, n_components=None if self.n_components is None else
+                          int(self.n_components), min_speed=float(self.min_speed), blocks=int(self.blocks),
+                          consistent=bool(consistent),
                           cad_pull=bool(self.cad_pull), consistent_sphere=consistent != PSEUDO_INERTIA_ONLY)
         done = identify(robot, runs, labels, IdentifySettings(fit, DetectorSettings(self.alpha, self.n_mode),
                                                               self.supply_time_constant))
@@ -189,9 +220,18 @@ class DynamicsModel(BaseEstimator):
 
     def _evaluated(self, X: Data) -> Evaluated:
         check_is_fitted(self, "model_")
+        items = _items(X)
+        if len(items) != 1:
+            raise InputError(f"one run here, not {len(items)}")
+        X = items[0]
         robot = self.model_.robot_model
         ds = X if isinstance(X, Dataset) else load_run(str(X), robot)
         return evaluate(self.model_.path or "model", str(X) if not isinstance(X, Dataset) else "dataset", self.model_, ds)
+
+    def _each(self, X: Data | Sequence[Data]) -> list[Evaluated]:
+        """Every run of X evaluated (one, or a list: scikit-learn's cross-validation passes a subset of a list)."""
+        check_is_fitted(self, "model_")
+        return [self._evaluated(x) for x in _items(X)]
 
     @property
     def output_channels_(self) -> list[str]:
@@ -199,21 +239,21 @@ class DynamicsModel(BaseEstimator):
         check_is_fitted(self, "model_")
         return self.model_.output_channels
 
-    def predict(self, X: Data) -> np.ndarray:
+    def predict(self, X: Data | Sequence[Data]) -> np.ndarray:
         """ŷ (N, n_outputs): the F/T wrenches through the regressor and the inputs from the motor equations, on the
-        run's filtered signals, with the offline supply estimate where the model tracks it."""
-        ev = self._evaluated(X)
-        return measured_outputs(ev.model, ev.signals) - ev.e
+        run's filtered signals, with the offline supply estimate where the model tracks it (runs one after another)."""
+        return np.vstack([measured_outputs(ev.model, ev.signals) - ev.e for ev in self._each(X)])
 
-    def residuals(self, X: Data) -> np.ndarray:
-        """e = y − ŷ (N, n_outputs) on the run."""
-        return self._evaluated(X).e
+    def residuals(self, X: Data | Sequence[Data]) -> np.ndarray:
+        """e = y − ŷ (N, n_outputs) on the run (runs one after another)."""
+        return np.vstack([ev.e for ev in self._each(X)])
 
-    def score(self, X: Data, y: None = None) -> float:
-        """R² of the predicted outputs on the run, averaged over the channels (scikit-learn's `r2_score`)."""
-        ev = self._evaluated(X)
-        y_true = measured_outputs(ev.model, ev.signals)
-        return float(r2_score(y_true, y_true - ev.e, multioutput="uniform_average"))
+    def score(self, X: Data | Sequence[Data], y: None = None) -> float:
+        """R² of the predicted outputs on the run (or the runs together), averaged over the channels (scikit-learn's
+        `r2_score`): `cross_val_score` over a list of runs scores each held-out part."""
+        evs = self._each(X)
+        y_true = np.vstack([measured_outputs(ev.model, ev.signals) for ev in evs])
+        return float(r2_score(y_true, y_true - np.vstack([ev.e for ev in evs]), multioutput="uniform_average"))
 
     def validate(self, X: Data, blocks: int | None = None) -> dict[str, Any]:
         """The paper's Table II (F/T error norms, identified against CAD) and the per-channel RMS against the noise:
@@ -221,7 +261,11 @@ class DynamicsModel(BaseEstimator):
         the model was fitted on it, the worst block and the spread (`validate --blocks K`: result["blocks"])."""
         ev = self._evaluated(X)
         label = str(X) if not isinstance(X, Dataset) else "dataset"
-        result = validation(ev, self.model_.path or "model", label)
+        source = str(X) if not isinstance(X, Dataset) else _path_of(X)
+        fitted = fitted_mask(self.model_, source, ev.dataset.t) if source else None  # the fit's own samples
+        result = validation(ev, self.model_.path or "model", label,
+                            window=(float(ev.dataset.t[0]), float(ev.dataset.t[-1])) if isinstance(X, Dataset)
+                            else (None, None), fit_overlap=None if fitted is None else float(fitted.mean()))
         if blocks is not None:
             result["blocks"] = validate_blocks(self.model_, ev.dataset, blocks, self.model_.path or "model", label,
                                                None if isinstance(X, Dataset) else str(X))
@@ -239,9 +283,12 @@ class DynamicsModel(BaseEstimator):
         identified = load_model_file(path)
         settings = identified.settings
         tracking = identified.supply_tracking
+        consistent = (False if not settings.consistent else True if settings.consistent_sphere
+                      else PSEUDO_INERTIA_ONLY)  # as fitted: a clone refits with the same settings
         est = cls(robot=identified.config.source, estimator=settings.estimator, n_components=settings.n_components,
                   blocks=settings.blocks, min_speed=settings.min_speed, alpha=settings.alpha, n_mode=settings.n_mode,
-                  supply_time_constant=tracking.time_constant_s if tracking is not None else 0.0)
+                  supply_time_constant=tracking.time_constant_s if tracking is not None else 0.0,
+                  consistent=consistent, cad_pull=settings.cad_pull)
         est._set_fitted(identified)
         return est
 
@@ -275,6 +322,24 @@ class ContactDetector(BaseEstimator):
         self.alpha = alpha
         self.bandwidth_hz = bandwidth_hz
 
+    def set_params(self, **params: Any) -> ContactDetector:
+        """As scikit-learn's, and what was calibrated with the old settings is dropped: the lazy calibrations (the
+        momentum observer's, κ) and `fit`'s own, which the next use redoes with the new ones (a stale one gave the
+        old α's alarms silently)."""
+        super().set_params(**params)
+        for cached in ("detector_", "_momentum", "_combined"):
+            self.__dict__.pop(cached, None)
+        return self
+
+    def __sklearn_clone__(self) -> ContactDetector:
+        """A clone with the same fitted model (scikit-learn's would clone the model unfitted: the detector is of that
+        model, as a frozen estimator is), unfitted itself."""
+        return type(self)(**{**self.get_params(deep=False), "model": self.model})
+
+    def __sklearn_is_fitted__(self) -> bool:
+        """Usable once its model is fitted: unfitted, it takes the calibration the model was fitted with."""
+        return hasattr(self.model, "model_")
+
     def _check(self) -> None:
         check_is_fitted(self.model, "model_")
         if self.variant not in (*VARIANTS, "momentum", "combined"):
@@ -295,20 +360,20 @@ class ContactDetector(BaseEstimator):
         return detectors(self.model.model_, self._alpha(), self.model.model_.settings.n_mode)[variant]
 
     def _combined_detector(self, runs: list | None = None) -> CombinedDetector:
-        if runs is None and hasattr(self, "combined_"):
-            return self.combined_
+        if runs is None and hasattr(self, "_combined"):
+            return self._combined
         identified = self.model.model_
         momentum = self._momentum_detector(runs)  # on the given runs, or (cached) on the fit's, cross-validated
         folds = None
         if runs is None:  # the runs it was fitted on, cross-validated, as the momentum detector's
             runs, _ = calibration_runs(identified, None)
             folds = identified.folds
-        self.combined_ = calibrate_combined(identified, momentum, self._detector(), runs, folds)
-        return self.combined_
+        self._combined = calibrate_combined(identified, momentum, self._detector(), runs, folds)
+        return self._combined
 
     def _momentum_detector(self, runs: list | None = None) -> MomentumDetector:
-        if runs is None and hasattr(self, "momentum_"):
-            return self.momentum_
+        if runs is None and hasattr(self, "_momentum"):
+            return self._momentum
         identified = self.model.model_
         folds = None
         if runs is None:  # the runs it was fitted on: each time block through the Φ fitted without it
@@ -317,7 +382,7 @@ class ContactDetector(BaseEstimator):
         det = calibrate_momentum(identified.robot_model, identified.phi, identified.base, runs, self._alpha(),
                                  identified.min_speed, self.bandwidth_hz, tracking=identified.supply_tracking,
                                  folds=folds)
-        self.momentum_ = det
+        self._momentum = det
         return det
 
     def _combined_statistic(self, X: Data) -> tuple[Dataset, np.ndarray]:
@@ -344,7 +409,9 @@ class ContactDetector(BaseEstimator):
 
     def fit(self, X: Data | Sequence[Data], y: None = None) -> ContactDetector:
         """Recalibrate Λ and T²_α on contact-free runs, with the offline derivatives and supply estimate (the
-        momentum variant: through its observer)."""
+        momentum variant: through its observer). Every part of the variant is recalibrated: the combined one's
+        acceleration residuals too, where `dynid detect --calibration` recalibrates the observer and κ alone (so the
+        two differ there; the momentum variant's are the same)."""
         self._check()
         identified = self.model.model_
         robot = identified.robot_model
@@ -407,12 +474,15 @@ class ContactDetector(BaseEstimator):
         self._check()
         if self.variant in ("momentum", "combined"):
             ds, stat = (self._momentum_statistic if self.variant == "momentum" else self._combined_statistic)(X)
-            return score_with_delays(ds.t, stat, 1.0, ds.contact, ds.extra.get("skin.side"))
-        ev = self.model._evaluated(X)
-        e = ev.e_constant if self.variant == "paper" else ev.e
-        det = self._detector()
-        t2 = np.where(filter_edges(ev), np.nan, det.t2(ev.model, e, ev.signals.dq, ev.identified.phi))
-        return score_t2(ev.dataset.t, t2, det.threshold, ev.dataset.contact, ev.dataset.extra.get("skin.side"))
+            found = score_with_delays(ds.t, stat, 1.0, ds.contact, ds.extra.get("skin.side"))
+        else:
+            ev = self.model._evaluated(X)
+            e = ev.e_constant if self.variant == "paper" else ev.e
+            det = self._detector()
+            t2 = np.where(filter_edges(ev), np.nan, det.t2(ev.model, e, ev.signals.dq, ev.identified.phi))
+            found = score_t2(ev.dataset.t, t2, det.threshold, ev.dataset.contact, ev.dataset.extra.get("skin.side"))
+        # Without contact labels every alarm counts as a false positive: said by a TPR of None, not a missing key
+        return {"tpr": None, **found}
 
 
 def export_coefficients(model: DynamicsModel, path: str | Path, settings: ExportSettings = ExportSettings()) -> Exported:

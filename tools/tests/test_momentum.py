@@ -304,7 +304,7 @@ def test_the_api_detector_uses_the_momentum_residual(default_experiments: dict[s
     result = detector.evaluate(run)  # calibrated on the model's identification run (its first 150 s)
     assert result["fpr"] <= 0.015  # measured 0.81 %
     assert detector.predict(run).mean() == pytest.approx(result["fpr"])
-    assert detector.momentum_.bandwidth_hz == 15.0 and detector.momentum_.threshold > 0
+    assert detector._momentum.bandwidth_hz == 15.0 and detector._momentum.threshold > 0  # the lazy calibration
 
 
 def test_a_bandwidth_above_the_datas_nyquist_is_a_bad_value(default_experiments: dict[str, Path], default_model: Path,

@@ -381,7 +381,7 @@ def calibration_runs(identified, paths: Sequence[str] | None, window=(None, None
         ds = load_run(str(p), model, run_window, entry.payload_dict if entry else None, policy)  # a payload the fit was told of
         fitted = entry.samples if entry else None
         if fitted is not None and run_window == (None, None) and fitted != ds.n_samples:  # a window the file does not name
-            raise DataError(f"{identified.path} was fitted on {fitted} of the {ds.n_samples} samples of {p} (a --from/--to "
+            raise DataError(f"{identified.path or 'the model'} was fitted on {fitted} of the {ds.n_samples} samples of {p} (a --from/--to "
                             "window); give the contact-free runs to calibrate the momentum detector with --calibration "
                             "DATA --calibration-from S --calibration-to S")
         runs.append(ds)
