@@ -197,6 +197,19 @@ LoadResult implausible(const std::string& what, double value, double lo, double 
 
 bool within(double v, double lo, double hi) { return v >= lo && v <= hi; }
 
+// A joint's range [lower, upper] (rad or m): each end within ±kMaxJointRange, then in order (`strict`: lower < upper).
+// The end at fault is the one named.
+LoadResult check_range(const std::vector<double>& r, const std::string& what, bool strict) {
+    namespace P = plausible;
+    for (int end = 0; end < 2; ++end)
+        if (!within(r[end], -P::kMaxJointRange, P::kMaxJointRange))
+            return implausible(what + (end ? "'s upper end" : "'s lower end"), r[end], -P::kMaxJointRange,
+                               P::kMaxJointRange, "rad or m");
+    if (strict ? !(r[0] < r[1]) : !(r[0] <= r[1]))
+        return implausible(what + "'s lower end", r[0], -P::kMaxJointRange, r[1], "rad or m");
+    return LoadResult{};
+}
+
 // A residual's plausible standard deviation on output channel i: an input (duty or A), a force or a torque.
 struct SigmaRange {
     double lo, hi;
@@ -265,15 +278,11 @@ LoadResult check_plausible(const dynid::coefficients_t& c) {
     if (!(std::abs(mass) >= P::kMinTotalMass))
         return implausible("the robot's total mass |Σm|", std::abs(mass), P::kMinTotalMass, P::kMaxMass * c.n_bodies, "kg");
     for (int j = 0; j < c.n_joints; ++j)
-        if (!(c.joint_limits[j][0] < c.joint_limits[j][1]) || !within(c.joint_limits[j][0], -P::kMaxJointRange, P::kMaxJointRange) ||
-            !within(c.joint_limits[j][1], -P::kMaxJointRange, P::kMaxJointRange))
-            return implausible("joint " + shown_name(c.joint_names[j]) + ": its range's lower limit",
-                               c.joint_limits[j][0], -P::kMaxJointRange, c.joint_limits[j][1], "rad or m");
+        if (LoadResult r = check_range(c.joint_limits[j], "joint " + shown_name(c.joint_names[j]) + ": its range", true); !r)
+            return r;
     for (int j = 0; j < c.n_joints; ++j)  // the fit's data may pass the URDF's limits: only an order and a magnitude
-        if (!(c.fit_range[j][0] <= c.fit_range[j][1]) || !within(c.fit_range[j][0], -P::kMaxJointRange, P::kMaxJointRange) ||
-            !within(c.fit_range[j][1], -P::kMaxJointRange, P::kMaxJointRange))
-            return implausible("joint " + shown_name(c.joint_names[j]) + ": the fit's range's lower end",
-                               c.fit_range[j][0], -P::kMaxJointRange, c.fit_range[j][1], "rad or m");
+        if (LoadResult r = check_range(c.fit_range[j], "joint " + shown_name(c.joint_names[j]) + ": the fit's range", false); !r)
+            return r;
     const double g = std::sqrt(c.gravity[0] * c.gravity[0] + c.gravity[1] * c.gravity[1] + c.gravity[2] * c.gravity[2]);
     if (!within(g, P::kMinGravity, P::kMaxGravity)) return implausible("gravity |g|", g, P::kMinGravity, P::kMaxGravity, "m/s²");
     for (int k = 0; k < c.n_motors; ++k) {

@@ -53,7 +53,7 @@ void MonitorLoop::step(const Sample& x) noexcept {
 }
 
 void MonitorLoop::place(const ClockStep& c) noexcept {
-    dog_.placed(c.interpolated);
+    dog_.placed(c.interpolated, c.restart);
     if (c.restart) {  // a filter restart resets the detector: a contact open then gets no end event
         n_.cut += core_.output().in_contact;
         core_.reset();

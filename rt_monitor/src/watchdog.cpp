@@ -61,8 +61,9 @@ void Watchdog::raise(Fault f) noexcept {
     }
 }
 
-void Watchdog::placed(bool interpolated) noexcept {
+void Watchdog::placed(bool interpolated, bool restart) noexcept {
     bridged_ += interpolated;
+    restarts_ += restart;
     if (++placed_ < bridge_block_) return;
     const double share = double(bridged_) / double(placed_);
     if (share > set_.bridged_share) {
@@ -70,10 +71,14 @@ void Watchdog::placed(bool interpolated) noexcept {
                       "by a frame that did not come): a frame at another rate than the bus's, or frames dropped?",
                       100.0 * share, placed_);
         raise(kBridged);
+    } else if (restarts_ >= set_.restarts_per_s) {
+        std::snprintf(text(kBridged), 256, "the filter restarted %d times in the last %d samples (gaps too long to "
+                      "bridge): a frame at a fraction of the bus's rate, or frames dropped?", restarts_, placed_);
+        raise(kBridged);
     } else {
         clear(kBridged);
     }
-    placed_ = bridged_ = 0;
+    placed_ = bridged_ = restarts_ = 0;
 }
 
 void Watchdog::sample(const Sample& s) noexcept {

@@ -4,6 +4,7 @@
 // Cross-language equality is tested from Python (tests/test_rt_core.py) against dynid's own residuals.
 #include "core_fixture.hpp"
 #include "rt_monitor/core.hpp"
+#include "rt_monitor/fit_coverage.hpp"
 #include "rt_monitor/sample_clock.hpp"
 #include "rt_monitor/status.hpp"
 
@@ -496,4 +497,18 @@ TEST(Combined, RefusedWhereTheFileHasNoScale) {
     Core core(*c);  // the CAD fixture: an observer, no combined_scale
     EXPECT_FALSE(core.set_residual(Residual::kCombined));
     EXPECT_EQ(core.residual(), Residual::kAcceleration);
+}
+
+// The postures the fit saw (format version 8): the joints beyond the file's fit range, a NaN among them, counted.
+TEST(FitCoverage, MarksTheJointsBeyondTheFitsRangeAndCountsTheSamples) {
+    auto c = load_fixture();
+    ASSERT_EQ(c->n_joints, 7);
+    for (int j = 0; j < 7; ++j) c->fit_lower[size_t(j)] = -0.5, c->fit_upper[size_t(j)] = 0.5;
+    dynid::rt::FitCoverage coverage(*c);
+    double q[7] = {0, 0.5, -0.5, 0, 0, 0, 0};  // the ends are inside
+    EXPECT_EQ(coverage.check(q), 0u);
+    q[1] = 0.51, q[6] = std::nan("");
+    EXPECT_EQ(coverage.check(q), (1u << 1) | (1u << 6));
+    EXPECT_EQ(coverage.last(), (1u << 1) | (1u << 6));
+    EXPECT_EQ(coverage.samples(), 1);
 }

@@ -320,7 +320,8 @@ def _bad_files(good: bytes) -> dict[str, tuple[bytes, int, str]]:
     # The fit's ranges (format version 8): finite, in order, within ±1e6
     for label, value, code, message in (("not finite", [float("nan"), 1.0], 9, "non-finite value in the fit's joint ranges"),
                                         ("out of order", [0.5, -0.5], 11, "the fit's range's lower end"),
-                                        ("beyond 1e6", [-2e6, 1.0], 11, "the fit's range's lower end")):
+                                        ("beyond 1e6", [-2e6, 1.0], 11, "the fit's range's lower end is -2e+06"),
+                                        ("upper beyond 1e6", [0.0, 2e6], 11, "the fit's range's upper end is 2e+06")):
         c = coefficients_t.decode(payload)
         c.fit_range = [list(r) for r in c.fit_range]
         c.fit_range[3] = value

@@ -210,21 +210,31 @@ def test_stamps_a_tenth_apart_are_a_period_fault(bench: dict, tmp_path: Path) ->
 def test_a_frame_at_half_its_rate_is_a_bridged_fault(bench: dict, tmp_path: Path) -> None:
     """One joint's position frame every other sample: half the samples were interpolated, with no fault (only the
     `interpolated` counter said it). Now a fault names the share; a clean replay bridges none."""
+    halved = thinned(bench, tmp_path, 2, "halved", upto=0.5)  # the first half of the run; the second clean
+    code, err, msgs = replay(bench, "halved", log=halved)
+    assert re.search(r"fault: samples bridged: (4\d|5\d) % of the last 1000 samples bridged by interpolation", err), err
+    assert faults(msgs) & BRIDGED and not msgs["DYNID_STATUS"][-1].faults & BRIDGED  # cleared by the clean half
+    assert msgs["DYNID_STATUS"][-1].interpolated > 0.2 * 10_000
+    # One frame in five: gaps too long to bridge, the filter restarting every few samples
+    code, err, msgs = replay(bench, "fifth", log=thinned(bench, tmp_path, 5, "fifth"))
+    assert re.search(r"fault: samples bridged: .*(bridged by interpolation|the filter restarted \d+ times)", err), err
+    assert faults(msgs) & BRIDGED
+
+
+def thinned(bench: dict, tmp_path: Path, every: int, name: str, upto: float = 1.0) -> Path:
+    """The run's log with the elbow's position frame kept once in `every` (over the first `upto` of the log)."""
     frame = next(f for f in bench["config"].bus.frames if any(s.target == "q.r_elbow" for s in f.signals))
     lines = bench["log"].read_text().splitlines()
     kept, k = [], 0
-    for line in lines:
-        if line.split()[2].split("#")[0] == f"{frame.id:03X}":
+    for i, line in enumerate(lines):
+        if i < upto * len(lines) and line.split()[2].split("#")[0] == f"{frame.id:03X}":
             k += 1
-            if k % 2 == 0:
+            if k % every:
                 continue
         kept.append(line)
-    halved = tmp_path / "halved.log"
-    halved.write_text("\n".join(kept) + "\n")
-    code, err, msgs = replay(bench, "halved", log=halved)
-    assert re.search(r"fault: samples bridged: (4\d|5\d) % of the last 1000 samples bridged by interpolation", err), err
-    assert faults(msgs) & BRIDGED
-    assert msgs["DYNID_STATUS"][-1].interpolated > 0.4 * 10_000
+    out = tmp_path / f"{name}.log"
+    out.write_text("\n".join(kept) + "\n")
+    return out
 
 
 def test_stamps_that_go_back_are_a_fault(bench: dict, tmp_path: Path) -> None:

@@ -18,11 +18,12 @@ class FitCoverage {
 public:
     explicit FitCoverage(const Coefficients& c) noexcept : c_(c) {}
 
-    // Bit j: q_j beyond [fit_lower_j, fit_upper_j]; a sample with any such joint is counted.
+    // Bit j: q_j beyond [fit_lower_j, fit_upper_j] (a NaN too: not a posture the fit saw); a sample with any such
+    // joint is counted.
     uint64_t check(const double* q) noexcept {
         uint64_t beyond = 0;
         for (int j = 0; j < c_.n_joints; ++j)
-            if (q[j] < c_.fit_lower[size_t(j)] || q[j] > c_.fit_upper[size_t(j)]) beyond |= uint64_t(1) << j;
+            if (!(q[j] >= c_.fit_lower[size_t(j)] && q[j] <= c_.fit_upper[size_t(j)])) beyond |= uint64_t(1) << j;
         last_ = beyond;
         samples_ += beyond != 0;
         return beyond;

@@ -29,7 +29,7 @@ public:
     // An event describes o.peak, at peak_utime: an onset's own sample, an end's contact's strongest; `beyond_fit` (bit j)
     // the joints beyond the fit's range there (FitCoverage).
     void contact(const Output& o, int64_t t_us, int64_t onset_utime, int64_t peak_utime, int64_t sample,
-                 uint64_t beyond_fit = 0) noexcept;
+                 uint64_t beyond_fit) noexcept;
     // One sample of the decimated residual stream.
     void residual(const Output& o, int64_t t_us) noexcept;
     // The status, whose counters the caller has filled (status()); the supply ratios are the core's.

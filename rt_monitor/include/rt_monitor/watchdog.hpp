@@ -12,8 +12,9 @@
 //   kStartFit   T² above T²_α on more than three quarters of the first `fit_s` seconds' evaluated samples: the model or the
 //               configuration does not fit this robot (or it was touched all through the start);
 //   kBridged    more than `bridged_share` of a second's samples bridged by interpolation (lost, or held by a frame
-//               that did not come): a frame at another rate than the bus's, or a bus dropping frames; the core then
-//               sees invented samples. Cleared by a second under the share;
+//               that did not come), or the filter restarted `restarts_per_s` times in it (gaps too long to bridge):
+//               a frame at another rate than the bus's, or a bus dropping frames; the core then sees invented
+//               samples, or is reset every few. Cleared by a second under both;
 //   kTimeBack   a sample stamped before the one before it (a sender's clock reset, a log spliced): the sample clock
 //               restarts the filter there, which only the filter_restarts counter said. Cleared by a second of
 //               samples in order.
@@ -59,6 +60,7 @@ struct WatchdogSettings {
     double fit_s = 4.0;            // the start-up block (s of samples at the file's period) whose T² is checked
                                    // against T²_α: a time, so a slow bus is not blind for longer (400 at 100 Hz)
     double bridged_share = 0.05;   // of a second's samples bridged: above, kBridged (a 1 % loss bridges 1 %)
+    int restarts_per_s = 3;        // filter restarts in a second: at this many, kBridged
 };
 
 class Watchdog {
@@ -76,8 +78,8 @@ public:
     void sample(const Sample& s) noexcept;
     // The core evaluated a sample at CAN time t_us.
     void evaluated(const Output& o, int64_t t_us) noexcept;
-    // The sample clock placed a sample on its grid, bridged (interpolated) or not.
-    void placed(bool interpolated) noexcept;
+    // The sample clock placed a sample on its grid, bridged (interpolated) or not, the filter restarted before it or not.
+    void placed(bool interpolated, bool restart) noexcept;
     // The blind check at CAN time now_us (after every frame: cheap); the faults active. Newly raised ones are written
     // to stderr.
     uint32_t check(int64_t now_us) noexcept;
@@ -120,7 +122,7 @@ private:
     // At least this many samples however fast the file: three quarters of them above T²_α is not chance at any α
     static constexpr int kMinFitSamples = 100;
     int fit_samples_ = 4000, fit_evaluated_ = 0, fit_above_ = 0;
-    int bridge_block_ = 1000, placed_ = 0, bridged_ = 0;  // a second of samples at the file's period
+    int bridge_block_ = 1000, placed_ = 0, bridged_ = 0, restarts_ = 0;  // a second of samples at the file's period
     int in_order_ = 0;  // samples in stamp order since the last one stamped before its predecessor
     std::array<std::array<char, 256>, kFaultKinds> reasons_{};
 };

@@ -316,7 +316,8 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
     if (skipped := skipped_rows(args.data, ev.dataset.meta)) is not None:
         result["bad_rows"] = skipped
     if fitted is not None and fitted.any():
-        print(f"  note: {100 * fitted.mean():.0f} % of these samples are the fit's own (its run, inside its window): "
+        share = f"{100 * fitted.mean():.0f} %" if fitted.mean() >= 0.01 else "under 1 %"
+        print(f"  note: {share} of these samples are the fit's own (its run, inside its window): "
               "the figures below are in-sample, not a validation on data the model never saw; validate on another "
               "run or window (--blocks K shows which blocks the fit took)")
     if "contact_fraction" in result:  # the model has no contact: its error includes the contacts'

@@ -408,20 +408,21 @@ def describe(c: coefficients_t) -> str:
     for k in range(c.n_motors):
         fr = f"friction [{f(c.motor_friction[k])}]" if c.motor_friction_on[k] else "no motor friction"
         lines.append(f"  {c.motor_names[k]}: q̇_m = [{f(c.motor_velocity[k])}]·q̇; {fr}")
-    lines.append("joint friction, and the postures the fit saw (its data's range, widened by 1°; the monitor counts "
-                 "samples beyond):")
+    # a prismatic joint's q is in m, its q̇ in m/s and its torque in N
+    prismatic = {c.joint_index[i] for i in range(c.n_bodies) if c.joint_type[i] == 2 and c.joint_index[i] >= 0}
+    lines.append("joint friction, and the postures the fit saw (its data's range, widened by 1° or 1 mm; the monitor "
+                 "counts samples beyond):")
     for j in range(c.n_joints):
         lo, hi = c.fit_range[j]
-        seen = (f"fit {np.rad2deg(lo):.1f}…{np.rad2deg(hi):.1f}°" if max(abs(lo), abs(hi)) < NO_LIMIT
-                else "fit range not recorded")
+        seen = ("fit range not recorded" if max(abs(lo), abs(hi)) >= NO_LIMIT else
+                f"fit {1e3 * lo:.1f}…{1e3 * hi:.1f} mm" if j in prismatic else
+                f"fit {np.rad2deg(lo):.1f}…{np.rad2deg(hi):.1f}°")
         lines.append(f"  {c.joint_names[j]:18s} friction fc+ fc- fv+ fv- [{f(c.joint_friction[j])}]  {seen}")
     lines.append(f"outputs ({c.n_outputs})" + "".join(f"; {n} offset [{f(o)}]" for n, o in zip(c.sensor_names, c.ft_offset)))
     for i in range(c.n_outputs):
         lines.append(f"  {c.channel_names[i]:18s} Λ {c.residual_variance[i]:.4g}  divisor {c.divisor[i]:.6g}"
                      f"  gates joints 0x{c.gate_joints[i]:x} motors 0x{c.gate_motors[i]:x}")
     sides = ", ".join(f"{n} {t:.6g}" for n, t in zip(c.sensor_names, c.ft_threshold)) or "none"
-    # a prismatic joint's q̇ is in m/s and its torque in N
-    prismatic = {c.joint_index[i] for i in range(c.n_bodies) if c.joint_type[i] == 2 and c.joint_index[i] >= 0}
     speed = "rad/s" + (" (m/s for a prismatic joint)" if prismatic else "")
     lines.append(f"T²: α {c.alpha}, threshold {c.threshold:.6g}, F/T-side thresholds {sides}, "
                  f"min speed {c.min_speed} {speed}, from {c.calibration_samples} samples; debounce on {c.debounce_on} "

@@ -19,6 +19,7 @@ from ..robot.effects import FT_AXES, FT_STEP
 from .model_file import IdentifiedModel
 
 MARGIN_DEG = 1.0  # a sample within this of the fit's range is inside it
+MARGIN_M = 1e-3  # ... for a prismatic joint (its metres)
 MIN_SHARE = 0.05  # a joint outside the fit's range on fewer samples than this is not named
 AT_LIMIT_DEG = 1.0
 MAX_PRINTED = 4  # joints named in the text; --json has them all
@@ -36,9 +37,10 @@ def worse_than_cad(tables: dict[str, Any]) -> list[dict]:
 
 
 def fit_ranges(identified: IdentifiedModel, joints: tuple[str, ...]) -> np.ndarray | None:
-    """(joints, 2) rad: each joint's range over the fit's data (the union of its runs'), widened by MARGIN_DEG, as
-    `outside_fit` takes it; None where `outside_fit` has none to compare (ranges not recorded, another model's
-    inertias). What the monitor's coefficient file carries (fit_range)."""
+    """(joints, 2) rad, or m for a prismatic joint: each joint's range over the fit's data (the union of its runs'),
+    widened by MARGIN_DEG (MARGIN_M for a prismatic joint), as `outside_fit` takes it; None where `outside_fit` has
+    none to compare (ranges not recorded, another model's inertias). What the monitor's coefficient file carries
+    (fit_range). (`joint_range_deg` holds a prismatic joint's metres through the same rad2deg as the others'.)"""
     gaps = identified.gaps
     ranges = [d.joint_range_deg for d in identified.data]
     if (gaps is not None and gaps.given_model) or not ranges or any(r is None for r in ranges):
@@ -48,8 +50,10 @@ def fit_ranges(identified: IdentifiedModel, joints: tuple[str, ...]) -> np.ndarr
         spans = [r[joint] for r in ranges if joint in r]
         if not spans:
             return None
-        out[k] = (min(s[0] for s in spans) - MARGIN_DEG, max(s[1] for s in spans) + MARGIN_DEG)
-    return np.deg2rad(out)
+        out[k] = (min(s[0] for s in spans), max(s[1] for s in spans))
+    prismatic = np.array(identified.robot_model.prismatic, bool)
+    margin = np.where(prismatic, MARGIN_M, np.deg2rad(MARGIN_DEG))[:, None] * np.array([-1.0, 1.0])
+    return np.deg2rad(out) + margin
 
 
 def outside_fit(identified: IdentifiedModel, joints: tuple[str, ...], q: np.ndarray,
