@@ -326,3 +326,18 @@ def test_a_refit_worse_than_the_given_model_is_said_not_called_unexplained() -> 
     text = format_report(result)
     assert "the refit is worse than the given model on tau.j5 (1.46× against its 0.67×)" in text
     assert "unexplained: tau.j2 2.29× its noise floor" in text and "tau.j5 1.46×" not in text.split("unexplained")[1]
+
+
+def test_figures_into_a_reused_folder_keep_only_this_results(augmented: dict, tmp_path: Path) -> None:
+    """`--figures DIR` twice: the first run's findings stayed beside the second's, unreferenced (a walkthrough)."""
+    import shutil
+
+    from dynid.report.gaps_figures import write_figures
+
+    figs = tmp_path / "figs"
+    shutil.copytree(augmented["figures"], figs)
+    (figs / "finding_pwm.m9.png").write_bytes(b"an earlier run's")
+    result = json.loads((figs / "gaps.json").read_text())
+    written = write_figures(result, str(figs))
+    assert not (figs / "finding_pwm.m9.png").exists()
+    assert sorted(p.name for p in figs.glob("*.png")) == sorted(written)

@@ -147,6 +147,10 @@ def write_figures(result: dict, directory: str) -> list[str]:
     atomic_write(d / "gaps.json", lambda f: f.write(text.encode()))
     idx = json.dumps(index, indent=1) + "\n"
     atomic_write(d / "figures.json", lambda f: f.write(idx.encode()))
+    written = {i["file"] for i in index}
+    for old in d.glob("finding_*.png"):  # a finding of an earlier run into the same folder: not this result's
+        if old.name not in written:
+            old.unlink()
     return [i["file"] for i in index]
 
 
