@@ -33,7 +33,7 @@ from ..errors import DataError, InputError
 from ..io.dataset import Dataset
 from ..io.stream import Run
 from ..io.derivatives import SavitzkyGolay
-from ..margins import BORDERLINE_RTOL, below
+from ..margins import below
 from ..progress import track
 from ..robot.model import RobotModel
 from ..robot.outputs import output_channels
@@ -41,6 +41,8 @@ from ..robot.regressors.base import BaseParameters, base_parameters_from_factor,
 from ..robot.regressors.stack import DEFAULT_MIN_SPEED, Signals, row_weights, signals_from_dataset
 from .consistent import LAMBDAS, ConsistentSettings, consistent_fit
 from .model_sections import DEFAULT_BLOCKS, DEFAULT_ESTIMATOR, INSTRUMENT_WINDOW_S
+from .determined import at_bound, borderline_determined, sizes
+from .determined import determined as determined_by
 from .run_payloads import refusal_hint
 from .regression import InputColumns, base_least_squares, instrumental_variables, pls_path, unseen_directions
 from .statistics import MIN_BLOCK_SAMPLES, Statistics, accumulate
@@ -56,8 +58,6 @@ UNSETTLED_FOLDS_DROPPED = 10
 # sits near 1e-8 (the square root of machine precision), the iCub's last base direction near 1e-2.
 BASE_RTOL = 1e-6
 PRESS_TIE_RTOL = 1e-9  # held-out PRESS values this close to the least are a tie (cross_validate_nu)
-IDENTIFIED_RSE = 0.1  # a combination is identified when its standard error is below 10 % of its size …
-IDENTIFIED_SCALE = 0.05  # … or below 5 % of its size (`_sizes`: a physical quantity that is truly near zero)
 
 
 @dataclass(frozen=True)
@@ -121,7 +121,7 @@ class FitResult:
         """The fit's decisions that sit on their thresholds (dynid.margins), each taken the conservative way: base
         combinations not determined, singular values not counted in the rank, an IV iteration not settled."""
         chosen = self.estimates[self.chosen]
-        cad = _sizes(self.model, self.base, self.statistics)
+        cad = sizes(self.model, self.base, self.statistics)
         names = self.base.combinations()
         return {"determined": [names[i] for i in np.flatnonzero(borderline_determined(chosen, cad))],
                 "rank_cut": [float(v) for v in self.base.on_the_cut],
@@ -400,18 +400,18 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
                         "run holds no information to calibrate the detector on (values not finite, or a run that does "
                         "not move)")
     chosen = estimates[chosen_name]
-    cad = _sizes(model, base, stats)
+    cad = sizes(model, base, stats)
     settled, _ = iv_settled(chosen.detail)
 
     def determined(blocks_only: bool = False) -> np.ndarray:
         """Combinations determined by every condition, with the estimates' errors (the larger jackknife's) or, with
         `blocks_only`, the time blocks' jackknife alone."""
         of = (lambda e: replace(e, se=e.se_blocks)) if blocks_only else (lambda e: e)
-        ok = _determined(of(chosen), cad)
+        ok = determined_by(of(chosen), cad)
         if chosen_name == CONSISTENT:
             # The constraints narrow the folds' spread, but they do not make the run determine a combination: it must
             # be determined without them too, and not rest on a bound (a gain at its floor is the same in every fold)
-            ok &= _determined(of(estimates[settings.estimator]), cad) & ~_at_bound(base, model, consistent)
+            ok &= determined_by(of(estimates[settings.estimator]), cad) & ~at_bound(base, model, consistent)
         ok &= ~unseen.any(axis=0)  # a fold cannot see them: the jackknife has no error to give
         return ok & settled  # an iterate that still moves: neither it nor its jackknife spread means anything
 
@@ -466,57 +466,6 @@ def check_excitation(model: RobotModel, base: BaseParameters) -> None:
     raise DataError(f"the run excites {base.rank} of the {structural} directions this robot's structure allows: too "
                     f"little to fit ({missing or 'its motion is too small or too uniform'}); record a run that moves "
                     "every joint both ways (dynid excite designs one)")
-
-
-def _sizes(model: RobotModel, base: BaseParameters, stats: Statistics) -> np.ndarray:
-    """(rank,) each combination's size, IDENTIFIED_SCALE's yardstick: the CAD value of the combination; for one whose
-    representative is an F/T offset, which no CAD gives, the RMS of what its channel reads on the fit's rows, so an
-    offset known to a twentieth of its channel's reading is determined whatever its own value (TIAGo's torque offsets,
-    ±4 mNm near 0, beside torques of 0.3 Nm)."""
-    size = np.abs(base.base(np.nan_to_num(model.cad_parameters(), nan=0.0)))
-    offsets = model.layout.span("ft_offset")
-    p = stats.p
-    gram = stats.gram.sum(axis=0)  # (channels, p+1, p+1): a channel's ‖Wb‖² at [p, p], its offset's ‖W·1‖² at [j, j]
-    for i, j in enumerate(base.independent):
-        if offsets.start <= j < offsets.stop:
-            c = int(np.argmax(gram[:, j, j]))  # the one channel the offset acts on
-            if gram[c, j, j] > 0:
-                size[i] = np.sqrt(gram[c, p, p] / gram[c, j, j])  # RMS of y in its units, weighted by the rows' W²
-    return size
-
-
-def _determined(e: Estimate, cad: np.ndarray) -> np.ndarray:
-    """(rank,) bool: combinations whose jackknife error is under 10 % of their value or 5 % of their size (`_sizes`),
-    past the margin's band (dynid.margins: on the band, not determined, and `borderline_determined` names them)."""
-    rse, rsc = _error_ratios(e, cad)
-    return (rse < IDENTIFIED_RSE) & ~_near(rse, IDENTIFIED_RSE) | (rsc < IDENTIFIED_SCALE) & ~_near(rsc, IDENTIFIED_SCALE)
-
-
-def _error_ratios(e: Estimate, cad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return (np.where(np.abs(e.beta) > 0, e.se / np.abs(e.beta), np.inf),
-                np.where(cad > 0, e.se / cad, np.inf))
-
-
-def _near(ratio: np.ndarray, threshold: float) -> np.ndarray:
-    return np.abs(ratio - threshold) <= BORDERLINE_RTOL * threshold
-
-
-def borderline_determined(e: Estimate, cad: np.ndarray) -> np.ndarray:
-    """(rank,) bool: combinations whose determination sits on its threshold (taken as not determined)."""
-    rse, rsc = _error_ratios(e, cad)
-    return (_near(rse, IDENTIFIED_RSE) | _near(rsc, IDENTIFIED_SCALE)) & ~_determined(e, cad)
-
-
-def _at_bound(base: BaseParameters, model: RobotModel, consistent: dict) -> np.ndarray:
-    """(rank,) bool: the base combinations that involve a friction coefficient or a gain at its bound."""
-    names = model.layout.names
-    bound = {names.index(n) for n in consistent["active"]["friction"] + consistent["active"]["gain"]}
-    out = np.array([i in bound for i in base.independent])
-    for j, d in enumerate(base.dependent):
-        if d in bound:
-            out |= base.K[:, j] != 0
-    return out
 
 
 def _jackknife_se(jack: np.ndarray) -> np.ndarray:
