@@ -311,7 +311,8 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
     result = validation(ev, args.model, args.data, window=window(args),
                         fit_overlap=None if fitted is None else float(fitted.mean()))
     if args.blocks is not None:  # every block computed (or refused) before anything is printed
-        result["blocks"] = validate_blocks(ev.identified, ev.dataset, args.blocks, args.model, args.data, args.data)
+        result["blocks"] = validate_blocks(ev.identified, ev.dataset, args.blocks, args.model, args.data, args.data,
+                                           fitted)
     print(f"validation of {args.model} on {args.data} ({result['samples']} samples)")
     if (skipped := skipped_rows(args.data, ev.dataset.meta)) is not None:
         result["bad_rows"] = skipped

@@ -139,13 +139,15 @@ def summary(blocks: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def validate_blocks(identified: IdentifiedModel, dataset: Dataset, k: int, model_label: str, data_label: str,
-                    data_path: str | None = None) -> dict[str, Any]:
+                    data_path: str | None = None, fitted: np.ndarray | None = None) -> dict[str, Any]:
     """`validate --blocks K`'s `blocks` (docs/formats.md): every block's validation, exactly as
-    `validate --from t_first --to t_last` computes it, its overlap with the fit, and the summary."""
+    `validate --from t_first --to t_last` computes it, its overlap with the fit, and the summary. `fitted`: the
+    data's `fitted_mask` where the caller has it (its data's sha256 read once)."""
     t = dataset.t
     need = max(MIN_WINDOW_SAMPLES, filter_window_samples(identified.config.derivatives, t))
     blocks = time_blocks(t, k, need, data_label)
-    fitted = fitted_mask(identified, data_path, t) if data_path is not None else None
+    if fitted is None and data_path is not None:
+        fitted = fitted_mask(identified, data_path, t)
     out = []
     for b in blocks:
         part = apply_window(dataset, b.t_first, b.t_last, source=data_label)

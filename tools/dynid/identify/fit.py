@@ -44,7 +44,7 @@ from .model_sections import DEFAULT_BLOCKS, DEFAULT_ESTIMATOR, INSTRUMENT_WINDOW
 from .determined import at_bound, borderline_determined, sizes
 from .determined import determined as determined_by
 from .run_payloads import refusal_hint
-from .regression import InputColumns, base_least_squares, instrumental_variables, pls_path, unseen_directions
+from .regression import InputColumns, jackknife_se, base_least_squares, instrumental_variables, pls_path, unseen_directions
 from .statistics import MIN_BLOCK_SAMPLES, Statistics, accumulate
 
 ESTIMATORS: tuple[str, ...] = ("iv", "pls", "ols")
@@ -365,12 +365,12 @@ def fit_statistics(model: RobotModel, stats: Statistics, settings: FitSettings, 
                 # step of 5, the nine others near 1e-7) is left out of the jackknife rather than failing the fit
                 detail["folds_dropped"] = unsettled
                 settled_folds[unsettled] = False
-        se_blocks = _jackknife_se(jack[settled_folds])
+        se_blocks = jackknife_se(jack[settled_folds])
         se_runs, alone = None, None
         if unit_folds:
             runs = np.array([_estimate(name, stats, f, base, settings, nu, inputs, beta, beta_prior)[0]
                              for f in unit_folds])
-            se_runs = _jackknife_se(runs)
+            se_runs = jackknife_se(runs)
             alone = np.array([_estimate(name, stats, ~f, base, settings, nu, inputs, beta, beta_prior)[0]
                               for f in unit_folds])
         se = se_blocks if se_runs is None else np.maximum(se_blocks, se_runs)
@@ -468,11 +468,6 @@ def check_excitation(model: RobotModel, base: BaseParameters) -> None:
                     "every joint both ways (dynid excite designs one)")
 
 
-def _jackknife_se(jack: np.ndarray) -> np.ndarray:
-    B = jack.shape[0]
-    return np.sqrt((B - 1) / B * np.sum((jack - jack.mean(axis=0)) ** 2, axis=0))
-
-
 CONSISTENT = "consistent"
 
 
@@ -495,7 +490,7 @@ def _consistent(model: RobotModel, stats: Statistics, base: BaseParameters, unco
     if "last_step" in unconstrained.detail:  # the IV iterate it starts from: settled or not
         detail["last_step"] = unconstrained.detail["last_step"]
         detail["iterations"] = unconstrained.detail.get("iterations")
-    return record, Estimate(CONSISTENT, base.base(done.phi), _jackknife_se(fold_betas), done.phi, detail,
+    return record, Estimate(CONSISTENT, base.base(done.phi), jackknife_se(fold_betas), done.phi, detail,
                             folds=np.asarray(done.folds, float), folds_kept=np.ones(len(done.folds), dtype=bool))
 
 

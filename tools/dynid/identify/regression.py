@@ -122,6 +122,13 @@ def unseen_directions(G: np.ndarray, rtol: float = NULL_RTOL) -> np.ndarray:
     return V[:, lam <= rtol * max(float(lam[-1]), 0.0)]
 
 
+def jackknife_se(estimates: np.ndarray) -> np.ndarray:
+    """The jackknife's standard error of an estimate from its leave-one-out values (along axis 0):
+    √((B − 1)/B · Σ (θ_(i) − θ̄)²)."""
+    b = estimates.shape[0]
+    return np.sqrt((b - 1) / b * np.sum((estimates - estimates.mean(axis=0)) ** 2, axis=0))
+
+
 def restricted_solve(M: np.ndarray, g: np.ndarray, x0: np.ndarray, rtol: float = NULL_RTOL) -> np.ndarray:
     """x solving M x = g (square, Gram-like M) on the directions M sees, and keeping x0 on those it does not.
 

@@ -33,7 +33,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..robot.model import RobotModel
-from .regression import restricted_solve
+from .regression import jackknife_se, restricted_solve
 from .statistics import Statistics
 
 MIN_DROP = 0.05  # of the pooled weighted residual sum of squares (measured: loaded 48 %, unloaded ≤ 1.0 %)
@@ -141,5 +141,4 @@ def _jackknife(pool: _Pool, blocks: np.ndarray, runs: list[np.ndarray], block_ru
         without = list(runs)
         without[run] = runs[run] - blocks[k]
         masses.append(pool.residual(without, [*freed, run], pool.total - blocks[k])[0][-1])
-    m = np.asarray(masses)
-    return float(np.sqrt((m.size - 1) / m.size * np.sum((m - m.mean()) ** 2)))
+    return float(jackknife_se(np.asarray(masses)))

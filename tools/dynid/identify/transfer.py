@@ -36,42 +36,41 @@ def worse_than_cad(tables: dict[str, Any]) -> list[dict]:
     return out
 
 
-def fit_ranges(identified: IdentifiedModel, joints: tuple[str, ...]) -> np.ndarray | None:
-    """(joints, 2) rad, or m for a prismatic joint: each joint's range over the fit's data (the union of its runs'),
-    widened by MARGIN_DEG (MARGIN_M for a prismatic joint), as `outside_fit` takes it; None where `outside_fit` has
-    none to compare (ranges not recorded, another model's inertias). What the monitor's coefficient file carries
-    (fit_range). (`joint_range_deg` holds a prismatic joint's metres through the same rad2deg as the others'.)"""
+def fit_spans_deg(identified: IdentifiedModel, joints: tuple[str, ...]) -> dict[str, tuple[float, float]] | None:
+    """Each joint's range over the fit's data (the union of its runs' `joint_range_deg`; a joint no run records is
+    left out); None when a run records none, or the inertias came from another model's data."""
     gaps = identified.gaps
     ranges = [d.joint_range_deg for d in identified.data]
     if (gaps is not None and gaps.given_model) or not ranges or any(r is None for r in ranges):
         return None
-    out = np.empty((len(joints), 2))
-    for k, joint in enumerate(joints):
-        spans = [r[joint] for r in ranges if joint in r]
-        if not spans:
-            return None
-        out[k] = (min(s[0] for s in spans), max(s[1] for s in spans))
+    spans = {j: [r[j] for r in ranges if j in r] for j in joints}
+    return {j: (min(s[0] for s in v), max(s[1] for s in v)) for j, v in spans.items() if v}
+
+
+def fit_ranges(identified: IdentifiedModel, joints: tuple[str, ...]) -> np.ndarray | None:
+    """(joints, 2) rad, or m for a prismatic joint: `fit_spans_deg` widened by MARGIN_DEG (MARGIN_M for a prismatic
+    joint), as `outside_fit` takes it; None where a joint's range is not recorded. What the monitor's coefficient file
+    carries (fit_range). (`joint_range_deg` holds a prismatic joint's metres through the same rad2deg as the others'.)"""
+    spans = fit_spans_deg(identified, joints)
+    if spans is None or len(spans) < len(joints):
+        return None
     prismatic = np.array(identified.robot_model.prismatic, bool)
     margin = np.where(prismatic, MARGIN_M, np.deg2rad(MARGIN_DEG))[:, None] * np.array([-1.0, 1.0])
-    return np.deg2rad(out) + margin
+    return np.deg2rad([spans[j] for j in joints]) + margin
 
 
 def outside_fit(identified: IdentifiedModel, joints: tuple[str, ...], q: np.ndarray,
                 limits: dict[str, tuple[float, float]]) -> list[dict] | None:
     """The joints this run (q, rad) takes beyond their range in the fit's data, most samples outside first; None
     when the model file does not record the fit's ranges, or its inertias came from another model's data."""
-    gaps = identified.gaps
-    if gaps is not None and gaps.given_model:
-        return None
-    ranges = [d.joint_range_deg for d in identified.data]
-    if not ranges or any(r is None for r in ranges):
+    spans = fit_spans_deg(identified, joints)
+    if spans is None:
         return None
     out = []
     for k, joint in enumerate(joints):
-        spans = [r[joint] for r in ranges if r is not None and joint in r]
-        if not spans:
+        if joint not in spans:
             continue
-        lo, hi = min(s[0] for s in spans), max(s[1] for s in spans)
+        lo, hi = spans[joint]
         here = np.rad2deg(q[:, k])
         share = float(np.mean((here < lo - MARGIN_DEG) | (here > hi + MARGIN_DEG)))
         if share < MIN_SHARE:

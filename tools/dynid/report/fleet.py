@@ -42,6 +42,7 @@ from scipy.stats import norm
 
 from ..errors import DataError
 from ..identify.model_file import IdentifiedModel
+from ..identify.regression import jackknife_se
 from ..identify.transfer import fit_ranges
 from ..robot.regressors.rigid_body import rigid_body_regressors
 from . import html as H
@@ -149,8 +150,7 @@ def common_scales(models: dict[str, IdentifiedModel], seed: int = 0) -> tuple[np
     for r in range(len(fitted)):
         others = np.median(np.delete(torques, r, axis=0), axis=0)
         log_c[r] = _log_scale(torques[r], others, loaded, joints)
-        jack = np.array([_log_scale(f, others, loaded, joints) for f in folds[r]])
-        se[r] = math.sqrt((jack.size - 1) / jack.size * float(np.sum((jack - jack.mean()) ** 2)))
+        se[r] = float(jackknife_se(np.array([_log_scale(f, others, loaded, joints) for f in folds[r]])))
     if not np.all(np.isfinite(log_c)) or not np.all(np.isfinite(se)):
         return None
     return log_c, se
