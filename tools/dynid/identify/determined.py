@@ -4,7 +4,7 @@ for a consistent fit not resting on a bound."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
@@ -13,11 +13,15 @@ from ..robot.model import RobotModel
 from ..robot.regressors.base import BaseParameters
 from .statistics import Statistics
 
-if TYPE_CHECKING:
-    from .fit import Estimate
-
 IDENTIFIED_RSE = 0.1  # a combination is identified when its standard error is below 10 % of its size …
 IDENTIFIED_SCALE = 0.05  # … or below 5 % of its size (`sizes`: a physical quantity that is truly near zero)
+
+
+class Estimate(Protocol):
+    """What the decision reads of a fit's estimate (dynid.identify.fit.Estimate): β and its standard errors."""
+
+    beta: np.ndarray
+    se: np.ndarray
 
 
 def sizes(model: RobotModel, base: BaseParameters, stats: Statistics) -> np.ndarray:
