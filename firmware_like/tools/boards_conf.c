@@ -58,7 +58,8 @@ static const char *shown(const char *name)
 /* The keys only the monitor reads (the player skips them), and the lines of the format before the bus table. */
 static int is_monitor_key(const char *key)
 {
-    static const char *const keys[] = {"robot", "lcm_url", "stale_ms", "pair_us", "status_hz", "residual_every"};
+    static const char *const keys[] = {"robot", "lcm_url", "stale_ms", "pair_us", "status_hz", "residual_every",
+                                       "contact_limit_s"};
     size_t i;
     for (i = 0; i < sizeof keys / sizeof keys[0]; ++i) {
         if (strcmp(key, keys[i]) == 0) {

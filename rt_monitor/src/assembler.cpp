@@ -143,7 +143,7 @@ bool Assembler::push(const RxFrame& f, Sample& out) noexcept {
     // Decode every signal; a frame with reserved bits set or a non-finite float is refused whole.
     double* v = scratch_.data();
     bool saturated = false, fault = false, restarted = false;
-    int seq = -1;
+    int64_t seq = -1;  // a counter of up to 32 bits (the configuration's limit): int64, or 2³¹ up overflows
     const FrameDecoder::Words words = FrameDecoder::words(f.frame.data, len);
     for (int i = 0; i < fr.n_signals; ++i) {
         const SignalDef& s = b.signals[size_t(fr.first_signal + i)];
@@ -159,7 +159,7 @@ bool Assembler::push(const RxFrame& f, Sample& out) noexcept {
         saturated |= s.target == Target::kSaturated && v[i] != 0;
         fault |= s.target == Target::kFault && v[i] != 0;
         restarted |= s.target == Target::kRestart && v[i] != 0;
-        if (s.target == Target::kSeq) seq = int(v[i]);
+        if (s.target == Target::kSeq) seq = int64_t(v[i]);
     }
     switch (fr.kind) {
         case FrameKind::kClock: ++n_.strain_frames; break;
@@ -175,11 +175,11 @@ bool Assembler::push(const RxFrame& f, Sample& out) noexcept {
         // A restart: the flag, or the counter back at 0 when it was not due to wrap. Not a restart: the same frame
         // again (a duplicate: CAN retransmits a frame whose end was disturbed), a wrap with the frame before it lost
         // (max − 1 then 0), and a duplicate of the flagged frame (its counter is 0 again, as it was).
-        int& last = last_seq_[size_t(fi)];
-        int wrap = 0;
+        int64_t& last = last_seq_[size_t(fi)];
+        int64_t wrap = 0;
         for (int i = 0; i < fr.n_signals; ++i)
             if (b.signals[size_t(fr.first_signal + i)].target == Target::kSeq)
-                wrap = int((uint64_t(1) << b.signals[size_t(fr.first_signal + i)].length) - 1);
+                wrap = int64_t((uint64_t(1) << b.signals[size_t(fr.first_signal + i)].length) - 1);
         const bool repeated = seq >= 0 && seq == last;
         if ((restarted && !repeated) || (seq == 0 && last >= 0 && last < wrap - 1 && last != 0)) restart(fr.node_index);
         if (seq >= 0) last = seq;

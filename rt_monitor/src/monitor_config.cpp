@@ -434,7 +434,8 @@ struct Parser {
             }
             return true;
         };
-        static const char* kOnce[] = {"robot", "lcm_url", "stale_ms", "pair_us", "status_hz", "residual_every", "clock"};
+        static const char* kOnce[] = {"robot", "lcm_url", "stale_ms", "pair_us", "status_hz", "residual_every", "clock",
+                                      "contact_limit_s"};
         for (const char* k : kOnce)
             if (key == k && !first_time(key, ln)) return false;
         if (key == "robot") {
@@ -457,6 +458,8 @@ struct Parser {
             long long v = 0;
             if (!integer_setting(1, kResidualEveryMax, " samples", v)) return false;
             out.residual_every = int(v);
+        } else if (key == "contact_limit_s") {
+            if (!setting(kContactLimitSMin, kContactLimitSMax, " s", out.contact_limit_s)) return false;
         } else if (key == "signal") {
             return signal(tok, raw, ln);
         } else if (key == "clock") {

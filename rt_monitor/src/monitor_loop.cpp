@@ -46,7 +46,7 @@ void MonitorLoop::step(const Sample& x) noexcept {
         ++n_.events;
         ++(o.event == Event::kOnset ? n_.onsets : n_.ends);
         if (o.event == Event::kOnset) onset_utime_ = x.t_us;
-        pub_.contact(o, x.t_us, onset_utime_, peak_utime_, n_.evaluated - 1, peak_beyond_);
+        pub_.contact(o, x.t_us, onset_utime_, peak_utime_, n_.evaluated - 1, peak_beyond_, dog_.active());
         if (o.event == Event::kOnset && latency_.size() < latency_.capacity()) latency_.push_back(mono_us() - rx_mono_);
     }
     if (o.ready && n_.evaluated % cfg_.residual_every == 0) pub_.residual(o, x.t_us);
@@ -130,6 +130,7 @@ int MonitorLoop::run(FrameSource& source, const volatile std::sig_atomic_t& stop
             break;
         }
         last_frame_t = f.t_us;
+        const uint32_t before = dog_.active();  // a fault this frame raises or clears, in any of the calls below
         dog_.frame(f.t_us);
         const bool completed = asm_.push(f, sample_);
         if (completed) {
@@ -139,8 +140,11 @@ int MonitorLoop::run(FrameSource& source, const volatile std::sig_atomic_t& stop
             // and says when the filter restarts; stale samples are not evaluated (no contact from stale data).
             for (int i = 0, n = clock_.push(sample_); i < n; ++i) place(clock_.step(i));
         }
-        const uint32_t before = dog_.active();
         dog_.check(f.t_us);
+        // Stamps that went back a status period or more (a sender's clock reset, an NTP step of a live source's
+        // receive time): the status is due at once, its period counted from there, or it would wait for CAN time to
+        // catch up with the old stamps
+        if (next_status >= 0 && f.t_us + status_period < next_status) next_status = f.t_us;
         const bool due = next_status >= 0 && f.t_us >= next_status;
         if (next_status < 0) next_status = f.t_us;
         if (due || dog_.active() != before) {  // on the status period, and at once when a fault rises or clears

@@ -65,7 +65,7 @@ void Publisher::normalized(std::vector<double>& r, const VecO& e,
 }
 
 void Publisher::contact(const Output& o, int64_t t_us, int64_t onset_utime, int64_t peak_utime,
-                        int64_t sample, uint64_t beyond_fit) noexcept {
+                        int64_t sample, uint64_t beyond_fit, uint32_t faults) noexcept {
     event_.utime = t_us;
     event_.kind = int8_t(o.event);
     event_.onset_utime = onset_utime;
@@ -88,6 +88,7 @@ void Publisher::contact(const Output& o, int64_t t_us, int64_t onset_utime, int6
     event_.isolated_joint = pk.joint;
     if (pk.joint >= 0) event_.isolated_link.assign(link_of_joint_[size_t(pk.joint)]);  // within its capacity
     else event_.isolated_link.clear();
+    event_.faults = int32_t(faults);
     send(kContact, event_);
 }
 

@@ -14,7 +14,8 @@ namespace {
 
 constexpr const char* kNames[kFaultKinds] = {"blind", "silent frame", "T² not finite", "sample period",
                                             "joint out of range", "source stopped", "duty out of range",
-                                            "model does not fit at start", "samples bridged", "stamps went back"};
+                                                                                        "model does not fit at start", "samples bridged", "stamps went back",
+                                            "contact too long"};
 
 int index_of(Fault f) noexcept {
     int i = 0;
@@ -24,6 +25,8 @@ int index_of(Fault f) noexcept {
 
 }  // namespace
 
+const char* Watchdog::name(int bit) noexcept { return bit >= 0 && bit < kFaultKinds ? kNames[bit] : "?"; }
+
 void Watchdog::init(const MonitorConfig& cfg, const Coefficients& coef, const Assembler& assembler,
                     const WatchdogSettings& settings) noexcept {
     cfg_ = &cfg;
@@ -31,9 +34,13 @@ void Watchdog::init(const MonitorConfig& cfg, const Coefficients& coef, const As
     asm_ = &assembler;
     set_ = settings;
     set_.period_samples = std::clamp(set_.period_samples, 3, int(spacing_.size()));
+    period_block_ = set_.period_samples;
     blind_us_ = int64_t(set_.blind_periods * coef.sample_period * 1e6);
     fit_samples_ = std::max(kMinFitSamples, int(std::lround(set_.fit_s / coef.sample_period)));
     bridge_block_ = std::max(1, int(std::lround(1.0 / coef.sample_period)));
+    contact_limit_ = std::max<int64_t>(1, std::llround(cfg.contact_limit_s / coef.sample_period));
+    written_at_.fill(-1);
+    unwritten_.fill(0);
     // A sample's frames: those sent every sample (period 0 or one sample period). A pause of the sender mid-sample is
     // not blindness; blind_periods samples' worth of frames with no sample is.
     int per_sample = 0;
@@ -53,8 +60,18 @@ void Watchdog::raise(Fault f) noexcept {
     active_ |= uint32_t(f);
     seen_ |= uint32_t(f);
     if (!rising) return;
-    char line[320];
-    const int n = std::snprintf(line, sizeof line, "rt_monitor: fault: %s: %s\n", kNames[index_of(f)], text(f));
+    const int k = index_of(f);
+    if (written_at_[size_t(k)] >= 0 && now_ - written_at_[size_t(k)] < 1000000 && now_ >= written_at_[size_t(k)]) {
+        ++unwritten_[size_t(k)];  // its rises within a second of its last line: counted on the next
+        return;
+    }
+    char more[64] = "";
+    if (unwritten_[size_t(k)] > 0)
+        std::snprintf(more, sizeof more, " (and %d rises since its last line)", unwritten_[size_t(k)]);
+    written_at_[size_t(k)] = now_;
+    unwritten_[size_t(k)] = 0;
+    char line[384];
+    const int n = std::snprintf(line, sizeof line, "rt_monitor: fault: %s: %s%s\n", kNames[k], text(f), more);
     if (n > 0) {
         const ssize_t w = ::write(2, line, size_t(std::min(n, int(sizeof line) - 1)));
         (void)w;  // stderr closed: the status message still carries the fault
@@ -87,23 +104,29 @@ void Watchdog::sample(const Sample& s) noexcept {
         last_good_ = s.t_us;
         waiting_since_ = -1;
     }
-    if (!period_checked_) {
-        if (last_sample_t_ >= 0 && n_spacing_ < set_.period_samples) spacing_[size_t(n_spacing_++)] = s.t_us - last_sample_t_;
-        if (n_spacing_ == set_.period_samples) {
-            period_checked_ = true;
-            std::nth_element(spacing_.begin(), spacing_.begin() + n_spacing_ / 2, spacing_.begin() + n_spacing_);
-            const double median = double(spacing_[size_t(n_spacing_ / 2)]), want = coef_->sample_period * 1e6;
-            if (std::abs(median / want - 1.0) > set_.period_tolerance) {
-                std::snprintf(text(kPeriod), 256, "the samples come %.0f µs apart, the coefficient file's period is "
-                              "%.0f µs: its filter and thresholds are for another rate (export with the robot's rate)",
-                              median, want);
-                raise(kPeriod);
-            }
+    // The spacing's median over each block of period_samples samples (a lost sample's double spacing does not move it)
+    if (last_sample_t_ >= 0) spacing_[size_t(n_spacing_++)] = s.t_us - last_sample_t_;
+    if (n_spacing_ == period_block_) {
+        std::nth_element(spacing_.begin(), spacing_.begin() + n_spacing_ / 2, spacing_.begin() + n_spacing_);
+        const double median = double(spacing_[size_t(n_spacing_ / 2)]), want = coef_->sample_period * 1e6;
+        n_spacing_ = 0;
+        period_block_ = std::clamp(bridge_block_, set_.period_samples, int(spacing_.size()));
+        if (std::abs(median / want - 1.0) > set_.period_tolerance) {
+            std::snprintf(text(kPeriod), 256, "the samples come %.0f µs apart, the coefficient file's period is "
+                          "%.0f µs: its filter and thresholds are for another rate (export with the robot's rate)",
+                          median, want);
+            raise(kPeriod);
+        } else {
+            clear(kPeriod);
         }
     }
-    if (last_sample_t_ >= 0 && s.t_us < last_sample_t_) {
-        std::snprintf(text(kTimeBack), 256, "a sample stamped %.1f ms before the one before it (a sender's clock reset, "
-                      "a log spliced?): the filter restarts there", double(last_sample_t_ - s.t_us) * 1e-3);
+    if (last_sample_t_ >= 0 && s.t_us <= last_sample_t_) {  // the sample clock restarts the filter at an equal stamp too
+        if (s.t_us == last_sample_t_)
+            std::snprintf(text(kTimeBack), 256, "a sample stamped the same µs as the one before it (a duplicate, a "
+                          "sender's clock stuck?): the filter restarts there");
+        else
+            std::snprintf(text(kTimeBack), 256, "a sample stamped %.1f ms before the one before it (a sender's clock "
+                          "reset, a log spliced?): the filter restarts there", double(last_sample_t_ - s.t_us) * 1e-3);
         raise(kTimeBack);
         in_order_ = 0;
     } else if (in_order_ < bridge_block_ && ++in_order_ == bridge_block_) {  // bounded: a monitor runs for months
@@ -150,6 +173,15 @@ void Watchdog::evaluated(const Output& o, int64_t t_us) noexcept {
     unpaired_at_eval_ = c.unpaired_strain;
     samples_at_eval_ = c.samples;
     if (!o.ready) return;
+    contact_samples_ = o.in_contact ? contact_samples_ + 1 : 0;
+    if (contact_samples_ == contact_limit_) {
+        std::snprintf(text(kLongContact), 256, "a contact held for %.1f s (contact_limit_s): more likely the model no "
+                      "longer fitting (an encoder offset, a sensor's step, a load it lacks) than a touch; no new contact "
+                      "makes an event until it ends", double(contact_limit_) * coef_->sample_period);
+        raise(kLongContact);
+    } else if (contact_samples_ == 0) {
+        clear(kLongContact);
+    }
     if (fit_evaluated_ < fit_samples_) {
         fit_above_ += o.above;
         if (++fit_evaluated_ == fit_samples_ && 4 * fit_above_ > 3 * fit_evaluated_) {

@@ -201,6 +201,36 @@ TEST(Assembler, HeldStaleAndTheOtherPairsLatestCompletePair) {
     EXPECT_EQ(r->a.counters().stale_samples, 2);  // j1 5.4 and 6.4 ms old at the stretch's 5th and 6th sample
 }
 
+TEST(Assembler, AThirtyTwoBitCounterWrapsAndRestartsAsANarrowOne) {
+    // The configuration takes counters of up to 32 bits: past 2³¹ an int overflowed (undefined), and the wrap's
+    // maximum became −1, so a counter back at 0 was never a restart.
+    // The heartbeat five bytes long: the fault and reserved bits in its first, a 32-bit counter in the other four
+    std::string text = kTable;
+    const auto edit = [&text](const std::string& from, const std::string& to) { text.replace(text.find(from), from.size(), to); };
+    edit("frame HB can0 0x701 2", "frame HB can0 0x701 5");
+    edit("signal HB 0 4 le u 1 0 seq\n", "signal HB 8 32 le u 1 0 seq\n");
+    edit("signal HB 8 8 le u 1 0 -\n", "");
+    std::string err;
+    auto r = std::make_unique<Robot>();
+    ASSERT_TRUE(parse_monitor_config(text, "arm.conf", r->cfg, err)) << err;
+    r->coef->n_joints = 2;
+    r->coef->joint_names[0] = "j0";
+    r->coef->joint_names[1] = "j1";
+    const char* channels[] = {"ft.w.fx", "ft.w.fy", "ft.w.fz", "ft.w.tx", "ft.w.ty", "ft.w.tz", "current.m1", "current.m0"};
+    r->coef->n_outputs = 8;
+    for (int i = 0; i < 8; ++i) r->coef->channel_names[size_t(i)] = channels[i];
+    ASSERT_TRUE(r->a.init(r->cfg, *r->coef, err)) << err;
+    Sample s;
+    const auto beat = [&](uint32_t seq) {
+        r->a.push(frame(0, 0x701, {0, uint8_t(seq), uint8_t(seq >> 8), uint8_t(seq >> 16), uint8_t(seq >> 24)}, r->t), s);
+    };
+    for (uint32_t seq : {0x7FFFFFFEu, 0x7FFFFFFFu, 0x80000000u, 0xFFFFFFFEu, 0xFFFFFFFFu, 0u, 1u, 2u}) beat(seq);
+    EXPECT_EQ(r->a.counters().board_restarts, 0);  // 2³¹ is a number, 2³² − 1 → 0 a wrap
+    beat(0);
+    EXPECT_EQ(r->a.counters().board_restarts, 1);  // back at 0 from 2, not due to wrap: a restart
+    EXPECT_EQ(r->a.counters().bad_length, 0);
+}
+
 TEST(Assembler, RestartsFaultsSaturationAndBadFramesAreCounted) {
     std::string err;
     auto r = robot(err);

@@ -13,7 +13,8 @@
 // samples' processing and response times (loop overruns, missed deadlines), the messages published, the resident set.
 // A replay's file:// log (mode=w) is renamed into place when the replay runs to its end; a failed one's is PATH.failed.
 // Exit codes: 0 done, 2 bad arguments or configuration, 1 a source or LCM failure, 3 mlockall refused, 4 SCHED_FIFO
-// refused, 5 CPU affinity refused, 6 nothing evaluated or ended blind (the watchdog), 10+ a refused coefficient file.
+// refused, 5 CPU affinity refused, 6 nothing evaluated or ended blind (the watchdog), 7 a replay that raised a fault,
+// 10+ a refused coefficient file.
 #include <sched.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -99,14 +100,16 @@ real time (applied once before the loop; a refusal has its own exit code):
 
 exit codes: 0 done (end of input, or SIGINT/SIGTERM); 1 a source or LCM failure; 2 bad arguments or
 configuration; 3 mlockall refused; 4 SCHED_FIFO refused; 5 CPU affinity refused; 6 the run evaluated no sample,
-or ended blind (the watchdog's reason on stderr); 10 + the reason a coefficient file was refused (11 unreadable ...
-20 another robot, 21 a value no robot has,
-22 the core does not reproduce the file's known answers).
+or ended blind (the watchdog's reason on stderr); 7 a replay read to its end that raised a watchdog fault (one
+line names them; its LCM log is written, and each contact event carries the faults active then); 10 + the reason
+a coefficient file was refused (11 unreadable ... 20 another robot, 21 a value no robot has, 22 the core does not
+reproduce the file's known answers).
 
 the watchdog: frames arriving with no sample evaluated for 5 sample periods, a frame of the bus silent for a
-second, T2 not finite, the stream's sample period not the file's, a joint position out of its range, a live source
-stopped: each is a status fault (DYNID_STATUS faults, faults_seen) and one line on stderr with its reason, never a
-contact.
+second, T2 not finite, the stream's sample period not the file's, a joint position or a PWM duty out of its range,
+a live source stopped, T2 above its level through the start, samples bridged, stamps going back: each is a status
+fault (DYNID_STATUS faults, faults_seen; on a contact event, those active) and one line on stderr with its reason,
+never a contact.
 )";
 
 int usage(const std::string& why) {
@@ -234,6 +237,9 @@ std::unique_ptr<lcm::LCM> open_lcm(const std::string& url, std::string& said) {
 }
 
 constexpr int kExitBlind = 6;  // a run that evaluated no sample, or ended blind (the watchdog's reason)
+// A replay read to its end whose watchdog raised a fault: its events (each carrying the faults then active) came from
+// data the monitor suspected. Not for a live run, which ends by a signal and whose sources stop before it does.
+constexpr int kExitFaulted = 7;
 
 // A replay's file:// log written with mode=w goes to PATH.partial and is renamed into place when the replay reaches the
 // end of its log with nothing failed, so a failed or stopped replay leaves the log it would have replaced as it was;
@@ -270,7 +276,8 @@ std::unique_ptr<FrameSource> open_source(const MonitorConfig& cfg, const std::st
 }
 
 // The final counters on stdout, one line (the same whatever ended the run).
-void print_exit_line(const char* how, const Assembler& a, const FrameSource& src, const MonitorLoop& loop) {
+void print_exit_line(const char* how, const Assembler& a, const FrameSource& src, const MonitorLoop& loop,
+                     const Publisher& pub) {
     const ClockCounters& cc = loop.clock().counters();
     const MonitorCounters& c = a.counters();
     const SourceCounters& sc = src.counters();
@@ -278,13 +285,14 @@ void print_exit_line(const char* how, const Assembler& a, const FrameSource& src
     std::printf("rt_monitor: %s; frames %lld, samples %lld, evaluated %lld, stale %lld, events %lld, unknown id %lld, "
                 "bad length %lld, error frames %lld, unpaired halves %lld, saturated %lld, board faults %lld, "
                 "board restarts %lld, bad source input %llu, interpolated %lld, late %lld, filter restarts %lld, overruns %lld, "
-                "kernel drops %llu, beyond the fit's postures %lld\n",
+                "kernel drops %llu, beyond the fit's postures %lld, publish failures %lld\n",
                 how, (long long)c.frames, (long long)c.samples, (long long)n.evaluated, (long long)c.stale_samples,
                 (long long)n.events, (long long)c.unknown_id, (long long)c.bad_length, (long long)c.error_frames,
                 (long long)c.unpaired_strain, (long long)c.saturated, (long long)c.board_faults,
                 (long long)c.board_restarts, (unsigned long long)(sc.bad_lines + sc.unknown_bus + sc.bad_size),
                 (long long)cc.interpolated, (long long)cc.late, (long long)cc.restarts, (long long)n.overruns,
-                (unsigned long long)sc.kernel_drops, (long long)n.beyond_fit);
+                (unsigned long long)sc.kernel_drops, (long long)n.beyond_fit,
+                (long long)(pub.failed() + pub.unencoded()));
 }
 
 // --stats-out: one JSON object with every counter (their identities: rt_monitor/README.md, "Accounting"), the heap
@@ -303,7 +311,7 @@ bool write_stats(const std::string& path, const Assembler& a, const FrameSource&
     const LoopCounters& n = loop.counters();
     JsonOut j(f);
     j.str("source", !replay.empty() ? (realtime ? "replay, real time" : "replay") : !loopback.empty() ? "loopback" : "socketcan")
-        .str("stopped", signalled ? "signal" : (rc ? "failed" : "end of input"))
+        .str("stopped", signalled ? "signal" : (rc && rc != kExitFaulted ? "failed" : "end of input"))  // 7: read to its end
         .real("period_us", loop.period_us());
     // frames = error + unknown_id + bad_length + strain + position + pid + status + skin + sensor (by what the bus
     // table says each carries: strain the clock pair's halves, pid the inputs, sensor other F/T pairs)
@@ -489,13 +497,15 @@ int main(int argc, char** argv) {
                            : residual == "combined" ? Residual::kCombined
                                                     : Residual::kAcceleration);
     core->set_detector({coef->debounce_on, coef->debounce_off, coef->hysteresis});
-    std::fprintf(stderr, "rt_monitor: running: %s; LCM %s; %s; %s residuals\n",
+    std::fprintf(stderr, "rt_monitor: running: %s; LCM %s; %s; %s residuals%s\n",
                  !replay.empty() ? ("replay of " + replay + (realtime ? " in real time" : "")).c_str()
                  : !loopback.empty() ? ("loopback transport in " + loopback).c_str() : "SocketCAN",
                  (given_url.empty() ? std::string("default URL") : given_url).c_str(), describe_rt_settings(rts).c_str(),
                  core->residual() == Residual::kMomentum   ? "momentum-observer"
                  : core->residual() == Residual::kCombined ? "combined (momentum-observer and acceleration)"
-                                                           : "acceleration");
+                                                           : "acceleration",
+                 // the loader checks a fitted file's core against its known answers; a CAD export has none to check
+                 coef->estimator == "cad" ? "; a CAD export's file: no known answers to check the core against" : "");
     Publisher publisher(*lcm, *coef, *core);
     auto watchdog = std::make_unique<Watchdog>();
     watchdog->init(cfg, *coef, asm_);
@@ -503,7 +513,17 @@ int main(int argc, char** argv) {
     auto loop = std::make_unique<MonitorLoop>(cfg, *coef, *core, asm_, publisher, *watchdog, options);
     int rc = loop->run(*src, g_stop);
 
-    print_exit_line(g_stop ? "stopped by signal" : (rc ? "failed" : "end of input"), asm_, *src, *loop);
+    print_exit_line(g_stop ? "stopped by signal" : (rc ? "failed" : "end of input"), asm_, *src, *loop, publisher);
+    // Messages LCM refused (its provider's send failed, a full queue) or that did not encode: nobody saw them, and the
+    // status that would say so went the same way. Said here, and never exit 0 (a provider that swallows its write
+    // errors, as file:// on a full disk does, is beyond this count).
+    if (const int64_t lost = publisher.failed() + publisher.unencoded(); lost > 0) {
+        std::fprintf(stderr, "rt_monitor: error: %lld LCM messages were not published (%lld contact events, %lld "
+                     "status, %lld residuals sent): the LCM URL's provider refused them\n", (long long)lost,
+                     (long long)publisher.published(Publisher::kContact), (long long)publisher.published(Publisher::kStatus),
+                     (long long)publisher.published(Publisher::kResidual));
+        rc = rc ? rc : 1;
+    }
     // A monitor that evaluated nothing, or ended blind, watched nothing: never exit 0 then (one line, the reason).
     const bool blind = rc == 0 && !g_stop && (loop->counters().evaluated == 0 || (watchdog->active() & kBlind));
     if (blind) rc = kExitBlind;
@@ -522,6 +542,15 @@ int main(int argc, char** argv) {
             else
                 std::remove(partial.partial.c_str());
         }
+    }
+    if (rc == 0 && !g_stop && !replay.empty() && watchdog->seen() != 0) {  // after the log went into place: it is whole
+        std::string names;
+        for (int bit = 0; bit < kFaultKinds; ++bit)
+            if (watchdog->seen() & (1u << bit)) names += std::string(names.empty() ? "" : ", ") + Watchdog::name(bit);
+        std::fprintf(stderr, "rt_monitor: warning: the replay raised faults (%s; DYNID_STATUS faults_seen %u): its "
+                     "%lld events came from data the monitor suspected, each carries the faults active then\n",
+                     names.c_str(), unsigned(watchdog->seen()), (long long)loop->counters().events);
+        rc = kExitFaulted;
     }
     const SourceCounters& sc = src->counters();
     if (!replay.empty()) {  // skipped, counted: said once, with where to look

@@ -79,7 +79,9 @@ def test_a_real_run_onto_the_bus_and_back(robot: str, tmp_path: Path) -> None:
             assert cli.run("play", "--robot", robot, *urdf_args, "--data", window, "--sink", f"candump:{log}",
                        "--bad-rows", "skip", "--stamps", "nominal").returncode == 0
         done = run(RT_MONITOR, "--model", coef, "--config", conf, "--replay", log)
-        assert done.returncode == 0, done.stderr
+        # 7: read to its end with a watchdog fault, named on stderr (a CAD model on a real run, a logger's stamps); the
+        # bus is what this test checks, the faults test_realdata_monitor's
+        assert done.returncode in (0, 7), done.stderr
         n = want.n_samples
         assert f"samples {n}, " in done.stdout and ", stale 0," in done.stdout, done.stdout
         assert "unknown id 0, bad length 0, error frames 0, unpaired halves 0," in done.stdout, done.stdout

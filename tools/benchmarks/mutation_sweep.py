@@ -13,7 +13,7 @@ its first contact, as a candump log.
   elements at once, set to 0, negated, 1e-300, 1e300 and NaN (the integers: 0, −1, 2³¹−1).
 Each mutation is replayed (`rt_monitor --replay`) and classified against the unmutated replay:
 - refused: exit 2 or 10-22 at load, with one line on stderr;
-- flagged: the watchdog raised a status fault (`faults_seen`), or the run exited 6 (evaluated nothing, ended blind);
+- flagged: the watchdog raised a status fault (`faults_seen`, the replay's exit 7), or the run exited 6 (evaluated nothing, ended blind);
 - harmless: exit 0, no fault, the same samples evaluated and the same events (kind, time, side);
 - SILENT: anything else that exited normally (changed events, or fewer samples, and no word): the defect class;
 - broken: a crash, a signal, or more than one line for a refusal.
@@ -95,7 +95,7 @@ def classify(r: Replay, base: Replay) -> str:
     if r.code == 2 or 10 <= r.code <= 22:  # one error line (a usage error: that line, then the synopsis)
         one_line = bool(lines) and lines[0].startswith("rt_monitor: error: ")
         return "refused" if one_line and (len(lines) == 1 or r.code == 2) else "broken"
-    if r.code == 6 or (r.code == 0 and r.faults):
+    if r.code == 6 or (r.code == 7 and r.faults):  # blind; or read to its end with a fault raised (exit 7 says so)
         return "flagged"
     if r.code != 0:
         return "broken"

@@ -31,6 +31,7 @@ ROOT = Path(__file__).resolve().parents[2]
 BUILD = ROOT / "build" / "rt_monitor"
 RT_MONITOR = BUILD / "rt_monitor"
 T0_US = 1_700_000_000_000_000  # write_candump's default start time
+EXIT_FAULTED = 7  # a replay read to its end that raised a watchdog fault
 
 
 @pytest.fixture(scope="module")
@@ -141,13 +142,16 @@ def _sample_of(line: str) -> int:
     return round((int(line[1:line.index(")")].replace(".", "")) - T0_US) / 1000)  # frames of sample k: t_k − 300 µs … t_k
 
 
-def _bad_run(setup: dict, clean: dict, lines: list[str], name: str):
+def _bad_run(setup: dict, clean: dict, lines: list[str], name: str, faults: int = 0):
+    """The monitor on the changed log: never a crash; the watchdog's `faults` (its bits, rt_monitor/README.md) raised,
+    and then the replay's exit 7, or none and exit 0."""
     log = setup["root"] / f"{name}.log"
     log.write_text("\n".join(lines) + "\n")
     done, msgs = run_monitor(setup, log, name)
-    assert done.returncode == 0, done.stderr  # never a crash
+    assert done.returncode == (EXIT_FAULTED if faults else 0), done.stderr
     assert done.stdout.startswith("rt_monitor: end of input;")
     status = msgs["DYNID_STATUS"][-1]
+    assert status.faults_seen == faults, done.stderr
     eps = contact_episodes(clean["part"].contact)
     c = read_coefficients(setup["coef"])
     slack = c.lag + c.debounce_on + 5
@@ -268,7 +272,8 @@ def test_one_percent_dropped(setup: dict, clean: dict) -> None:
     rng = np.random.default_rng(1)
     keep = rng.random(len(clean["lines"])) >= 0.01
     lines = [l for l, k in zip(clean["lines"], keep) if k]
-    status, msgs = _bad_run(setup, clean, lines, "dropped")
+    # A frame in a hundred lost, about 7 % of the samples bridged: the bus drops frames, a fault (256, samples bridged)
+    status, msgs = _bad_run(setup, clean, lines, "dropped", faults=256)
     halves: dict[int, int] = {}  # sample -> strain halves dropped
     held = set()  # samples with a POSITION frame dropped
     for line, k in zip(clean["lines"], keep):
@@ -303,7 +308,7 @@ def test_stalled_board(setup: dict, clean: dict) -> None:
     eps = contact_episodes(clean["part"].contact)
     a = eps[0][0] + 100
     lines = [l for l in clean["lines"] if not (" can1 12" in l and a <= _sample_of(l) < a + 500)]
-    status, msgs = _bad_run(setup, clean, lines, "stalled")
+    status, msgs = _bad_run(setup, clean, lines, "stalled", faults=1)  # blind while every sample is stale
     assert 490 <= status.stale_samples <= 500  # stale once its last values are older than 5 ms
     for m in msgs["DYNID_CONTACT"]:
         k = (m.utime - T0_US) // 1000
@@ -316,7 +321,7 @@ def test_saturation_flags(setup: dict, clean: dict) -> None:
         if " 3DA#" in line and i % 200 < 20:
             line, n = line + "01", n + 1
         lines.append(line)
-    status, _ = _bad_run(setup, clean, lines, "saturated")
+    status, _ = _bad_run(setup, clean, lines, "saturated", faults=256)  # a tenth of the samples bridged
     assert status.saturated == n
     assert status.stale_samples == n  # a saturated sample is never evaluated
 

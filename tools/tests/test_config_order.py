@@ -40,7 +40,8 @@ def shuffled(url: str) -> str:
     signal lines its signals, the frame lines the send order)."""
     lines = ordered(url).splitlines()
     kind = {k: [l for l in lines if l.split(" ", 1)[0] in k] for k in
-            [("#",), ("lcm_url",), ("robot", "stale_ms", "pair_us", "status_hz", "residual_every"), ("patch",),
+            [("#",), ("lcm_url",), ("robot", "stale_ms", "pair_us", "status_hz", "residual_every", "contact_limit_s"),
+             ("patch",),
              ("clock", "pair"), ("signal",), ("frame",), ("buses",)]}
     out = [l for k in kind.values() for l in k]
     assert sorted(out) == sorted(lines)

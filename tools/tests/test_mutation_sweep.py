@@ -52,7 +52,7 @@ def test_the_classifier_sees_a_silent_change() -> None:
     fewer = sweep_module.Replay(0, "", base.events, 19_000, 0)
     assert sweep_module.classify(more, base) == sweep_module.classify(fewer, base) == "silent"
     assert sweep_module.classify(base, base) == "harmless"
-    assert sweep_module.classify(sweep_module.Replay(0, "", (), 20_000, 1), base) == "flagged"
+    assert sweep_module.classify(sweep_module.Replay(7, "", (), 20_000, 1), base) == "flagged"
 
 
 def test_what_was_silent_is_refused_by_the_known_answers(default_experiments: dict, exported: Path,

@@ -12,6 +12,7 @@ import socket
 import struct
 import subprocess
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -24,9 +25,10 @@ from dynid.io.load import load_data
 
 ROOT = Path(__file__).resolve().parents[2]
 RT_MONITOR = ROOT / "build" / "rt_monitor" / "rt_monitor"
-BLIND, SILENT, NOT_FINITE, PERIOD, JOINT_RANGE, STOPPED, DUTY_RANGE, START_FIT, BRIDGED, TIME_BACK = (
-    1, 2, 4, 8, 16, 32, 64, 128, 256, 512)
+BLIND, SILENT, NOT_FINITE, PERIOD, JOINT_RANGE, STOPPED, DUTY_RANGE, START_FIT, BRIDGED, TIME_BACK, LONG_CONTACT = (
+    1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 1024)
 EXIT_BLIND = 6
+EXIT_FAULTED = 7  # a replay to its end that raised a fault
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +39,7 @@ def bench(default_experiments: dict, exported: Path, tmp_path_factory: pytest.Te
     data = load_data(default_experiments["contact"], config).slice(0, 10_000)
     log = root / "run.log"
     write_candump(data, config, log)
-    return {"root": root, "config": config, "coef": exported, "log": log}
+    return {"root": root, "config": config, "coef": exported, "log": log, "data": data}
 
 
 def replay(bench: dict, name: str, change=lambda text: text, coef: Path | None = None, log: Path | None = None):
@@ -47,7 +49,8 @@ def replay(bench: dict, name: str, change=lambda text: text, coef: Path | None =
     conf.write_text(change(monitor_config_text(bench["config"], f"file://{lcm}?mode=w")))
     done = subprocess.run([str(RT_MONITOR), "--model", str(coef or bench["coef"]), "--config", str(conf), "--replay",
                            str(log or bench["log"])], capture_output=True, text=True, timeout=300)
-    written = lcm if done.returncode == 0 else lcm.with_name(lcm.name + ".failed")  # a failed replay's own log
+    whole = done.returncode in (0, EXIT_FAULTED)  # read to its end: the log in place; else the failed replay's own
+    written = lcm if whole else lcm.with_name(lcm.name + ".failed")
     return done.returncode, done.stderr, (read_lcm_log(written) if written.exists() else {})
 
 
@@ -60,8 +63,9 @@ def faults(msgs: dict) -> int:
 
 def test_a_clean_replay_raises_no_fault(bench: dict) -> None:
     code, err, msgs = replay(bench, "clean")
-    assert code == 0 and "fault:" not in err, err
+    assert code == 0 and "fault:" not in err and "raised faults" not in err, err
     assert faults(msgs) == 0 and msgs["DYNID_STATUS"][-1].samples_evaluated == 10_000
+    assert all(m.faults == 0 for m in msgs.get("DYNID_CONTACT", []))
 
 
 def test_pair_us_below_the_halves_spacing_is_blind_and_says_why(bench: dict) -> None:
@@ -205,6 +209,20 @@ def test_stamps_a_tenth_apart_are_a_period_fault(bench: dict, tmp_path: Path) ->
     code, err, msgs = replay(bench, "stretched", log=stretched)
     assert "fault: sample period: the samples come 1100 µs apart, the coefficient file's period is 1000 µs" in err, err
     assert faults(msgs) & PERIOD
+    # It published contacts and exited 0, its events alike to any other's (a review): now each event carries the
+    # faults active when it was published, spy says so, and the replay's exit names them
+    assert code == EXIT_FAULTED, err
+    events = msgs["DYNID_CONTACT"]
+    # raised at the 64th sample, before the first onset; the sample clock bridges one sample in eleven besides
+    assert events and all(m.faults == PERIOD | BRIDGED for m in events)
+    assert re.search(rf"warning: the replay raised faults \(sample period, samples bridged; DYNID_STATUS faults_seen "
+                     rf"{PERIOD | BRIDGED}\): its {len(events)} events came from data the monitor suspected", err), err
+    spied = subprocess.run([str(ROOT / ".venv" / "bin" / "dynid"), "spy", "--lcm-url",
+                            f"file://{bench['root'] / 'stretched.lcmlog'}?speed=0"],
+                           capture_output=True, text=True, timeout=120)
+    assert spied.returncode == 0, spied.stderr
+    marked = [l for l in spied.stdout.splitlines() if "contact" in l and "UNDER FAULT: SAMPLE PERIOD, SAMPLES BRIDGED" in l]
+    assert len(marked) == len(events), spied.stdout
 
 
 def test_a_frame_at_half_its_rate_is_a_bridged_fault(bench: dict, tmp_path: Path) -> None:
@@ -246,5 +264,70 @@ def test_stamps_that_go_back_are_a_fault(bench: dict, tmp_path: Path) -> None:
     back = tmp_path / "back.log"
     back.write_text("\n".join(lines[:half] + shifted) + "\n")
     code, err, msgs = replay(bench, "back", log=back)
-    assert code == 0 and re.search(r"fault: stamps went back: a sample stamped 4\d\.\d ms before the one before it", err), err
+    assert code == EXIT_FAULTED and re.search(r"fault: stamps went back: a sample stamped 4\d\.\d ms before the one before it", err), err
     assert faults(msgs) & TIME_BACK and not msgs["DYNID_STATUS"][-1].faults & TIME_BACK  # cleared by the end
+
+
+def test_a_model_that_stops_fitting_mid_run_is_a_long_contact_fault(bench: dict, tmp_path: Path) -> None:
+    """The elbow's encoder 0.2 rad off from 4 s on (after the start-fit check's block): one contact that never ended,
+    every contact after it unreported, no fault and exit 0 (a review). Now a contact held for contact_limit_s is a
+    fault, and the replay exits 7; the clean run's contacts stay under the limit."""
+    data = bench["data"]
+    elbow = data.joints.index("r_elbow")
+    q = data.q.copy()
+    q[data.t - data.t[0] >= 4.0, elbow] += 0.2
+    log = tmp_path / "offset.log"
+    write_candump(replace(data, q=q), bench["config"], log)
+    limit = lambda text: text.replace("contact_limit_s 10", "contact_limit_s 2")  # noqa: E731 (the run is 10 s)
+    code, err, msgs = replay(bench, "offset", limit, log=log)
+    assert re.search(r"fault: contact too long: a contact held for 2\.0 s \(contact_limit_s\): more likely the model "
+                     r"no longer fitting", err), err
+    assert code == EXIT_FAULTED and faults(msgs) & LONG_CONTACT and msgs["DYNID_STATUS"][-1].faults & LONG_CONTACT
+    onset = next(m.utime for m in msgs["DYNID_CONTACT"] if m.kind == 1 and m.utime >= msgs["DYNID_STATUS"][0].utime + 4e6)
+    raised = next(m.utime for m in msgs["DYNID_STATUS"] if m.faults & LONG_CONTACT)
+    assert 1.99e6 <= raised - onset <= 2.1e6  # at the limit (the onset its first sample), published at once
+    code, err, msgs = replay(bench, "clean-limited", limit)
+    assert code == 0 and not faults(msgs), err
+
+
+def test_a_rate_that_changes_mid_run_is_a_period_fault(bench: dict, tmp_path: Path) -> None:
+    """5 s at the file's period, then stamps 0.5 ms apart (a board reconfigured): checked on the first 64 samples only,
+    no fault (a review). Now on every second's samples too: raised after the change, named."""
+    lines = bench["log"].read_text().splitlines()
+    stamp = lambda l: float(l[1:l.index(")")])  # noqa: E731
+    t0, half = stamp(lines[0]), stamp(lines[0]) + 5.0
+    fast = tmp_path / "fast.log"
+    fast.write_text("".join(f"({stamp(l) if stamp(l) < half else half + 0.5 * (stamp(l) - half):.6f}){l[l.index(')') + 1:]}\n"
+                            for l in lines))
+    code, err, msgs = replay(bench, "fast", log=fast)
+    assert "fault: sample period: the samples come 500 µs apart, the coefficient file's period is 1000 µs" in err, err
+    assert code == EXIT_FAULTED and faults(msgs) & PERIOD
+    first = next(m.utime for m in msgs["DYNID_STATUS"] if m.faults & PERIOD) * 1e-6 - 1_700_000_000.0
+    # within two blocks of a second's samples (1000) after the change, 0.5 s each at the new rate
+    assert 5.0 <= first - (t0 - 1_700_000_000.0) <= 5.0 + 2 * 0.5
+
+
+def test_equal_stamps_are_a_time_fault_and_a_status_follows_stamps_that_went_back(bench: dict, tmp_path: Path) -> None:
+    """A sample stamped as the one before restarted the filter with no fault (a review); stamps 3 s back halfway held
+    the status messages back for 3 s of data (their period counted from the old stamps)."""
+    lines = bench["log"].read_text().splitlines()
+    frames_per_sample = len(lines) // 10_000
+    k = 3000 * frames_per_sample  # a whole sample's frames, stamped as the one before
+    same = lines[:k] + [lines[k - frames_per_sample + i][:lines[k - frames_per_sample + i].index(")")] +
+                        lines[k + i][lines[k + i].index(")"):] for i in range(frames_per_sample)] + lines[k + frames_per_sample:]
+    equal = tmp_path / "equal.log"
+    equal.write_text("\n".join(same) + "\n")
+    code, err, msgs = replay(bench, "equal", log=equal)
+    assert "fault: stamps went back: a sample stamped the same µs as the one before it" in err, err
+    assert code == EXIT_FAULTED and faults(msgs) & TIME_BACK
+    half = len(lines) // 2
+    back = tmp_path / "back3.log"
+    back.write_text("\n".join(lines[:half] + [f"({float(l[1:l.index(')')]) - 3.0:.6f}){l[l.index(')') + 1:]}"
+                                              for l in lines[half:]]) + "\n")
+    code, err, msgs = replay(bench, "back3", log=back)
+    assert code == EXIT_FAULTED and faults(msgs) & TIME_BACK, err
+    statuses = msgs["DYNID_STATUS"]
+    gaps = [b.samples_evaluated - a.samples_evaluated for a, b in zip(statuses, statuses[1:])]
+    assert max(gaps) <= 110, gaps  # one status every 100 samples (10 Hz) through the jump, not 3 s without
+    assert len(statuses) >= 100
+    assert any(m.faults & TIME_BACK for m in statuses)  # published when it rose, not only in faults_seen

@@ -87,7 +87,7 @@ private:
     std::array<Slot, kMaxSignals> slots_{};
     std::array<int, kMaxSignals> node_slots_{};      // the value slots of each node, grouped by node
     std::array<int, kMaxFrames + 1> node_first_{};   // node k's slots: node_slots_[node_first_[k], node_first_[k + 1])
-    std::array<int, kMaxFrames> last_seq_{};         // per frame: the last sequence counter (-1: none yet)
+    std::array<int64_t, kMaxFrames> last_seq_{};         // per frame: the last sequence counter (-1: none yet)
     // Pairs: the first half's decoded values (by its signals' order), its time (-1: none waiting), saturation.
     std::array<std::array<double, 64>, kMaxFrames / 2> first_values_{};
     std::array<int64_t, kMaxFrames / 2> t_first_{};

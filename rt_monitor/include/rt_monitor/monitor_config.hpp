@@ -17,6 +17,7 @@ struct MonitorConfig {
     int64_t stale_us = 5000, pair_us = 500;
     double status_hz = 10;
     int residual_every = 10;             // publish one residual message every N evaluated samples
+    double contact_limit_s = 10;         // a contact held longer is a watchdog fault (kLongContact)
     BusTable bus;
 };
 
@@ -25,6 +26,7 @@ constexpr double kStaleMsMin = 0.1, kStaleMsMax = 1000;  // beyond a second the 
 constexpr long long kPairUsMin = 1, kPairUsMax = 10000;  // two halves further apart are not one conversion
 constexpr double kStatusHzMin = 0.1, kStatusHzMax = 1000;  // at most one status per 1 kHz sample
 constexpr long long kResidualEveryMax = 100000;
+constexpr double kContactLimitSMin = 0.1, kContactLimitSMax = 86400;  // from a tap to a day of holding
 constexpr long long kPeriodUsMax = 60000000;    // a frame's period: up to a minute
 constexpr long long kOffsetUsMin = -1000000;    // a frame's send time: up to a second before its sample
 

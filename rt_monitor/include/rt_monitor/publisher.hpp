@@ -27,9 +27,9 @@ public:
 
     // A contact event (onset or end) of the core's output at CAN time t_us, sample `sample` of the run.
     // An event describes o.peak, at peak_utime: an onset's own sample, an end's contact's strongest; `beyond_fit` (bit j)
-    // the joints beyond the fit's range there (FitCoverage).
+    // the joints beyond the fit's range there (FitCoverage); `faults` the watchdog's active at publication.
     void contact(const Output& o, int64_t t_us, int64_t onset_utime, int64_t peak_utime, int64_t sample,
-                 uint64_t beyond_fit) noexcept;
+                 uint64_t beyond_fit, uint32_t faults) noexcept;
     // One sample of the decimated residual stream.
     void residual(const Output& o, int64_t t_us) noexcept;
     // The status, whose counters the caller has filled (status()); the supply ratios are the core's.

@@ -15,11 +15,19 @@
 //               that did not come), or the filter restarted `restarts_per_s` times in it (gaps too long to bridge):
 //               a frame at another rate than the bus's, or a bus dropping frames; the core then sees invented
 //               samples, or is reset every few. Cleared by a second under both;
-//   kTimeBack   a sample stamped before the one before it (a sender's clock reset, a log spliced): the sample clock
-//               restarts the filter there, which only the filter_restarts counter said. Cleared by a second of
-//               samples in order.
-// Faults are a bitmask on the status message (`faults`, and `faults_seen` since the start); each one raised is one
-// line on stderr with its reason, written once from a buffer sized at start-up (no allocation in the loop).
+//   kTimeBack   a sample stamped at or before the one before it (a sender's clock reset, a log spliced, a duplicate):
+//               the sample clock restarts the filter there, which only the filter_restarts counter said. Cleared by
+//               a second of samples in order;
+//   kLongContact a contact held for the configuration's contact_limit_s (10 s by default): more likely the model no
+//               longer fitting than a touch (an encoder offset, a sensor's step, a load the model lacks; the start-fit
+//               check sees only the start), and while it holds a new contact makes no event. Cleared when it ends.
+// The period is checked on the first `period_samples` samples (a wrong file is said at once), then on every second of
+// samples, not the start alone: a stream whose rate changes mid-run (a board reconfigured) is a fault from its next
+// second, cleared by a second at the file's period (a second's median: a logger's jitter moves 64 samples' by 5 %).
+// Faults are a bitmask on the status message (`faults`, and `faults_seen` since the start) and on each contact event;
+// each rise is one line on stderr with its reason, from a buffer sized at start-up (no allocation in the loop), at most
+// one a second of CAN time per fault (a flapping fault's rises in between are counted on its next line: a blocked
+// stderr must not stall the loop).
 // Nothing here decides a contact: a fault is never an event.
 #pragma once
 
@@ -44,8 +52,9 @@ enum Fault : uint32_t {
     kStartFit = 1u << 7,
     kBridged = 1u << 8,
     kTimeBack = 1u << 9,
+    kLongContact = 1u << 10,
 };
-constexpr int kFaultKinds = 10;
+constexpr int kFaultKinds = 11;
 
 struct WatchdogSettings {
     double blind_periods = 5;      // sample periods without an evaluated sample while frames arrive
@@ -53,7 +62,7 @@ struct WatchdogSettings {
     // relative: the stream's median sample spacing against the file's period. A bus keeps its rate to a fraction of a
     // percent; 20 % let stamps 1.15 times apart through, 15 % of the samples invented (a walkthrough on TIAGo)
     double period_tolerance = 0.05;
-    int period_samples = 64;       // samples the spacing is measured on, from the start
+    int period_samples = 64;       // samples the spacing is first measured on; then a second's (at most 1024)
     double range_margin = 0.2;     // rad (or m) beyond a joint's range before a position is implausible
     int range_samples = 10;        // consecutive samples out of range before the fault
     double duty_margin = 0.05;     // beyond ±1 duty
@@ -70,6 +79,7 @@ public:
               const WatchdogSettings& settings = {}) noexcept;
     // A frame was read (CAN time µs).
     void frame(int64_t t_us) noexcept {
+        now_ = t_us;
         first_frame_ = first_frame_ < 0 ? t_us : first_frame_;
         if (waiting_since_ < 0) waiting_since_ = t_us, frames_waiting_ = 0;
         ++frames_waiting_;
@@ -91,6 +101,8 @@ public:
     uint32_t seen() const noexcept { return seen_; }
     // The reason of a fault (its last raise), "" if it never rose.
     const char* reason(Fault f) const noexcept;
+    // The name of fault bit `bit` (0 ≤ bit < kFaultKinds), as its stderr line and the README's table give it.
+    static const char* name(int bit) noexcept;
 
 private:
     void raise(Fault f) noexcept;
@@ -112,10 +124,13 @@ private:
     int64_t unpaired_at_eval_ = 0, samples_at_eval_ = 0;
     int last_stale_slot_ = -1;
     // the stream's sample spacing: the first stamps' differences
-    std::array<int64_t, 256> spacing_{};
-    int n_spacing_ = 0;
+    std::array<int64_t, 1024> spacing_{};
+    int n_spacing_ = 0, period_block_ = 64;  // the block the spacing's median is taken on: the first, then a second's
     int64_t last_sample_t_ = -1;
-    bool period_checked_ = false;
+    int64_t now_ = 0;  // the last frame's CAN time: the stderr lines' rate
+    std::array<int64_t, kFaultKinds> written_at_{};  // CAN time of each fault's last stderr line (−1: none yet)
+    std::array<int, kFaultKinds> unwritten_{};       // its rises since then, not written
+    int64_t contact_samples_ = 0, contact_limit_ = 10000;  // evaluated samples in the contact; the limit in samples
     int out_of_range_ = 0;
     std::array<bool, kMaxOutputs> is_pwm_{};
     int duty_out_ = 0;

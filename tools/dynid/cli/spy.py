@@ -34,7 +34,7 @@ PROBLEMS = ("stale_samples", "unknown_id", "bad_length", "error_frames", "unpair
             "board_faults", "board_restarts", "source_bad", "interpolated", "late", "filter_restarts", "overruns")
 # The watchdog's fault bits (rt_monitor/include/rt_monitor/watchdog.hpp, the status message's `faults`)
 FAULTS = ("BLIND", "FRAME SILENT", "T² NOT FINITE", "SAMPLE PERIOD", "JOINT OUT OF RANGE", "SOURCE STOPPED",
-          "DUTY OUT OF RANGE", "MODEL DOES NOT FIT AT START", "SAMPLES BRIDGED", "STAMPS WENT BACK")
+          "DUTY OUT OF RANGE", "MODEL DOES NOT FIT AT START", "SAMPLES BRIDGED", "STAMPS WENT BACK", "CONTACT TOO LONG")
 
 
 def fault_text(bits: int) -> str:
@@ -138,6 +138,8 @@ class View:
         beyond = [j for j, b in zip(m.joint, m.beyond_fit) if b]
         if beyond:
             line += f"  BEYOND THE FIT'S POSTURES ({', '.join(beyond)}: α untested there)"
+        if getattr(m, "faults", 0):  # a log of a monitor before the field: none
+            line += f"  UNDER FAULT: {fault_text(m.faults)} (from data the monitor suspects)"
         self._write(line)
 
     def status(self, m: Any) -> None:
