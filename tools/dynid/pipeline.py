@@ -198,7 +198,8 @@ class IdentifySettings:
         return SupplyTracking(self.supply_time_constant_s) if self.supply_time_constant_s > 0 else None
 
 
-def check_scale(model: RobotModel, datasets: Sequence[Dataset], payload_possible: bool = True) -> None:
+def check_scale(model: RobotModel, datasets: Sequence[Dataset], payload_possible: bool = True,
+                without_payload: str = "this command refits on one run without a payload") -> None:
     """Refuse a set-up whose overall scale no data can fix (docs/design.md §3, Table I): every row is then
     homogeneous (b = 0), and Φ = 0 fits as well as any Φ. Something measured in physical units must enter: an
     F/T sensor, a joint torque sensor, a known motor gain, or a run carrying a known payload."""
@@ -215,7 +216,7 @@ def check_scale(model: RobotModel, datasets: Sequence[Dataset], payload_possible
         f"{cfg.name}: the scale cannot be identified: the {'/'.join(kinds)} gains of {', '.join(unknown)} are unknown "
         "and there is no F/T sensor; give the gains (motors.<m>.known_gain in the configuration)"
         + (", or add a run carrying a known payload (--data RUN --payload MASS[@x,y,z], one --payload per --data)"
-           if payload_possible else " (this command refits on one run without a payload)")
+           if payload_possible else f" ({without_payload})")
     )
 
 

@@ -400,13 +400,21 @@ def test_the_load_is_of_the_descriptions_bit_rate(panda: dict, tmp_path: Path) -
 
 
 def test_values_beyond_a_signals_range_are_clamped_and_said(panda: dict, tmp_path: Path) -> None:
-    data = panda["data"].slice(0, 100)
-    data.dq = data.dq * 4  # beyond the ±3.28 rad/s of the velocity signals
+    """A few samples beyond a value's signal (not a position) are clamped as the board would send them, and said; a
+    run beyond it on more than 1 % of its samples is refused: the signal's scale cannot carry it (a walkthrough's F/T
+    scale a thousand times small: every sample clamped, exit 0)."""
+    data = panda["data"].slice(0, 1000)
+    dq = data.dq.copy()
+    data.dq[[10, 500], 2] = [4.0, -5.0]  # beyond the ±3.28 rad/s of the velocity signals, 2 samples in 1000
     played = play_run(panda["config"], data, f"candump:{tmp_path / 'x.log'}")
-    clamped = int((np.abs(data.dq) > 3.2767 + 0.5e-4).sum())
-    assert clamped > 0 and f"boards: {clamped} values clamped at their signal's range (the first: dq." in played.summary
+    assert "boards: 2 values clamped at their signal's range (the first: dq.panda_joint3" in played.summary
     got = load_data(tmp_path / "x.log", panda["config"])
     assert 3.2767 - 1e-9 <= np.abs(got.dq).max() <= 3.2768 + 1e-9  # the int16 range at 1e-4 rad/s
+    data.dq = dq * 4
+    with pytest.raises(DataError, match=r"dq.panda_joint\d is beyond the -3.2768 to 3.2767 its signal TPDO[\w.]+ "
+                                        r"carries \(16 bits, scale 0.0001\) on \d+ of 1000 samples \(the first: "):
+        play_run(panda["config"], data, f"candump:{tmp_path / 'y.log'}")
+    assert not (tmp_path / "y.log").exists()
 
 
 def test_samples_closer_than_one_samples_frames_are_refused(panda: dict, tmp_path: Path) -> None:

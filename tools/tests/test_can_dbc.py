@@ -236,3 +236,28 @@ def test_the_bus_exports_without_a_supplied_urdf(tmp_path: Path) -> None:
     assert conf.read_text().startswith("# rt_monitor configuration for ur10e")
     done = dynid("export", "--robot", "ur10e", "--cad", "--out", str(tmp_path / "ur.dcoef"), env=env)
     assert done.returncode == 2 and done.stderr.count("\n") == 1 and "a URDF you supply" in done.stderr, done.stderr
+
+
+def test_the_bus_of_a_models_configuration_edited_since_the_fit_is_written(default_model: Path, tmp_path: Path) -> None:
+    """`export --model M --robot CFG --dbc` with CFG the model's robot edited since the fit (its F/T full scale): the
+    DBC and monitor configuration were the model's copy, the edit silently unwritten (a walkthrough: the monitor then
+    refused the model at start, with no hint why). Now the edited bus, with a note; the coefficient file the fit's."""
+    from dynid.config.robot_config import BUNDLED_DIR
+
+    edited = tmp_path / "icub_right_arm.yaml"
+    text = (BUNDLED_DIR / "icub_right_arm.yaml").read_text()
+    assert text.count("full_scale: [200.0, 200.0, 200.0,") == 1
+    edited.write_text(text.replace("full_scale: [200.0, 200.0, 200.0,", "full_scale: [400.0, 400.0, 400.0,"))
+    dbc, conf, coef = tmp_path / "arm.dbc", tmp_path / "arm.conf", tmp_path / "arm.dcoef"
+    done = dynid("export", "--model", str(default_model), "--robot", str(edited), "--dbc", str(dbc),
+                 "--monitor-config", str(conf), "--out", str(coef))
+    assert done.returncode == 0, done.stderr
+    assert f"note: {edited} is not the configuration {default_model} was fitted with (edited since): its bus" in done.stdout
+    scale = {s.name: s.scale for m in cantools.database.load_file(str(dbc)).messages for s in m.signals}
+    own = {s.name: s.scale for m in database(load_config("icub_right_arm").bus).messages for s in m.signals}
+    changed = {k for k in own if scale[k] != own[k]}
+    assert changed == {"Fx", "Fy", "Fz"} and all(scale[k] == pytest.approx(2 * own[k]) for k in changed)
+    plain = dynid("export", "--model", str(default_model), "--dbc", str(tmp_path / "own.dbc"))
+    assert plain.returncode == 0 and "note:" not in plain.stdout
+    assert {s.name: s.scale for m in cantools.database.load_file(str(tmp_path / "own.dbc")).messages
+            for s in m.signals} == own

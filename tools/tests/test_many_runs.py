@@ -166,10 +166,11 @@ def test_data_takes_globs_folders_and_lists(runs: list[Path], tmp_path: Path) ->
     assert [r.name for r in expand_named([f"arm7={runs[0]}", str(runs[1])])] == ["arm7", root.name]
     done = dynid("fit", "--data", str(tmp_path / "none*"), "--out", str(tmp_path / "m.json"))
     assert done.returncode == 2 and "matches no run" in done.stderr
-    # a folder's README_cpp.txt or LICENSE.txt is no run (the Panda's shared folder has both beside its logs)
+    # a folder's README_cpp.txt or LICENSE.txt is no run (the Panda's shared folder has both beside its logs), nor a
+    # run's episode labels (the UR10e's contact folder: read as a run, "column t is missing")
     beside = tmp_path / "beside"
     beside.mkdir()
-    for name in ("README_cpp.txt", "LICENSE.TXT", "run.csv"):
+    for name in ("README_cpp.txt", "LICENSE.TXT", "run.csv", "run.episodes.csv"):
         (beside / name).write_text("x\n")
     assert expand_all([str(beside)]) == [str(beside / "run.csv")]
 

@@ -418,13 +418,18 @@ def one_blas_thread(command):  # noqa: ANN001, ANN201 - a command function, wrap
     return run
 
 
-def model_robot(args: argparse.Namespace) -> None:
-    """With --model, a --robot of another robot is a mistake, not ignored; without, --robot's default applies."""
+def model_robot(args: argparse.Namespace) -> RobotConfig | None:
+    """With --model, a --robot of another robot is a mistake, not ignored; the same robot's configuration edited since
+    the fit (another file digest) is returned, for what does not depend on the fit (its bus), else None. Without
+    --model, --robot's default applies."""
     if args.model and args.robot is not None:
         from ..identify.model_file import load_model
 
-        given = load_config(args.robot, args.urdf, need_urdf=False).name
-        own = load_model(args.model).config.name
-        if given != own:
-            raise InputError(f"--robot {args.robot} is not {args.model}'s robot ({own}): leave --robot out with --model")
+        given = load_config(args.robot, args.urdf, need_urdf=False)
+        own = load_model(args.model).config
+        if given.name != own.name:
+            raise InputError(f"--robot {args.robot} is not {args.model}'s robot ({own.name}): leave --robot out with "
+                             "--model")
+        return given if given.digest != own.digest else None
     args.robot = args.robot or DEFAULT_ROBOT
+    return None

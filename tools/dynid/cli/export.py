@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from ..config.bus import LOAD_LIMIT
-from ..config.robot_config import DEFAULT_ROBOT, load_config
+from ..config.robot_config import DEFAULT_ROBOT, RobotConfig, load_config
 from ..errors import InputError
 from ..export.coefficients import (
     DEFAULT_END_S,
@@ -48,7 +48,7 @@ def _settings(args: argparse.Namespace) -> ExportSettings:
                           args.rate or 1000.0, tuple(payloads(args, len(split))))
 
 
-def _export_bus(args: argparse.Namespace) -> dict[str, Any]:
+def _export_bus(args: argparse.Namespace, edited: RobotConfig | None) -> dict[str, Any]:
     """--dbc OUT.dbc and --monitor-config OUT.conf: the robot's bus description as a DBC written through cantools, and
     compiled into the monitor's configuration; the robot of --model, else --robot. Nothing is written unless the
     monitor can hold the bus (its capacity) and every output can be written."""
@@ -56,8 +56,14 @@ def _export_bus(args: argparse.Namespace) -> dict[str, Any]:
     from ..io.can_database import dbc_files
     from ..io.dataset import atomic_write
 
-    # the bus alone: a robot whose URDF the user supplies exports its DBC and monitor configuration without it
-    config = load_model(args.model).config if args.model else load_config(args.robot, args.urdf, need_urdf=False)
+    # the bus alone: a robot whose URDF the user supplies exports its DBC and monitor configuration without it. With
+    # --model and its robot's configuration edited since the fit (--robot), the edited bus: the bus is not the fit's (a
+    # walkthrough's changed F/T scale went unwritten, the monitor then refused the model at start, with no hint why)
+    if edited is not None:
+        print(f"note: {args.robot} is not the configuration {args.model} was fitted with (edited since): its bus is "
+              "written; the model's own configuration is kept for the rest (fit again to take the edit there)")
+    config = edited or (load_model(args.model).config if args.model else load_config(args.robot, args.urdf,
+                                                                                     need_urdf=False))
     bus = check_capacity(config)
     dbcs = dbc_files(bus, config.name) if args.dbc else {}
     paths = {}
@@ -97,12 +103,15 @@ def _export_bus(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def cmd_export(args: argparse.Namespace) -> dict[str, Any]:
-    model_robot(args)  # the model carries its robot: another one given is a mistake, not ignored
+    edited = model_robot(args)  # the model carries its robot: another one given is a mistake, not ignored
+    if edited is not None and not (args.dbc or args.monitor_config):
+        print(f"note: {args.robot} is not the configuration {args.model} was fitted with (edited since): the model's "
+              "own is used (fit again to take the edit)")
     if args.dbc or args.monitor_config:
         if args.cad or args.print or (args.urdf and args.model):
             raise InputError("--dbc and --monitor-config go with --model MODEL or --robot CFG [--urdf FILE] (and --out "
                              "COEF_FILE)")
-        result = _export_bus(args)
+        result = _export_bus(args, edited)
         if args.model and args.out:
             result["coefficients"] = _export_coefficients(args)
         return result

@@ -17,7 +17,7 @@ from ..io.dataset import atomic_write
 from ..io.file_set import holds_file_set
 from ..io.run_paths import expand_named
 from ..outputs import output_dir
-from ..pipeline import IdentifySettings, identify
+from ..pipeline import IdentifySettings, check_scale, identify
 from ..report.fleet import SCALE_WHY, compare, page
 from ..robot.model import RobotModel
 from .commands import COMMANDS
@@ -61,6 +61,9 @@ def cmd_fleet(args: argparse.Namespace) -> dict[str, Any]:
         refs = {r: for_workers(config, rr)[1] for r, rr in refs.items()}
     runs = {r: [stream_run(ref, model) for ref in rr] for r, rr in refs.items()}  # all checked before any fit
     check_distinct_runs([p for paths in fleet.values() for p in paths], [x for rr in runs.values() for x in rr])
+    # before any fit; fleet takes no --payload (a walkthrough was told to add one, then refused it)
+    check_scale(model, [x for rr in runs.values() for x in rr], payload_possible=False,
+                without_payload="dynid fleet takes no --payload: its robots' runs must fix the scale without one")
     settings = IdentifySettings(FitSettings(estimator=args.estimator, min_speed=args.min_speed, blocks=args.blocks))
     cluster = executor(args.workers, args.scheduler)
     models = {}

@@ -34,7 +34,9 @@ def change_points(text: str) -> tuple[float, ...]:
 
 
 def cmd_gaps(args: argparse.Namespace) -> dict[str, Any]:
-    model_robot(args)
+    if model_robot(args) is not None:
+        print(f"note: {args.robot} is not the configuration {args.model} was fitted with (edited since): the model's "
+              "own is used (fit again to take the edit)")
     identified = load_model(args.model) if args.model else None
     config = identified.config if identified is not None else load_config(args.robot, args.urdf)
     model = RobotModel(config)

@@ -20,7 +20,7 @@ from ..identify.plausibility import masses_far_from_cad
 from ..identify.run_payloads import apparent_payloads, payload_frame
 from ..identify.runs import RunRef, check_distinct_runs, for_workers, input_notes, stream_run
 from ..identify.supply import SupplyTracking
-from ..identify.blocks import fitted_mask, validate_blocks
+from ..identify.blocks import fitted_mask, in_sample_share, validate_blocks
 from ..identify.transfer import format_why
 from ..identify.validation import evaluate, load_run, validation
 from ..io.stream import DatasetFile
@@ -130,6 +130,9 @@ def cmd_fit(args: argparse.Namespace) -> dict[str, Any]:
           f"the PLS estimate beside it with ν = {result.cv['n_components']} "
           + (f"(cross-validated on {result.statistics.n_blocks} time blocks)" if args.n_components is None else
              "(--n-components)"))
+    if args.estimator == "iv" and result.chosen == "ols" and any(ds.meta.get("payload") for ds in runs):
+        print("  note: the model's estimator is OLS, not --estimator iv: IV's instruments leave out the payload run's "
+              "known torques, which would bias it (docs/robots/ur10e.md)")
     gains = [i for i, n in enumerate(independent) if n.endswith(".phi_m")]
     unit = " and ".join(GAIN_UNIT[k] for k in sorted({g.input for g in config.actuation if g.input != "torque"}))
     print(f"  motor gains ({unit}) by estimator:" if gains else "  no unknown motor gains in this set-up")
@@ -317,8 +320,7 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
     if (skipped := skipped_rows(args.data, ev.dataset.meta)) is not None:
         result["bad_rows"] = skipped
     if fitted is not None and fitted.any():
-        share = f"{100 * fitted.mean():.0f} %" if fitted.mean() >= 0.01 else "under 1 %"
-        print(f"  note: {share} of these samples are the fit's own (its run, inside its window): "
+        print(f"  note: {in_sample_share(float(fitted.mean()))} of these samples are the fit's own (its run, inside its window): "
               "the figures below are in-sample, not a validation on data the model never saw; validate on another "
               "run or window (--blocks K shows which blocks the fit took)")
     if "contact_fraction" in result:  # the model has no contact: its error includes the contacts'

@@ -6,6 +6,7 @@ import argparse
 from typing import Any
 
 from ..detect.t2 import ALPHA
+from ..identify.blocks import in_sample_share
 from ..identify.model_sections import DEFAULT_N_MODE, N_MODES
 from ..paper import PAPER
 from ..report.page import DEFAULT_WINDOW_S, ReportSettings, rates_text, write_report
@@ -26,6 +27,9 @@ def cmd_report(args: argparse.Namespace) -> dict[str, Any]:
     dv, dc = result["detection"]["validation"], result["detection"]["contact"]
 
     print(f"report of {args.model} ({result['robot']}) -> {result['out']}")
+    if overlap := result["validation"].get("fit_overlap"):
+        print(f"  note: {in_sample_share(overlap)} of the validation run's samples are the fit's own: its figures are "
+              "in-sample, not a validation on data the model never saw (the page says so)")
     if "table_ii" in v:
         t = v["table_ii"]
         paper = f" (paper {PAPER['force_error'][0]} / {PAPER['force_error_cad'][0]} N)" if result["paper"] else ""

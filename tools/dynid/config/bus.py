@@ -32,6 +32,8 @@ iCub strain board's 7-byte saturation variant), which readers accept beside the 
 
 from __future__ import annotations
 
+import difflib
+
 import math
 import re
 from dataclasses import dataclass, field
@@ -193,7 +195,12 @@ def _value_target_ok(target: str, joints: tuple[str, ...], motors: dict[str, str
     """'' if `target` names a value of this robot, else what is wrong with it."""
     family, _, rest = target.partition(".")
     if family in ("q", "dq", "tau"):
-        return "" if rest in joints else f"names joint '{rest}', which is not in 'joints'"
+        if rest in joints:
+            return ""
+        # the bus may be right and 'joints' misspelt: a walkthrough's typo there was blamed on the bus alone
+        near = difflib.get_close_matches(rest, joints, n=1)
+        return f"names joint '{rest}', which is not in 'joints'" + (
+            f" ('joints' has '{near[0]}': is one of the two misspelt?)" if near else "")
     if family in ("pwm", "current"):
         if rest not in motors:
             return f"names motor '{rest}', which is not under 'motors'"

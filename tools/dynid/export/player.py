@@ -88,6 +88,9 @@ def clock_drift(t: np.ndarray, period_s: float) -> ClockDrift:
     return ClockDrift(period_s, span, drift, int(round(span / period_s) - whole.sum()))
 
 
+CLAMPED_SHARE = 0.01  # of a run's samples, a value's signal may clamp before its scale is judged wrong
+
+
 def player_csv(data: Dataset, bus: BusDescription, robot: str) -> str:
     """The run as `boards` reads it: t, every value target of the bus (q.J, dq.J, pwm.M, current.M, tau.J, ft.S.C),
     contact and skin.patch, every number written so that it reads back exactly."""
@@ -100,14 +103,21 @@ def player_csv(data: Dataset, bus: BusDescription, robot: str) -> str:
             if v is None:
                 raise DataError(f"the run has no {s.target}, which frame {f.name} of {robot}'s bus carries "
                                 f"(signal {s.name})")
-            if s.target.startswith("q."):  # clamped, a position is another posture: the log would lie
-                lo, hi = s.physical_range
-                step = abs(s.scale) / 2
-                out = np.flatnonzero((np.asarray(v) < lo - step) | (np.asarray(v) > hi + step))
-                if out.size:
-                    raise DataError(f"{s.target} reaches {float(v[out[0]]):.6g} (sample {int(out[0])}), beyond the "
-                                    f"{lo:.6g} to {hi:.6g} its signal {f.name}.{s.name} carries ({s.length} bits, scale "
-                                    f"{s.scale:g}): check the signal's scale, offset and length in {robot}'s bus")
+            lo, hi = s.physical_range
+            step = abs(s.scale) / 2
+            out = np.flatnonzero((np.asarray(v) < lo - step) | (np.asarray(v) > hi + step))
+            # Clamped, a position is another posture: the log would lie. Another value is clamped at its signal's
+            # range as the robot's board would send it, a few samples of a run; beyond CLAMPED_SHARE of them the
+            # signal's scale cannot carry the run (a walkthrough's F/T scale a thousand times small: every sample
+            # clamped, said in one line, exit 0)
+            where = f"its signal {f.name}.{s.name} carries ({s.length} bits, scale {s.scale:g})"
+            check = f"check the signal's scale, offset and length in {robot}'s bus"
+            if s.target.startswith("q.") and out.size:
+                raise DataError(f"{s.target} reaches {float(v[out[0]]):.6g} (sample {int(out[0])}), beyond the "
+                                f"{lo:.6g} to {hi:.6g} {where}: {check}")
+            if out.size > CLAMPED_SHARE * len(v):
+                raise DataError(f"{s.target} is beyond the {lo:.6g} to {hi:.6g} {where} on {out.size} of {len(v)} "
+                                f"samples (the first: {float(v[out[0]]):.6g}, sample {int(out[0])}): {check}")
             columns.append((s.target, v))
     if data.contact is not None:
         columns.append(("contact", data.contact.astype(float)))

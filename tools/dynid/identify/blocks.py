@@ -69,6 +69,11 @@ def time_blocks(t: np.ndarray, k: int, min_samples: int = MIN_WINDOW_SAMPLES,
     return blocks
 
 
+def in_sample_share(overlap: float) -> str:
+    """The share of a run's samples that are the fit's own, in words: "73 %", or "under 1 %"."""
+    return f"{100 * overlap:.0f} %" if overlap >= 0.01 else "under 1 %"
+
+
 def fitted_mask(identified: IdentifiedModel, data_path: str, t: np.ndarray) -> np.ndarray | None:
     """Which samples (times t of DATA) the model was fitted on: those of a fitted run with DATA's sha256 (or, for
     data without one, its path) inside that run's --from/--to window. None when nothing can tell (a run the model

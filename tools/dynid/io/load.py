@@ -244,17 +244,21 @@ def velocity_agreement(t: np.ndarray, q: np.ndarray, v: np.ndarray, rest: str = 
         q_speed = float(np.sqrt(np.mean((b / dt) ** 2))) if b.size else 0.0
         v_speed = float(np.sqrt(np.mean((a / dt) ** 2))) if a.size else 0.0
         q_moves, v_moves = q_speed >= MOVING_SPEED, v_speed >= MOVING_SPEED
-        # A log's still q under a v that travels far is judged too: integrated over a stretch, noise does not travel
-        # at STILL_Q_TRAVEL, but a q read in the wrong unit (rad declared deg: 57 times too small) does
-        judged = q_moves or (v_moves if rest == "both" else v_speed >= STILL_Q_TRAVEL)
+        # A log's still q under a moving v is judged too. Integrated over a stretch, noise does not travel at
+        # STILL_Q_TRAVEL, but a q read in the wrong unit (rad declared deg: 57 times too small) does; and below it, a q
+        # whose small steps follow v's travel (what a still joint's noise does not do) is such a q of a slow run (a
+        # walkthrough's TIAGo at 0.16 rad/s RMS, its rad declared deg: taken, the model garbage)
+        judged = q_moves or v_moves
         if b.size < 20 or not judged:
             found.append(None)
         elif not np.any(a):
-            found.append(Agreement(0.0, 1.0, True))
+            found.append(Agreement(0.0, 1.0, True))  # judged with v still: q moves
         elif not q_moves:  # a log's q read too small shows its factor; a reference's still q is named as still
             scale = float(a @ b / (b @ b)) if rest == "q" and np.any(b) else float("inf")
             left = float(np.linalg.norm(a - scale * b) / np.linalg.norm(a)) if np.isfinite(scale) else 1.0
-            found.append(Agreement(scale, left, False))
+            follows = left <= MAX_UNEXPLAINED
+            found.append(Agreement(scale, left, False) if rest == "both" or v_speed >= STILL_Q_TRAVEL or follows
+                         else None)
         else:
             scale = float(a @ b / (b @ b))
             found.append(Agreement(scale, float(np.linalg.norm(a - scale * b) / np.linalg.norm(a)), False))

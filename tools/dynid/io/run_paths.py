@@ -3,8 +3,8 @@
 A run is a data file (.csv, .txt, .npz, .log, .mcap, .db3), a `dynid simulate` directory, a YARP dumper folder,
 a rosbag2 folder (with its metadata.yaml) or a folder the caller's `run_folder` accepts (a logger's folder of files
 that the robot's configuration describes: dynid.io.file_set). A folder that is none of these stands for every run
-beneath it, in sorted order, at any depth (README and LICENSE files, whatever their suffix, and anything else are
-passed over); a glob for every path it matches,
+beneath it, in sorted order, at any depth (README and LICENSE files, whatever their suffix, a run's episode labels
+`*.episodes.csv`, and anything else are passed over); a glob for every path it matches,
 sorted, each expanded the same way. In a list file, blank lines and `#` comments are skipped and relative paths
 are relative to the list's folder. A glob, folder or list that yields no run is refused with one line.
 
@@ -25,6 +25,7 @@ from .dataset import SIMULATION_DATASET
 from .yarp import is_dumper_folder
 
 DATA_SUFFIXES = (".csv", ".txt", ".npz", ".log", ".mcap", ".db3")
+EPISODES_SUFFIX = ".episodes.csv"  # a run's contact labels beside it (docs/formats.md, "Episodes CSV")
 _GLOB = set("*?[")
 
 
@@ -38,8 +39,10 @@ RunFolder = Callable[[Path], bool]  # a folder that is one run of the robot's ow
 
 
 def is_run(path: Path, run_folder: RunFolder | None = None) -> bool:
-    if path.is_file():  # a README_cpp.txt or a LICENSE.txt beside the runs is no run
-        return path.suffix.lower() in DATA_SUFFIXES and not path.name.lower().startswith(("readme", "license"))
+    if path.is_file():  # a README_cpp.txt or a LICENSE.txt beside the runs is no run, nor a run's episode labels
+        name = path.name.lower()
+        return (path.suffix.lower() in DATA_SUFFIXES and not name.startswith(("readme", "license"))
+                and not name.endswith(EPISODES_SUFFIX))
     return path.is_dir() and ((path / SIMULATION_DATASET).is_file() or (path / "metadata.yaml").is_file()
                               or is_dumper_folder(path) or (run_folder is not None and run_folder(path)))
 

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..detect.evaluation import add_stored_default, detection
 from ..errors import DataError
-from ..identify.blocks import fitted_mask
+from ..identify.blocks import fitted_mask, in_sample_share
 from ..identify.model_file import IdentifiedModel, load_model
 from ..identify.validation import Evaluated, cad_ft_residuals, evaluate, load_run, validation
 from ..io.bad_rows import DEFAULT_POLICY
@@ -245,6 +245,9 @@ def _page(r: dict[str, Any], identified: IdentifiedModel, units: dict[str, str],
         + (f"True parameters from <code>{H.esc(r['truth'])}</code>." if r["truth"] else "No true parameters known.")
         + "</p>",
         "<h2>Prediction error (the paper's Table II)</h2>",
+        (f"<p class=\"note\">{in_sample_share(v['fit_overlap'])} of the validation run's samples are the fit's own (its "
+         "run, inside its window): the figures below are in-sample, not a validation on data the model never saw. "
+         "Validate on another run or window.</p>" if v.get("fit_overlap") else ""),
         (f"<p class=\"note\">{100 * v['contact_fraction']:.1f} % of the validation run's samples are in contact (its "
          "contact column): the errors below include the contact forces the model does not predict, and the false "
          "positives below count its contacts as false. Validate on a contact-free run (or a window of one).</p>"
