@@ -42,6 +42,7 @@ void MonitorLoop::step(const Sample& x) noexcept {
     const uint64_t beyond = coverage_.check(x.q.data());
     n_.beyond_fit = coverage_.samples();
     if (o.peak_now) peak_utime_ = x.t_us, peak_beyond_ = beyond;
+    last_evaluated_utime_ = x.t_us;
     if (o.event != Event::kNone) {
         ++n_.events;
         ++(o.event == Event::kOnset ? n_.onsets : n_.ends);
@@ -54,8 +55,16 @@ void MonitorLoop::step(const Sample& x) noexcept {
 
 void MonitorLoop::place(const ClockStep& c) noexcept {
     dog_.placed(c.interpolated, c.restart);
-    if (c.restart) {  // a filter restart resets the detector: a contact open then gets no end event
-        n_.cut += core_.output().in_contact;
+    if (c.restart) {
+        // A filter restart resets the detector: a contact open then is cut, said by an event of its own (kind 3, at
+        // its last evaluated sample, with its peak), so that a consumer following the events never holds a contact
+        // open that the monitor no longer tracks (a review: a saturation in contact left it open for good)
+        if (core_.output().in_contact) {
+            ++n_.cut;
+            ++n_.events;
+            pub_.contact(core_.output(), last_evaluated_utime_, onset_utime_, peak_utime_, n_.evaluated - 1,
+                         peak_beyond_, dog_.active(), kCutEvent);
+        }
         core_.reset();
     }
     step(c.sample);

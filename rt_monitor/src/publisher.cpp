@@ -65,9 +65,9 @@ void Publisher::normalized(std::vector<double>& r, const VecO& e,
 }
 
 void Publisher::contact(const Output& o, int64_t t_us, int64_t onset_utime, int64_t peak_utime,
-                        int64_t sample, uint64_t beyond_fit, uint32_t faults) noexcept {
+                        int64_t sample, uint64_t beyond_fit, uint32_t faults, int8_t kind) noexcept {
     event_.utime = t_us;
-    event_.kind = int8_t(o.event);
+    event_.kind = kind != 0 ? kind : int8_t(o.event);
     event_.onset_utime = onset_utime;
     event_.sample = sample;
     event_.t2 = o.p.t2;

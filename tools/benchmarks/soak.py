@@ -209,7 +209,7 @@ def identities(s: dict, counts: dict[str, int]) -> dict[str, tuple[int, int]]:
         "taken = assembled - stale": (sm["taken"], sm["assembled"] - sm["stale"]),
         "evaluated = taken - held + interpolated": (sm["evaluated"], sm["taken"] - sm["held"] + sm["interpolated"]),
         "interpolated <= held + lost": (min(sm["interpolated"], sm["held"] + sm["lost"]), sm["interpolated"]),
-        "events = onsets + ends": (ev["total"], ev["onsets"] + ev["ends"]),
+        "events = onsets + ends + cut": (ev["total"], ev["onsets"] + ev["ends"] + ev["cut"]),
         "onsets = ends + cut by a restart + open at the end": (ev["onsets"], ev["ends"] + ev["cut"] + ev["in_contact"]),
         "contact messages in the log = events": (counts.get("DYNID_CONTACT", 0), ev["total"]),
         "contact messages in the log = published": (counts.get("DYNID_CONTACT", 0), pub["contact"]),

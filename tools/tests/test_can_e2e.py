@@ -310,6 +310,15 @@ def test_stalled_board(setup: dict, clean: dict) -> None:
     lines = [l for l in clean["lines"] if not (" can1 12" in l and a <= _sample_of(l) < a + 500)]
     status, msgs = _bad_run(setup, clean, lines, "stalled", faults=1)  # blind while every sample is stale
     assert 490 <= status.stale_samples <= 500  # stale once its last values are older than 5 ms
+    # The contact open at the stall is cut (the filter restarts after it, and the detector with it): an event of its
+    # own, kind 3, at its last evaluated sample; it was left open, no end ever published (a review)
+    kinds = [(m.kind, (m.utime - T0_US) // 1000) for m in msgs["DYNID_CONTACT"]]
+    cut = [k for kind, k in kinds if kind == 3]
+    assert len(cut) == 1 and a - 5 <= cut[0] < a, kinds  # the last sample before the stall
+    opened = 0
+    for kind, _ in kinds:  # every onset closed by an end or a cut, never two open
+        opened += 1 if kind == 1 else -1
+        assert opened in (0, 1), kinds
     for m in msgs["DYNID_CONTACT"]:
         k = (m.utime - T0_US) // 1000
         assert not a <= k < a + 500 + 5, "an event from stale data"

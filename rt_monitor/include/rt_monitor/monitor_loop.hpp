@@ -27,7 +27,7 @@ struct LoopOptions {
 
 // What the loop counted, for the exit line and --stats-out.
 struct LoopCounters {
-    int64_t evaluated = 0, events = 0, onsets = 0, ends = 0, cut = 0, overruns = 0;
+    int64_t evaluated = 0, events = 0, onsets = 0, ends = 0, cut = 0, overruns = 0;  // events = onsets + ends + cut
     int64_t beyond_fit = 0;        // evaluated samples with a joint beyond the fit's range (FitCoverage)
     double loop_max_us = 0;
     long long allocations = 0;     // heap allocations from the first read to the last publish
@@ -64,7 +64,7 @@ private:
     Sample sample_;
     LoopCounters n_;
     double period_us_ = 0, rx_mono_ = 0, loop_sum_ = 0, loop_max_ = 0;
-    int64_t loop_n_ = 0, onset_utime_ = 0, peak_utime_ = 0;
+    int64_t loop_n_ = 0, onset_utime_ = 0, peak_utime_ = 0, last_evaluated_utime_ = 0;
     uint64_t peak_beyond_ = 0;  // the joints beyond the fit's range at the sample the next event describes
     LatencyHistogram processing_, response_;
     std::vector<double> latency_;

@@ -18,6 +18,9 @@
 
 namespace dynid::rt {
 
+// contact_event_t.kind of a contact cut by a filter restart (the core's events are 1 onset, 2 end)
+constexpr int8_t kCutEvent = 3;
+
 class Publisher {
 public:
     enum Channel { kContact = 0, kResidual = 1, kStatus = 2 };
@@ -27,9 +30,10 @@ public:
 
     // A contact event (onset or end) of the core's output at CAN time t_us, sample `sample` of the run.
     // An event describes o.peak, at peak_utime: an onset's own sample, an end's contact's strongest; `beyond_fit` (bit j)
-    // the joints beyond the fit's range there (FitCoverage); `faults` the watchdog's active at publication.
+    // the joints beyond the fit's range there (FitCoverage); `faults` the watchdog's active at publication; `kind` the
+    // event's, 0: the core's (o.event).
     void contact(const Output& o, int64_t t_us, int64_t onset_utime, int64_t peak_utime, int64_t sample,
-                 uint64_t beyond_fit, uint32_t faults) noexcept;
+                 uint64_t beyond_fit, uint32_t faults, int8_t kind = 0) noexcept;
     // One sample of the decimated residual stream.
     void residual(const Output& o, int64_t t_us) noexcept;
     // The status, whose counters the caller has filled (status()); the supply ratios are the core's.

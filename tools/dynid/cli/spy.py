@@ -26,7 +26,7 @@ from .commands import COMMANDS
 from .common import plural, positive_float, positive_int
 
 CHANNELS = ("DYNID_CONTACT", "DYNID_STATUS", "DYNID_RESIDUAL")
-KIND = {1: "onset", 2: "end"}
+KIND = {1: "onset", 2: "end", 3: "cut"}  # cut: the filter restarted in contact, its end unknown
 SIDE = {1: "distal", -1: "proximal", 0: "unknown side"}
 # Status counters that mean trouble, or timing artefacts (interpolated, late): shown (and named in the summary)
 # when not zero.
@@ -125,7 +125,9 @@ class View:
         external joint torques (the event carries all of them: `--json` prints each field); an end's describe its
         contact's strongest sample, the peak it names."""
         line = f"{self._t(m.utime):10.3f} s  contact {KIND.get(m.kind, m.kind):5}  T² {m.t2:9.1f} (threshold {m.threshold:.1f})"
-        if m.kind == 2:
+        if m.kind == 3:
+            line += "  (the filter restarted in contact, a gap in the samples: its end unknown)"
+        if m.kind in (2, 3):
             line += f"  peak T² {m.peak_t2:.1f} at {self._t(m.peak_utime):.3f} s:"
         for name, side, w in zip(m.sensor, m.side, m.wrench):
             line += (f"  {name}: {SIDE.get(side, side)} F [{w[0]:7.2f} {w[1]:7.2f} {w[2]:7.2f}] N "
