@@ -138,6 +138,7 @@ int MonitorLoop::run(FrameSource& source, const volatile std::sig_atomic_t& stop
             rc = 1;
             break;
         }
+        const int64_t previous_t = last_frame_t;
         last_frame_t = f.t_us;
         const uint32_t before = dog_.active();  // a fault this frame raises or clears, in any of the calls below
         dog_.frame(f.t_us);
@@ -153,7 +154,7 @@ int MonitorLoop::run(FrameSource& source, const volatile std::sig_atomic_t& stop
         // Stamps that went back a status period or more (a sender's clock reset, an NTP step of a live source's
         // receive time): the status is due at once, its period counted from there, or it would wait for CAN time to
         // catch up with the old stamps
-        if (next_status >= 0 && f.t_us + status_period < next_status) next_status = f.t_us;
+        if (previous_t >= 0 && f.t_us + status_period < previous_t) next_status = f.t_us;
         const bool due = next_status >= 0 && f.t_us >= next_status;
         if (next_status < 0) next_status = f.t_us;
         if (due || dog_.active() != before) {  // on the status period, and at once when a fault rises or clears

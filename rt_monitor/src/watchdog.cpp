@@ -8,13 +8,14 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <ctime>
 
 namespace dynid::rt {
 namespace {
 
 constexpr const char* kNames[kFaultKinds] = {"blind", "silent frame", "T² not finite", "sample period",
                                             "joint out of range", "source stopped", "duty out of range",
-                                                                                        "model does not fit at start", "samples bridged", "stamps went back",
+                                            "model does not fit at start", "samples bridged", "stamps went back",
                                             "contact too long"};
 
 int index_of(Fault f) noexcept {
@@ -61,14 +62,17 @@ void Watchdog::raise(Fault f) noexcept {
     seen_ |= uint32_t(f);
     if (!rising) return;
     const int k = index_of(f);
-    if (written_at_[size_t(k)] >= 0 && now_ - written_at_[size_t(k)] < 1000000 && now_ >= written_at_[size_t(k)]) {
+    timespec ts{};
+    clock_gettime(CLOCK_MONOTONIC, &ts);  // the vDSO's: no system call
+    const int64_t now = int64_t(ts.tv_sec) * 1000000 + ts.tv_nsec / 1000;
+    if (written_at_[size_t(k)] >= 0 && now - written_at_[size_t(k)] < 1000000) {
         ++unwritten_[size_t(k)];  // its rises within a second of its last line: counted on the next
         return;
     }
     char more[64] = "";
     if (unwritten_[size_t(k)] > 0)
-        std::snprintf(more, sizeof more, " (and %d rises since its last line)", unwritten_[size_t(k)]);
-    written_at_[size_t(k)] = now_;
+        std::snprintf(more, sizeof more, " (and %lld rises since its last line)", (long long)unwritten_[size_t(k)]);
+    written_at_[size_t(k)] = now;
     unwritten_[size_t(k)] = 0;
     char line[384];
     const int n = std::snprintf(line, sizeof line, "rt_monitor: fault: %s: %s%s\n", kNames[k], text(f), more);
@@ -79,6 +83,10 @@ void Watchdog::raise(Fault f) noexcept {
 }
 
 void Watchdog::placed(bool interpolated, bool restart) noexcept {
+    if (restart) {  // the detector restarts with the filter: a contact held is cut, its count over
+        contact_samples_ = 0;
+        clear(kLongContact);
+    }
     bridged_ += interpolated;
     restarts_ += restart;
     if (++placed_ < bridge_block_) return;

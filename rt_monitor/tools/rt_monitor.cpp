@@ -107,9 +107,9 @@ reproduce the file's known answers).
 
 the watchdog: frames arriving with no sample evaluated for 5 sample periods, a frame of the bus silent for a
 second, T2 not finite, the stream's sample period not the file's, a joint position or a PWM duty out of its range,
-a live source stopped, T2 above its level through the start, samples bridged, stamps going back: each is a status
-fault (DYNID_STATUS faults, faults_seen; on a contact event, those active) and one line on stderr with its reason,
-never a contact.
+a live source stopped, T2 above its level through the start, samples bridged, stamps going back, a contact held
+longer than contact_limit_s: each is a status fault (DYNID_STATUS faults, faults_seen; on a contact event, those
+active) and one line on stderr with its reason, never a contact.
 )";
 
 int usage(const std::string& why) {
@@ -311,7 +311,7 @@ bool write_stats(const std::string& path, const Assembler& a, const FrameSource&
     const LoopCounters& n = loop.counters();
     JsonOut j(f);
     j.str("source", !replay.empty() ? (realtime ? "replay, real time" : "replay") : !loopback.empty() ? "loopback" : "socketcan")
-        .str("stopped", signalled ? "signal" : (rc && rc != kExitFaulted ? "failed" : "end of input"))  // 7: read to its end
+        .str("stopped", signalled ? "signal" : (rc ? "failed" : "end of input"))
         .real("period_us", loop.period_us());
     // frames = error + unknown_id + bad_length + strain + position + pid + status + skin + sensor (by what the bus
     // table says each carries: strain the clock pair's halves, pid the inputs, sensor other F/T pairs)
@@ -543,14 +543,16 @@ int main(int argc, char** argv) {
                 std::remove(partial.partial.c_str());
         }
     }
-    if (rc == 0 && !g_stop && !replay.empty() && watchdog->seen() != 0) {  // after the log went into place: it is whole
+    // Read to its end with a fault raised: exit 7 (after the log went into place: it is whole), unless a write below
+    // fails, whose exit (1) says more
+    const bool faulted = rc == 0 && !g_stop && !replay.empty() && watchdog->seen() != 0;
+    if (faulted) {
         std::string names;
         for (int bit = 0; bit < kFaultKinds; ++bit)
             if (watchdog->seen() & (1u << bit)) names += std::string(names.empty() ? "" : ", ") + Watchdog::name(bit);
         std::fprintf(stderr, "rt_monitor: warning: the replay raised faults (%s; DYNID_STATUS faults_seen %u): its "
                      "%lld events came from data the monitor suspected, each carries the faults active then\n",
                      names.c_str(), unsigned(watchdog->seen()), (long long)loop->counters().events);
-        rc = kExitFaulted;
     }
     const SourceCounters& sc = src->counters();
     if (!replay.empty()) {  // skipped, counted: said once, with where to look
@@ -595,5 +597,5 @@ int main(int argc, char** argv) {
             rc = rc ? rc : 1;
         }
     }
-    return rc;
+    return rc == 0 && faulted ? kExitFaulted : rc;
 }

@@ -131,11 +131,9 @@ def test_a_real_run_through_the_monitor_is_the_core_on_the_decoded_samples(robot
     # Every evaluated sample's T² on DYNID_RESIDUAL
     conf.write_text(re.sub(r"^residual_every \d+$", "residual_every 1", conf.read_text(), flags=re.M))
     done = run(RT_MONITOR, "--model", coef, "--config", conf, "--replay", log)
-    # A clean run of the robot's own model: no watchdog fault, but the leg's: its put-down is one contact from 62.4 s to
-    # the run's end, 12.6 s, longer than the monitor's default contact_limit_s (a robot standing on both feet sets its own)
-    faults = re.findall(r"rt_monitor: fault: ([^:]+):", done.stderr)
-    assert faults == (["contact too long"] if robot == "icub_right_leg_standing" else []), done.stderr
-    assert done.returncode == (7 if faults else 0), done.stderr
+    # A clean run of the robot's own model: no watchdog fault (the leg's put-down is one contact from 62.4 s to the
+    # run's end, 12.6 s, over the monitor's default contact_limit_s: its configuration sets its own)
+    assert done.returncode == 0 and "fault:" not in done.stderr, done.stderr
     c = read_coefficients(coef)
     imported = load_data(log, config)
     n = imported.n_samples

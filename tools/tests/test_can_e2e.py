@@ -315,6 +315,9 @@ def test_stalled_board(setup: dict, clean: dict) -> None:
     kinds = [(m.kind, (m.utime - T0_US) // 1000) for m in msgs["DYNID_CONTACT"]]
     cut = [k for kind, k in kinds if kind == 3]
     assert len(cut) == 1 and a - 5 <= cut[0] < a, kinds  # the last sample before the stall
+    onset, event = next((m, e) for m, e in zip(msgs["DYNID_CONTACT"], msgs["DYNID_CONTACT"][1:]) if e.kind == 3)
+    assert onset.kind == 1 and event.onset_utime == onset.utime <= event.peak_utime <= event.utime  # its contact's peak
+    assert event.peak_t2 >= onset.t2 and event.peak_t2 > event.threshold and event.sample > onset.sample
     opened = 0
     for kind, _ in kinds:  # every onset closed by an end or a cut, never two open
         opened += 1 if kind == 1 else -1

@@ -269,25 +269,43 @@ def test_stamps_that_go_back_are_a_fault(bench: dict, tmp_path: Path) -> None:
 
 
 def test_a_model_that_stops_fitting_mid_run_is_a_long_contact_fault(bench: dict, tmp_path: Path) -> None:
-    """The elbow's encoder 0.2 rad off from 4 s on (after the start-fit check's block): one contact that never ended,
-    every contact after it unreported, no fault and exit 0 (a review). Now a contact held for contact_limit_s is a
-    fault, and the replay exits 7; the clean run's contacts stay under the limit."""
+    """The elbow's encoder 0.2 rad off from 4 s (after the start-fit check's block) to 7.5 s: one contact that did not
+    end while the offset held, every contact in it unreported, no fault and exit 0 (a review). Now a contact held for
+    contact_limit_s is a fault, cleared when the contact ends, and the replay exits 7; the clean run's stay under it."""
     data = bench["data"]
     elbow = data.joints.index("r_elbow")
     q = data.q.copy()
-    q[data.t - data.t[0] >= 4.0, elbow] += 0.2
+    off = (data.t - data.t[0] >= 4.0) & (data.t - data.t[0] < 7.5)
+    q[off, elbow] += 0.2
     log = tmp_path / "offset.log"
     write_candump(replace(data, q=q), bench["config"], log)
     limit = lambda text: text.replace("contact_limit_s 10", "contact_limit_s 2")  # noqa: E731 (the run is 10 s)
     code, err, msgs = replay(bench, "offset", limit, log=log)
     assert re.search(r"fault: contact too long: a contact held for 2\.0 s \(contact_limit_s\): more likely the model "
                      r"no longer fitting", err), err
-    assert code == EXIT_FAULTED and faults(msgs) & LONG_CONTACT and msgs["DYNID_STATUS"][-1].faults & LONG_CONTACT
-    onset = next(m.utime for m in msgs["DYNID_CONTACT"] if m.kind == 1 and m.utime >= msgs["DYNID_STATUS"][0].utime + 4e6)
-    raised = next(m.utime for m in msgs["DYNID_STATUS"] if m.faults & LONG_CONTACT)
-    assert 1.99e6 <= raised - onset <= 2.1e6  # at the limit (the onset its first sample), published at once
+    assert code == EXIT_FAULTED and faults(msgs) & LONG_CONTACT
+    t0 = msgs["DYNID_STATUS"][0].utime
+    onset = next(m.utime for m in msgs["DYNID_CONTACT"] if m.kind == 1 and m.utime >= t0 + 4e6)
+    end = next(m.utime for m in msgs["DYNID_CONTACT"] if m.kind == 2 and m.utime > onset)
+    held = [m.utime for m in msgs["DYNID_STATUS"] if m.faults & LONG_CONTACT]
+    assert 1.99e6 <= held[0] - onset <= 2.1e6  # at the limit (the onset its first sample), published at once
+    assert end - onset > 3e6 and held[-1] < end and not msgs["DYNID_STATUS"][-1].faults & LONG_CONTACT  # cleared
     code, err, msgs = replay(bench, "clean-limited", limit)
     assert code == 0 and not faults(msgs), err
+
+
+def test_a_configuration_sets_its_contact_limit(tmp_path: Path) -> None:
+    """The limit is the robot configuration's `monitor: {contact_limit_s}` (the leg standing on its feet: 600 s), what
+    export --monitor-config writes; out of the monitor's range, exit 2 and one line."""
+    from dynid.config.robot_config import BUNDLED_DIR
+    from dynid.errors import ConfigError
+
+    assert "contact_limit_s 600\n" in monitor_config_text(load_config("icub_right_leg_standing", need_urdf=False))
+    assert "contact_limit_s 10\n" in monitor_config_text(load_config("icub_right_arm"))
+    mine = tmp_path / "arm.yaml"
+    mine.write_text((BUNDLED_DIR / "icub_right_arm.yaml").read_text() + "monitor: {contact_limit_s: 1000000}\n")
+    with pytest.raises(ConfigError, match=r"contact_limit_s.* must be 0.1 to 86400 s \(the monitor's range\), got 1e\+06"):
+        load_config(str(mine))
 
 
 def test_a_rate_that_changes_mid_run_is_a_period_fault(bench: dict, tmp_path: Path) -> None:

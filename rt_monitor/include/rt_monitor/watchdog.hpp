@@ -26,7 +26,7 @@
 // second, cleared by a second at the file's period (a second's median: a logger's jitter moves 64 samples' by 5 %).
 // Faults are a bitmask on the status message (`faults`, and `faults_seen` since the start) and on each contact event;
 // each rise is one line on stderr with its reason, from a buffer sized at start-up (no allocation in the loop), at most
-// one a second of CAN time per fault (a flapping fault's rises in between are counted on its next line: a blocked
+// one a second of wall time per fault (a flapping fault's rises in between are counted on its next line: a blocked
 // stderr must not stall the loop).
 // Nothing here decides a contact: a fault is never an event.
 #pragma once
@@ -79,7 +79,6 @@ public:
               const WatchdogSettings& settings = {}) noexcept;
     // A frame was read (CAN time µs).
     void frame(int64_t t_us) noexcept {
-        now_ = t_us;
         first_frame_ = first_frame_ < 0 ? t_us : first_frame_;
         if (waiting_since_ < 0) waiting_since_ = t_us, frames_waiting_ = 0;
         ++frames_waiting_;
@@ -127,9 +126,10 @@ private:
     std::array<int64_t, 1024> spacing_{};
     int n_spacing_ = 0, period_block_ = 64;  // the block the spacing's median is taken on: the first, then a second's
     int64_t last_sample_t_ = -1;
-    int64_t now_ = 0;  // the last frame's CAN time: the stderr lines' rate
-    std::array<int64_t, kFaultKinds> written_at_{};  // CAN time of each fault's last stderr line (−1: none yet)
-    std::array<int, kFaultKinds> unwritten_{};       // its rises since then, not written
+    // Each fault's last stderr line, in CLOCK_MONOTONIC µs (−1: none yet; wall time, not CAN time, which may stand
+    // still or jump), and its rises since then, not written
+    std::array<int64_t, kFaultKinds> written_at_{};
+    std::array<int64_t, kFaultKinds> unwritten_{};
     int64_t contact_samples_ = 0, contact_limit_ = 10000;  // evaluated samples in the contact; the limit in samples
     int out_of_range_ = 0;
     std::array<bool, kMaxOutputs> is_pwm_{};

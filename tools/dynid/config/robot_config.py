@@ -161,6 +161,10 @@ class RobotConfig:
     # Known change points of the F/T sensors' offsets (s, the data's own seconds): `dynid gaps` takes a step at each
     # as known (dynid.gaps.steps); `--steps` replaces them.
     ft_steps: tuple[float, ...] = ()
+    # rt_monitor's contact_limit_s (the `monitor: {contact_limit_s}` field): a contact held longer is its `contact too
+    # long` fault, more likely the model no longer fitting than a touch; a robot that holds contacts by design (a leg
+    # standing on its feet) sets its own
+    contact_limit_s: float = 10.0
 
     @property
     def motor_names(self) -> tuple[str, ...]:
@@ -257,7 +261,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
     name = root.string("name")
     f = Fields(name, "", data).only(
         "name", "urdf", "base_link", "gravity", "joints", "ft_sensors", "motors", "actuation", "noise", "can", "bus",
-        "derivatives", "columns", "files", "payload_frame", "yarp", "ros2", "limits", "fit", "ft_steps",
+        "derivatives", "columns", "files", "payload_frame", "yarp", "ros2", "limits", "fit", "ft_steps", "monitor",
     )
 
     joints = f.strings("joints")
@@ -404,6 +408,7 @@ def load_config(robot: str | Path = DEFAULT_ROBOT, urdf: str | Path | None = Non
         limits=_limits(f, joints),
         fit_consistent=_fit_consistent(f),
         ft_steps=_ft_steps(f, bool(sensors)),
+        contact_limit_s=_contact_limit(f),
     )
 
 
@@ -420,6 +425,19 @@ def _fit_consistent(f: Fields) -> str:
     if value not in CONSISTENT_MODES:
         raise section.fail("consistent", f"must be one of {', '.join(CONSISTENT_MODES)}, got {value!r}")
     return str(value)
+
+
+CONTACT_LIMIT_S = (0.1, 86400.0, 10.0)  # rt_monitor's contact_limit_s: its range (monitor_config.hpp), its default
+
+
+def _contact_limit(f: Fields) -> float:
+    """`monitor: {contact_limit_s: S}`: a contact held longer is the monitor's `contact too long` fault."""
+    section = f.sub("monitor", {}).only("contact_limit_s")
+    low, high, default = CONTACT_LIMIT_S
+    value = section.number("contact_limit_s", default, positive=True)
+    if not low <= value <= high:
+        raise section.fail("contact_limit_s", f"must be {low:g} to {high:g} s (the monitor's range), got {value:g}")
+    return value
 
 
 def _ft_steps(f: Fields, has_sensor: bool) -> tuple[float, ...]:

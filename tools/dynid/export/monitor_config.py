@@ -19,10 +19,6 @@ from ..config.robot_config import RobotConfig, robot_argument
 from ..errors import ConfigError, InputError
 from .capacity import capacity
 
-# A contact held this long is the monitor's `contact too long` fault (rt_monitor/README.md, "Watchdog"): more likely the
-# model no longer fitting than a touch. A robot that holds contacts longer by design (standing, carrying) sets its own.
-CONTACT_LIMIT_S = 10.0
-
 HEADER = "# rt_monitor configuration for {name} (written by dynid from its robot configuration: dynid export " \
          "--robot {robot} --monitor-config FILE)"
 
@@ -125,7 +121,7 @@ def monitor_config_text(config: RobotConfig, lcm_url: str | None = None) -> str:
     if lcm_url:
         lines.append(f"lcm_url {lcm_url}")
     lines += [f"stale_ms {bus.stale_ms:g}", f"pair_us {bus.pair_us}", "status_hz 10", "residual_every 10",
-              f"contact_limit_s {CONTACT_LIMIT_S:g}"]
+              f"contact_limit_s {config.contact_limit_s:g}"]  # the configuration's `monitor: {contact_limit_s}`
     for f in bus.frames:
         period = 0 if f.period_ms is None else round(f.period_ms * 1000)
         lines.append(f"frame {f.name} {f.bus} 0x{f.id:03X} {f.dlc} {f.long_dlc} {f.node} {period} {f.offset_us}")

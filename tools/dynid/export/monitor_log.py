@@ -42,7 +42,8 @@ def ratios_text(ratios: Any) -> str:
 def summarize(contact: np.ndarray, events: list[tuple[int, int]], period_s: float, slack: int,
               t2: list[tuple[int, float, float]] | None = None, side: np.ndarray | None = None,
               visible: list[bool] | None = None, earliest: list[int] | None = None) -> dict[str, Any]:
-    """events: (kind, sample) with kind 1 onset, 2 end, in time order; t2: (sample, T², T²_α) of the residual
+    """events: (kind, sample) with kind 1 onset, 2 end, 3 cut (the filter restarted in contact: it ends there), in
+    time order; t2: (sample, T², T²_α) of the residual
     stream. The filter's lag shifts the T² test: a sample's alarm is compared with the truth `lag` earlier
     than it, here taken as 0 (the lag is a few ms against contacts of 0.3 s or more). side: the simulator's
     skin.side (1 distal of the F/T sensor, -1 proximal) for a per-side count of the episodes found. visible:
@@ -56,7 +57,7 @@ def summarize(contact: np.ndarray, events: list[tuple[int, int]], period_s: floa
     for kind, k in events:
         if kind == 1 and on is None:
             on = max(0, min(k, n))
-        elif kind == 2 and on is not None:
+        elif kind in (2, 3) and on is not None:
             state[on:max(on, min(k, n))] = True
             on = None
     if on is not None:

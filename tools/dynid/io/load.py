@@ -210,6 +210,14 @@ VELOCITY_CHECK_S = 0.05
 STILL_Q_TRAVEL = 4 * MOVING_SPEED  # a log's velocity that travels this fast (RMS) is judged even where q stays still
 
 
+UNIT_FACTORS = (180 / np.pi, 1000.0)  # degrees against radians, milli- against the unit
+
+
+def _unit_factor(scale: float) -> bool:
+    """`scale` is a unit's factor or its inverse, to 10 %."""
+    return any(abs(abs(scale) / f - 1) <= 0.1 or abs(abs(scale) * f - 1) <= 0.1 for f in UNIT_FACTORS)
+
+
 def _stretches(step: float, size: int) -> np.ndarray:
     """The first sample of each VELOCITY_CHECK_S stretch (at least 5 samples) of `size` samples `step` s apart."""
     return np.arange(0, size, max(5, int(round(VELOCITY_CHECK_S / step))))
@@ -246,8 +254,9 @@ def velocity_agreement(t: np.ndarray, q: np.ndarray, v: np.ndarray, rest: str = 
         q_moves, v_moves = q_speed >= MOVING_SPEED, v_speed >= MOVING_SPEED
         # A log's still q under a moving v is judged too. Integrated over a stretch, noise does not travel at
         # STILL_Q_TRAVEL, but a q read in the wrong unit (rad declared deg: 57 times too small) does; and below it, a q
-        # whose small steps follow v's travel (what a still joint's noise does not do) is such a q of a slow run (a
-        # walkthrough's TIAGo at 0.16 rad/s RMS, its rad declared deg: taken, the model garbage)
+        # whose small steps follow v's travel at a unit's factor (what a still joint's noise, or a slow one-way motion
+        # under a velocity's offset, does not do) is such a q of a slow run (a walkthrough's TIAGo at 0.16 rad/s RMS,
+        # its rad declared deg: taken, the model garbage)
         judged = q_moves or v_moves
         if b.size < 20 or not judged:
             found.append(None)
@@ -256,7 +265,7 @@ def velocity_agreement(t: np.ndarray, q: np.ndarray, v: np.ndarray, rest: str = 
         elif not q_moves:  # a log's q read too small shows its factor; a reference's still q is named as still
             scale = float(a @ b / (b @ b)) if rest == "q" and np.any(b) else float("inf")
             left = float(np.linalg.norm(a - scale * b) / np.linalg.norm(a)) if np.isfinite(scale) else 1.0
-            follows = left <= MAX_UNEXPLAINED
+            follows = left <= MAX_UNEXPLAINED and _unit_factor(scale)
             found.append(Agreement(scale, left, False) if rest == "both" or v_speed >= STILL_Q_TRAVEL or follows
                          else None)
         else:

@@ -24,7 +24,8 @@ one kind are one design, while friction wears); its standard error is the jackkn
 named for its scale has its friction compared with c_r taken out, so a scale is named once, as a scale, not as
 friction on every joint (taken out of every robot, c_r's own noise would move each robot's coefficients together);
 and as measured: a load its runs carry makes it heavier, not scaled, and named `scale` too, its friction the fleet's
-as measured, so friction is named only where it stands out both ways. With unknown gains the
+as measured, so where c_r > 1 friction is named only where it stands out both ways (a wear up to about c_r² then
+hides: which of the two it is, a per-joint test of the gravity torques could tell). With unknown gains the
 gains absorb an input's scale, c_r stays near 1 and the gains are named.
 
 What it cannot see: a factor smaller than the fleet's own spread. The simulated fleet draws each friction
@@ -225,8 +226,10 @@ def compare(models: dict[str, IdentifiedModel], layout_kinds: dict[str, str],
             # and as measured. A scale of its torques leaves friction the fleet's once taken out; a load its runs
             # carry (named `scale` too: heavier, not scaled) leaves it the fleet's as measured, and taking the scale
             # out made it look low (a walkthrough's UR10e with 2.8 kg: friction named on four joints, ×0.73-0.87)
+            # A load only adds (c_r > 1): a robot whose torques read low has its scale taken out alone, or its wear
+            # would hide behind it (c_r 1/w against a wear w: as measured, nothing)
             raw = np.array(as_measured[g]).sum(axis=0) / math.sqrt(len(members))
-            stat = np.where((taken_out != 0) & (np.abs(raw) < np.abs(stat)), raw, stat)
+            stat = np.where((taken_out > 0) & (np.abs(raw) < np.abs(stat)), raw, stat)
         group_rows.append({"group": g, "kind": members[0][0].kind, "parameters": [p.combination for p, _ in members],
                            "statistic": dict(zip(robots, stat.tolist()))})
         for r, s in zip(robots, stat):
