@@ -191,3 +191,25 @@ def test_real_wrenches_pass_the_unit_check_and_in_another_unit_do_not(run: str) 
             bad.ft = {**data.ft, sensor: change(data.ft[sensor])}
             with pytest.raises(DataError, match=f"ft.{sensor}'s .*{words}"):
                 check_plausible(bad, config=config)
+
+
+@needs_data
+@pytest.mark.parametrize("unit, refused", [("rad", True), ("deg", True), ("mm", False)])
+def test_a_prismatic_joints_columns_are_a_length(tmp_path: Path, unit: str, refused: bool) -> None:
+    """TIAGo's torso lift is prismatic: its position column declared in an angle's unit was taken as metres (a
+    walkthrough's own configuration); now refused naming the field, at the configuration's first use of the URDF."""
+    from dynid.config.robot_config import BUNDLED_DIR
+    from dynid.errors import ConfigError
+    from dynid.robot.model import RobotModel
+
+    mine = tmp_path / "tiago.yaml"
+    text = (BUNDLED_DIR / "tiago_wrist.yaml").read_text()
+    assert text.count("q.torso_lift_joint m,") == 1
+    mine.write_text(text.replace("q.torso_lift_joint m,", f"q.torso_lift_joint {unit},"))
+    config = load_config(str(mine), convert.TIAGO_URDF)
+    if not refused:
+        RobotModel(config)
+        return
+    with pytest.raises(ConfigError, match=rf"field 'files.tiago_position.csv\[1\]' gives q.torso_lift_joint in {unit}, "
+                                          r"but torso_lift_joint is prismatic in .*: its positions are a length"):
+        RobotModel(config)

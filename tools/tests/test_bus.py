@@ -87,6 +87,10 @@ REFUSED = {
         lambda b: _frame(b, "TPDO1_2")["signals"][2].update(offset=300),
         "field 'bus.frames[1].signals[2].offset' 300 puts 'tau.panda_joint2' at -27.68 to 627.67: a sensor that reads "
         "both ways holds zero in the middle half of its range"),
+    "a position's unit in degrees": (
+        lambda b: _frame(b, "TPDO1_2")["signals"][0].update(unit="deg"),
+        "field 'bus.frames[1].signals[0].unit' 'deg' is not a unit of q.panda_joint2: the bus's values are in the "
+        "project's units, the scale converting to them (rad or m)"),
     "a 16-bit float": (lambda b: _frame(b, "TPDO1_2")["signals"][1].update(type="float"),
                        "field 'bus.frames[1].signals[1].length' must be 32 or 64 for an IEEE float, got 16"),
     "a scale of 0": (lambda b: _frame(b, "TPDO1_2")["signals"][1].update(scale=0),

@@ -443,6 +443,12 @@ def _signal(sg: Fields, joints: tuple[str, ...], motors: dict[str, str], sensors
     unit = sg.raw("unit", "")
     if not isinstance(unit, str) or '"' in unit:
         raise sg.fail("unit", f"must be a string without quotes, got {unit!r}")
+    # A value's unit is the project's: the scale and offset convert the raw value into it, and the DBC carries it (a
+    # walkthrough's `unit: deg` on a position in rad went into the DBC as written)
+    allowed = VALUE_UNITS.get(base, ())
+    if unit and allowed and unit not in allowed:
+        raise sg.fail("unit", f"'{unit}' is not a unit of {target}: the bus's values are in the project's units, "
+                      f"the scale converting to them ({' or '.join(allowed)})")
     return BusSignal(name, start, length, order, kind, scale, offset, target, unit or _default_unit(target))
 
 
@@ -456,6 +462,11 @@ def _zero_in_middle_half(sg: Fields, s: BusSignal) -> None:
     if not lo + quarter <= 0 <= hi - quarter:
         raise sg.fail("offset", f"{s.offset:g} puts '{s.target}' at {lo:g} to {hi:g}: a sensor that reads both ways "
                       "holds zero in the middle half of its range")
+
+
+# The project's units of each value family (docs/design.md §4): what a value target's signal decodes to
+VALUE_UNITS = {"q": ("rad", "m"), "dq": ("rad/s", "m/s"), "pwm": ("duty", ""), "current": ("A",), "tau": ("Nm",),
+               "ft": ("N", "Nm")}
 
 
 def _default_unit(target: str) -> str:

@@ -39,6 +39,26 @@ class Body:
     moved_by: str  # that joint's name (a configured joint, or an F/T sensor joint for a distal sub-body)
 
 
+LENGTH_UNITS = ("m", "mm")  # q's (and q̇'s, q̈'s per second) length units: a prismatic joint's; the rest are angles
+
+
+def _check_joint_units(config: RobotConfig, prismatic: dict[str, bool]) -> None:
+    """A log's joint columns (`columns:`, `files:`) in a unit of their joint's kind: an angle for a revolute joint, a
+    length for a prismatic one (a walkthrough's TIAGo torso lift declared rad, taken as metres)."""
+    declared = [(f"columns[{i}]", c) for i, c in enumerate(config.columns)]
+    declared += [(f"files.{f.pattern}[{i}]", c) for f in config.files for i, c in enumerate(f.columns)]
+    for field, c in declared:
+        kind, _, joint = c.name.partition(".")
+        if kind not in ("q", "dq", "ddq") or joint not in prismatic:
+            continue
+        length = c.unit.split("/")[0] in LENGTH_UNITS
+        if length != prismatic[joint]:
+            want = "a length (m, mm)" if prismatic[joint] else "an angle (rad, deg)"
+            raise ConfigError(f"{config.name}: field '{field}' gives {c.name} in {c.unit}, but {joint} is "
+                              f"{'prismatic' if prismatic[joint] else 'a revolute joint'} in {config.urdf.name}: its "
+                              f"positions are {want}")
+
+
 class RobotModel:
     """Pinocchio model of the configured chain, with the parameter layout and CAD parameters."""
 
@@ -60,6 +80,7 @@ class RobotModel:
                 )
         # per configured joint: prismatic (m, m/s) rather than revolute or continuous (rad, rad/s)
         self.prismatic: tuple[bool, ...] = tuple(urdf_joints[j].get("type") == "prismatic" for j in config.joints)
+        _check_joint_units(config, dict(zip(config.joints, self.prismatic)))
         if config.base_link not in urdf_links:
             raise ConfigError(f"{config.name}: field 'base_link' names '{config.base_link}', not a link of {config.urdf.name}")
         for s in config.ft_sensors:
