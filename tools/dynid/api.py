@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numbers
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any, Union
 
@@ -32,7 +32,7 @@ from .detect.t2 import ALPHA, VARIANTS, Detector, calibrate, calibration_residua
 from .detect.t2 import score as score_t2
 from .errors import InputError
 from .export.model_export import Exported, ExportSettings, export_model
-from .gaps.find import Gaps
+from .gaps.find import Gaps as FoundGaps
 from .gaps.find import find_gaps as analyse_gaps
 from .identify.blocks import fitted_mask, validate_blocks
 from .identify.fit import ESTIMATORS, PSEUDO_INERTIA_ONLY, FitSettings
@@ -280,7 +280,11 @@ class DynamicsModel(BaseEstimator):
     @classmethod
     def load(cls, path: str | Path) -> DynamicsModel:
         """A fitted model from a model file of `dynid fit` (or `dynid gaps --out`)."""
-        identified = load_model_file(path)
+        return cls._from_identified(load_model_file(path))
+
+    @classmethod
+    def _from_identified(cls, identified: IdentifiedModel) -> DynamicsModel:
+        """The fitted estimator of an identified model, with the settings it was fitted with."""
         settings = identified.settings
         tracking = identified.supply_tracking
         consistent = (False if not settings.consistent else True if settings.consistent_sphere
@@ -303,19 +307,19 @@ class ContactDetector(BaseEstimator):
     ----------
     model : DynamicsModel
         A fitted model.
-    variant : {"calibrated", "paper", "momentum", "combined"}
-        "calibrated" (the default: Λ and T²_α from contact-free data, so α keeps its promise), "paper"
-        (diagonal Λ and the F threshold, as published), "momentum" (T² on the generalized-momentum observer's
-        residuals, no q̈, calibrated like "calibrated": docs/detection.md; its decision function is T²/T²_α) or
-        "combined" (`dynid detect`'s default: both residuals' T²/T²_α summed over κ; its decision function is that
-        sum over κ: docs/detection.md#no-blind-side).
+    variant : {"combined", "calibrated", "paper", "momentum"}
+        "combined" (the default, as `dynid detect`'s and the monitor's: both residuals' T²/T²_α summed over κ, no
+        blind side of a sensor; its decision function is that sum over κ: docs/detection.md#no-blind-side),
+        "calibrated" (the acceleration residuals, Λ and T²_α from contact-free data, so α keeps its promise), "paper"
+        (diagonal Λ and the F threshold, as published) or "momentum" (T² on the generalized-momentum observer's
+        residuals, no q̈, calibrated like "calibrated": docs/detection.md; its decision function is T²/T²_α).
     bandwidth_hz : float
         The momentum observer's bandwidth (variants "momentum" and "combined").
     alpha : float or None
         Confidence level; None takes the model's.
     """
 
-    def __init__(self, model: DynamicsModel, variant: str = "calibrated", alpha: float | None = None,
+    def __init__(self, model: DynamicsModel, variant: str = "combined", alpha: float | None = None,
                  bandwidth_hz: float = 15.0) -> None:
         self.model = model
         self.variant = variant
@@ -502,6 +506,14 @@ def export_urdf(model: DynamicsModel, path: str | Path, nearest_physical: bool =
     return write(model.model_, path, nearest_physical)
 
 
+class Gaps(FoundGaps):
+    """`find_gaps`' result: `.result` (`dynid gaps --json`), `.effects`, and `augmented_model()`, the fitted
+    `DynamicsModel` with the named effects (predict, validate, detect and export it as any other)."""
+
+    def augmented_model(self) -> DynamicsModel:  # type: ignore[override]
+        return DynamicsModel._from_identified(super().augmented_model())
+
+
 def find_gaps(X: Data, robot: str | Path = "icub_right_arm", model: DynamicsModel | None = None,
               supply_tracking: bool = True, verbose: bool = False, keep_tentative: bool = False,
               steps: Sequence[float] | None = None) -> Gaps:
@@ -517,8 +529,9 @@ def find_gaps(X: Data, robot: str | Path = "icub_right_arm", model: DynamicsMode
     robot_model = given.robot_model if given is not None else load_robot(robot)
     ds = X if isinstance(X, Dataset) else load_run(str(X), robot_model)
     label = str(X) if not isinstance(X, Dataset) else "dataset"
-    return analyse_gaps(robot_model, ds, label, given, supply_tracking, log=print if verbose else (lambda _: None),
-                        keep_tentative=keep_tentative, steps=steps)
+    found = analyse_gaps(robot_model, ds, label, given, supply_tracking, log=print if verbose else (lambda _: None),
+                         keep_tentative=keep_tentative, steps=steps)
+    return Gaps(**{f.name: getattr(found, f.name) for f in fields(found)})
 
 
 load_model = DynamicsModel.load

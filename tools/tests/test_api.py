@@ -93,7 +93,7 @@ def test_the_detector_and_the_cli_agree(runs: Path, fitted: dynid.DynamicsModel,
     detector = dynid.ContactDetector(dynid.load_model(tmp_path / "m.json"))
     api = detector.evaluate(str(runs / "contact"))
     done = run("detect", "--model", str(tmp_path / "m.json"), "--data", str(runs / "contact"), "--json", "-")
-    cli = json.loads(done.stdout)["variants"]["calibrated"]
+    cli = json.loads(done.stdout)["variants"]["combined"]  # the default of both
     assert api["tpr"] == cli["tpr"] and api["fpr"] == cli["fpr"]
     hit = detector.predict(str(runs / "contact"))
     contact = dynid.read_data(str(runs / "contact")).contact != 0
@@ -118,6 +118,7 @@ def test_find_gaps_is_the_workflow_of_dynid_gaps(runs: Path, fitted: dynid.Dynam
     assert result["data"] == str(runs / "identification") and result["given_model"] is not None
     assert {g["channel"] for g in result["gap"]} == set(fitted.output_channels_)
     assert all(np.isfinite(g["before_rms"]) and np.isfinite(g["after_rms"]) for g in result["gap"])
-    augmented = gaps.augmented_model()
-    assert [e.kind for e in augmented.named_effects] == [e.kind for e in gaps.effects]
-    assert augmented.detector.calibrated.threshold > 0
+    augmented = gaps.augmented_model()  # a fitted DynamicsModel, as fit's (it was the file's IdentifiedModel)
+    assert isinstance(augmented, dynid.DynamicsModel)
+    assert [e.kind for e in augmented.model_.named_effects] == [e.kind for e in gaps.effects]
+    assert augmented.model_.detector.calibrated.threshold > 0
