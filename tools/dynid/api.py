@@ -6,14 +6,17 @@ parameters are checked at fit time, and a few functions for what is not an estim
     >>> model.validate("out/validation")["table_ii"]
     >>> dynid.ContactDetector(model).evaluate("out/contact")
 
-DATA arguments take what the command line takes: a dataset, CSV or candump file, a `dynid simulate` directory, or
-a `Dataset` already loaded (dynid.io). The results are the command line's `--json` results (docs/formats.md).
+DATA arguments are a path of what the command line reads (a dataset, CSV or candump file, a `dynid simulate` directory,
+a YARP folder, a ROS 2 bag, a logger's folder of files) or a `Dataset` already loaded (`read_data`); a window is a
+Dataset's `slice` (the command line's `--from/--to`, `RUN@FROM:TO`, are not paths). The results are the command
+line's `--json` results (docs/formats.md).
 Layer: above everything but the cli.
 """
 
 from __future__ import annotations
 
 import numbers
+import warnings
 from collections.abc import Sequence
 from dataclasses import fields, replace
 from pathlib import Path
@@ -25,6 +28,7 @@ from sklearn.metrics import r2_score
 from sklearn.utils.validation import check_is_fitted
 
 from .config import RobotConfig, load_config
+from .config.robot_config import BUNDLED_DIR
 from .detect.combined import CombinedDetector, calibrate_combined
 from .detect.evaluation import detectors, filter_edges
 from .detect.momentum_t2 import MomentumDetector, calibrate_momentum, calibration_runs, friction_band, run_residuals
@@ -61,6 +65,8 @@ def read_data(data: Data, robot: str | Path | RobotConfig | RobotModel = "icub_r
     the path, which a model fitted on it (or on a slice of it) records as its data."""
     if isinstance(data, Dataset):
         return data
+    if not isinstance(data, (str, Path)):
+        raise InputError(f"data must be a path or a Dataset, not {type(data).__name__}")
     model = robot if isinstance(robot, RobotModel) else load_robot(robot)
     ds = load_data(Path(data), model.config, joint_limits=model.joint_limits)
     ds.meta["read_from"] = str(data)
@@ -72,6 +78,12 @@ def _runs(data: Data | Sequence[Data], model: RobotModel) -> tuple[list[Dataset]
     runs = [_windowed(d) if isinstance(d, Dataset) else load_run(str(d), model) for d in items]
     labels = [_path_of(d) or "dataset" if isinstance(d, Dataset) else str(d) for d in items]
     return runs, labels
+
+
+def _no_y(y: object) -> None:
+    """The model's outputs are in the data: a `y` given is refused, not ignored (scikit-learn passes None)."""
+    if y is not None:
+        raise InputError("y is not used: the measured outputs are in the data (give X alone)")
 
 
 def _path_of(ds: Dataset) -> str | None:
@@ -87,6 +99,9 @@ def _items(data: Data | Sequence[Data]) -> list[Data]:
         raise InputError(f"data must be a path, a Dataset (dynid.read_data) or a list of them, not {type(data).__name__}")
     if not data:
         raise InputError("no data given")
+    odd = next((d for d in data if not isinstance(d, (str, Path, Dataset))), None)
+    if odd is not None:  # an array in a list was read as a file's name
+        raise InputError(f"data must be paths or Datasets (dynid.read_data), not {type(odd).__name__}")
     return list(data)
 
 
@@ -194,6 +209,7 @@ class DynamicsModel(BaseEstimator):
         y : None
             Unused: the outputs are in the data.
         """
+        _no_y(y)
         self._check_params()
         robot = load_robot(self.robot)
         consistent = self.consistent
@@ -226,7 +242,8 @@ class DynamicsModel(BaseEstimator):
         X = items[0]
         robot = self.model_.robot_model
         ds = X if isinstance(X, Dataset) else load_run(str(X), robot)
-        return evaluate(self.model_.path or "model", str(X) if not isinstance(X, Dataset) else "dataset", self.model_, ds)
+        label = str(X) if not isinstance(X, Dataset) else _path_of(X) or "dataset"
+        return evaluate(self.model_.path or "model", label, self.model_, ds)
 
     def _each(self, X: Data | Sequence[Data]) -> list[Evaluated]:
         """Every run of X evaluated (one, or a list: scikit-learn's cross-validation passes a subset of a list)."""
@@ -251,6 +268,7 @@ class DynamicsModel(BaseEstimator):
     def score(self, X: Data | Sequence[Data], y: None = None) -> float:
         """R² of the predicted outputs on the run (or the runs together), averaged over the channels (scikit-learn's
         `r2_score`): `cross_val_score` over a list of runs scores each held-out part."""
+        _no_y(y)
         evs = self._each(X)
         y_true = np.vstack([measured_outputs(ev.model, ev.signals) for ev in evs])
         return float(r2_score(y_true, y_true - np.vstack([ev.e for ev in evs]), multioutput="uniform_average"))
@@ -289,7 +307,13 @@ class DynamicsModel(BaseEstimator):
         tracking = identified.supply_tracking
         consistent = (False if not settings.consistent else True if settings.consistent_sphere
                       else PSEUDO_INERTIA_ONLY)  # as fitted: a clone refits with the same settings
-        est = cls(robot=identified.config.source, estimator=settings.estimator, n_components=settings.n_components,
+        # a bundled robot by its name (as it was given), a user's by its file; a gaps model's estimator ("gaps") refits
+        # as the standard model's default: its effects are find_gaps' to name again
+        source = Path(identified.config.source)
+        bundled = source.resolve().parent == BUNDLED_DIR.resolve() and source.stem == identified.config.name
+        robot = identified.config.name if bundled else str(source)
+        estimator = settings.estimator if settings.estimator in ESTIMATORS else DEFAULT_ESTIMATOR
+        est = cls(robot=robot, estimator=estimator, n_components=settings.n_components,
                   blocks=settings.blocks, min_speed=settings.min_speed, alpha=settings.alpha, n_mode=settings.n_mode,
                   supply_time_constant=tracking.time_constant_s if tracking is not None else 0.0,
                   consistent=consistent, cad_pull=settings.cad_pull)
@@ -327,12 +351,18 @@ class ContactDetector(BaseEstimator):
         self.bandwidth_hz = bandwidth_hz
 
     def set_params(self, **params: Any) -> ContactDetector:
-        """As scikit-learn's, and what was calibrated with the old settings is dropped: the lazy calibrations (the
-        momentum observer's, κ) and `fit`'s own, which the next use redoes with the new ones (a stale one gave the
-        old α's alarms silently)."""
+        """As scikit-learn's, and what was calibrated with the old settings is dropped (a stale one gave the old α's
+        alarms silently): the lazy calibrations (the momentum observer's, κ), which the next use redoes with the new
+        ones, and `fit`'s own on the runs it was given, which it does not keep: fit again (a warning says so; until
+        then the model's own calibration is used)."""
+        refitted = "detector_" in self.__dict__ or getattr(self, "_fitted_on_runs", False)
         super().set_params(**params)
-        for cached in ("detector_", "_momentum", "_combined"):
+        for cached in ("detector_", "_momentum", "_combined", "_fitted_on_runs"):
             self.__dict__.pop(cached, None)
+        if refitted:
+            warnings.warn("set_params dropped the calibration fit() made on its runs: call fit() again to recalibrate "
+                          "on them with the new parameters (until then the model's own calibration is used)",
+                          UserWarning, stacklevel=2)
         return self
 
     def __sklearn_clone__(self) -> ContactDetector:
@@ -348,8 +378,11 @@ class ContactDetector(BaseEstimator):
         check_is_fitted(self.model, "model_")
         if self.variant not in (*VARIANTS, "momentum", "combined"):
             raise InputError(f"variant must be one of {', '.join(VARIANTS)}, momentum, combined, got {self.variant!r}")
-        if self.alpha is not None and not 0.5 <= self.alpha < 1:
-            raise InputError(f"alpha must be in [0.5, 1), got {self.alpha!r}")
+        real = lambda v: isinstance(v, numbers.Real) and not isinstance(v, bool) and np.isfinite(v)  # noqa: E731
+        if self.alpha is not None and not (real(self.alpha) and 0.5 <= self.alpha < 1):
+            raise InputError(f"alpha must be None or in [0.5, 1), got {self.alpha!r}")
+        if not (real(self.bandwidth_hz) and self.bandwidth_hz > 0):
+            raise InputError(f"bandwidth_hz must be a positive number, got {self.bandwidth_hz!r}")
 
     def _alpha(self) -> float:
         calibrated = self.model.model_.calibrated
@@ -420,6 +453,7 @@ class ContactDetector(BaseEstimator):
         identified = self.model.model_
         robot = identified.robot_model
         runs, _ = _runs(X, robot)
+        self._fitted_on_runs = True
         if self.variant == "momentum":
             self._momentum_detector(runs)
             return self
@@ -459,12 +493,15 @@ class ContactDetector(BaseEstimator):
         return np.nan_to_num(self.decision_function(X), nan=0.0) > threshold
 
     def score(self, X: Data, y: np.ndarray | None = None) -> float:
-        """Balanced accuracy, (TPR + 1 − FPR) / 2, against `y` or the run's own contact ground truth."""
+        """Balanced accuracy against `y` or the run's own contact ground truth: the mean of the recalls of the classes
+        present, (TPR + 1 − FPR) / 2, or 1 − FPR on a contact-free run (scikit-learn's `balanced_accuracy_score`)."""
         truth = np.asarray(y if y is not None else self._contact(X), bool)
         hit = self.predict(X)
-        tpr = hit[truth].mean() if truth.any() else 0.0
-        fpr = hit[~truth].mean() if (~truth).any() else 0.0
-        return float((tpr + 1.0 - fpr) / 2.0)
+        if truth.shape != hit.shape:
+            raise InputError(f"y has {truth.size} samples, the run {hit.size}")
+        recalls = [hit[truth].mean()] if truth.any() else []
+        recalls += [1.0 - hit[~truth].mean()] if (~truth).any() else []
+        return float(np.mean(recalls))
 
     def _contact(self, X: Data) -> np.ndarray:
         ds = X if isinstance(X, Dataset) else load_run(str(X), self.model.model_.robot_model)
@@ -528,9 +565,10 @@ def find_gaps(X: Data, robot: str | Path = "icub_right_arm", model: DynamicsMode
         given = model.model_
     robot_model = given.robot_model if given is not None else load_robot(robot)
     ds = X if isinstance(X, Dataset) else load_run(str(X), robot_model)
-    label = str(X) if not isinstance(X, Dataset) else "dataset"
+    label = str(X) if not isinstance(X, Dataset) else _path_of(X) or "dataset"
     found = analyse_gaps(robot_model, ds, label, given, supply_tracking, log=print if verbose else (lambda _: None),
                          keep_tentative=keep_tentative, steps=steps)
+    found.result["robot"] = robot_model.config.name  # as `dynid gaps --json` has it
     return Gaps(**{f.name: getattr(found, f.name) for f in fields(found)})
 
 

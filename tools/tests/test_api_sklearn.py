@@ -44,7 +44,8 @@ def test_set_params_drops_what_was_calibrated_with_the_old_ones(part: dict) -> N
     model, later = part["model"], part["whole"].slice(60_000, 80_000)
     detector = dynid.ContactDetector(model).fit(part["whole"].slice(40_000, 60_000))
     before = detector._detector().threshold
-    detector.set_params(alpha=0.9)
+    with pytest.warns(UserWarning, match=r"set_params dropped the calibration fit\(\) made on its runs: call fit\(\) again"):
+        detector.set_params(alpha=0.9)  # its runs are not kept: said, not silently reverted (a walkthrough)
     fresh = dynid.ContactDetector(model, alpha=0.9)
     assert detector._detector().threshold == fresh._detector().threshold < before
     assert np.array_equal(detector.predict(later), fresh.predict(later))
@@ -89,3 +90,40 @@ def test_evaluate_without_labels_says_its_tpr_is_unknown(part: dict) -> None:
     unlabelled = Dataset(t=later.t, joints=later.joints, q=later.q, pwm=later.pwm, ft=later.ft, meta=later.meta)
     result = dynid.ContactDetector(part["model"]).evaluate(unlabelled)
     assert result["tpr"] is None and 0.0 <= result["fpr"] <= 1.0
+
+
+def test_a_walkthroughs_api_mistakes_are_one_clear_error(part: dict) -> None:
+    """A user's mistakes through the API (a Panda walkthrough): each one InputError, not a TypeError from pathlib or
+    numpy, a ZeroDivisionError, an array taken as a file name, or a `y` silently ignored."""
+    model, run = part["model"], part["whole"].slice(40_000, 42_000)
+    mistakes = [
+        (lambda: dynid.read_data(np.zeros((10, 7))), "data must be a path or a Dataset, not ndarray"),
+        (lambda: dynid.DynamicsModel().fit([np.zeros((10, 7))]), "data must be paths or Datasets"),
+        (lambda: dynid.ContactDetector(model, alpha="0.99").predict(run), "alpha must be None or in"),
+        (lambda: dynid.ContactDetector(model, bandwidth_hz=0).predict(run), "bandwidth_hz must be a positive"),
+        (lambda: dynid.ContactDetector(model).score(run, np.zeros(10)), "y has 10 samples, the run 2000"),
+        (lambda: model.score(run, np.zeros((2000, 10))), "y is not used"),
+    ]
+    for call, words in mistakes:
+        with pytest.raises(dynid.InputError, match=words):
+            call()
+
+
+def test_a_contact_free_runs_score_is_its_specificity(part: dict) -> None:
+    """On a run without contact, balanced accuracy is 1 − FPR (scikit-learn's over the classes present): it was
+    (0 + 1 − FPR) / 2, a perfect detector scoring 0.5."""
+    detector = dynid.ContactDetector(part["model"])
+    run = part["whole"].slice(40_000, 42_000)
+    hit = detector.predict(run)
+    assert detector.score(run, np.zeros(run.n_samples)) == pytest.approx(1.0 - hit.mean())
+
+
+def test_a_loaded_models_params_clone_and_refit(part: dict, tmp_path) -> None:
+    """After load, `robot` is the bundled name it was given (it was the configuration's file path), and a gaps model
+    clones into a fittable estimator (its estimator was 'gaps', which fit refused)."""
+    part["model"].save(tmp_path / "m.json")
+    loaded = dynid.load_model(tmp_path / "m.json")
+    assert loaded.get_params()["robot"] == part["model"].get_params()["robot"]
+    augmented = dynid.find_gaps(part["whole"].slice(0, 20_000), model=part["model"]).augmented_model()
+    assert augmented.get_params()["estimator"] in ("iv", "ols", "pls")
+    assert clone(augmented).get_params()["estimator"] == augmented.get_params()["estimator"]
