@@ -94,6 +94,9 @@ LoadResult load_coefficients_from_bytes(const uint8_t* data, size_t size, const 
                                              std::to_string(kFileVersion) +
                                              (version < uint32_t(kFileVersion)
                                                   ? ": export the model again (dynid export)"
+                                              // versions come one a format change: far beyond, a damaged file
+                                              : version > uint32_t(kFileVersion) + 100
+                                                  ? ": no dynid wrote that, the file is damaged (export it again)"
                                                   : ": a newer dynid wrote it: build this monitor from that dynid, or "
                                                     "export with this one"));
     const uint64_t length = read_le32(data + 12);

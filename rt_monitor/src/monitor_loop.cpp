@@ -48,6 +48,7 @@ void MonitorLoop::step(const Sample& x) noexcept {
         ++(o.event == Event::kOnset ? n_.onsets : n_.ends);
         if (o.event == Event::kOnset) onset_utime_ = x.t_us;
         pub_.contact(o, x.t_us, onset_utime_, peak_utime_, n_.evaluated - 1, peak_beyond_, dog_.active());
+        n_.events_under_fault += dog_.active() != 0;
         if (o.event == Event::kOnset && latency_.size() < latency_.capacity()) latency_.push_back(mono_us() - rx_mono_);
     }
     if (o.ready && n_.evaluated % cfg_.residual_every == 0) pub_.residual(o, x.t_us);
@@ -64,6 +65,7 @@ void MonitorLoop::place(const ClockStep& c) noexcept {
             ++n_.events;
             pub_.contact(core_.output(), last_evaluated_utime_, onset_utime_, peak_utime_, n_.evaluated - 1,
                          peak_beyond_, dog_.active(), kCutEvent);
+            n_.events_under_fault += dog_.active() != 0;
         }
         core_.reset();
     }

@@ -107,6 +107,12 @@ COEFFICIENTS = [
     _coef("bad-magic", 13, "not a dynid coefficient file (bad magic)", spoiled("coef", "c.dcoef", flip(0, 0x20))),
     _coef("format-version-3", 14, f"format version 3, this monitor reads {file_version()}: export the model again",
           spoiled("coef", "c.dcoef", lambda b: b[:8] + (3).to_bytes(4, "little") + b[12:])),
+    _coef("format-version-next", 14, f"format version {file_version() + 1}, this monitor reads {file_version()}: a "
+          "newer dynid wrote it", spoiled("coef", "c.dcoef", lambda b: b[:8] + (file_version() + 1).to_bytes(4, "little")
+                                          + b[12:])),
+    # a byte of the version flipped (a walkthrough: "a newer dynid wrote it: build this monitor from that dynid")
+    _coef("format-version-flipped", 14, f"format version {file_version() | 0x100000}, this monitor reads "
+          f"{file_version()}: no dynid wrote that, the file is damaged", spoiled("coef", "c.dcoef", flip(10, 0x10))),
     _coef("length-huge", 12, "the header says 4294967315",
           spoiled("coef", "c.dcoef", lambda b: b[:12] + (0xFFFFFFFF).to_bytes(4, "little") + b[16:])),
     _coef("bit-flipped-payload", 15, "CRC mismatch (the file is corrupt)", spoiled("coef", "c.dcoef", flip(0.5))),

@@ -219,9 +219,11 @@ def test_ft_step_is_named_at_its_change_points(gaps) -> None:
 
 
 def test_declared_steps_are_taken_as_known(gaps) -> None:
-    """`--steps 5,10` on the step's run: the step from 5 s to 10 s and the one from 10 s to the end, declared (in the
-    model whatever their held-out gain); the first has the true sizes within 10 %, the second ~nothing."""
-    result, truth, stdout = gaps("ft_step", None, "--steps", "5,10")
+    """`--steps 5,10,9999` on the step's run: the step from 5 s to 10 s and the one from 10 s to the end, declared (in
+    the model whatever their held-out gain); the first has the true sizes within 10 %, the second ~nothing. The point
+    beyond the data is said and left out (it made the step before it run "to 9999 s": a walkthrough)."""
+    result, truth, stdout = gaps("ft_step", None, "--steps", "5,10,9999")
+    assert "outside the data" in stdout and "9999 s" in stdout
     true = _truth(truth, "ft_step")
     declared = [e for e in result["effects"] if e.get("declared")]
     assert [(e["parameters"]["from_s"], e["parameters"].get("to_s")) for e in declared] == [(5.0, 10.0), (10.0, None)]

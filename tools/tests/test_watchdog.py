@@ -216,7 +216,7 @@ def test_stamps_a_tenth_apart_are_a_period_fault(bench: dict, tmp_path: Path) ->
     # raised at the 64th sample, before the first onset; the sample clock bridges one sample in eleven besides
     assert events and all(m.faults == PERIOD | BRIDGED for m in events)
     assert re.search(rf"warning: the replay raised faults \(sample period, samples bridged; DYNID_STATUS faults_seen "
-                     rf"{PERIOD | BRIDGED}\): its {len(events)} events came from data the monitor suspected", err), err
+                     rf"{PERIOD | BRIDGED}\): {len(events)} of its {len(events)} events came while one held", err), err
     spied = subprocess.run([str(ROOT / ".venv" / "bin" / "dynid"), "spy", "--lcm-url",
                             f"file://{bench['root'] / 'stretched.lcmlog'}?speed=0"],
                            capture_output=True, text=True, timeout=120)
@@ -290,17 +290,21 @@ def test_a_model_that_stops_fitting_mid_run_is_a_long_contact_fault(bench: dict,
     held = [m.utime for m in msgs["DYNID_STATUS"] if m.faults & LONG_CONTACT]
     assert 1.99e6 <= held[0] - onset <= 2.1e6  # at the limit (the onset its first sample), published at once
     assert end - onset > 3e6 and held[-1] < end and not msgs["DYNID_STATUS"][-1].faults & LONG_CONTACT  # cleared
+    # its end clears the fault at its own sample: no event was published while it held, and the exit line says so
+    # (it said every event came from suspect data)
+    assert not any(m.faults for m in msgs["DYNID_CONTACT"])
+    assert f"0 of its {len(msgs['DYNID_CONTACT'])} events came while one held" in err, err
     code, err, msgs = replay(bench, "clean-limited", limit)
     assert code == 0 and not faults(msgs), err
 
 
 def test_a_configuration_sets_its_contact_limit(tmp_path: Path) -> None:
-    """The limit is the robot configuration's `monitor: {contact_limit_s}` (the leg standing on its feet: 600 s), what
+    """The limit is the robot configuration's `monitor: {contact_limit_s}` (the leg standing on its feet: 30 s), what
     export --monitor-config writes; out of the monitor's range, exit 2 and one line."""
     from dynid.config.robot_config import BUNDLED_DIR
     from dynid.errors import ConfigError
 
-    assert "contact_limit_s 600\n" in monitor_config_text(load_config("icub_right_leg_standing", need_urdf=False))
+    assert "contact_limit_s 30\n" in monitor_config_text(load_config("icub_right_leg_standing", need_urdf=False))
     assert "contact_limit_s 10\n" in monitor_config_text(load_config("icub_right_arm"))
     mine = tmp_path / "arm.yaml"
     mine.write_text((BUNDLED_DIR / "icub_right_arm.yaml").read_text() + "monitor: {contact_limit_s: 1000000}\n")

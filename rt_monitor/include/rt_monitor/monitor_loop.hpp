@@ -28,6 +28,7 @@ struct LoopOptions {
 // What the loop counted, for the exit line and --stats-out.
 struct LoopCounters {
     int64_t evaluated = 0, events = 0, onsets = 0, ends = 0, cut = 0, overruns = 0;  // events = onsets + ends + cut
+    int64_t events_under_fault = 0;  // events published while a watchdog fault was active (they carry it)
     int64_t beyond_fit = 0;        // evaluated samples with a joint beyond the fit's range (FitCoverage)
     double loop_max_us = 0;
     long long allocations = 0;     // heap allocations from the first read to the last publish

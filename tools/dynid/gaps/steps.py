@@ -124,8 +124,10 @@ def found_candidates(ctx: Context, resid: np.ndarray) -> tuple[list[Candidate], 
 
 def declared_candidates(ctx: Context, steps: Sequence[float]) -> list[Candidate]:
     """One step per declared point and sensor, raised from it to the next point (the last: to the end): together a
-    free offset on every segment. Points whose step is one level on this window (outside it) are left out."""
-    pts = sorted(float(s) for s in steps)
+    free offset on every segment. Points outside this window are left out, as the segment ends they were (a point
+    beyond the data made the step before it run "to" it)."""
+    t = ctx.t + ctx.t0
+    pts = sorted(float(s) for s in steps if t[0] < float(s) < t[-1])
     out = []
     for sensor in (s.name for s in ctx.model.config.ft_sensors):
         for i, a in enumerate(pts):
