@@ -1,7 +1,8 @@
 // The monitor's configuration file and its compiled bus table (monitor_config.hpp, bus_table.hpp): parsed once at
 // start-up; every refusal is one line naming the file, the line and the problem.
 #include "rt_monitor/monitor_config.hpp"
-#include "rt_monitor/plausibility.hpp"
+
+#include "signal_plausibility.hpp"
 
 #include <algorithm>
 #include <cerrno>
@@ -314,7 +315,7 @@ struct Parser {
                 what = "'" + t + "' is carried by another signal already (line " + std::to_string(seen->second) + ")";
                 return false;
             }
-            if (!plausible_scale(t, s)) return false;
+            if (const std::string why = implausible_signal(t, s); !why.empty()) return what = why, false;
             value_line[t] = line;
             s.slot = int(out.bus.values.size());
             out.bus.values.push_back(t);
@@ -324,65 +325,6 @@ struct Parser {
             return false;
         }
         return true;
-    }
-
-    // A value signal's scale and span against plausibility.hpp, for its kind of target: one line naming the range.
-    bool plausible_scale(const std::string& t, const SignalDef& s) {
-        namespace P = plausible;
-        const double scale = std::abs(s.scale);
-        if (s.type == SignalType::kFloat) {
-            if (scale >= P::kMinFloatScale && scale <= P::kMaxFloatScale) return true;
-            what = "'" + t + "': a float signal's scale " + number(s.scale) + " is outside the plausible " +
-                   number(P::kMinFloatScale) + " to " + number(P::kMaxFloatScale);
-            return false;
-        }
-        const bool force = s.target == Target::kFt && (t.back() == 'x' || t.back() == 'y' || t.back() == 'z') &&
-                           t[t.size() - 2] == 'f';
-        double lo = 0, hi = 0, span_min = 0;
-        const char* unit = "";
-        switch (s.target) {
-            case Target::kQ: lo = P::kMinPositionScale, hi = P::kMaxPositionScale, unit = "rad (or m) per count"; break;
-            case Target::kDq: lo = P::kMinVelocityScale, hi = P::kMaxVelocityScale, unit = "rad/s per count"; break;
-            case Target::kFt:
-                lo = force ? P::kMinForceScale : P::kMinTorqueScale, hi = force ? P::kMaxForceScale : P::kMaxTorqueScale;
-                span_min = force ? P::kMinForceSpan : P::kMinTorqueSpan, unit = force ? "N per count" : "Nm per count";
-                break;
-            case Target::kTau: lo = P::kMinTorqueScale, hi = P::kMaxTorqueScale, unit = "Nm per count"; break;
-            case Target::kPwm: lo = P::kMinDutyScale, hi = P::kMaxDutyScale, span_min = P::kMinDutySpan, unit = "duty per count"; break;
-            case Target::kCurrent: lo = P::kMinCurrentScale, hi = P::kMaxCurrentScale, unit = "A per count"; break;
-            default: return true;
-        }
-        if (scale < lo || scale > hi) {
-            what = "'" + t + "': scale " + number(s.scale) + " " + unit + " is outside the plausible " + number(lo) +
-                   " to " + number(hi) + " (rt_monitor/include/rt_monitor/plausibility.hpp): a full scale or a count per "
-                   "unit off by orders of magnitude";
-            return false;
-        }
-        const double span = scale * (std::ldexp(1.0, s.length) - 1.0);
-        if (span < span_min) {
-            what = "'" + t + "': its " + std::to_string(s.length) + " bits at scale " + number(s.scale) + " span only " +
-                   number(span) + ", less than the plausible " + number(span_min) + " (a full scale far too small)";
-            return false;
-        }
-        // A sensor that reads both ways (velocity, force, torque, duty, current) reads zero inside its range, and not
-        // at an edge: an offset that puts zero outside the middle half of the decoded range is a wrong offset.
-        if (s.target != Target::kQ) {
-            const double first = s.type == SignalType::kSigned ? -std::ldexp(1.0, s.length - 1) : 0.0;
-            const double lo = std::min(first * s.scale, (first + std::ldexp(1.0, s.length) - 1.0) * s.scale) + s.offset;
-            const double hi = lo + span;
-            if (!(lo + span / 4 <= 0 && 0 <= hi - span / 4)) {
-                what = "'" + t + "': offset " + number(s.offset) + " puts its decoded range at " + number(lo) + " to " +
-                       number(hi) + ": a sensor that reads both ways holds zero in the middle half of its range";
-                return false;
-            }
-        }
-        return true;
-    }
-
-    static std::string number(double v) {
-        std::ostringstream o;
-        o << v;
-        return o.str();
     }
 
     bool pair(const std::vector<std::string>& tok, const std::string& raw) {

@@ -278,15 +278,16 @@ class DynamicsModel(BaseEstimator):
         `dynid validate --json`. `blocks` = K also validates each of K equal time blocks of X alone, with whether
         the model was fitted on it, the worst block and the spread (`validate --blocks K`: result["blocks"])."""
         ev = self._evaluated(X)
-        label = str(X) if not isinstance(X, Dataset) else "dataset"
         source = str(X) if not isinstance(X, Dataset) else _path_of(X)
+        label = source or "dataset"
         fitted = fitted_mask(self.model_, source, ev.dataset.t) if source else None  # the fit's own samples
         result = validation(ev, self.model_.path or "model", label,
                             window=(float(ev.dataset.t[0]), float(ev.dataset.t[-1])) if isinstance(X, Dataset)
                             else (None, None), fit_overlap=None if fitted is None else float(fitted.mean()))
         if blocks is not None:
+            # the fit's own samples from the mask above (its data's sha256 read once, a run in memory's too)
             result["blocks"] = validate_blocks(self.model_, ev.dataset, blocks, self.model_.path or "model", label,
-                                               None if isinstance(X, Dataset) else str(X))
+                                               source, fitted)
         return result
 
     def save(self, path: str | Path) -> DynamicsModel:

@@ -75,7 +75,7 @@ def _number(text: str) -> int | None:
 def lcm_url_problem(url: str) -> str:
     """Why liblcm could not open `url` as the monitor's LCM, or "" (an empty URL: LCM's default): a provider liblcm
     lacks, a UDP multicast group outside 224.0.0.0/4, a port or ttl out of range. rt_monitor refuses by the same
-    rule (its lcm_url_problem; tools/tests/test_bus.py runs both), before anything is opened."""
+    rule (its lcm_url_problem, rt_monitor/tools/lcm_url.cpp; tools/tests/test_bus.py runs both), before anything is opened."""
     if not url:
         return ""
     provider, sep, rest = url.partition("://")

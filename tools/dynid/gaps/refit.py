@@ -11,6 +11,7 @@ import numpy as np
 from ..identify.fit import FitSettings
 from ..identify.model_file import IdentifiedModel, robot_record
 from ..identify.model_sections import ALPHA, GapsSection
+from ..identify.regression import jackknife_se
 from ..io.dataset import Dataset
 from ..pipeline import DetectorSettings, build_model
 from ..robot.effect_library import Candidate, Context
@@ -52,7 +53,6 @@ def refit(current: Design, V: np.ndarray, accepted: list[Candidate], ctx: Contex
 
     phi = full(x)
     effects, start = [], dof
-    B = current.n_blocks
     for c in accepted:
         k = c.values.shape[2]
         th = x[start : start + k]
@@ -70,8 +70,7 @@ def refit(current: Design, V: np.ndarray, accepted: list[Candidate], ctx: Contex
                     or name in undetermined):
                 se[name] = None
                 continue
-            vals = np.array([j[name] for j in jack], float)
-            se[name] = float(np.sqrt((B - 1) / B * np.sum((vals - vals.mean()) ** 2)))
+            se[name] = float(jackknife_se(np.array([j[name] for j in jack], float)))
         if c.kind == "spring":  # the column was q − mean(q) of this run: the rest position the torque is zero at
             j = ctx.model.config.joints.index(c.where.partition(" ")[2])
             params["rest"], se["rest"] = float(ctx.sig.q[:, j].mean()), None

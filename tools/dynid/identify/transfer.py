@@ -66,13 +66,16 @@ def outside_fit(identified: IdentifiedModel, joints: tuple[str, ...], q: np.ndar
     spans = fit_spans_deg(identified, joints)
     if spans is None:
         return None
+    prismatic = identified.robot_model.prismatic
     out = []
     for k, joint in enumerate(joints):
         if joint not in spans:
             continue
         lo, hi = spans[joint]
         here = np.rad2deg(q[:, k])
-        share = float(np.mean((here < lo - MARGIN_DEG) | (here > hi + MARGIN_DEG)))
+        # fit_ranges' margin (the monitor's): a prismatic joint's metres went through the same rad2deg
+        margin = float(np.rad2deg(MARGIN_M)) if prismatic[k] else MARGIN_DEG
+        share = float(np.mean((here < lo - margin) | (here > hi + margin)))
         if share < MIN_SHARE:
             continue
         limit = [float(np.round(np.rad2deg(v), 3)) for v in limits.get(joint, ()) if np.isfinite(v)
